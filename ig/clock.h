@@ -1,0 +1,41 @@
+// Time is passed in, never read inside logic: the frame loop takes a Clock, production uses
+// the monotonic clock, tests use FakeClock and step it.
+#pragma once
+
+#include <cstdint>
+
+namespace ig {
+
+class Clock {
+ public:
+  virtual ~Clock() = default;
+  virtual int64_t now_ns() const = 0;
+  // Sleeps until the absolute time `deadline_ns` (returns at once if it has passed).
+  virtual void sleepUntil_ns(int64_t deadline_ns) = 0;
+};
+
+// CLOCK_MONOTONIC; sleeps with clock_nanosleep(TIMER_ABSTIME), so deadlines do not drift.
+class MonotonicClock final : public Clock {
+ public:
+  int64_t now_ns() const override;
+  void sleepUntil_ns(int64_t deadline_ns) override;
+};
+
+// Test clock: time moves only when told to. Sleeping jumps to the deadline.
+class FakeClock final : public Clock {
+ public:
+  explicit FakeClock(int64_t start_ns = 1'000'000'000) : now_(start_ns) {}
+  int64_t now_ns() const override { return now_; }
+  void sleepUntil_ns(int64_t deadline_ns) override {
+    ++sleeps_;
+    if (deadline_ns > now_) now_ = deadline_ns;
+  }
+  void advance_ns(int64_t d) { now_ += d; }
+  int64_t sleeps() const { return sleeps_; }
+
+ private:
+  int64_t now_;
+  int64_t sleeps_ = 0;
+};
+
+}  // namespace ig

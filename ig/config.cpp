@@ -1,0 +1,619 @@
+// Service and scene configuration loading: TOML text -> validated ServiceConfig / SceneConfig.
+// A small Reader layer does the bookkeeping (dotted key names, source lines, the value as
+// written, known-key checks, range checks) so that each key below is one line.
+#include "ig/config.h"
+
+#include <cerrno>
+#include <charconv>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <initializer_list>
+#include <limits>
+#include <sstream>
+#include <string_view>
+#include <system_error>
+#include <type_traits>
+#include <utility>
+
+// toml++ 3.3 (Debian 12) is clean under the project's warning set (GCC 12 and Clang 14, -O0..-O3),
+// so it needs no diagnostic pragmas.
+#include <toml++/toml.h>
+
+namespace ig {
+
+const char* toString(OutputMode mode) {
+  switch (mode) {
+    case OutputMode::Headless: return "headless";
+    case OutputMode::Window: return "window";
+    case OutputMode::OSMesa: return "osmesa";
+  }
+  return "?";
+}
+
+const char* toString(StatsFormat format) {
+  switch (format) {
+    case StatsFormat::Csv: return "csv";
+    case StatsFormat::JsonLines: return "jsonl";
+  }
+  return "?";
+}
+
+const char* toString(HostSource source) {
+  switch (source) {
+    case HostSource::None: return "none";
+    case HostSource::Replay: return "replay";
+  }
+  return "?";
+}
+
+std::string ConfigError::what() const {
+  std::string s = file;
+  if (line > 0) s.append(":").append(std::to_string(line));
+  if (!s.empty()) s += ": ";
+  if (!key.empty()) {
+    s += key;
+    if (!value.empty()) s.append(" = ").append(value);
+    s += ": ";
+  }
+  s += message;
+  return s;
+}
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr int64_t kInt64Max = std::numeric_limits<int64_t>::max();
+constexpr int64_t kInt64Min = std::numeric_limits<int64_t>::min();
+
+using KeyList = std::initializer_list<std::string_view>;
+
+// Concatenates strings by appending (operator+ on temporaries trips GCC 12's -Wrestrict at -O3).
+template <typename... Parts>
+std::string cat(const Parts&... parts) {
+  std::string s;
+  (s.append(std::string_view(parts)), ...);
+  return s;
+}
+
+// Shortest round-trip spelling; whole numbers without exponent (1000000, not 1e+06).
+std::string formatNumber(double v) {
+  char buf[64];
+  std::to_chars_result r{};
+  if (std::isfinite(v) && v == std::trunc(v) && std::fabs(v) < 1e15) {
+    r = std::to_chars(buf, buf + sizeof buf, static_cast<int64_t>(v));
+  } else {
+    r = std::to_chars(buf, buf + sizeof buf, v);
+  }
+  return r.ec == std::errc{} ? std::string(buf, r.ptr) : std::string("?");
+}
+
+// Allowed interval for a floating-point value; open ends are exclusive.
+struct Range {
+  double min = -kInf;
+  double max = kInf;
+  bool minOpen = false;
+  bool maxOpen = false;
+
+  bool contains(double v) const {
+    return (minOpen ? v > min : v >= min) && (maxOpen ? v < max : v <= max);
+  }
+  std::string describe() const {
+    if (min == -kInf) return cat(maxOpen ? "< " : "<= ", formatNumber(max));
+    if (max == kInf) return cat(minOpen ? "> " : ">= ", formatNumber(min));
+    return cat(minOpen ? "(" : "[", formatNumber(min), ", ", formatNumber(max), maxOpen ? ")" : "]");
+  }
+};
+
+constexpr Range closed(double lo, double hi) { return {lo, hi, false, false}; }
+constexpr Range openClosed(double lo, double hi) { return {lo, hi, true, false}; }
+constexpr Range atLeast(double lo) { return {lo, kInf, false, false}; }
+
+// Allowed closed interval for an integer value.
+struct IntRange {
+  int64_t min = kInt64Min;
+  int64_t max = kInt64Max;
+
+  bool contains(int64_t v) const { return v >= min && v <= max; }
+  std::string describe() const {
+    if (max == kInt64Max) return cat(">= ", std::to_string(min));
+    return cat("[", std::to_string(min), ", ", std::to_string(max), "]");
+  }
+};
+
+std::string joinKeys(KeyList keys, std::string_view quote = "") {
+  std::string s;
+  for (std::string_view k : keys) {
+    if (!s.empty()) s += ", ";
+    s.append(quote).append(k).append(quote);
+  }
+  return s;
+}
+
+std::string typeName(const toml::node& node) {
+  std::ostringstream ss;
+  ss << node.type();
+  return ss.str();
+}
+
+// Byte offset of 1-based codepoint column `column` in a UTF-8 line.
+size_t byteOffset(std::string_view line, uint32_t column) {
+  size_t i = 0;
+  for (uint32_t c = 1; c < column && i < line.size(); ++c) {
+    ++i;
+    while (i < line.size() && (static_cast<unsigned char>(line[i]) & 0xC0u) == 0x80u) ++i;
+  }
+  return i;
+}
+
+std::string resolvePath(const std::string& path, const std::string& baseDir) {
+  if (path.empty() || baseDir.empty()) return path;
+  std::filesystem::path p(path);
+  if (p.is_absolute()) return path;
+  return (std::filesystem::path(baseDir) / p).lexically_normal().string();
+}
+
+// A table of the document (or an absent one: node_ == nullptr) with its dotted path.
+struct Table {
+  const toml::table* node_ = nullptr;
+  std::string path_;  // "" for the root
+  int line_ = 0;      // where the table starts, 0 when absent
+
+  bool present() const { return node_ != nullptr; }
+  std::string keyOf(std::string_view key) const {
+    return path_.empty() ? std::string(key) : cat(path_, ".", key);
+  }
+};
+
+// Parses one document and reads typed, range-checked values out of it. The first error is kept;
+// after it every call is a no-op, so callers read all keys unconditionally and check ok() once.
+class Reader {
+ public:
+  Reader(std::string_view text, std::string file) : text_(text), file_(std::move(file)) {
+    size_t start = 0;
+    while (start <= text_.size()) {
+      size_t nl = text_.find('\n', start);
+      if (nl == std::string_view::npos) nl = text_.size();
+      std::string_view line = text_.substr(start, nl - start);
+      if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+      lines_.push_back(line);
+      start = nl + 1;
+    }
+  }
+
+  bool ok() const { return !failed_; }
+  const ConfigError& error() const { return error_; }
+
+  // Parses the text; returns the root table, which must only hold `knownKeys`.
+  Table parse(KeyList knownKeys) {
+    try {
+      doc_ = toml::parse(text_, std::string_view(file_));
+    } catch (const toml::parse_error& e) {
+      fail(static_cast<int>(e.source().begin.line), "", "", std::string(e.description()));
+      return {};
+    }
+    Table root{&doc_, "", 1};
+    checkKnownKeys(root, knownKeys);
+    return root;
+  }
+
+  // Sub-table `key` of `parent`; absent (not an error) when the key is missing.
+  Table table(const Table& parent, std::string_view key, KeyList knownKeys) {
+    Table t{nullptr, parent.keyOf(key), 0};
+    const toml::node* node = find(parent, key);
+    if (node == nullptr) return t;
+    if (!node->is_table()) {
+      failType(*node, t.path_, "a table");
+      return t;
+    }
+    t.node_ = node->as_table();
+    t.line_ = lineOf(*node);
+    checkKnownKeys(t, knownKeys);
+    return t;
+  }
+
+  void get(const Table& t, std::string_view key, double& field, Range range) {
+    if (const toml::node* node = find(t, key)) readNumber(*node, t.keyOf(key), range, field);
+  }
+
+  void get(const Table& t, std::string_view key, int64_t& field, IntRange range) {
+    if (const toml::node* node = find(t, key)) readInteger(*node, t.keyOf(key), range, field);
+  }
+
+  template <typename Int>
+    requires std::is_integral_v<Int>
+  void get(const Table& t, std::string_view key, Int& field, IntRange range) {
+    int64_t v = 0;
+    const toml::node* node = find(t, key);
+    if (node != nullptr && readInteger(*node, t.keyOf(key), range, v)) field = static_cast<Int>(v);
+  }
+
+  void get(const Table& t, std::string_view key, bool& field) {
+    const toml::node* node = find(t, key);
+    if (node == nullptr) return;
+    if (const auto* b = node->as_boolean()) {
+      field = b->get();
+    } else {
+      failType(*node, t.keyOf(key), "a boolean (true or false)");
+    }
+  }
+
+  void get(const Table& t, std::string_view key, std::string& field, bool allowEmpty = true) {
+    const toml::node* node = find(t, key);
+    if (node == nullptr) return;
+    const auto* s = node->as_string();
+    if (s == nullptr) {
+      failType(*node, t.keyOf(key), "a string");
+    } else if (!allowEmpty && s->get().empty()) {
+      fail(*node, t.keyOf(key), "must not be empty");
+    } else {
+      field = s->get();
+    }
+  }
+
+  void get(const Table& t, std::string_view key, std::array<double, 3>& field, Range range) {
+    const toml::node* node = find(t, key);
+    if (node == nullptr) return;
+    const std::string name = t.keyOf(key);
+    const auto* arr = node->as_array();
+    if (arr == nullptr) {
+      failType(*node, name, "an array of exactly 3 numbers");
+      return;
+    }
+    if (arr->size() != field.size()) {
+      fail(*node, name, cat("expected an array of exactly 3 numbers, got ", std::to_string(arr->size()), " elements"));
+      return;
+    }
+    std::array<double, 3> v{};
+    for (size_t i = 0; i < v.size(); ++i) {
+      if (!readNumber(*arr->get(i), cat(name, "[", std::to_string(i), "]"), range, v[i])) return;
+    }
+    field = v;
+  }
+
+  void get(const Table& t, std::string_view key, std::vector<int64_t>& field, IntRange range) {
+    const toml::node* node = find(t, key);
+    if (node == nullptr) return;
+    const std::string name = t.keyOf(key);
+    const auto* arr = node->as_array();
+    if (arr == nullptr) {
+      failType(*node, name, "an array of integers");
+      return;
+    }
+    std::vector<int64_t> v(arr->size());
+    for (size_t i = 0; i < v.size(); ++i) {
+      if (!readInteger(*arr->get(i), cat(name, "[", std::to_string(i), "]"), range, v[i])) return;
+    }
+    field = std::move(v);
+  }
+
+  // A string key restricted to the spellings in `values`.
+  template <typename E>
+  void getEnum(const Table& t, std::string_view key, E& field,
+               std::initializer_list<std::pair<std::string_view, E>> values) {
+    const toml::node* node = find(t, key);
+    if (node == nullptr) return;
+    std::string allowed;
+    for (const auto& [spelling, e] : values) {
+      if (!allowed.empty()) allowed += ", ";
+      allowed.append("\"").append(spelling).append("\"");
+    }
+    const auto* s = node->as_string();
+    if (s == nullptr) {
+      failType(*node, t.keyOf(key), cat("a string, one of ", allowed));
+      return;
+    }
+    for (const auto& [spelling, e] : values) {
+      if (s->get() == spelling) {
+        field = e;
+        return;
+      }
+    }
+    fail(*node, t.keyOf(key), cat("unknown value (allowed: ", allowed, ")"));
+  }
+
+  // Fails unless `key` is present in `t`. The error points at the table when it is present.
+  void require(const Table& t, std::string_view key, const std::string& why) {
+    if (failed_ || (t.present() && t.node_->contains(key))) return;
+    fail(t.line_, t.keyOf(key), "", cat("missing required key: ", why));
+  }
+
+  // The node for `key` in `t`, or nullptr (also after an error).
+  const toml::node* find(const Table& t, std::string_view key) const {
+    if (failed_ || !t.present()) return nullptr;
+    return t.node_->get(key);
+  }
+
+  void fail(const toml::node& node, std::string key, std::string message) {
+    fail(lineOf(node), std::move(key), asWritten(node), std::move(message));
+  }
+
+  void fail(int line, std::string key, std::string value, std::string message) {
+    if (failed_) return;
+    failed_ = true;
+    error_ = ConfigError{file_, line, std::move(key), std::move(value), std::move(message)};
+  }
+
+ private:
+  static int lineOf(const toml::node& node) { return static_cast<int>(node.source().begin.line); }
+
+  // The node's text exactly as written when it sits on one line, else a normalised TOML spelling.
+  // Tables written as [header] (or implied by dotted keys) have no value text: "".
+  std::string asWritten(const toml::node& node) const {
+    if (node.is_table() && !node.as_table()->is_inline()) return "";
+    const toml::source_region& src = node.source();
+    if (src.begin.line >= 1 && src.begin.line == src.end.line && src.begin.line <= lines_.size()) {
+      std::string_view line = lines_[src.begin.line - 1];
+      size_t from = byteOffset(line, src.begin.column);
+      size_t to = byteOffset(line, src.end.column);
+      if (from < to) return std::string(line.substr(from, to - from));
+    }
+    std::ostringstream ss;
+    ss << toml::node_view<const toml::node>(node);
+    return ss.str();
+  }
+
+  void failType(const toml::node& node, std::string key, const std::string& expected) {
+    fail(node, std::move(key), cat("wrong type: expected ", expected, ", got ", typeName(node)));
+  }
+
+  void checkKnownKeys(const Table& t, KeyList known) {
+    // Report the first unknown key in file order, not in the table's (sorted) order.
+    const toml::key* worst = nullptr;
+    const toml::node* worstNode = nullptr;
+    for (auto&& [k, v] : *t.node_) {
+      bool isKnown = false;
+      for (std::string_view name : known) isKnown = isKnown || k.str() == name;
+      if (!isKnown && (worst == nullptr || k.source().begin.line < worst->source().begin.line)) {
+        worst = &k;
+        worstNode = &v;
+      }
+    }
+    if (worst == nullptr) return;
+    const bool isTable = worstNode->is_table() && !worstNode->as_table()->is_inline();
+    fail(static_cast<int>(worst->source().begin.line), t.keyOf(worst->str()), asWritten(*worstNode),
+         cat(isTable ? "unknown table" : "unknown key", " (known keys: ", joinKeys(known), ")"));
+  }
+
+  bool readNumber(const toml::node& node, const std::string& key, Range range, double& out) {
+    double v = 0.0;
+    if (const auto* f = node.as_floating_point()) {
+      v = f->get();
+    } else if (const auto* i = node.as_integer()) {
+      v = static_cast<double>(i->get());
+    } else {
+      failType(node, key, "a number");
+      return false;
+    }
+    if (!std::isfinite(v)) {
+      fail(node, key, cat("must be a finite number (allowed range: ", range.describe(), ")"));
+      return false;
+    }
+    if (!range.contains(v)) {
+      fail(node, key, cat("out of range (allowed range: ", range.describe(), ")"));
+      return false;
+    }
+    out = v;
+    return true;
+  }
+
+  bool readInteger(const toml::node& node, const std::string& key, IntRange range, int64_t& out) {
+    const auto* i = node.as_integer();
+    if (i == nullptr) {
+      failType(node, key, "an integer");
+      return false;
+    }
+    if (!range.contains(i->get())) {
+      fail(node, key, cat("out of range (allowed range: ", range.describe(), ")"));
+      return false;
+    }
+    out = i->get();
+    return true;
+  }
+
+  std::string_view text_;
+  std::string file_;
+  std::vector<std::string_view> lines_;
+  toml::table doc_;
+  bool failed_ = false;
+  ConfigError error_;
+};
+
+bool readFile(const std::string& file, std::string& text, ConfigError& error) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(file, ec)) {
+    error = ConfigError{file, 0, "", "", cat("cannot open: ", std::make_error_code(std::errc::is_a_directory).message())};
+    return false;
+  }
+  errno = 0;
+  std::ifstream in(file, std::ios::binary);
+  if (!in) {
+    const int err = errno != 0 ? errno : ENOENT;
+    error = ConfigError{file, 0, "", "", cat("cannot open: ", std::error_code(err, std::generic_category()).message())};
+    return false;
+  }
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  if (in.bad()) {
+    error = ConfigError{file, 0, "", "", cat("cannot read: ", std::error_code(errno, std::generic_category()).message())};
+    return false;
+  }
+  text = ss.str();
+  return true;
+}
+
+std::string parentDir(const std::string& file) {
+  return std::filesystem::path(file).parent_path().string();
+}
+
+bool parseService(const std::string& text, const std::string& name, const std::string& baseDir,
+                  ServiceConfig& out, ConfigError& error) {
+  ServiceConfig cfg;
+  cfg.path = name;
+  Reader r(text, name);
+  const Table root = r.parse({"frame", "output", "stats", "host", "scene", "budget", "service"});
+
+  const Table frame = r.table(root, "frame", {"rate_hz", "frames", "free_run"});
+  r.get(frame, "rate_hz", cfg.rate_hz, openClosed(0.0, 1000.0));
+  r.get(frame, "frames", cfg.frames, IntRange{0});
+  r.get(frame, "free_run", cfg.freeRun);
+
+  const Table output = r.table(root, "output", {"mode", "width_px", "height_px", "snapshot_dir",
+                                                "snapshot_every", "snapshot_frames"});
+  r.getEnum(output, "mode", cfg.output,
+            {{"headless", OutputMode::Headless}, {"window", OutputMode::Window}, {"osmesa", OutputMode::OSMesa}});
+  r.get(output, "width_px", cfg.width_px, IntRange{16, 16384});
+  r.get(output, "height_px", cfg.height_px, IntRange{16, 16384});
+  r.get(output, "snapshot_dir", cfg.snapshotDir, false);
+  r.get(output, "snapshot_every", cfg.snapshotEvery, IntRange{0});
+  r.get(output, "snapshot_frames", cfg.snapshotFrames, IntRange{0});
+
+  const Table stats = r.table(root, "stats", {"file", "format"});
+  r.get(stats, "file", cfg.statsFile);
+  r.getEnum(stats, "format", cfg.statsFormat, {{"csv", StatsFormat::Csv}, {"jsonl", StatsFormat::JsonLines}});
+
+  const Table host = r.table(root, "host", {"source", "replay_file", "replay_loop"});
+  r.getEnum(host, "source", cfg.host, {{"none", HostSource::None}, {"replay", HostSource::Replay}});
+  r.get(host, "replay_file", cfg.replayFile, false);
+  r.get(host, "replay_loop", cfg.replayLoop);
+  if (cfg.host == HostSource::Replay) {
+    r.require(host, "replay_file", "host.source = \"replay\" needs the recording to play (or set source = \"none\")");
+  }
+
+  const Table scene = r.table(root, "scene", {"file"});
+  r.get(scene, "file", cfg.sceneFile, false);
+  r.require(scene, "file", "path of the scene file ([scene] file = \"scenes/default.toml\")");
+
+  const Table budget = r.table(root, "budget", {"frame_ms", "triangles"});
+  r.get(budget, "frame_ms", cfg.budgetFrame_ms, atLeast(0.0));
+  r.get(budget, "triangles", cfg.budgetTriangles, IntRange{1000});
+
+  const Table service = r.table(root, "service", {"watchdog_interval_s"});
+  r.get(service, "watchdog_interval_s", cfg.watchdogInterval_s, atLeast(0.0));
+
+  if (!r.ok()) {
+    error = r.error();
+    return false;
+  }
+  for (std::string* path : {&cfg.snapshotDir, &cfg.statsFile, &cfg.replayFile, &cfg.sceneFile}) {
+    *path = resolvePath(*path, baseDir);
+  }
+  out = std::move(cfg);
+  return true;
+}
+
+// size_m / grid_step_m must give a sane number of posts per side.
+void checkTerrainGrid(Reader& r, const Table& t, const TerrainLayerConfig& terrain) {
+  constexpr Range kQuadsPerSide = closed(2.0, 8192.0);
+  const double quads = terrain.size_m / terrain.gridStep_m;
+  if (!r.ok() || kQuadsPerSide.contains(quads)) return;
+  const std::string_view key = r.find(t, "grid_step_m") != nullptr ? "grid_step_m" : "size_m";
+  const std::string message = cat("size_m / grid_step_m = ", formatNumber(quads),
+                                  " quads per side, out of range (allowed range: ", kQuadsPerSide.describe(), ")");
+  if (const toml::node* node = r.find(t, key)) {
+    r.fail(*node, t.keyOf(key), message);
+  } else {
+    r.fail(t.line_, t.keyOf(key), "", message);
+  }
+}
+
+bool parseScene(const std::string& text, const std::string& name, const std::string& baseDir,
+                SceneConfig& out, ConfigError& error) {
+  SceneConfig cfg;
+  cfg.path = name;
+  Reader r(text, name);
+  const Table root = r.parse({"name", "origin", "terrain", "forest", "hdlod", "sun", "fog"});
+  r.get(root, "name", cfg.name, false);
+
+  const Table origin = r.table(root, "origin", {"lat_deg", "lon_deg", "height_m"});
+  r.get(origin, "lat_deg", cfg.originGeodetic[0], closed(-90.0, 90.0));
+  r.get(origin, "lon_deg", cfg.originGeodetic[1], closed(-180.0, 180.0));
+  r.get(origin, "height_m", cfg.originGeodetic[2], closed(-1e4, 1e5));
+
+  const Table terrain = r.table(root, "terrain", {"source", "seed", "size_m", "grid_step_m", "height_scale_m",
+                                                  "offset_m", "chunk_quads"});
+  if (terrain.present()) {
+    TerrainLayerConfig& t = cfg.terrain.emplace();
+    r.getEnum(terrain, "source", t.source, {{"procedural", TerrainLayerConfig::Source::Procedural}});
+    r.get(terrain, "seed", t.seed, IntRange{0, std::numeric_limits<uint32_t>::max()});
+    r.get(terrain, "size_m", t.size_m, openClosed(0.0, 1e6));
+    r.get(terrain, "grid_step_m", t.gridStep_m, Range{0.0, kInf, true, false});
+    r.get(terrain, "height_scale_m", t.heightScale_m, closed(0.0, 20000.0));
+    r.get(terrain, "offset_m", t.offset_m, closed(-1e8, 1e8));
+    r.get(terrain, "chunk_quads", t.chunkQuads, IntRange{4, 1024});
+    checkTerrainGrid(r, terrain, t);
+  }
+
+  const Table forest = r.table(root, "forest", {"file"});
+  if (forest.present()) {
+    r.get(forest, "file", cfg.forest.emplace().file, false);
+    r.require(forest, "file", "a [forest] table needs the tree placement data file");
+  }
+
+  const Table hdlod = r.table(root, "hdlod", {"file"});
+  if (hdlod.present()) {
+    r.get(hdlod, "file", cfg.hdlod.emplace().file, false);
+    r.require(hdlod, "file", "an [hdlod] table needs the 4D scene description file");
+  }
+
+  const Table sun = r.table(root, "sun", {"azimuth_deg", "elevation_deg", "color", "ambient"});
+  r.get(sun, "azimuth_deg", cfg.sun.azimuth_deg, closed(-360.0, 360.0));
+  r.get(sun, "elevation_deg", cfg.sun.elevation_deg, closed(-90.0, 90.0));
+  r.get(sun, "color", cfg.sun.color, closed(0.0, 1.0));
+  r.get(sun, "ambient", cfg.sun.ambient, closed(0.0, 1.0));
+
+  const Table fog = r.table(root, "fog", {"enabled", "visibility_m", "color"});
+  r.get(fog, "enabled", cfg.fog.enabled);
+  r.get(fog, "visibility_m", cfg.fog.visibility_m, openClosed(0.0, 1e7));
+  r.get(fog, "color", cfg.fog.color, closed(0.0, 1.0));
+
+  if (!r.ok()) {
+    error = r.error();
+    return false;
+  }
+  if (cfg.forest) cfg.forest->file = resolvePath(cfg.forest->file, baseDir);
+  if (cfg.hdlod) cfg.hdlod->file = resolvePath(cfg.hdlod->file, baseDir);
+  out = std::move(cfg);
+  return true;
+}
+
+// Runs `parse` and turns any stray exception (e.g. std::bad_alloc) into a ConfigError.
+template <typename Fn>
+bool guarded(const std::string& file, ConfigError& error, Fn&& parse) {
+  try {
+    return parse();
+  } catch (const std::exception& e) {
+    error = ConfigError{file, 0, "", "", cat("internal error: ", e.what())};
+  } catch (...) {
+    error = ConfigError{file, 0, "", "", "internal error"};
+  }
+  return false;
+}
+
+}  // namespace
+
+bool parseServiceConfig(const std::string& text, const std::string& name, const std::string& baseDir,
+                        ServiceConfig& out, ConfigError& error) {
+  return guarded(name, error, [&] { return parseService(text, name, baseDir, out, error); });
+}
+
+bool parseSceneConfig(const std::string& text, const std::string& name, const std::string& baseDir,
+                      SceneConfig& out, ConfigError& error) {
+  return guarded(name, error, [&] { return parseScene(text, name, baseDir, out, error); });
+}
+
+bool loadServiceConfig(const std::string& file, ServiceConfig& out, ConfigError& error) {
+  return guarded(file, error, [&] {
+    std::string text;
+    return readFile(file, text, error) && parseService(text, file, parentDir(file), out, error);
+  });
+}
+
+bool loadSceneConfig(const std::string& file, SceneConfig& out, ConfigError& error) {
+  return guarded(file, error, [&] {
+    std::string text;
+    return readFile(file, text, error) && parseScene(text, file, parentDir(file), out, error);
+  });
+}
+
+}  // namespace ig

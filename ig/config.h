@@ -1,0 +1,117 @@
+// Service and scene configuration: plain structs with in-class defaults, parsed and validated
+// once at start-up from TOML. Every error names the file, line, key and bad value; nothing is
+// half-applied (the output struct is written only on success).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace ig {
+
+enum class OutputMode { Headless, Window, OSMesa };
+enum class StatsFormat { Csv, JsonLines };
+enum class HostSource { None, Replay };
+
+const char* toString(OutputMode mode);
+const char* toString(StatsFormat format);
+const char* toString(HostSource source);
+
+// One configuration error. `line` is 0 when the error is not tied to a line (missing file,
+// missing key). `what()` gives "file:line: key = value: message".
+struct ConfigError {
+  std::string file;
+  int line = 0;
+  std::string key;    // dotted path, e.g. "output.width_px"
+  std::string value;  // the bad value as written in the file ("" when missing)
+  std::string message;
+  std::string what() const;
+};
+
+// Service config (config/igd.toml): how the service runs, independent of what it draws.
+struct ServiceConfig {
+  std::string path;                          // file this was loaded from ("" = defaults)
+  // [frame]
+  double rate_hz = 60.0;                     // fixed frame rate; deadlines are absolute
+  int64_t frames = 0;                        // frames to render, 0 = run until SIGTERM
+  bool freeRun = false;                      // true: no sleeping, sim time still steps 1/rate_hz
+  // [output]
+  OutputMode output = OutputMode::Headless;
+  int width_px = 1280;
+  int height_px = 720;
+  std::string snapshotDir = "out/snapshots"; // resolved against the config file's folder
+  int64_t snapshotEvery = 0;                 // write a PNG every N frames, 0 = never
+  std::vector<int64_t> snapshotFrames;       // and at these frame numbers
+  // [stats]
+  std::string statsFile = "out/frame_stats.csv"; // "" = no stats file
+  StatsFormat statsFormat = StatsFormat::Csv;
+  // [host]
+  HostSource host = HostSource::Replay;
+  std::string replayFile;                    // timestamped text recording (io/replay.h)
+  bool replayLoop = false;                   // restart the recording at its end
+  // [scene]
+  std::string sceneFile;
+  // [budget]
+  double budgetFrame_ms = 0.0;               // work budget per frame, 0 = the whole period
+  int64_t budgetTriangles = 2'000'000;       // triangles per frame for all layers together
+  // [service]
+  double watchdogInterval_s = 0.0;           // 0 = half of systemd's WatchdogSec, if any
+};
+
+struct TerrainLayerConfig {
+  enum class Source { Procedural } source = Source::Procedural;
+  uint32_t seed = 1;
+  double size_m = 8192.0;                    // square side
+  double gridStep_m = 32.0;                  // post spacing
+  double heightScale_m = 400.0;              // peak-to-valley of the procedural relief
+  std::array<double, 3> offset_m{0, 0, 0};   // placement of the SW corner in local ENU
+  int chunkQuads = 64;                       // quads per chunk side (one draw per chunk)
+};
+
+struct ForestLayerConfig {
+  std::string file;                          // tree placement data (forest issue)
+};
+
+struct HdlodLayerConfig {
+  std::string file;                          // 4D scene description (HDLOD issue)
+};
+
+struct SunConfig {
+  double azimuth_deg = 135.0;                // clockwise from north
+  double elevation_deg = 35.0;
+  std::array<double, 3> color{1.0, 0.96, 0.88};
+  double ambient = 0.25;                     // 0..1
+};
+
+struct FogConfig {
+  bool enabled = true;
+  double visibility_m = 20000.0;             // meteorological visibility (2 % contrast)
+  std::array<double, 3> color{0.70, 0.78, 0.86};
+};
+
+// Scene config (config/scenes/*.toml): which layers exist and their data. A layer that is
+// absent here is never constructed: no pass, no buffer, no thread.
+struct SceneConfig {
+  std::string path;
+  std::string name = "unnamed";
+  std::array<double, 3> originGeodetic{0, 0, 0};   // lat_deg, lon_deg, height_m of local ENU origin
+  std::optional<TerrainLayerConfig> terrain;
+  std::optional<ForestLayerConfig> forest;
+  std::optional<HdlodLayerConfig> hdlod;
+  SunConfig sun;
+  FogConfig fog;
+};
+
+// Parse + validate. On failure returns false, fills `error`, leaves `out` untouched.
+bool loadServiceConfig(const std::string& file, ServiceConfig& out, ConfigError& error);
+bool loadSceneConfig(const std::string& file, SceneConfig& out, ConfigError& error);
+// Same, from text (tests); `name` is used as the file name in errors and `baseDir` to resolve
+// relative paths.
+bool parseServiceConfig(const std::string& text, const std::string& name, const std::string& baseDir,
+                        ServiceConfig& out, ConfigError& error);
+bool parseSceneConfig(const std::string& text, const std::string& name, const std::string& baseDir,
+                      SceneConfig& out, ConfigError& error);
+
+}  // namespace ig

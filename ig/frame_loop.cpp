@@ -1,0 +1,74 @@
+#include "ig/frame_loop.h"
+
+#include <cassert>
+#include <cmath>
+
+namespace ig {
+
+const char* phaseName(Phase p) {
+  switch (p) {
+    case Phase::Input: return "input";
+    case Phase::Lod: return "lod";
+    case Phase::Submit: return "submit";
+    case Phase::GpuFinish: return "gpu_finish";
+    case Phase::Present: return "present";
+    case Phase::Count: break;
+  }
+  return "?";
+}
+
+FramePacer::FramePacer(Clock& clock, double rate_hz, bool freeRun)
+    : clock_(clock), rate_hz_(rate_hz), period_ns_(static_cast<int64_t>(std::llround(1e9 / rate_hz))), freeRun_(freeRun) {
+  assert(rate_hz > 0 && "FramePacer: rate_hz must be > 0");
+}
+
+int64_t FramePacer::beginFrame() {
+  if (!started_) {
+    started_ = true;
+    t0_ns_ = clock_.now_ns();
+    prevStart_ns_ = t0_ns_;
+  }
+  const int64_t slot = nextSlot_;
+  const int64_t slotTime = t0_ns_ + slot * period_ns_;
+  if (!freeRun_) clock_.sleepUntil_ns(slotTime);
+  frameStart_ns_ = clock_.now_ns();
+  mark_ns_ = frameStart_ns_;
+  timing_ = FrameTiming{};
+  timing_.frame = slot;
+  timing_.start_ns = frameStart_ns_ - t0_ns_;
+  timing_.lateness_ns = freeRun_ ? 0 : frameStart_ns_ - slotTime;
+  timing_.interval_ms = static_cast<double>(frameStart_ns_ - prevStart_ns_) * 1e-6;
+  prevStart_ns_ = frameStart_ns_;
+  return slot;
+}
+
+void FramePacer::endPhase(Phase phase) {
+  const int64_t now = clock_.now_ns();
+  timing_.phase_ms[static_cast<size_t>(phase)] += static_cast<double>(now - mark_ns_) * 1e-6;
+  mark_ns_ = now;
+}
+
+const FrameTiming& FramePacer::endFrame() {
+  const int64_t end = clock_.now_ns();
+  timing_.work_ms = static_cast<double>(end - frameStart_ns_) * 1e-6;
+  ++frames_;
+  int64_t next = timing_.frame + 1;
+  if (freeRun_) {
+    timing_.overrun = end - frameStart_ns_ > period_ns_;
+  } else {
+    const int64_t nextSlotTime = t0_ns_ + next * period_ns_;
+    timing_.overrun = end > nextSlotTime;
+    if (timing_.overrun) {
+      // First slot that has not started yet: skip the ones we ran past.
+      const int64_t firstFuture = (end - t0_ns_) / period_ns_ + 1;
+      timing_.missedSlots = firstFuture - next;
+      next = firstFuture;
+    }
+  }
+  if (timing_.overrun) ++overruns_;
+  missed_ += timing_.missedSlots;
+  nextSlot_ = next;
+  return timing_;
+}
+
+}  // namespace ig

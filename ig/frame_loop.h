@@ -1,0 +1,65 @@
+// Fixed-rate frame pacing with absolute deadlines, per-phase timing and overrun accounting.
+//
+// Frame slots are t0 + k * period. A frame starts at its slot. A frame whose work ends after
+// the start of the next slot is an overrun; the slots it ran past are skipped (counted as
+// missed) so the loop stays phase-locked to real time instead of drifting. In free-run mode
+// (tests, benchmarks, offline replay) nothing sleeps and every slot is used, so the
+// simulation time of frame k is still k * period.
+#pragma once
+
+#include <array>
+#include <cstdint>
+
+#include "ig/clock.h"
+
+namespace ig {
+
+enum class Phase : int { Input, Lod, Submit, GpuFinish, Present, Count };
+constexpr int kPhaseCount = static_cast<int>(Phase::Count);
+const char* phaseName(Phase p);
+
+struct FrameTiming {
+  int64_t frame = 0;          // slot number: 0, 1, 2, ... (gaps after overruns when paced)
+  int64_t start_ns = 0;       // actual start, relative to the loop start
+  int64_t lateness_ns = 0;    // start - slot time (how late the wake-up was)
+  double interval_ms = 0.0;   // since the previous frame's start
+  std::array<double, kPhaseCount> phase_ms{};
+  double work_ms = 0.0;       // start to end of the last phase
+  bool overrun = false;       // work ran past the next slot
+  int64_t missedSlots = 0;    // slots skipped after this frame
+};
+
+class FramePacer {
+ public:
+  FramePacer(Clock& clock, double rate_hz, bool freeRun);
+
+  // Sleeps until the next slot and starts the frame; returns its slot number.
+  int64_t beginFrame();
+  // Ends the phase that began at the previous mark (frame start or previous endPhase).
+  void endPhase(Phase phase);
+  // Closes the frame: work time, overrun, missed slots. Valid until the next beginFrame.
+  const FrameTiming& endFrame();
+
+  double period_s() const { return static_cast<double>(period_ns_) * 1e-9; }
+  int64_t period_ns() const { return period_ns_; }
+  // Scheduled time of a slot since the loop start: the replay/simulation clock of a frame.
+  // Exact (slot / rate), not rounded to the nanosecond period.
+  double slotTime_s(int64_t slot) const { return static_cast<double>(slot) / rate_hz_; }
+  int64_t frames() const { return frames_; }
+  int64_t overruns() const { return overruns_; }
+  int64_t missedSlots() const { return missed_; }
+
+ private:
+  Clock& clock_;
+  double rate_hz_;
+  int64_t period_ns_;
+  bool freeRun_;
+  bool started_ = false;
+  int64_t t0_ns_ = 0;
+  int64_t nextSlot_ = 0;
+  int64_t frameStart_ns_ = 0, prevStart_ns_ = 0, mark_ns_ = 0;
+  FrameTiming timing_;
+  int64_t frames_ = 0, overruns_ = 0, missed_ = 0;
+};
+
+}  // namespace ig

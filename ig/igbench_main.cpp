@@ -1,0 +1,96 @@
+// igbench: benchmarks. Each suite prints one JSON object on stdout with --json (for scripts
+// and side-by-side comparisons), or a human summary without it.
+#include <CLI/CLI.hpp>
+
+#include <atomic>
+#include <cstdio>
+
+#include "ig/app_common.h"
+#include "ig/clock.h"
+#include "ig/service.h"
+
+namespace {
+
+int runFrameSuite(const std::string& configFile, ig::Overrides o, bool json) {
+  // Free-run, no files: measure the work per frame, not the pacing sleep.
+  o.freeRun = true;
+  o.statsFile = "";
+  o.snapshotEvery = 0;
+  ig::ServiceConfig config;
+  ig::SceneConfig scene;
+  std::string error;
+  if (!ig::loadConfigs(configFile, o, config, scene, error)) {
+    std::fprintf(stderr, "igbench: %s\n", error.c_str());
+    return 2;
+  }
+  config.snapshotFrames.clear();
+  config.replayLoop = true;
+  auto service = ig::Service::create(config, scene, error);
+  if (!service) {
+    std::fprintf(stderr, "igbench: start-up failed: %s\n", error.c_str());
+    return 3;
+  }
+  ig::MonotonicClock clock;
+  std::atomic<bool> stop{false};
+  if (service->run(clock, stop) != 0) return 1;
+  const ig::RunSummary s = service->summary();
+  const double period_ms = 1000.0 / config.rate_hz;
+  if (json) {
+    std::printf(
+        "{\"suite\":\"frame\",\"scene\":\"%s\",\"renderer\":\"%s\",\"width_px\":%d,\"height_px\":%d,"
+        "\"frames\":%lld,\"target_hz\":%.3f,\"period_ms\":%.3f,\"frame_ms_p50\":%.3f,\"frame_ms_p99\":%.3f,"
+        "\"frame_ms_mean\":%.3f,\"frame_ms_max\":%.3f,\"overruns\":%lld,\"triangles_p50\":%llu,"
+        "\"draw_calls_p50\":%u,\"phase_ms_p50\":{\"input\":%.3f,\"lod\":%.3f,\"submit\":%.3f,\"gpu_finish\":%.3f,"
+        "\"present\":%.3f},\"layers\":%zu,\"passes\":%u}\n",
+        scene.name.c_str(), service->info().context.c_str(), config.width_px, config.height_px,
+        static_cast<long long>(s.frames), config.rate_hz, period_ms, s.workMs_p50, s.workMs_p99, s.workMs_mean,
+        s.workMs_max, static_cast<long long>(s.overruns), static_cast<unsigned long long>(s.triangles_p50),
+        s.drawCalls_p50, s.phaseMs_p50[0], s.phaseMs_p50[1], s.phaseMs_p50[2], s.phaseMs_p50[3], s.phaseMs_p50[4],
+        service->info().layers.size(), service->info().passes);
+  } else {
+    std::printf("frame suite: scene '%s', %dx%d, %s\n", scene.name.c_str(), config.width_px, config.height_px,
+                service->info().context.c_str());
+    std::printf("  %lld frames; work per frame p50 %.2f ms, p99 %.2f ms, max %.2f ms (period %.2f ms at %.1f Hz)\n",
+                static_cast<long long>(s.frames), s.workMs_p50, s.workMs_p99, s.workMs_max, period_ms, config.rate_hz);
+    std::printf("  overruns %lld (%.1f %%), triangles p50 %llu, draw calls p50 %u\n", static_cast<long long>(s.overruns),
+                s.frames ? 100.0 * static_cast<double>(s.overruns) / static_cast<double>(s.frames) : 0.0,
+                static_cast<unsigned long long>(s.triangles_p50), s.drawCalls_p50);
+    std::printf("  phase p50 ms: input %.3f, lod %.3f, submit %.3f, gpu_finish %.3f, present %.3f\n",
+                s.phaseMs_p50[0], s.phaseMs_p50[1], s.phaseMs_p50[2], s.phaseMs_p50[3], s.phaseMs_p50[4]);
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "igbench - benchmarks for the igd image generator.\n"
+      "Run one suite at a time; with --json it prints exactly one JSON object on stdout.\n"
+      "Compare variants side by side in one run (these machines are shared and noisy)."};
+  app.require_subcommand(1);
+  std::string configFile = "config/igd.toml";
+  bool json = false;
+  ig::Overrides o;
+  o.frames = 240;
+
+  CLI::App* frame = app.add_subcommand(
+      "frame",
+      "Render the configured scene headless for N frames with the built-in host replay, free-running,\n"
+      "and report work time per frame (p50/p99/mean/max), overruns against the frame period,\n"
+      "triangles and draw calls per frame, and the p50 of each phase (input, lod, submit,\n"
+      "gpu_finish, present). JSON fields: suite, scene, renderer, width_px, height_px, frames,\n"
+      "target_hz, period_ms, frame_ms_p50, frame_ms_p99, frame_ms_mean, frame_ms_max, overruns,\n"
+      "triangles_p50, draw_calls_p50, phase_ms_p50{...}, layers, passes.");
+  frame->add_option("-c,--config", configFile, "Service config (TOML)")->capture_default_str();
+  frame->add_option("--frames", o.frames, "Frames to render")->capture_default_str();
+  frame->add_option("--width", o.width_px, "Frame width in pixels (default: the config's)");
+  frame->add_option("--height", o.height_px, "Frame height in pixels (default: the config's)");
+  frame->add_option("--output", o.output, "Context: headless | osmesa | window");
+  frame->add_option("--scene", o.sceneFile, "Scene config (default: the config's)");
+  frame->add_flag("--json", json, "Print one JSON object instead of the human summary");
+  CLI11_PARSE(app, argc, argv);
+
+  if (frame->parsed()) return runFrameSuite(configFile, o, json);
+  return 2;
+}

@@ -1,0 +1,140 @@
+// igtool: offline tools around igd — render one frame to PNG, make the built-in host
+// recording, compare images, check configs.
+#include <CLI/CLI.hpp>
+
+#include <cstdio>
+
+#include "ig/app_common.h"
+#include "ig/service.h"
+#include "io/replay.h"
+#include "render/image.h"
+
+namespace {
+
+int renderCommand(const std::string& configFile, const ig::Overrides& o, double time_s, const std::string& out) {
+  ig::ServiceConfig config;
+  ig::SceneConfig scene;
+  std::string error;
+  if (!ig::loadConfigs(configFile, o, config, scene, error)) {
+    std::fprintf(stderr, "igtool render: %s\n", error.c_str());
+    return 2;
+  }
+  if (config.host != ig::HostSource::Replay) {
+    std::fprintf(stderr, "igtool render: %s: host.source must be 'replay' to pick an eyepoint\n", config.path.c_str());
+    return 2;
+  }
+  ig::io::Recording rec;
+  if (!ig::io::loadRecording(config.replayFile, rec, error)) {
+    std::fprintf(stderr, "igtool render: %s\n", error.c_str());
+    return 2;
+  }
+  config.replayFile = "";
+  config.host = ig::HostSource::None;
+  auto service = ig::Service::create(config, scene, error);
+  if (!service) {
+    std::fprintf(stderr, "igtool render: start-up failed: %s\n", error.c_str());
+    return 3;
+  }
+  ig::render::Image image;
+  const ig::FrameRecord r = service->renderOnce(ig::io::sampleAt(rec, time_s).state, &image);
+  if (!ig::render::writePng(out, image, error)) {
+    std::fprintf(stderr, "igtool render: %s\n", error.c_str());
+    return 1;
+  }
+  std::printf("igtool render: %s (%dx%d, t = %.3f s, %llu triangles, %u draw calls)\n", out.c_str(), image.width,
+              image.height, time_s, static_cast<unsigned long long>(r.triangles), r.drawCalls);
+  return 0;
+}
+
+int compareCommand(const std::string& a, const std::string& b, double maxRmse) {
+  ig::render::Image ia, ib;
+  std::string error;
+  if (!ig::render::readPng(a, ia, error) || !ig::render::readPng(b, ib, error)) {
+    std::fprintf(stderr, "igtool compare: %s\n", error.c_str());
+    return 2;
+  }
+  const double e = ig::render::rmse(ia, ib);
+  if (e < 0) {
+    std::fprintf(stderr, "igtool compare: sizes differ: %s is %dx%d, %s is %dx%d\n", a.c_str(), ia.width, ia.height,
+                 b.c_str(), ib.width, ib.height);
+    return 1;
+  }
+  const double frac = ig::render::fractionDifferent(ia, ib, 8);
+  std::printf("rmse %.4f (8-bit levels), %.4f %% of pixels differ by more than 8 levels\n", e, 100.0 * frac);
+  return e <= maxRmse ? 0 : 1;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"igtool - offline tools for the igd image generator."};
+  app.require_subcommand(1);
+
+  std::string configFile = "config/igd.toml";
+  ig::Overrides o;
+  double time_s = 0.0;
+  std::string out = "frame.png";
+  CLI::App* render = app.add_subcommand(
+      "render", "Render one frame of a service config's scene, with the eyepoint its host recording has at\n"
+                "replay time --time, to a PNG (used to make golden images).");
+  render->add_option("-c,--config", configFile, "Service config (TOML)")->capture_default_str();
+  render->add_option("-t,--time", time_s, "Replay time in seconds")->capture_default_str();
+  render->add_option("-o,--out", out, "Output PNG")->capture_default_str();
+  render->add_option("--width", o.width_px, "Width in pixels (default: the config's)");
+  render->add_option("--height", o.height_px, "Height in pixels (default: the config's)");
+  render->add_option("--output", o.output, "Context: headless | osmesa | window");
+  render->add_option("--scene", o.sceneFile, "Scene config (default: the config's)");
+
+  double rate_hz = 60.0, duration_s = 20.0;
+  std::string recOut = "config/recordings/default.rec";
+  CLI::App* makeRec = app.add_subcommand(
+      "make-recording", "Write the built-in host recording of the default scene (an orbit over the terrain\n"
+                        "with simulation time) as a text recording igd can replay.");
+  makeRec->add_option("--rate", rate_hz, "Samples per second")->capture_default_str()->check(CLI::Range(1.0, 1000.0));
+  makeRec->add_option("--duration", duration_s, "Length in seconds")->capture_default_str()->check(CLI::Range(0.0, 36000.0));
+  makeRec->add_option("-o,--out", recOut, "Output file")->capture_default_str();
+
+  std::string imgA, imgB;
+  double maxRmse = 2.0;
+  CLI::App* compare = app.add_subcommand(
+      "compare", "Compare two PNGs: print the RMSE over RGB in 8-bit levels and the share of pixels that\n"
+                 "differ by more than 8 levels; exit 1 if the RMSE exceeds --max-rmse.");
+  compare->add_option("a", imgA, "First PNG")->required();
+  compare->add_option("b", imgB, "Second PNG")->required();
+  compare->add_option("--max-rmse", maxRmse, "Largest RMSE that passes")->capture_default_str();
+
+  std::vector<std::string> checkFiles;
+  CLI::App* check = app.add_subcommand(
+      "check-config", "Validate service configs (and the scenes they name); print the first error of each\n"
+                      "with file, line, key and value. Exit 2 if any is bad.");
+  check->add_option("files", checkFiles, "Service config files")->required();
+  CLI11_PARSE(app, argc, argv);
+
+  if (render->parsed()) return renderCommand(configFile, o, time_s, out);
+  if (makeRec->parsed()) {
+    std::string error;
+    if (!ig::io::saveRecording(recOut, ig::io::makeDefaultRecording(rate_hz, duration_s), error)) {
+      std::fprintf(stderr, "igtool make-recording: %s\n", error.c_str());
+      return 1;
+    }
+    std::printf("igtool make-recording: %s (%.1f s at %.1f Hz)\n", recOut.c_str(), duration_s, rate_hz);
+    return 0;
+  }
+  if (compare->parsed()) return compareCommand(imgA, imgB, maxRmse);
+  if (check->parsed()) {
+    int rc = 0;
+    for (const auto& f : checkFiles) {
+      ig::ServiceConfig s;
+      ig::SceneConfig sc;
+      std::string error;
+      if (ig::loadConfigs(f, {}, s, sc, error)) {
+        std::printf("%s: OK (scene %s)\n", f.c_str(), sc.path.c_str());
+      } else {
+        std::printf("%s\n", error.c_str());
+        rc = 2;
+      }
+    }
+    return rc;
+  }
+  return 2;
+}

@@ -1,0 +1,320 @@
+#include "ig/service.h"
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <span>
+
+#include "ig/frame_loop.h"
+#include "ig/systemd.h"
+#include "io/replay.h"
+#include "lod/geo.h"
+#include "lod/terrain_grid.h"
+#include "lod/view.h"
+#include "render/context.h"
+#include "render/renderer.h"
+
+namespace ig {
+namespace {
+
+constexpr double kDeg = 3.14159265358979323846 / 180.0;
+
+render::ContextKind contextKind(OutputMode m) {
+  switch (m) {
+    case OutputMode::Headless: return render::ContextKind::Headless;
+    case OutputMode::Window: return render::ContextKind::Window;
+    case OutputMode::OSMesa: return render::ContextKind::OSMesa;
+  }
+  return render::ContextKind::Headless;
+}
+
+bool fileReadable(const std::string& path, const std::string& what, std::string& error) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) {
+    error = what + " '" + path + "': no such file";
+    return false;
+  }
+  return true;
+}
+
+// The terrain layer: CPU grid + per-frame selection buffer (sized once).
+struct TerrainLayer {
+  explicit TerrainLayer(const lod::TerrainGridDesc& d) : grid(d), selected(grid.chunks().size()) {}
+  lod::TerrainGrid grid;
+  std::vector<uint32_t> selected;
+  size_t selectedCount = 0;
+};
+
+lod::TerrainGridDesc terrainDesc(const TerrainLayerConfig& t) {
+  lod::TerrainGridDesc d;
+  const int quads = static_cast<int>(std::llround(t.size_m / t.gridStep_m));
+  d.heights.seed = t.seed;
+  d.heights.postsX = d.heights.postsY = quads + 1;
+  d.heights.postSpacing_m = t.gridStep_m;
+  d.heights.heightScale_m = t.heightScale_m;
+  d.offset_m = {t.offset_m[0], t.offset_m[1], t.offset_m[2]};
+  d.chunkQuads = t.chunkQuads;
+  return d;
+}
+
+}  // namespace
+
+bool hostStateValid(const io::HostState& s, std::string* why) {
+  auto bad = [&](const char* what, double v) {
+    if (why) *why = std::string(what) + " = " + std::to_string(v);
+    return false;
+  };
+  const double values[] = {s.simTime_s, s.eyeEnu_m.x, s.eyeEnu_m.y, s.eyeEnu_m.z, s.heading_deg,
+                           s.pitch_deg, s.roll_deg, s.fovY_deg, s.near_m, s.far_m};
+  const char* names[] = {"sim_time_s", "east_m", "north_m", "up_m", "heading_deg",
+                         "pitch_deg", "roll_deg", "fovy_deg", "near_m", "far_m"};
+  for (size_t i = 0; i < std::size(values); ++i)
+    if (!std::isfinite(values[i])) return bad(names[i], values[i]);
+  if (!(s.fovY_deg > 0.0 && s.fovY_deg < 180.0)) return bad("fovy_deg", s.fovY_deg);
+  if (!(s.near_m > 0.0)) return bad("near_m", s.near_m);
+  if (!(s.far_m > s.near_m)) return bad("far_m", s.far_m);
+  return true;
+}
+
+struct Service::Impl {
+  ServiceConfig config;
+  SceneConfig scene;
+  std::unique_ptr<render::GlContext> context;
+  render::Renderer renderer;
+  std::unique_ptr<TerrainLayer> terrain;
+  std::unique_ptr<io::ReplaySource> replay;
+  std::optional<lod::EnuFrame> enu;
+  render::Lighting lighting;
+  SummaryCollector summary{1};
+  int64_t overruns = 0, missed = 0;
+  render::Image snapshot;
+  uint64_t snapshotFailures = 0;
+
+  lod::Camera cameraFor(const io::HostState& h) const {
+    lod::Camera c;
+    c.eye_m = h.eyeEnu_m;
+    c.heading_deg = h.heading_deg;
+    c.pitch_deg = h.pitch_deg;
+    c.roll_deg = h.roll_deg;
+    c.fovY_deg = h.fovY_deg;
+    c.near_m = h.near_m;
+    c.far_m = h.far_m;
+    c.aspect = static_cast<double>(config.width_px) / static_cast<double>(config.height_px);
+    return c;
+  }
+};
+
+Service::Service() : impl_(std::make_unique<Impl>()) {}
+Service::~Service() = default;
+
+std::unique_ptr<Service> Service::create(const ServiceConfig& config, const SceneConfig& scene, std::string& error) {
+  std::unique_ptr<Service> s(new Service());
+  Impl& m = *s->impl_;
+  m.config = config;
+  m.scene = scene;
+  m.summary = SummaryCollector(config.frames > 0 ? static_cast<size_t>(config.frames) : 36000);
+
+  // Layers that exist only in later work: refuse clearly rather than silently draw nothing.
+  if (scene.forest) {
+    error = "scene '" + scene.path + "': [forest] (file '" + scene.forest->file +
+            "') is not supported by this build yet; remove the table to run without a forest";
+    return nullptr;
+  }
+  if (scene.hdlod) {
+    error = "scene '" + scene.path + "': [hdlod] (file '" + scene.hdlod->file +
+            "') is not supported by this build yet; remove the table to run without HDLOD objects";
+    return nullptr;
+  }
+
+  if (config.host == HostSource::Replay) {
+    io::Recording rec;
+    if (!fileReadable(config.replayFile, "host.replay_file", error)) return nullptr;
+    if (!io::loadRecording(config.replayFile, rec, error)) return nullptr;
+    m.replay = std::make_unique<io::ReplaySource>(std::move(rec), config.replayLoop);
+  }
+
+  m.context = render::createContext(contextKind(config.output), config.width_px, config.height_px, error);
+  if (!m.context) return nullptr;
+  if (!m.renderer.init(config.width_px, config.height_px, error)) return nullptr;
+  s->info_.context = m.context->description();
+
+  if (scene.terrain) {
+    m.terrain = std::make_unique<TerrainLayer>(terrainDesc(*scene.terrain));
+    if (!m.renderer.addTerrain(m.terrain->grid, error)) return nullptr;
+    s->info_.layers.push_back("terrain");
+    s->info_.terrainTriangles = m.terrain->grid.totalTriangles();
+  }
+  s->info_.passes = m.renderer.passCount();
+  s->info_.gpuBufferBytes = m.renderer.bufferBytes();
+
+  m.enu.emplace(lod::Geodetic{scene.originGeodetic[0], scene.originGeodetic[1], scene.originGeodetic[2]});
+  const double az = scene.sun.azimuth_deg * kDeg, el = scene.sun.elevation_deg * kDeg;
+  m.lighting.sunDirection = {std::sin(az) * std::cos(el), std::cos(az) * std::cos(el), std::sin(el)};
+  m.lighting.sunColor = {scene.sun.color[0], scene.sun.color[1], scene.sun.color[2]};
+  m.lighting.ambient = scene.sun.ambient;
+  m.lighting.fog = scene.fog.enabled;
+  m.lighting.fogVisibility_m = scene.fog.visibility_m;
+  m.lighting.fogColor = {scene.fog.color[0], scene.fog.color[1], scene.fog.color[2]};
+  if (!scene.fog.enabled) m.lighting.fogColor = {0.52, 0.68, 0.88};  // clear sky
+
+  // Until the host speaks: above the scene origin, looking north and slightly down.
+  s->host_.eyeEnu_m = {0.0, 0.0, 1000.0};
+  s->host_.pitch_deg = -10.0;
+  // Warm-up frame: the driver compiles shaders and faults in buffers on first use, which
+  // would otherwise make frame 0 an overrun.
+  s->renderOnce(s->host_, nullptr);
+  const std::string glErr = m.renderer.errors();
+  if (!glErr.empty()) {
+    error = "GL errors during start-up: " + glErr;
+    return nullptr;
+  }
+  return s;
+}
+
+FrameRecord Service::renderOnce(const io::HostState& host, render::Image* image) {
+  Impl& m = *impl_;
+  FrameRecord r;
+  const lod::Camera cam = m.cameraFor(host);
+  if (m.terrain) {
+    const lod::Frustum fr = lod::makeFrustum(cam);
+    m.terrain->selectedCount = m.terrain->grid.select(fr, cam.eye_m, m.terrain->selected);
+  }
+  m.renderer.beginFrame(cam, m.lighting);
+  if (m.terrain) m.renderer.drawTerrain(std::span(m.terrain->selected.data(), m.terrain->selectedCount));
+  const render::RenderStats st = m.renderer.endFrame();
+  m.renderer.finish();
+  if (image) m.renderer.readPixels(*image);
+  r.triangles = st.triangles;
+  r.drawCalls = st.drawCalls;
+  r.passes = st.passes;
+  r.hostFrame = host.hostFrame;
+  r.simTime_s = host.simTime_s;
+  r.eyeHeight_m = host.eyeEnu_m.z;
+  return r;
+}
+
+int Service::run(Clock& clock, const std::atomic<bool>& stop) {
+  Impl& m = *impl_;
+  const ServiceConfig& cfg = m.config;
+  StatsWriter stats;
+  std::string error;
+  if (!cfg.statsFile.empty()) {
+    std::error_code ec;  // a failure here shows up as the open error below
+    std::filesystem::create_directories(std::filesystem::path(cfg.statsFile).parent_path(), ec);
+    std::string layers;
+    for (const auto& l : info_.layers) layers += (layers.empty() ? "\"" : ",\"") + l + "\"";
+    char runInfo[512];
+    std::snprintf(runInfo, sizeof runInfo,
+                  "\"rate_hz\":%.3f,\"width_px\":%d,\"height_px\":%d,\"layers\":[%s],\"passes\":%u,"
+                  "\"gpu_buffer_bytes\":%llu,\"threads\":%u",
+                  cfg.rate_hz, cfg.width_px, cfg.height_px, layers.c_str(), info_.passes,
+                  static_cast<unsigned long long>(info_.gpuBufferBytes), info_.threads);
+    if (!stats.open(cfg.statsFile, cfg.statsFormat, runInfo, error)) {
+      std::fprintf(stderr, "igd: %s\n", error.c_str());
+      return 1;
+    }
+  }
+  const bool snapshots = cfg.snapshotEvery > 0 || !cfg.snapshotFrames.empty();
+  if (snapshots) {
+    std::error_code ec;
+    std::filesystem::create_directories(cfg.snapshotDir, ec);
+    if (ec) {
+      std::fprintf(stderr, "igd: output.snapshot_dir '%s': cannot create: %s\n", cfg.snapshotDir.c_str(),
+                   ec.message().c_str());
+      return 1;
+    }
+  }
+
+  SystemdNotifier notifier(cfg.watchdogInterval_s);
+  FramePacer pacer(clock, cfg.rate_hz, cfg.freeRun);
+  notifier.ready("rendering at " + std::to_string(cfg.rate_hz) + " Hz");
+  std::string why;
+  bool hostWasBad = false;
+  char snapshotPath[4096];
+
+  while (!stop.load(std::memory_order_relaxed)) {
+    if (cfg.frames > 0 && pacer.frames() >= cfg.frames) break;
+    if (m.context->closeRequested()) break;
+    const int64_t slot = pacer.beginFrame();
+
+    // input
+    if (m.replay) m.replay->advanceTo(pacer.slotTime_s(slot), mailbox_);
+    io::HostState incoming;
+    if (mailbox_.readIfNewer(incoming, mailboxSequence_)) {
+      if (hostStateValid(incoming, &why)) {
+        host_ = incoming;
+        const lod::Geodetic g = m.enu->toGeodetic(host_.eyeEnu_m);
+        host_.lat_deg = g.lat_deg;
+        host_.lon_deg = g.lon_deg;
+        host_.height_m = g.height_m;
+        if (hostWasBad) std::fprintf(stderr, "igd: host input valid again at host frame %llu\n",
+                                     static_cast<unsigned long long>(incoming.hostFrame));
+        hostWasBad = false;
+      } else {
+        ++hostRejected_;
+        if (!hostWasBad)
+          std::fprintf(stderr, "igd: host sample rejected (%s); keeping the last good eyepoint\n", why.c_str());
+        hostWasBad = true;
+      }
+    }
+    pacer.endPhase(Phase::Input);
+
+    // lod
+    const lod::Camera cam = m.cameraFor(host_);
+    if (m.terrain) {
+      const lod::Frustum fr = lod::makeFrustum(cam);
+      m.terrain->selectedCount = m.terrain->grid.select(fr, cam.eye_m, m.terrain->selected);
+    }
+    pacer.endPhase(Phase::Lod);
+
+    // submit
+    m.renderer.beginFrame(cam, m.lighting);
+    if (m.terrain) m.renderer.drawTerrain(std::span(m.terrain->selected.data(), m.terrain->selectedCount));
+    const render::RenderStats st = m.renderer.endFrame();
+    pacer.endPhase(Phase::Submit);
+
+    // gpu
+    m.renderer.finish();
+    pacer.endPhase(Phase::GpuFinish);
+
+    // present
+    if (m.context->hasWindow()) m.context->present(m.renderer.framebuffer(), cfg.width_px, cfg.height_px);
+    const int64_t n = pacer.frames();  // frames completed before this one = this frame's index
+    bool snap = cfg.snapshotEvery > 0 && n % cfg.snapshotEvery == 0;
+    for (int64_t f : cfg.snapshotFrames) snap = snap || f == n;
+    if (snap) {
+      m.renderer.readPixels(m.snapshot);
+      std::snprintf(snapshotPath, sizeof snapshotPath, "%s/frame_%06lld.png", cfg.snapshotDir.c_str(),
+                    static_cast<long long>(n));
+      if (!render::writePng(snapshotPath, m.snapshot, error) && m.snapshotFailures++ == 0)
+        std::fprintf(stderr, "igd: snapshot failed (further failures counted, not logged): %s\n", error.c_str());
+    }
+    pacer.endPhase(Phase::Present);
+
+    // report
+    FrameRecord r;
+    r.timing = pacer.endFrame();
+    r.triangles = st.triangles;
+    r.drawCalls = st.drawCalls;
+    r.passes = st.passes;
+    r.hostFrame = host_.hostFrame;
+    r.simTime_s = host_.simTime_s;
+    r.eyeHeight_m = host_.eyeEnu_m.z;
+    stats.write(r);
+    m.summary.add(r);
+    notifier.watchdog(clock.now_ns());
+  }
+  notifier.stopping();
+  m.overruns = pacer.overruns();
+  m.missed = pacer.missedSlots();
+  const std::string glErr = m.renderer.errors();
+  if (!glErr.empty()) {
+    std::fprintf(stderr, "igd: GL errors during the run: %s\n", glErr.c_str());
+    return 1;
+  }
+  return 0;
+}
+
+RunSummary Service::summary() const { return impl_->summary.summarize(impl_->overruns, impl_->missed); }
+
+}  // namespace ig

@@ -1,0 +1,73 @@
+// The composition root: builds only the layers the scene names, owns the GL context, the
+// renderer, the host input and the frame loop, and runs frames.
+//
+// A frame, as data flows through it:
+//   input   copy the newest HostState from the mailbox (replay feeds it by slot time)
+//   lod     each layer the scene has selects what to draw for this eyepoint
+//   submit  the renderer turns the selections into GL work
+//   gpu     glFinish (timed with the monotonic clock)
+//   present window swap, or snapshot read-back on snapshot frames
+//   report  stats line, systemd watchdog
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "ig/clock.h"
+#include "ig/config.h"
+#include "ig/stats.h"
+#include "io/host_state.h"
+#include "io/mailbox.h"
+#include "render/image.h"
+
+namespace ig {
+
+struct ServiceInfo {
+  std::string context;               // GL context description
+  std::vector<std::string> layers;   // layers built, e.g. {"terrain"}
+  uint32_t passes = 0;               // render passes created
+  uint64_t gpuBufferBytes = 0;       // bytes of GPU buffers uploaded for layers
+  uint32_t threads = 1;              // threads the service runs (1 = render thread only)
+  uint64_t terrainTriangles = 0;     // triangles in the whole terrain (0 = no terrain)
+};
+
+// Why a host sample was rejected (kept the previous one).
+bool hostStateValid(const io::HostState& s, std::string* why = nullptr);
+
+class Service {
+ public:
+  // Validates data files, creates the GL context and every layer the scene names. Returns
+  // nullptr and an error naming the input on failure.
+  static std::unique_ptr<Service> create(const ServiceConfig& config, const SceneConfig& scene, std::string& error);
+  ~Service();
+
+  // Runs the fixed-rate loop until `config.frames` frames, a window close, or `stop`.
+  // Returns 0 on a clean exit.
+  int run(Clock& clock, const std::atomic<bool>& stop);
+
+  // Renders one frame for this host state outside the loop (igtool, tests). Optionally
+  // reads back the image.
+  FrameRecord renderOnce(const io::HostState& host, render::Image* image);
+
+  const ServiceInfo& info() const { return info_; }
+  RunSummary summary() const;
+  io::LatestValueMailbox<io::HostState>& mailbox() { return mailbox_; }
+  uint64_t hostRejected() const { return hostRejected_; }
+  const io::HostState& currentHost() const { return host_; }
+
+ private:
+  Service();
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  ServiceInfo info_;
+  io::LatestValueMailbox<io::HostState> mailbox_;
+  io::HostState host_;
+  uint64_t mailboxSequence_ = 0;
+  uint64_t hostRejected_ = 0;
+};
+
+}  // namespace ig

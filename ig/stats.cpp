@@ -1,0 +1,112 @@
+#include "ig/stats.h"
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+
+namespace ig {
+
+StatsWriter::~StatsWriter() { close(); }
+
+bool StatsWriter::open(const std::string& file, StatsFormat format, const std::string& runInfo, std::string& error) {
+  close();
+  file_ = std::fopen(file.c_str(), "w");
+  if (!file_) {
+    error = "stats file '" + file + "': cannot write: " + std::strerror(errno);
+    return false;
+  }
+  format_ = format;
+  if (format_ == StatsFormat::Csv) {
+    std::fputs("frame,t_ms,interval_ms,lateness_ms", file_);
+    for (int p = 0; p < kPhaseCount; ++p) std::fprintf(file_, ",%s_ms", phaseName(static_cast<Phase>(p)));
+    std::fputs(",work_ms,overrun,missed_slots,triangles,draw_calls,passes,host_frame,sim_time_s,eye_up_m\n", file_);
+  } else {
+    std::fprintf(file_, "{\"run\":{%s}}\n", runInfo.c_str());
+  }
+  return true;
+}
+
+void StatsWriter::write(const FrameRecord& r) {
+  if (!file_) return;
+  const FrameTiming& t = r.timing;
+  const auto& ph = t.phase_ms;
+  if (format_ == StatsFormat::Csv) {
+    std::fprintf(file_, "%lld,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%d,%lld,%llu,%u,%u,%llu,%.4f,%.2f\n",
+                 static_cast<long long>(t.frame), static_cast<double>(t.start_ns) * 1e-6, t.interval_ms,
+                 static_cast<double>(t.lateness_ns) * 1e-6, ph[0], ph[1], ph[2], ph[3], ph[4], t.work_ms,
+                 t.overrun ? 1 : 0, static_cast<long long>(t.missedSlots),
+                 static_cast<unsigned long long>(r.triangles), r.drawCalls, r.passes,
+                 static_cast<unsigned long long>(r.hostFrame), r.simTime_s, r.eyeHeight_m);
+  } else {
+    std::fprintf(file_,
+                 "{\"frame\":%lld,\"t_ms\":%.3f,\"interval_ms\":%.3f,\"lateness_ms\":%.3f,\"input_ms\":%.3f,"
+                 "\"lod_ms\":%.3f,\"submit_ms\":%.3f,\"gpu_finish_ms\":%.3f,\"present_ms\":%.3f,\"work_ms\":%.3f,"
+                 "\"overrun\":%s,\"missed_slots\":%lld,\"triangles\":%llu,\"draw_calls\":%u,\"passes\":%u,"
+                 "\"host_frame\":%llu,\"sim_time_s\":%.4f,\"eye_up_m\":%.2f}\n",
+                 static_cast<long long>(t.frame), static_cast<double>(t.start_ns) * 1e-6, t.interval_ms,
+                 static_cast<double>(t.lateness_ns) * 1e-6, ph[0], ph[1], ph[2], ph[3], ph[4], t.work_ms,
+                 t.overrun ? "true" : "false", static_cast<long long>(t.missedSlots),
+                 static_cast<unsigned long long>(r.triangles), r.drawCalls, r.passes,
+                 static_cast<unsigned long long>(r.hostFrame), r.simTime_s, r.eyeHeight_m);
+  }
+}
+
+void StatsWriter::close() {
+  if (file_) {
+    std::fclose(file_);
+    file_ = nullptr;
+  }
+}
+
+SummaryCollector::SummaryCollector(size_t capacity) : capacity_(std::max<size_t>(capacity, 1)) {
+  records_.reserve(capacity_);
+}
+
+void SummaryCollector::add(const FrameRecord& r) {
+  if (records_.size() < capacity_) {
+    records_.push_back(r);
+  } else {
+    records_[next_] = r;
+    next_ = (next_ + 1) % capacity_;
+  }
+}
+
+double percentile(std::vector<double> v, double p) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  // Nearest-rank on the sorted values.
+  const double rank = std::ceil(p / 100.0 * static_cast<double>(v.size()));
+  const size_t i = static_cast<size_t>(std::clamp(rank, 1.0, static_cast<double>(v.size()))) - 1;
+  return v[i];
+}
+
+RunSummary SummaryCollector::summarize(int64_t overruns, int64_t missedSlots) const {
+  RunSummary s;
+  s.frames = static_cast<int64_t>(records_.size());
+  s.overruns = overruns;
+  s.missedSlots = missedSlots;
+  if (records_.empty()) return s;
+  std::vector<double> work, tris, calls;
+  double sum = 0.0;
+  for (const auto& r : records_) {
+    work.push_back(r.timing.work_ms);
+    tris.push_back(static_cast<double>(r.triangles));
+    calls.push_back(r.drawCalls);
+    sum += r.timing.work_ms;
+  }
+  s.workMs_p50 = percentile(work, 50);
+  s.workMs_p99 = percentile(work, 99);
+  s.workMs_max = *std::max_element(work.begin(), work.end());
+  s.workMs_mean = sum / static_cast<double>(work.size());
+  for (int p = 0; p < kPhaseCount; ++p) {
+    std::vector<double> v;
+    for (const auto& r : records_) v.push_back(r.timing.phase_ms[static_cast<size_t>(p)]);
+    s.phaseMs_p50[static_cast<size_t>(p)] = percentile(v, 50);
+  }
+  s.triangles_p50 = static_cast<uint64_t>(percentile(tris, 50));
+  s.drawCalls_p50 = static_cast<uint32_t>(percentile(calls, 50));
+  return s;
+}
+
+}  // namespace ig

@@ -1,0 +1,69 @@
+// Per-frame statistics: one line per frame, CSV or JSON lines, plus the run summary
+// (percentiles) that igd prints at exit and igbench reports. Storage for the summary is
+// reserved at start-up; recording a frame does not allocate.
+#pragma once
+
+#include <cstdint>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "ig/config.h"
+#include "ig/frame_loop.h"
+
+namespace ig {
+
+struct FrameRecord {
+  FrameTiming timing;
+  uint64_t triangles = 0;
+  uint32_t drawCalls = 0;
+  uint32_t passes = 0;          // render passes this frame (one per layer the scene has)
+  uint64_t hostFrame = 0;
+  double simTime_s = 0.0;
+  double eyeHeight_m = 0.0;     // height above the ENU origin
+};
+
+class StatsWriter {
+ public:
+  StatsWriter() = default;
+  ~StatsWriter();
+  StatsWriter(const StatsWriter&) = delete;
+  StatsWriter& operator=(const StatsWriter&) = delete;
+  // Opens (truncates) the file and writes the header (CSV) or a first "run" object (JSONL)
+  // with `runInfo` (a JSON object's members, e.g. "\"layers\":[\"terrain\"]").
+  bool open(const std::string& file, StatsFormat format, const std::string& runInfo, std::string& error);
+  void write(const FrameRecord& r);
+  void close();
+
+ private:
+  FILE* file_ = nullptr;
+  StatsFormat format_ = StatsFormat::Csv;
+};
+
+struct RunSummary {
+  int64_t frames = 0;
+  int64_t overruns = 0;
+  int64_t missedSlots = 0;
+  double workMs_p50 = 0, workMs_p99 = 0, workMs_max = 0, workMs_mean = 0;
+  std::array<double, kPhaseCount> phaseMs_p50{};
+  uint64_t triangles_p50 = 0;
+  uint32_t drawCalls_p50 = 0;
+};
+
+// Collects frames for percentiles; capacity fixed at construction (older frames beyond it
+// are dropped from the summary, never reallocated).
+class SummaryCollector {
+ public:
+  explicit SummaryCollector(size_t capacity);
+  void add(const FrameRecord& r);
+  RunSummary summarize(int64_t overruns, int64_t missedSlots) const;
+
+ private:
+  std::vector<FrameRecord> records_;
+  size_t capacity_;
+  size_t next_ = 0;
+};
+
+double percentile(std::vector<double> values, double p);
+
+}  // namespace ig

@@ -1,0 +1,26 @@
+// What the host simulator tells the IG each frame. Plain struct, every field with its unit
+// and frame. The frame loop copies the latest one out of the mailbox at the start of a frame.
+#pragma once
+
+#include <cstdint>
+
+#include <glm/vec3.hpp>
+
+namespace ig::io {
+
+struct HostState {
+  uint64_t hostFrame = 0;            // host's own frame counter
+  double simTime_s = 0.0;            // simulation time, seconds since scenario start
+  glm::dvec3 eyeEnu_m{0.0};          // eyepoint in the scene's local ENU frame (x east, y north, z up)
+  double lat_deg = 0.0;              // eyepoint, WGS-84 geodetic (filled from eyeEnu_m by the IG
+  double lon_deg = 0.0;              //   when the source gives only ENU)
+  double height_m = 0.0;             //   ellipsoid height
+  double heading_deg = 0.0;          // clockwise from north
+  double pitch_deg = 0.0;            // nose up positive
+  double roll_deg = 0.0;             // right wing down positive
+  double fovY_deg = 45.0;            // vertical field of view
+  double near_m = 0.1;               // near clip plane
+  double far_m = 100000.0;           // far clip plane
+};
+
+}  // namespace ig::io

@@ -1,0 +1,196 @@
+#include "io/replay.h"
+
+#include <algorithm>
+#include <cerrno>
+#include <charconv>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+
+namespace ig::io {
+namespace {
+
+constexpr std::string_view kMagic = "igd-recording";
+constexpr int kVersion = 1;
+constexpr const char* kFieldNames[] = {"t_s",         "host_frame", "sim_time_s", "east_m",
+                                       "north_m",     "up_m",       "heading_deg", "pitch_deg",
+                                       "roll_deg",    "fovy_deg",   "near_m",     "far_m"};
+constexpr size_t kFieldCount = std::size(kFieldNames);
+
+std::string_view trim(std::string_view s) {
+  while (!s.empty() && (s.front() == ' ' || s.front() == '\t' || s.front() == '\r')) s.remove_prefix(1);
+  while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r')) s.remove_suffix(1);
+  return s;
+}
+
+bool parseDouble(std::string_view tok, double& v) {
+  const char* end = tok.data() + tok.size();
+  auto r = std::from_chars(tok.data(), end, v);
+  return r.ec == std::errc() && r.ptr == end;
+}
+
+}  // namespace
+
+bool parseRecording(std::string_view text, const std::string& name, Recording& out, std::string& error) {
+  Recording rec;
+  int lineNo = 0;
+  bool sawHeader = false;
+  auto fail = [&](const std::string& msg) {
+    error = name + ":" + std::to_string(lineNo) + ": " + msg;
+    return false;
+  };
+  while (!text.empty()) {
+    const size_t eol = text.find('\n');
+    std::string_view line = text.substr(0, eol);
+    text.remove_prefix(eol == std::string_view::npos ? text.size() : eol + 1);
+    ++lineNo;
+    if (const size_t hash = line.find('#'); hash != std::string_view::npos) line = line.substr(0, hash);
+    line = trim(line);
+    if (line.empty()) continue;
+    const std::string_view raw = line;
+
+    std::string_view tokens[kFieldCount + 1];
+    size_t count = 0;
+    while (!line.empty() && count <= kFieldCount) {
+      const size_t sp = line.find_first_of(" \t");
+      tokens[count++] = line.substr(0, sp);
+      line = trim(sp == std::string_view::npos ? std::string_view{} : line.substr(sp));
+    }
+    if (!sawHeader) {
+      double version = 0;
+      if (count != 2 || tokens[0] != kMagic || !parseDouble(tokens[1], version) || version != kVersion)
+        return fail("expected header 'igd-recording 1', got '" + std::string(raw) + "'");
+      sawHeader = true;
+      continue;
+    }
+    if (count != kFieldCount || !line.empty())
+      return fail("expected " + std::to_string(kFieldCount) + " fields, got " +
+                  (line.empty() ? std::to_string(count) : std::string("more")));
+    double v[kFieldCount];
+    for (size_t i = 0; i < kFieldCount; ++i) {
+      if (!parseDouble(tokens[i], v[i]) || !std::isfinite(v[i]))
+        return fail(std::string(kFieldNames[i]) + " = '" + std::string(tokens[i]) + "': not a finite number");
+    }
+    HostSample s;
+    s.t_s = v[0];
+    if (v[1] < 0 || v[1] != std::floor(v[1]))
+      return fail("host_frame = '" + std::string(tokens[1]) + "': not a non-negative integer");
+    s.state.hostFrame = static_cast<uint64_t>(v[1]);
+    s.state.simTime_s = v[2];
+    s.state.eyeEnu_m = {v[3], v[4], v[5]};
+    s.state.heading_deg = v[6];
+    s.state.pitch_deg = v[7];
+    s.state.roll_deg = v[8];
+    s.state.fovY_deg = v[9];
+    s.state.near_m = v[10];
+    s.state.far_m = v[11];
+    if (s.t_s < 0 || (!rec.samples.empty() && s.t_s < rec.samples.back().t_s))
+      return fail("t_s = '" + std::string(tokens[0]) + "': must be >= 0 and non-decreasing");
+    if (!(s.state.fovY_deg > 0 && s.state.fovY_deg < 180))
+      return fail("fovy_deg = '" + std::string(tokens[9]) + "': must be in (0, 180)");
+    if (!(s.state.near_m > 0 && s.state.far_m > s.state.near_m))
+      return fail("near_m/far_m = '" + std::string(tokens[10]) + " " + std::string(tokens[11]) +
+                  "': need 0 < near_m < far_m");
+    rec.samples.push_back(s);
+  }
+  if (!sawHeader) return fail("empty recording: expected header 'igd-recording 1'");
+  if (rec.samples.empty()) return fail("recording has no samples");
+  out = std::move(rec);
+  return true;
+}
+
+bool loadRecording(const std::string& file, Recording& out, std::string& error) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) {
+    error = file + ": cannot open: " + std::strerror(errno);
+    return false;
+  }
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return parseRecording(ss.str(), file, out, error);
+}
+
+std::string formatRecording(const Recording& recording) {
+  std::string s = std::string(kMagic) + " " + std::to_string(kVersion) + "\n#";
+  for (const char* n : kFieldNames) s += std::string(" ") + n;
+  s += "\n";
+  char buf[320];
+  for (const auto& h : recording.samples) {
+    const HostState& st = h.state;
+    std::snprintf(buf, sizeof buf, "%.4f %llu %.4f %.3f %.3f %.3f %.3f %.3f %.3f %.3f %.3f %.1f\n", h.t_s,
+                  static_cast<unsigned long long>(st.hostFrame), st.simTime_s, st.eyeEnu_m.x, st.eyeEnu_m.y,
+                  st.eyeEnu_m.z, st.heading_deg, st.pitch_deg, st.roll_deg, st.fovY_deg, st.near_m, st.far_m);
+    s += buf;
+  }
+  return s;
+}
+
+bool saveRecording(const std::string& file, const Recording& recording, std::string& error) {
+  std::ofstream out(file, std::ios::binary | std::ios::trunc);
+  if (!out) {
+    error = file + ": cannot write: " + std::strerror(errno);
+    return false;
+  }
+  out << formatRecording(recording);
+  if (!out.flush()) {
+    error = file + ": write failed";
+    return false;
+  }
+  return true;
+}
+
+const HostSample& sampleAt(const Recording& recording, double t_s) {
+  const auto& v = recording.samples;
+  auto it = std::upper_bound(v.begin(), v.end(), t_s, [](double t, const HostSample& s) { return t < s.t_s; });
+  return it == v.begin() ? v.front() : *(it - 1);
+}
+
+bool ReplaySource::advanceTo(double t_s, LatestValueMailbox<HostState>& mailbox) {
+  const auto& samples = recording_.samples;
+  if (samples.empty()) return false;
+  if (loop_ && recording_.duration_s() > 0 && t_s - loopBase_s_ > recording_.duration_s()) {
+    loopBase_s_ += recording_.duration_s() * std::floor((t_s - loopBase_s_) / recording_.duration_s());
+    next_ = 0;
+  }
+  const double local = t_s - loopBase_s_;
+  size_t newest = next_;
+  while (newest < samples.size() && samples[newest].t_s <= local) ++newest;
+  if (newest == next_ && next_ == 0 && samples[0].t_s > local) return true;  // before first sample
+  if (newest != next_) {
+    mailbox.publish(samples[newest - 1].state);
+    next_ = newest;
+  }
+  return !finished(t_s);
+}
+
+Recording makeDefaultRecording(double rate_hz, double duration_s) {
+  constexpr double kPi = 3.14159265358979323846;
+  Recording rec;
+  const auto n = static_cast<size_t>(std::floor(duration_s * rate_hz)) + 1;
+  rec.samples.reserve(n);
+  // A left-hand orbit of radius 1800 m around the terrain centre at 75 m/s, starting south-west,
+  // with a gentle climb and a descending low pass near the end.
+  constexpr double kRadius_m = 1800.0, kSpeed_mps = 75.0;
+  for (size_t i = 0; i < n; ++i) {
+    const double t = static_cast<double>(i) / rate_hz;
+    const double a = -0.75 * kPi + kSpeed_mps * t / kRadius_m;  // angle from east, CCW
+    HostSample s;
+    s.t_s = t;
+    s.state.hostFrame = i;
+    s.state.simTime_s = 3600.0 * 10.0 + t;  // scenario starts at 10:00 simulation time
+    const double u = t / std::max(duration_s, 1e-9);
+    s.state.eyeEnu_m = {kRadius_m * std::cos(a), kRadius_m * std::sin(a), 900.0 + 120.0 * std::sin(kPi * u) - 150.0 * u};
+    // Tangent of a CCW orbit points at angle a + 90 deg from east; heading is from north, CW.
+    s.state.heading_deg = std::fmod(360.0 + 90.0 - (a * 180.0 / kPi + 90.0), 360.0);
+    s.state.pitch_deg = -9.0 - 4.0 * u;
+    s.state.roll_deg = -12.0;  // banked left
+    s.state.fovY_deg = 45.0;
+    s.state.near_m = 0.1;
+    s.state.far_m = 100000.0;
+    rec.samples.push_back(s);
+  }
+  return rec;
+}
+
+}  // namespace ig::io

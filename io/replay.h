@@ -1,0 +1,65 @@
+// Host recordings: a timestamped text file of HostState samples, written by the recorder (or
+// `igtool make-recording`) and replayed into the frame loop for tests and hardware-in-the-loop
+// runs. Text so a person can read and edit it; '#' starts a comment.
+//
+//   igd-recording 1
+//   # t_s host_frame sim_time_s east_m north_m up_m heading_deg pitch_deg roll_deg fovy_deg near_m far_m
+//   0.000 0 0.000 -1200.0 -1800.0 450.0 35.0 -4.0 0.0 45.0 0.1 100000
+//
+// t_s is the replay clock (seconds from the start of the replay, non-decreasing); the sample
+// with the largest t_s <= now is the current one.
+#pragma once
+
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "io/host_state.h"
+#include "io/mailbox.h"
+
+namespace ig::io {
+
+struct HostSample {
+  double t_s = 0.0;
+  HostState state;
+};
+
+struct Recording {
+  std::vector<HostSample> samples;
+  double duration_s() const { return samples.empty() ? 0.0 : samples.back().t_s; }
+};
+
+// Parses a recording. On error returns false and sets `error` to "name:line: message" naming
+// the bad field and value; `out` is untouched.
+bool parseRecording(std::string_view text, const std::string& name, Recording& out, std::string& error);
+bool loadRecording(const std::string& file, Recording& out, std::string& error);
+std::string formatRecording(const Recording& recording);
+bool saveRecording(const std::string& file, const Recording& recording, std::string& error);
+
+// The sample current at replay time t_s: the last one with t <= t_s (the first one before it).
+// Requires a non-empty recording.
+const HostSample& sampleAt(const Recording& recording, double t_s);
+
+// Feeds a recording into a mailbox as replay time advances. Deterministic: driven by the
+// time it is given, not by a clock.
+class ReplaySource {
+ public:
+  ReplaySource(Recording recording, bool loop) : recording_(std::move(recording)), loop_(loop) {}
+  // Publishes the current sample for replay time t_s (if it changed). Returns false once a
+  // non-looping replay has passed its last sample.
+  bool advanceTo(double t_s, LatestValueMailbox<HostState>& mailbox);
+  bool finished(double t_s) const { return !loop_ && t_s > recording_.duration_s(); }
+  const Recording& recording() const { return recording_; }
+
+ private:
+  Recording recording_;
+  bool loop_;
+  size_t next_ = 0;        // first sample not yet published
+  double loopBase_s_ = 0;  // replay time at which the current loop started
+};
+
+// The built-in host recording used by the default scene: a circuit over the default terrain
+// (climb-out, a banked turn, a low pass and a descent) with simulation time.
+Recording makeDefaultRecording(double rate_hz, double duration_s);
+
+}  // namespace ig::io

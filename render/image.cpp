@@ -1,0 +1,85 @@
+#include "render/image.h"
+
+#include <png.h>
+
+#include <cerrno>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <memory>
+
+namespace ig::render {
+namespace {
+struct FileCloser {
+  void operator()(FILE* f) const { std::fclose(f); }
+};
+using FilePtr = std::unique_ptr<FILE, FileCloser>;
+}  // namespace
+
+bool writePng(const std::string& file, const Image& image, std::string& error) {
+  FilePtr f(std::fopen(file.c_str(), "wb"));
+  if (!f) {
+    error = file + ": cannot write: " + std::strerror(errno);
+    return false;
+  }
+  png_image png{};
+  png.version = PNG_IMAGE_VERSION;
+  png.width = static_cast<png_uint_32>(image.width);
+  png.height = static_cast<png_uint_32>(image.height);
+  png.format = PNG_FORMAT_RGBA;
+  if (!png_image_write_to_stdio(&png, f.get(), 0, image.rgba.data(), 0, nullptr)) {
+    error = file + ": PNG write failed: " + png.message;
+    return false;
+  }
+  return true;
+}
+
+bool readPng(const std::string& file, Image& image, std::string& error) {
+  png_image png{};
+  png.version = PNG_IMAGE_VERSION;
+  if (!png_image_begin_read_from_file(&png, file.c_str())) {
+    error = file + ": cannot read PNG: " + png.message;
+    return false;
+  }
+  png.format = PNG_FORMAT_RGBA;
+  Image out;
+  out.width = static_cast<int>(png.width);
+  out.height = static_cast<int>(png.height);
+  out.rgba.resize(PNG_IMAGE_SIZE(png));
+  if (!png_image_finish_read(&png, nullptr, out.rgba.data(), 0, nullptr)) {
+    error = file + ": PNG decode failed: " + png.message;
+    png_image_free(&png);
+    return false;
+  }
+  image = std::move(out);
+  return true;
+}
+
+double rmse(const Image& a, const Image& b) {
+  if (a.width != b.width || a.height != b.height || a.rgba.size() != b.rgba.size()) return -1.0;
+  if (a.rgba.empty()) return 0.0;
+  double sum = 0.0;
+  for (size_t i = 0; i < a.rgba.size(); i += 4) {
+    for (size_t c = 0; c < 3; ++c) {
+      const double d = static_cast<double>(a.rgba[i + c]) - static_cast<double>(b.rgba[i + c]);
+      sum += d * d;
+    }
+  }
+  return std::sqrt(sum / static_cast<double>(a.rgba.size() / 4 * 3));
+}
+
+double fractionDifferent(const Image& a, const Image& b, int threshold) {
+  if (a.width != b.width || a.height != b.height || a.rgba.size() != b.rgba.size()) return 1.0;
+  if (a.rgba.empty()) return 0.0;
+  size_t differ = 0;
+  for (size_t i = 0; i < a.rgba.size(); i += 4) {
+    int m = 0;
+    for (size_t c = 0; c < 3; ++c) m = std::max(m, std::abs(static_cast<int>(a.rgba[i + c]) - static_cast<int>(b.rgba[i + c])));
+    if (m > threshold) ++differ;
+  }
+  return static_cast<double>(differ) / static_cast<double>(a.rgba.size() / 4);
+}
+
+}  // namespace ig::render

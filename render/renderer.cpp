@@ -1,0 +1,253 @@
+#include "render/renderer.h"
+
+#include <cmath>
+#include <vector>
+
+#include <glm/gtc/type_ptr.hpp>
+#include <glm/mat4x4.hpp>
+
+#include "render/gl.h"
+
+namespace ig::render {
+namespace {
+
+const char* kTerrainVs = R"(#version 450 core
+layout(location = 0) in vec3 aPosition;   // metres, relative to the chunk origin
+layout(location = 1) in vec3 aNormal;
+uniform mat4 uViewProjection;             // projection * world->camera rotation (no translation)
+uniform vec3 uChunkOffset;                // chunk origin - eye, computed in double on the CPU
+out vec3 vEyeToPoint;
+out vec3 vNormal;
+out float vHeight;
+void main() {
+  vec3 rel = aPosition + uChunkOffset;
+  vEyeToPoint = rel;
+  vNormal = aNormal;
+  vHeight = aPosition.z;
+  gl_Position = uViewProjection * vec4(rel, 1.0);
+}
+)";
+
+const char* kTerrainFs = R"(#version 450 core
+in vec3 vEyeToPoint;
+in vec3 vNormal;
+in float vHeight;
+uniform vec3 uSunDirection;
+uniform vec3 uSunColor;
+uniform float uAmbient;
+uniform vec3 uFogColor;
+uniform float uFogDensity;               // per metre; 0 = no fog
+uniform float uHeightScale;
+out vec4 fragColor;
+void main() {
+  vec3 n = normalize(vNormal);
+  float slope = 1.0 - n.z;
+  float h = vHeight / max(uHeightScale, 1.0);
+  vec3 grass = vec3(0.28, 0.40, 0.17);
+  vec3 rock = vec3(0.46, 0.42, 0.37);
+  vec3 snow = vec3(0.92, 0.93, 0.95);
+  vec3 albedo = mix(grass, rock, smoothstep(0.12, 0.35, slope + 0.25 * h));
+  albedo = mix(albedo, snow, smoothstep(0.78, 0.86, h) * (1.0 - smoothstep(0.35, 0.55, slope)));
+  float diffuse = max(dot(n, uSunDirection), 0.0);
+  vec3 lit = albedo * (uAmbient + (1.0 - uAmbient) * diffuse * uSunColor);
+  float fog = exp(-uFogDensity * length(vEyeToPoint));
+  fragColor = vec4(mix(uFogColor, lit, fog), 1.0);
+}
+)";
+
+glm::vec3 toFloat(const glm::dvec3& v) { return glm::vec3(v); }
+
+}  // namespace
+
+struct Renderer::Target {
+  GlFramebuffer fbo;
+  GlRenderbuffer color;
+  GlRenderbuffer depth;
+};
+
+class TerrainPass {
+ public:
+  bool init(const lod::TerrainGrid& grid, std::string& error) {
+    program_ = buildProgram(kTerrainVs, kTerrainFs, error);
+    if (!program_) {
+      error = "terrain pass: " + error;
+      return false;
+    }
+    const GLuint p = program_.id();
+    uViewProjection_ = gl.GetUniformLocation(p, "uViewProjection");
+    uChunkOffset_ = gl.GetUniformLocation(p, "uChunkOffset");
+    uSunDirection_ = gl.GetUniformLocation(p, "uSunDirection");
+    uSunColor_ = gl.GetUniformLocation(p, "uSunColor");
+    uAmbient_ = gl.GetUniformLocation(p, "uAmbient");
+    uFogColor_ = gl.GetUniformLocation(p, "uFogColor");
+    uFogDensity_ = gl.GetUniformLocation(p, "uFogDensity");
+    uHeightScale_ = gl.GetUniformLocation(p, "uHeightScale");
+
+    const auto vertices = grid.vertices();
+    const auto indices = grid.indices();
+    GLuint ids[2];
+    gl.CreateBuffers(2, ids);
+    vertexBuffer_ = GlBuffer::wrap(ids[0]);
+    indexBuffer_ = GlBuffer::wrap(ids[1]);
+    const auto vbytes = static_cast<GLsizeiptr>(vertices.size_bytes());
+    const auto ibytes = static_cast<GLsizeiptr>(indices.size_bytes());
+    gl.NamedBufferStorage(vertexBuffer_.id(), vbytes, vertices.data(), 0);
+    gl.NamedBufferStorage(indexBuffer_.id(), ibytes, indices.data(), 0);
+    bytes_ = static_cast<uint64_t>(vbytes + ibytes);
+
+    GLuint vao = 0;
+    gl.CreateVertexArrays(1, &vao);
+    vertexArray_ = GlVertexArray::wrap(vao);
+    gl.VertexArrayVertexBuffer(vao, 0, vertexBuffer_.id(), 0, sizeof(lod::TerrainVertex));
+    gl.VertexArrayElementBuffer(vao, indexBuffer_.id());
+    gl.EnableVertexArrayAttrib(vao, 0);
+    gl.VertexArrayAttribFormat(vao, 0, 3, GL_FLOAT, GL_FALSE, offsetof(lod::TerrainVertex, position));
+    gl.VertexArrayAttribBinding(vao, 0, 0);
+    gl.EnableVertexArrayAttrib(vao, 1);
+    gl.VertexArrayAttribFormat(vao, 1, 3, GL_FLOAT, GL_FALSE, offsetof(lod::TerrainVertex, normal));
+    gl.VertexArrayAttribBinding(vao, 1, 0);
+
+    chunks_.assign(grid.chunks().begin(), grid.chunks().end());
+    heightScale_ = static_cast<float>(grid.desc().heights.heightScale_m);
+    return true;
+  }
+
+  void draw(const lod::Camera& camera, const Lighting& lighting, std::span<const uint32_t> chunkIndices,
+            RenderStats& stats) {
+    const GLuint p = program_.id();
+    const glm::mat4 viewProjection(lod::reverseZProjection(camera.fovY_deg, camera.aspect, camera.near_m, camera.far_m) *
+                                   glm::dmat4(lod::viewRotation(camera)));
+    gl.ProgramUniformMatrix4fv(p, uViewProjection_, 1, GL_FALSE, glm::value_ptr(viewProjection));
+    const glm::vec3 sun = toFloat(lighting.sunDirection), sunColor = toFloat(lighting.sunColor);
+    const glm::vec3 fogColor = toFloat(lighting.fogColor);
+    gl.ProgramUniform3fv(p, uSunDirection_, 1, glm::value_ptr(sun));
+    gl.ProgramUniform3fv(p, uSunColor_, 1, glm::value_ptr(sunColor));
+    gl.ProgramUniform1f(p, uAmbient_, static_cast<float>(lighting.ambient));
+    gl.ProgramUniform3fv(p, uFogColor_, 1, glm::value_ptr(fogColor));
+    // Koschmieder: 2 % contrast at the visibility distance.
+    gl.ProgramUniform1f(p, uFogDensity_, lighting.fog ? static_cast<float>(3.912 / lighting.fogVisibility_m) : 0.0f);
+    gl.ProgramUniform1f(p, uHeightScale_, heightScale_);
+    gl.UseProgram(p);
+    gl.BindVertexArray(vertexArray_.id());
+    for (uint32_t i : chunkIndices) {
+      const lod::TerrainChunk& c = chunks_[i];
+      const glm::vec3 offset(c.origin_m - camera.eye_m);  // double subtraction, then float
+      gl.ProgramUniform3fv(p, uChunkOffset_, 1, glm::value_ptr(offset));
+      gl.DrawElementsBaseVertex(GL_TRIANGLES, static_cast<GLsizei>(c.indexCount), GL_UNSIGNED_INT,
+                                reinterpret_cast<const void*>(static_cast<uintptr_t>(c.firstIndex) * sizeof(uint32_t)),
+                                static_cast<GLint>(c.firstVertex));
+      stats.triangles += c.indexCount / 3;
+      ++stats.drawCalls;
+    }
+    gl.BindVertexArray(0);
+  }
+
+  uint64_t bytes() const { return bytes_; }
+
+ private:
+  GlProgram program_;
+  GlBuffer vertexBuffer_, indexBuffer_;
+  GlVertexArray vertexArray_;
+  std::vector<lod::TerrainChunk> chunks_;
+  uint64_t bytes_ = 0;
+  float heightScale_ = 1.0f;
+  GLint uViewProjection_ = -1, uChunkOffset_ = -1, uSunDirection_ = -1, uSunColor_ = -1, uAmbient_ = -1,
+        uFogColor_ = -1, uFogDensity_ = -1, uHeightScale_ = -1;
+};
+
+Renderer::Renderer() = default;
+Renderer::~Renderer() = default;
+
+bool Renderer::init(int width_px, int height_px, std::string& error) {
+  auto t = std::make_unique<Target>();
+  GLuint rb[2];
+  gl.CreateRenderbuffers(2, rb);
+  t->color = GlRenderbuffer::wrap(rb[0]);
+  t->depth = GlRenderbuffer::wrap(rb[1]);
+  gl.NamedRenderbufferStorage(rb[0], GL_RGBA8, width_px, height_px);
+  gl.NamedRenderbufferStorage(rb[1], GL_DEPTH_COMPONENT32F, width_px, height_px);
+  GLuint fbo = 0;
+  gl.CreateFramebuffers(1, &fbo);
+  t->fbo = GlFramebuffer::wrap(fbo);
+  gl.NamedFramebufferRenderbuffer(fbo, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, rb[0]);
+  gl.NamedFramebufferRenderbuffer(fbo, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, rb[1]);
+  gl.NamedFramebufferReadBuffer(fbo, GL_COLOR_ATTACHMENT0);
+  const GLenum status = gl.CheckNamedFramebufferStatus(fbo, GL_FRAMEBUFFER);
+  if (status != GL_FRAMEBUFFER_COMPLETE) {
+    error = "framebuffer " + std::to_string(width_px) + "x" + std::to_string(height_px) +
+            " incomplete (status 0x" + std::to_string(status) + ")";
+    return false;
+  }
+  // Reverse-Z: clip depth in [0, 1], far = 0, near = 1.
+  gl.ClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
+  gl.Enable(GL_DEPTH_TEST);
+  gl.DepthFunc(GL_GREATER);
+  gl.Enable(GL_CULL_FACE);
+  gl.CullFace(GL_BACK);
+  gl.FrontFace(GL_CCW);
+  const std::string e = glErrors();
+  if (!e.empty()) {
+    error = "renderer init: GL errors " + e;
+    return false;
+  }
+  target_ = std::move(t);
+  width_ = width_px;
+  height_ = height_px;
+  return true;
+}
+
+bool Renderer::addTerrain(const lod::TerrainGrid& grid, std::string& error) {
+  auto pass = std::make_unique<TerrainPass>();
+  if (!pass->init(grid, error)) return false;
+  terrain_ = std::move(pass);
+  return true;
+}
+
+void Renderer::beginFrame(const lod::Camera& camera, const Lighting& lighting) {
+  camera_ = camera;
+  lighting_ = lighting;
+  stats_ = {};
+  stats_.passes = passCount();
+  const GLuint fbo = target_->fbo.id();
+  gl.BindFramebuffer(GL_FRAMEBUFFER, fbo);
+  gl.Viewport(0, 0, width_, height_);
+  const glm::vec4 sky(glm::vec3(lighting.fogColor), 1.0f);
+  gl.ClearNamedFramebufferfv(fbo, GL_COLOR, 0, glm::value_ptr(sky));
+  const float farDepth = 0.0f;
+  gl.ClearNamedFramebufferfv(fbo, GL_DEPTH, 0, &farDepth);
+}
+
+void Renderer::drawTerrain(std::span<const uint32_t> chunkIndices) {
+  if (terrain_) terrain_->draw(camera_, lighting_, chunkIndices, stats_);
+}
+
+RenderStats Renderer::endFrame() { return stats_; }
+
+void Renderer::finish() { gl.Finish(); }
+
+void Renderer::readPixels(Image& out) {
+  out.width = width_;
+  out.height = height_;
+  out.rgba.resize(static_cast<size_t>(width_) * static_cast<size_t>(height_) * 4);
+  gl.BindFramebuffer(GL_READ_FRAMEBUFFER, target_->fbo.id());
+  gl.PixelStorei(GL_PACK_ALIGNMENT, 1);
+  gl.ReadPixels(0, 0, width_, height_, GL_RGBA, GL_UNSIGNED_BYTE, out.rgba.data());
+  // GL's row 0 is the bottom; images store the top row first.
+  const size_t pitch = static_cast<size_t>(width_) * 4;
+  std::vector<uint8_t> row(pitch);
+  for (int y = 0; y < height_ / 2; ++y) {
+    uint8_t* a = out.rgba.data() + static_cast<size_t>(y) * pitch;
+    uint8_t* b = out.rgba.data() + static_cast<size_t>(height_ - 1 - y) * pitch;
+    std::copy(a, a + pitch, row.data());
+    std::copy(b, b + pitch, a);
+    std::copy(row.data(), row.data() + pitch, b);
+  }
+}
+
+unsigned Renderer::framebuffer() const { return target_ ? target_->fbo.id() : 0; }
+
+uint64_t Renderer::bufferBytes() const { return terrain_ ? terrain_->bytes() : 0; }
+
+std::string Renderer::errors() const { return glErrors(); }
+
+}  // namespace ig::render

@@ -1,0 +1,79 @@
+// Turns draw lists into GL work. Everything is drawn camera-relative into an off-screen FBO
+// with a reverse-Z float depth buffer (glClipControl zero-to-one, depth cleared to 0, test
+// GREATER), so a 0.1 m near plane and a 100 km far plane do not z-fight. A pass exists only
+// for a layer the scene has: no terrain in the scene, no terrain buffers or program.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+
+#include <glm/vec3.hpp>
+
+#include "lod/terrain_grid.h"
+#include "lod/view.h"
+#include "render/image.h"
+
+namespace ig::render {
+
+struct Lighting {
+  glm::dvec3 sunDirection{0.0, 0.0, 1.0};  // ENU, unit, towards the sun
+  glm::dvec3 sunColor{1.0};
+  double ambient = 0.25;
+  bool fog = true;
+  double fogVisibility_m = 20000.0;
+  glm::dvec3 fogColor{0.7, 0.78, 0.86};    // also the sky/background colour
+};
+
+struct RenderStats {
+  uint64_t triangles = 0;
+  uint32_t drawCalls = 0;
+  uint32_t passes = 0;
+};
+
+class TerrainPass;
+
+class Renderer {
+ public:
+  Renderer();
+  ~Renderer();
+  Renderer(const Renderer&) = delete;
+  Renderer& operator=(const Renderer&) = delete;
+
+  // Creates the FBO. A GL context must be current (render/context.h).
+  bool init(int width_px, int height_px, std::string& error);
+  // Uploads a terrain once (start-up). Creates the terrain pass.
+  bool addTerrain(const lod::TerrainGrid& grid, std::string& error);
+  bool hasTerrain() const { return terrain_ != nullptr; }
+
+  // One frame: begin (clear), draw the selected items of each pass, end.
+  void beginFrame(const lod::Camera& camera, const Lighting& lighting);
+  void drawTerrain(std::span<const uint32_t> chunkIndices);
+  RenderStats endFrame();
+  // Blocks until the GPU has finished the frame (timing with a monotonic clock: timer
+  // queries are not trustworthy on llvmpipe).
+  void finish();
+  // Reads the finished frame, top row first.
+  void readPixels(Image& out);
+
+  unsigned framebuffer() const;
+  int width() const { return width_; }
+  int height() const { return height_; }
+  // Bytes of GPU buffers owned by passes (0 when the scene has no layers).
+  uint64_t bufferBytes() const;
+  uint32_t passCount() const { return terrain_ ? 1u : 0u; }
+  // Pending GL errors, "" if none.
+  std::string errors() const;
+
+ private:
+  struct Target;
+  std::unique_ptr<Target> target_;
+  std::unique_ptr<TerrainPass> terrain_;
+  int width_ = 0, height_ = 0;
+  lod::Camera camera_;
+  Lighting lighting_;
+  RenderStats stats_;
+};
+
+}  // namespace ig::render

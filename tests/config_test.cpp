@@ -1,0 +1,552 @@
+// Tests for ig/config: the shipped config files load with the expected values, and every kind of
+// error names the right file, line, key and value without touching the output struct.
+#include "ig/config.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+namespace ig {
+namespace {
+
+namespace fs = std::filesystem;
+
+const std::string kSourceDir = IG_SOURCE_DIR;
+
+std::string normal(const fs::path& p) { return p.lexically_normal().string(); }
+
+// A service config that passes validation; tests append or substitute keys.
+constexpr const char* kMinimalService =
+    "[host]\n"
+    "source = \"none\"\n"
+    "[scene]\n"
+    "file = \"scenes/x.toml\"\n";
+
+// Parses `text` as a service config that is expected to fail; returns the error.
+ConfigError serviceError(const std::string& text) {
+  ServiceConfig cfg;
+  ConfigError error;
+  EXPECT_FALSE(parseServiceConfig(text, "svc.toml", "/base", cfg, error)) << text;
+  return error;
+}
+
+ConfigError sceneError(const std::string& text) {
+  SceneConfig cfg;
+  ConfigError error;
+  EXPECT_FALSE(parseSceneConfig(text, "scene.toml", "/base", cfg, error)) << text;
+  return error;
+}
+
+ServiceConfig parseServiceOk(const std::string& text, const std::string& baseDir = "/base") {
+  ServiceConfig cfg;
+  ConfigError error;
+  EXPECT_TRUE(parseServiceConfig(text, "svc.toml", baseDir, cfg, error)) << error.what();
+  return cfg;
+}
+
+SceneConfig parseSceneOk(const std::string& text, const std::string& baseDir = "/base") {
+  SceneConfig cfg;
+  ConfigError error;
+  EXPECT_TRUE(parseSceneConfig(text, "scene.toml", baseDir, cfg, error)) << error.what();
+  return cfg;
+}
+
+// ---- shipped files ---------------------------------------------------------------------------
+
+TEST(ConfigShipped, ServiceConfigLoadsWithExpectedValues) {
+  const std::string file = kSourceDir + "/config/igd.toml";
+  const fs::path configDir = fs::path(kSourceDir) / "config";
+  ServiceConfig cfg;
+  ConfigError error;
+  ASSERT_TRUE(loadServiceConfig(file, cfg, error)) << error.what();
+  EXPECT_EQ(cfg.path, file);
+  EXPECT_DOUBLE_EQ(cfg.rate_hz, 30.0);
+  EXPECT_EQ(cfg.frames, 300);
+  EXPECT_FALSE(cfg.freeRun);
+  EXPECT_EQ(cfg.output, OutputMode::Headless);
+  EXPECT_EQ(cfg.width_px, 960);
+  EXPECT_EQ(cfg.height_px, 540);
+  EXPECT_EQ(cfg.snapshotDir, normal(configDir / "../out/snapshots"));
+  EXPECT_EQ(cfg.snapshotEvery, 60);
+  EXPECT_TRUE(cfg.snapshotFrames.empty());
+  EXPECT_EQ(cfg.statsFile, normal(configDir / "../out/frame_stats.csv"));
+  EXPECT_EQ(cfg.statsFormat, StatsFormat::Csv);
+  EXPECT_EQ(cfg.host, HostSource::Replay);
+  EXPECT_EQ(cfg.replayFile, normal(configDir / "recordings/default.rec"));
+  EXPECT_FALSE(cfg.replayLoop);
+  EXPECT_EQ(cfg.sceneFile, normal(configDir / "scenes/default.toml"));
+  EXPECT_DOUBLE_EQ(cfg.budgetFrame_ms, 0.0);
+  EXPECT_EQ(cfg.budgetTriangles, 2'000'000);
+  EXPECT_DOUBLE_EQ(cfg.watchdogInterval_s, 0.0);
+}
+
+TEST(ConfigShipped, DefaultSceneLoadsWithExpectedValues) {
+  const std::string file = kSourceDir + "/config/scenes/default.toml";
+  SceneConfig cfg;
+  ConfigError error;
+  ASSERT_TRUE(loadSceneConfig(file, cfg, error)) << error.what();
+  EXPECT_EQ(cfg.path, file);
+  EXPECT_EQ(cfg.name, "default");
+  EXPECT_GE(cfg.originGeodetic[0], -90.0);
+  EXPECT_LE(cfg.originGeodetic[0], 90.0);
+  EXPECT_NE(cfg.originGeodetic[0], 0.0);  // set in the file, not the default
+  ASSERT_TRUE(cfg.terrain.has_value());
+  EXPECT_EQ(cfg.terrain->source, TerrainLayerConfig::Source::Procedural);
+  EXPECT_EQ(cfg.terrain->seed, 20261123u);
+  EXPECT_DOUBLE_EQ(cfg.terrain->size_m, 8192.0);
+  EXPECT_DOUBLE_EQ(cfg.terrain->gridStep_m, 32.0);
+  EXPECT_DOUBLE_EQ(cfg.terrain->heightScale_m, 600.0);
+  EXPECT_EQ(cfg.terrain->offset_m, (std::array<double, 3>{-4096.0, -4096.0, 0.0}));
+  EXPECT_EQ(cfg.terrain->chunkQuads, 64);
+  EXPECT_FALSE(cfg.forest.has_value());
+  EXPECT_FALSE(cfg.hdlod.has_value());
+  EXPECT_TRUE(cfg.fog.enabled);
+  EXPECT_DOUBLE_EQ(cfg.fog.visibility_m, 12000.0);
+  EXPECT_GT(cfg.sun.elevation_deg, 0.0);
+}
+
+TEST(ConfigShipped, ServiceConfigPointsAtTheShippedScene) {
+  ServiceConfig service;
+  ConfigError error;
+  ASSERT_TRUE(loadServiceConfig(kSourceDir + "/config/igd.toml", service, error)) << error.what();
+  SceneConfig scene;
+  EXPECT_TRUE(loadSceneConfig(service.sceneFile, scene, error)) << error.what();
+  EXPECT_EQ(scene.name, "default");
+}
+
+// ---- defaults and accepted forms -------------------------------------------------------------
+
+TEST(ConfigParse, MissingTablesKeepStructDefaults) {
+  const ServiceConfig defaults;
+  const ServiceConfig cfg = parseServiceOk(kMinimalService);
+  EXPECT_EQ(cfg.path, "svc.toml");
+  EXPECT_DOUBLE_EQ(cfg.rate_hz, defaults.rate_hz);
+  EXPECT_EQ(cfg.frames, defaults.frames);
+  EXPECT_EQ(cfg.output, defaults.output);
+  EXPECT_EQ(cfg.width_px, defaults.width_px);
+  EXPECT_EQ(cfg.height_px, defaults.height_px);
+  EXPECT_EQ(cfg.statsFormat, defaults.statsFormat);
+  EXPECT_EQ(cfg.budgetTriangles, defaults.budgetTriangles);
+  EXPECT_EQ(cfg.host, HostSource::None);
+  EXPECT_TRUE(cfg.replayFile.empty());
+}
+
+TEST(ConfigParse, AllServiceKeysAreRead) {
+  const ServiceConfig cfg = parseServiceOk(
+      "[frame]\nrate_hz = 120.5\nframes = 7\nfree_run = true\n"
+      "[output]\nmode = \"osmesa\"\nwidth_px = 16\nheight_px = 16384\nsnapshot_dir = \"snaps\"\n"
+      "snapshot_every = 5\nsnapshot_frames = [0, 3, 9]\n"
+      "[stats]\nfile = \"s.jsonl\"\nformat = \"jsonl\"\n"
+      "[host]\nsource = \"replay\"\nreplay_file = \"r.rec\"\nreplay_loop = true\n"
+      "[scene]\nfile = \"sc.toml\"\n"
+      "[budget]\nframe_ms = 12.5\ntriangles = 1000\n"
+      "[service]\nwatchdog_interval_s = 2.5\n");
+  EXPECT_DOUBLE_EQ(cfg.rate_hz, 120.5);
+  EXPECT_EQ(cfg.frames, 7);
+  EXPECT_TRUE(cfg.freeRun);
+  EXPECT_EQ(cfg.output, OutputMode::OSMesa);
+  EXPECT_EQ(cfg.width_px, 16);
+  EXPECT_EQ(cfg.height_px, 16384);
+  EXPECT_EQ(cfg.snapshotEvery, 5);
+  EXPECT_EQ(cfg.snapshotFrames, (std::vector<int64_t>{0, 3, 9}));
+  EXPECT_EQ(cfg.statsFormat, StatsFormat::JsonLines);
+  EXPECT_EQ(cfg.host, HostSource::Replay);
+  EXPECT_TRUE(cfg.replayLoop);
+  EXPECT_DOUBLE_EQ(cfg.budgetFrame_ms, 12.5);
+  EXPECT_EQ(cfg.budgetTriangles, 1000);
+  EXPECT_DOUBLE_EQ(cfg.watchdogInterval_s, 2.5);
+}
+
+TEST(ConfigParse, IntegerAcceptedWhereFloatExpected) {
+  const ServiceConfig service = parseServiceOk(std::string(kMinimalService) + "[frame]\nrate_hz = 60\n");
+  EXPECT_DOUBLE_EQ(service.rate_hz, 60.0);
+  const SceneConfig scene = parseSceneOk("[terrain]\nsize_m = 4096\noffset_m = [1, -2.5, 3]\n");
+  ASSERT_TRUE(scene.terrain.has_value());
+  EXPECT_DOUBLE_EQ(scene.terrain->size_m, 4096.0);
+  EXPECT_EQ(scene.terrain->offset_m, (std::array<double, 3>{1.0, -2.5, 3.0}));
+}
+
+TEST(ConfigParse, EmptyTerrainTableEnablesLayerWithDefaults) {
+  const SceneConfig cfg = parseSceneOk("[terrain]\n");
+  ASSERT_TRUE(cfg.terrain.has_value());
+  const TerrainLayerConfig defaults;
+  EXPECT_EQ(cfg.terrain->seed, defaults.seed);
+  EXPECT_DOUBLE_EQ(cfg.terrain->size_m, defaults.size_m);
+  EXPECT_EQ(cfg.terrain->chunkQuads, defaults.chunkQuads);
+  EXPECT_FALSE(cfg.forest.has_value());
+  EXPECT_FALSE(cfg.hdlod.has_value());
+}
+
+TEST(ConfigParse, AbsentTerrainTableLeavesLayerDisabled) {
+  const SceneConfig cfg = parseSceneOk("name = \"empty\"\n");
+  EXPECT_EQ(cfg.name, "empty");
+  EXPECT_FALSE(cfg.terrain.has_value());
+}
+
+TEST(ConfigParse, RangeBoundariesAreInclusiveWhereDocumented) {
+  const ServiceConfig cfg = parseServiceOk(std::string(kMinimalService) +
+                                           "[frame]\nrate_hz = 1000\n[output]\nwidth_px = 16384\n");
+  EXPECT_DOUBLE_EQ(cfg.rate_hz, 1000.0);
+  const SceneConfig scene = parseSceneOk(
+      "[origin]\nlat_deg = -90\nlon_deg = 180\nheight_m = 100000\n"
+      "[terrain]\nseed = 4294967295\nchunk_quads = 1024\n[sun]\ncolor = [0, 1, 0.5]\n");
+  EXPECT_DOUBLE_EQ(scene.originGeodetic[0], -90.0);
+  EXPECT_DOUBLE_EQ(scene.originGeodetic[1], 180.0);
+  EXPECT_DOUBLE_EQ(scene.originGeodetic[2], 100000.0);
+  ASSERT_TRUE(scene.terrain.has_value());
+  EXPECT_EQ(scene.terrain->seed, 4294967295u);
+  EXPECT_EQ(scene.terrain->chunkQuads, 1024);
+}
+
+// ---- paths ------------------------------------------------------------------------------------
+
+TEST(ConfigPaths, RelativePathsResolvedAgainstBaseDir) {
+  const ServiceConfig cfg = parseServiceOk(
+      "[output]\nsnapshot_dir = \"snaps\"\n[stats]\nfile = \"../stats.csv\"\n"
+      "[host]\nreplay_file = \"/abs/r.rec\"\n[scene]\nfile = \"scenes/a.toml\"\n",
+      "/base/dir");
+  EXPECT_EQ(cfg.snapshotDir, "/base/dir/snaps");
+  EXPECT_EQ(cfg.statsFile, "/base/stats.csv");
+  EXPECT_EQ(cfg.replayFile, "/abs/r.rec");  // absolute stays as written
+  EXPECT_EQ(cfg.sceneFile, "/base/dir/scenes/a.toml");
+}
+
+TEST(ConfigPaths, DefaultPathsAreResolvedToo) {
+  const ServiceConfig cfg = parseServiceOk(kMinimalService, "/cfg");
+  EXPECT_EQ(cfg.snapshotDir, "/cfg/out/snapshots");
+  EXPECT_EQ(cfg.statsFile, "/cfg/out/frame_stats.csv");
+}
+
+TEST(ConfigPaths, EmptyStatsFileMeansNoStatsFile) {
+  const ServiceConfig cfg = parseServiceOk(std::string(kMinimalService) + "[stats]\nfile = \"\"\n", "/cfg");
+  EXPECT_EQ(cfg.statsFile, "");
+}
+
+TEST(ConfigPaths, LayerFilesResolvedButNotRequiredToExist) {
+  const SceneConfig cfg = parseSceneOk("[forest]\nfile = \"trees/a.trees\"\n[hdlod]\nfile = \"/abs/h.hd\"\n",
+                                       "/scenes");
+  ASSERT_TRUE(cfg.forest.has_value());
+  ASSERT_TRUE(cfg.hdlod.has_value());
+  EXPECT_EQ(cfg.forest->file, "/scenes/trees/a.trees");
+  EXPECT_EQ(cfg.hdlod->file, "/abs/h.hd");
+}
+
+TEST(ConfigPaths, LoadResolvesAgainstTheFilesFolder) {
+  const fs::path dir = fs::path(testing::TempDir()) / "ig_config_test_load";
+  fs::create_directories(dir);
+  const fs::path file = dir / "scene.toml";
+  {
+    std::ofstream out(file);
+    out << "name = \"tmp\"\n[forest]\nfile = \"trees.dat\"\n";
+  }
+  SceneConfig cfg;
+  ConfigError error;
+  ASSERT_TRUE(loadSceneConfig(file.string(), cfg, error)) << error.what();
+  ASSERT_TRUE(cfg.forest.has_value());
+  EXPECT_EQ(cfg.forest->file, normal(dir / "trees.dat"));
+  fs::remove_all(dir);
+}
+
+// ---- errors -----------------------------------------------------------------------------------
+
+TEST(ConfigErrors, UnknownKeyInKnownTable) {
+  const ConfigError e = serviceError(std::string(kMinimalService) + "[frame]\nrate_hz = 30\nfps = 60\n");
+  EXPECT_EQ(e.file, "svc.toml");
+  EXPECT_EQ(e.line, 7);
+  EXPECT_EQ(e.key, "frame.fps");
+  EXPECT_EQ(e.value, "60");
+  EXPECT_NE(e.message.find("unknown key"), std::string::npos) << e.message;
+  EXPECT_NE(e.message.find("rate_hz, frames, free_run"), std::string::npos) << e.message;
+}
+
+TEST(ConfigErrors, UnknownTable) {
+  const ConfigError e = serviceError(std::string(kMinimalService) + "\n[graphics]\nx = 1\n");
+  EXPECT_EQ(e.line, 6);
+  EXPECT_EQ(e.key, "graphics");
+  EXPECT_EQ(e.value, "");  // a [table] header has no value text
+  EXPECT_EQ(e.what().rfind("svc.toml:6: graphics: unknown table (known keys: ", 0), 0u) << e.what();
+  EXPECT_NE(e.message.find("unknown table"), std::string::npos) << e.message;
+  EXPECT_NE(e.message.find("frame, output, stats, host, scene, budget, service"), std::string::npos)
+      << e.message;
+}
+
+TEST(ConfigErrors, UnknownTopLevelKeyInScene) {
+  const ConfigError e = sceneError("name = \"a\"\nnmae = \"typo\"\n");
+  EXPECT_EQ(e.file, "scene.toml");
+  EXPECT_EQ(e.line, 2);
+  EXPECT_EQ(e.key, "nmae");
+  EXPECT_EQ(e.value, "\"typo\"");
+  EXPECT_NE(e.message.find("unknown key"), std::string::npos);
+}
+
+TEST(ConfigErrors, FirstUnknownKeyInFileOrderIsReported) {
+  const ConfigError e = sceneError("[sun]\nzenith = 1\nalbedo = 2\n");
+  EXPECT_EQ(e.line, 2);
+  EXPECT_EQ(e.key, "sun.zenith");
+}
+
+TEST(ConfigErrors, WrongTypeNamesExpectedType) {
+  const ConfigError e = serviceError(std::string(kMinimalService) + "[output]\nwidth_px = \"wide\"\n");
+  EXPECT_EQ(e.line, 6);
+  EXPECT_EQ(e.key, "output.width_px");
+  EXPECT_EQ(e.value, "\"wide\"");
+  EXPECT_NE(e.message.find("expected an integer"), std::string::npos) << e.message;
+}
+
+TEST(ConfigErrors, FloatWhereIntegerExpectedIsWrongType) {
+  const ConfigError e = serviceError(std::string(kMinimalService) + "[frame]\nframes = 2.5\n");
+  EXPECT_EQ(e.key, "frame.frames");
+  EXPECT_EQ(e.value, "2.5");
+  EXPECT_NE(e.message.find("expected an integer"), std::string::npos) << e.message;
+}
+
+TEST(ConfigErrors, ValueWhereTableExpected) {
+  const ConfigError e = serviceError("frame = 5\n[scene]\nfile = \"x\"\n");
+  EXPECT_EQ(e.line, 1);
+  EXPECT_EQ(e.key, "frame");
+  EXPECT_EQ(e.value, "5");
+  EXPECT_NE(e.message.find("expected a table"), std::string::npos) << e.message;
+}
+
+TEST(ConfigErrors, WrongTypeBoolean) {
+  const ConfigError e = sceneError("[fog]\nenabled = \"yes\"\n");
+  EXPECT_EQ(e.key, "fog.enabled");
+  EXPECT_NE(e.message.find("boolean"), std::string::npos) << e.message;
+}
+
+TEST(ConfigErrors, OutOfRangeNamesTheRange) {
+  ConfigError e = serviceError(std::string(kMinimalService) + "[frame]\nrate_hz = 0\n");
+  EXPECT_EQ(e.line, 6);
+  EXPECT_EQ(e.key, "frame.rate_hz");
+  EXPECT_EQ(e.value, "0");
+  EXPECT_NE(e.message.find("(0, 1000]"), std::string::npos) << e.message;
+
+  e = serviceError(std::string(kMinimalService) + "[frame]\nrate_hz = 1000.5\n");
+  EXPECT_EQ(e.value, "1000.5");
+
+  e = serviceError(std::string(kMinimalService) + "[output]\nheight_px = 15\n");
+  EXPECT_EQ(e.key, "output.height_px");
+  EXPECT_EQ(e.value, "15");
+  EXPECT_NE(e.message.find("[16, 16384]"), std::string::npos) << e.message;
+
+  e = serviceError(std::string(kMinimalService) + "[budget]\ntriangles = 999\n");
+  EXPECT_EQ(e.key, "budget.triangles");
+  EXPECT_NE(e.message.find(">= 1000"), std::string::npos) << e.message;
+
+  e = sceneError("[origin]\nlat_deg = 90.5\n");
+  EXPECT_EQ(e.key, "origin.lat_deg");
+  EXPECT_NE(e.message.find("[-90, 90]"), std::string::npos) << e.message;
+
+  e = sceneError("[terrain]\nseed = -1\n");
+  EXPECT_EQ(e.key, "terrain.seed");
+
+  e = sceneError("[terrain]\nseed = 4294967296\n");
+  EXPECT_EQ(e.key, "terrain.seed");
+
+  e = sceneError("[terrain]\nchunk_quads = 3\n");
+  EXPECT_EQ(e.key, "terrain.chunk_quads");
+
+  e = sceneError("[fog]\nvisibility_m = 0\n");
+  EXPECT_EQ(e.key, "fog.visibility_m");
+}
+
+TEST(ConfigErrors, ArrayElementOutOfRangeNamesTheElement) {
+  ConfigError e = serviceError(std::string(kMinimalService) + "[output]\nsnapshot_frames = [1, -2, 3]\n");
+  EXPECT_EQ(e.line, 6);
+  EXPECT_EQ(e.key, "output.snapshot_frames[1]");
+  EXPECT_EQ(e.value, "-2");
+
+  e = sceneError("[sun]\ncolor = [0.5, 1.5, 0.5]\n");
+  EXPECT_EQ(e.key, "sun.color[1]");
+  EXPECT_EQ(e.value, "1.5");
+  EXPECT_NE(e.message.find("[0, 1]"), std::string::npos) << e.message;
+}
+
+TEST(ConfigErrors, ArrayOfWrongLength) {
+  const ConfigError e = sceneError("[fog]\ncolor = [0.5, 0.5]\n");
+  EXPECT_EQ(e.line, 2);
+  EXPECT_EQ(e.key, "fog.color");
+  EXPECT_EQ(e.value, "[0.5, 0.5]");
+  EXPECT_NE(e.message.find("exactly 3"), std::string::npos) << e.message;
+  EXPECT_NE(e.message.find("got 2 elements"), std::string::npos) << e.message;
+}
+
+TEST(ConfigErrors, TerrainGridRatioChecked) {
+  ConfigError e = sceneError("[terrain]\nsize_m = 8192\ngrid_step_m = 0.5\n");
+  EXPECT_EQ(e.line, 3);
+  EXPECT_EQ(e.key, "terrain.grid_step_m");
+  EXPECT_NE(e.message.find("[2, 8192]"), std::string::npos) << e.message;
+
+  e = sceneError("[terrain]\nsize_m = 40\n");  // default grid step 32 -> 1.25 quads
+  EXPECT_EQ(e.key, "terrain.size_m");
+  EXPECT_EQ(e.line, 2);
+}
+
+TEST(ConfigErrors, NanAndInfinityRejected) {
+  ConfigError e = serviceError(std::string(kMinimalService) + "[frame]\nrate_hz = nan\n");
+  EXPECT_EQ(e.line, 6);
+  EXPECT_EQ(e.key, "frame.rate_hz");
+  EXPECT_EQ(e.value, "nan");
+  EXPECT_NE(e.message.find("finite"), std::string::npos) << e.message;
+
+  e = sceneError("[terrain]\noffset_m = [0, -inf, 0]\n");
+  EXPECT_EQ(e.key, "terrain.offset_m[1]");
+  EXPECT_EQ(e.value, "-inf");
+
+  // Even where the range is one-sided, inf is not accepted.
+  e = serviceError(std::string(kMinimalService) + "[service]\nwatchdog_interval_s = inf\n");
+  EXPECT_EQ(e.key, "service.watchdog_interval_s");
+}
+
+TEST(ConfigErrors, BadEnumListsAllowedValues) {
+  ConfigError e = serviceError(std::string(kMinimalService) + "[output]\nmode = \"fullscreen\"\n");
+  EXPECT_EQ(e.line, 6);
+  EXPECT_EQ(e.key, "output.mode");
+  EXPECT_EQ(e.value, "\"fullscreen\"");
+  EXPECT_NE(e.message.find("\"headless\", \"window\", \"osmesa\""), std::string::npos) << e.message;
+
+  e = serviceError("[stats]\nformat = \"json\"\n[host]\nsource=\"none\"\n[scene]\nfile=\"x\"\n");
+  EXPECT_EQ(e.key, "stats.format");
+  EXPECT_NE(e.message.find("\"csv\", \"jsonl\""), std::string::npos) << e.message;
+
+  e = sceneError("[terrain]\nsource = \"dted\"\n");
+  EXPECT_EQ(e.key, "terrain.source");
+  EXPECT_NE(e.message.find("\"procedural\""), std::string::npos) << e.message;
+}
+
+TEST(ConfigErrors, MissingRequiredSceneFile) {
+  const ConfigError e = serviceError("[host]\nsource = \"none\"\n");
+  EXPECT_EQ(e.line, 0);
+  EXPECT_EQ(e.key, "scene.file");
+  EXPECT_EQ(e.value, "");
+  EXPECT_NE(e.message.find("required"), std::string::npos) << e.message;
+}
+
+TEST(ConfigErrors, EmptyRequiredPathRejected) {
+  const ConfigError e = serviceError("[host]\nsource = \"none\"\n[scene]\nfile = \"\"\n");
+  EXPECT_EQ(e.line, 4);
+  EXPECT_EQ(e.key, "scene.file");
+}
+
+TEST(ConfigErrors, ReplayFileRequiredForReplaySource) {
+  ConfigError e = serviceError("[host]\nsource = \"replay\"\n[scene]\nfile = \"x\"\n");
+  EXPECT_EQ(e.key, "host.replay_file");
+  EXPECT_EQ(e.line, 1);  // points at the [host] table
+  // "replay" is the default source, so a file without [host] needs it too.
+  e = serviceError("[scene]\nfile = \"x\"\n");
+  EXPECT_EQ(e.key, "host.replay_file");
+  EXPECT_EQ(e.line, 0);
+}
+
+TEST(ConfigErrors, LayerTableWithoutFile) {
+  ConfigError e = sceneError("name = \"a\"\n[forest]\n");
+  EXPECT_EQ(e.key, "forest.file");
+  EXPECT_EQ(e.line, 2);
+  e = sceneError("[hdlod]\nfiles = \"x\"\n");
+  EXPECT_EQ(e.key, "hdlod.files");  // unknown key is reported before the missing one
+  e = sceneError("[hdlod]\n");
+  EXPECT_EQ(e.key, "hdlod.file");
+}
+
+TEST(ConfigErrors, TomlSyntaxErrorHasLine) {
+  const ConfigError e = serviceError("[frame]\nrate_hz = 30\nframes = \n[scene]\n");
+  EXPECT_EQ(e.file, "svc.toml");
+  EXPECT_EQ(e.line, 3);
+  EXPECT_EQ(e.key, "");
+  EXPECT_FALSE(e.message.empty());
+}
+
+TEST(ConfigErrors, DuplicateKeyIsSyntaxError) {
+  const ConfigError e = sceneError("name = \"a\"\n\nname = \"b\"\n");
+  EXPECT_EQ(e.line, 3);
+}
+
+TEST(ConfigErrors, MissingFile) {
+  const std::string file = kSourceDir + "/config/does_not_exist.toml";
+  ServiceConfig cfg;
+  ConfigError error;
+  EXPECT_FALSE(loadServiceConfig(file, cfg, error));
+  EXPECT_EQ(error.file, file);
+  EXPECT_EQ(error.line, 0);
+  EXPECT_EQ(error.message, "cannot open: No such file or directory");
+  EXPECT_EQ(error.what(), file + ": cannot open: No such file or directory");
+
+  SceneConfig scene;
+  EXPECT_FALSE(loadSceneConfig(file, scene, error));
+  EXPECT_EQ(error.message, "cannot open: No such file or directory");
+}
+
+TEST(ConfigErrors, DirectoryIsNotAConfigFile) {
+  ServiceConfig cfg;
+  ConfigError error;
+  EXPECT_FALSE(loadServiceConfig(kSourceDir + "/config", cfg, error));
+  EXPECT_EQ(error.line, 0);
+  EXPECT_EQ(error.message.rfind("cannot open: ", 0), 0u) << error.message;
+}
+
+TEST(ConfigErrors, OutputUntouchedOnFailure) {
+  ServiceConfig service;
+  service.width_px = 1234;
+  service.sceneFile = "sentinel";
+  service.path = "before";
+  ConfigError error;
+  // Valid keys before the bad one must not leak into `out`.
+  EXPECT_FALSE(parseServiceConfig("[output]\nwidth_px = 640\n[scene]\nfile = \"s\"\n[frame]\nrate_hz = -1\n",
+                                  "svc.toml", "/base", service, error));
+  EXPECT_EQ(service.width_px, 1234);
+  EXPECT_EQ(service.sceneFile, "sentinel");
+  EXPECT_EQ(service.path, "before");
+  EXPECT_EQ(error.key, "frame.rate_hz");
+
+  SceneConfig scene;
+  scene.name = "sentinel";
+  EXPECT_FALSE(parseSceneConfig("name = \"new\"\n[terrain]\nseed = 5\n[fog]\nvisibility_m = nan\n", "scene.toml",
+                                "/base", scene, error));
+  EXPECT_EQ(scene.name, "sentinel");
+  EXPECT_FALSE(scene.terrain.has_value());
+
+  EXPECT_FALSE(loadSceneConfig("/nonexistent/scene.toml", scene, error));
+  EXPECT_EQ(scene.name, "sentinel");
+}
+
+// ---- formatting -------------------------------------------------------------------------------
+
+TEST(ConfigErrorFormat, WhatFormat) {
+  ConfigError e{"a.toml", 12, "output.width_px", "\"wide\"", "wrong type"};
+  EXPECT_EQ(e.what(), "a.toml:12: output.width_px = \"wide\": wrong type");
+  e.line = 0;
+  EXPECT_EQ(e.what(), "a.toml: output.width_px = \"wide\": wrong type");
+  e.value = "";
+  EXPECT_EQ(e.what(), "a.toml: output.width_px: wrong type");
+  e.key = "";
+  e.line = 3;
+  EXPECT_EQ(e.what(), "a.toml:3: wrong type");
+}
+
+TEST(ConfigErrorFormat, WhatOfARealError) {
+  const ConfigError e = serviceError(std::string(kMinimalService) + "[output]\nwidth_px = 99999\n");
+  EXPECT_EQ(e.what(), "svc.toml:6: output.width_px = 99999: out of range (allowed range: [16, 16384])");
+}
+
+TEST(ConfigEnums, ToStringGivesTomlSpellings) {
+  EXPECT_STREQ(toString(OutputMode::Headless), "headless");
+  EXPECT_STREQ(toString(OutputMode::Window), "window");
+  EXPECT_STREQ(toString(OutputMode::OSMesa), "osmesa");
+  EXPECT_STREQ(toString(StatsFormat::Csv), "csv");
+  EXPECT_STREQ(toString(StatsFormat::JsonLines), "jsonl");
+  EXPECT_STREQ(toString(HostSource::None), "none");
+  EXPECT_STREQ(toString(HostSource::Replay), "replay");
+}
+
+TEST(ConfigEnums, ToStringRoundTripsThroughTheParser) {
+  for (OutputMode mode : {OutputMode::Headless, OutputMode::Window, OutputMode::OSMesa}) {
+    const ServiceConfig cfg =
+        parseServiceOk(std::string(kMinimalService) + "[output]\nmode = \"" + toString(mode) + "\"\n");
+    EXPECT_EQ(cfg.output, mode);
+  }
+}
+
+}  // namespace
+}  // namespace ig

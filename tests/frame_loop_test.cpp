@@ -1,0 +1,133 @@
+// Frame pacing with a fake clock: absolute deadlines, phase times, overrun and missed-slot
+// accounting, free-run. No real time passes in these tests.
+#include <gtest/gtest.h>
+
+#include "ig/clock.h"
+#include "ig/frame_loop.h"
+#include "ig/stats.h"
+
+using namespace ig;
+
+namespace {
+constexpr int64_t kMs = 1'000'000;
+}
+
+TEST(FramePacer, FramesStartOnAbsoluteSlotsWithoutDrift) {
+  FakeClock clock;
+  FramePacer pacer(clock, 50.0, false);  // 20 ms period
+  const int64_t t0 = clock.now_ns();
+  for (int i = 0; i < 100; ++i) {
+    EXPECT_EQ(pacer.beginFrame(), i);
+    EXPECT_EQ(clock.now_ns(), t0 + i * 20 * kMs);  // exactly on the slot, frame after frame
+    clock.advance_ns(7 * kMs + 333);              // odd work times must not accumulate drift
+    const FrameTiming& t = pacer.endFrame();
+    EXPECT_FALSE(t.overrun);
+    EXPECT_EQ(t.missedSlots, 0);
+  }
+  EXPECT_EQ(pacer.frames(), 100);
+  EXPECT_EQ(pacer.overruns(), 0);
+}
+
+TEST(FramePacer, PhaseTimesAddUpToWork) {
+  FakeClock clock;
+  FramePacer pacer(clock, 60.0, false);
+  pacer.beginFrame();
+  clock.advance_ns(1 * kMs);
+  pacer.endPhase(Phase::Input);
+  clock.advance_ns(2 * kMs);
+  pacer.endPhase(Phase::Lod);
+  clock.advance_ns(3 * kMs);
+  pacer.endPhase(Phase::Submit);
+  clock.advance_ns(4 * kMs);
+  pacer.endPhase(Phase::GpuFinish);
+  clock.advance_ns(5 * kMs);
+  pacer.endPhase(Phase::Present);
+  const FrameTiming& t = pacer.endFrame();
+  EXPECT_DOUBLE_EQ(t.phase_ms[0], 1.0);
+  EXPECT_DOUBLE_EQ(t.phase_ms[1], 2.0);
+  EXPECT_DOUBLE_EQ(t.phase_ms[2], 3.0);
+  EXPECT_DOUBLE_EQ(t.phase_ms[3], 4.0);
+  EXPECT_DOUBLE_EQ(t.phase_ms[4], 5.0);
+  EXPECT_DOUBLE_EQ(t.work_ms, 15.0);
+}
+
+TEST(FramePacer, OverrunSkipsMissedSlotsAndStaysPhaseLocked) {
+  FakeClock clock;
+  FramePacer pacer(clock, 100.0, false);  // 10 ms
+  const int64_t t0 = clock.now_ns();
+  EXPECT_EQ(pacer.beginFrame(), 0);
+  clock.advance_ns(25 * kMs);  // runs past slots 1 and 2
+  const FrameTiming& t = pacer.endFrame();
+  EXPECT_TRUE(t.overrun);
+  EXPECT_EQ(t.missedSlots, 2);
+  EXPECT_EQ(pacer.beginFrame(), 3);
+  EXPECT_EQ(clock.now_ns(), t0 + 30 * kMs);  // next frame on the slot grid, not at 25 ms
+  clock.advance_ns(2 * kMs);
+  EXPECT_FALSE(pacer.endFrame().overrun);
+  EXPECT_EQ(pacer.overruns(), 1);
+  EXPECT_EQ(pacer.missedSlots(), 2);
+  EXPECT_EQ(pacer.frames(), 2);
+}
+
+TEST(FramePacer, WorkEndingExactlyOnTheNextSlotIsNotAnOverrun) {
+  FakeClock clock;
+  FramePacer pacer(clock, 100.0, false);
+  pacer.beginFrame();
+  clock.advance_ns(10 * kMs);
+  EXPECT_FALSE(pacer.endFrame().overrun);
+  pacer.beginFrame();
+  clock.advance_ns(10 * kMs + 1);
+  EXPECT_TRUE(pacer.endFrame().overrun);
+}
+
+TEST(FramePacer, LateWakeUpIsReportedAsLateness) {
+  FakeClock clock;
+  FramePacer pacer(clock, 100.0, false);
+  pacer.beginFrame();
+  clock.advance_ns(1 * kMs);
+  pacer.endFrame();
+  // Simulate the scheduler waking us 3 ms late: sleep returns at the slot, then time passes.
+  struct LateClock final : Clock {
+    FakeClock& inner;
+    explicit LateClock(FakeClock& c) : inner(c) {}
+    int64_t now_ns() const override { return inner.now_ns(); }
+    void sleepUntil_ns(int64_t d) override { inner.sleepUntil_ns(d + 3 * kMs); }
+  } late(clock);
+  FramePacer p2(late, 100.0, false);
+  p2.beginFrame();
+  p2.endFrame();
+  p2.beginFrame();
+  EXPECT_EQ(p2.endFrame().lateness_ns, 3 * kMs);
+}
+
+TEST(FramePacer, FreeRunNeverSleepsButStillCountsSlowFrames) {
+  FakeClock clock;
+  FramePacer pacer(clock, 60.0, true);
+  for (int i = 0; i < 10; ++i) {
+    EXPECT_EQ(pacer.beginFrame(), i);
+    clock.advance_ns(i == 4 ? 30 * kMs : 1 * kMs);
+    pacer.endFrame();
+  }
+  EXPECT_EQ(clock.sleeps(), 0);
+  EXPECT_EQ(pacer.overruns(), 1);
+  EXPECT_EQ(pacer.missedSlots(), 0);
+  EXPECT_NEAR(pacer.slotTime_s(9), 9.0 / 60.0, 1e-9);
+}
+
+TEST(Stats, SummaryPercentilesAndFixedCapacity) {
+  SummaryCollector c(100);
+  for (int i = 1; i <= 150; ++i) {  // only the last 100 (51..150) are kept
+    FrameRecord r;
+    r.timing.work_ms = i;
+    r.triangles = static_cast<uint64_t>(i) * 10;
+    c.add(r);
+  }
+  const RunSummary s = c.summarize(3, 4);
+  EXPECT_EQ(s.frames, 100);
+  EXPECT_EQ(s.overruns, 3);
+  EXPECT_EQ(s.missedSlots, 4);
+  EXPECT_DOUBLE_EQ(s.workMs_p50, 100.0);
+  EXPECT_DOUBLE_EQ(s.workMs_p99, 149.0);
+  EXPECT_DOUBLE_EQ(s.workMs_max, 150.0);
+  EXPECT_EQ(s.triangles_p50, 1000u);
+}

@@ -1,0 +1,183 @@
+// lod/: geodesy, view maths, reverse-Z precision, height field and terrain grid, including
+// the hard cases (huge coordinates, poles, camera inside a box, NaN, near 0.1 m / far 100 km).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <vector>
+
+#include "lod/geo.h"
+#include "lod/heightfield.h"
+#include "lod/terrain_grid.h"
+#include "lod/view.h"
+
+using namespace ig::lod;
+
+TEST(Geo, GeodeticEcefRoundTripIncludingPolesAndAntimeridian) {
+  const Geodetic cases[] = {{0, 0, 0},       {46.5, 7.9, 1200},  {89.9999, 45, 10},  {-90, 0, 0},
+                            {-33.9, 179.999, -50}, {60, -180, 35000}, {10, 20, 400000}};
+  for (const auto& g : cases) {
+    const Geodetic r = ecefToGeodetic(geodeticToEcef(g));
+    EXPECT_NEAR(r.lat_deg, g.lat_deg, 1e-9) << g.lat_deg << "," << g.lon_deg;
+    if (std::abs(g.lat_deg) < 90) {
+      EXPECT_NEAR(std::remainder(r.lon_deg - g.lon_deg, 360.0), 0.0, 1e-9);
+    }
+    EXPECT_NEAR(r.height_m, g.height_m, 1e-4);
+  }
+}
+
+TEST(Geo, EcefOfKnownPoint) {
+  // Equator / prime meridian is on the x axis at the semi-major axis.
+  const glm::dvec3 p = geodeticToEcef({0, 0, 0});
+  EXPECT_DOUBLE_EQ(p.x, 6378137.0);
+  EXPECT_NEAR(p.y, 0.0, 1e-9);
+  EXPECT_NEAR(p.z, 0.0, 1e-9);
+}
+
+TEST(Geo, EnuAxesAndHugeOffsets) {
+  const EnuFrame f({46.5, 7.9, 500});
+  // 1,000 km east then back: millimetre round trip.
+  const glm::dvec3 far{1.0e6, -2.0e5, 300.0};
+  const glm::dvec3 back = f.toEnu(f.toEcef(far));
+  EXPECT_NEAR(back.x, far.x, 1e-6);
+  EXPECT_NEAR(back.y, far.y, 1e-6);
+  EXPECT_NEAR(back.z, far.z, 1e-6);
+  // A point north of the origin has a larger latitude; up raises the height.
+  EXPECT_GT(f.toGeodetic({0, 1000, 0}).lat_deg, 46.5);
+  EXPECT_GT(f.toGeodetic({1000, 0, 0}).lon_deg, 7.9);
+  EXPECT_NEAR(f.toGeodetic({0, 0, 100}).height_m, 600.0, 1e-6);
+}
+
+TEST(View, HeadingPitchRollConventions) {
+  Camera c;
+  c.heading_deg = 90;  // looking east
+  glm::dmat3 r = viewRotation(c);
+  const glm::dvec3 east_in_cam = r * glm::dvec3(1, 0, 0);
+  EXPECT_NEAR(east_in_cam.z, -1.0, 1e-12);  // forward is -z in camera space
+  c.heading_deg = 0;
+  c.pitch_deg = 30;  // nose up: world up appears tilted back, a point ahead-and-up is centred
+  r = viewRotation(c);
+  const glm::dvec3 ahead_up = r * glm::dvec3(0, std::cos(M_PI / 6), std::sin(M_PI / 6));
+  EXPECT_NEAR(ahead_up.x, 0, 1e-12);
+  EXPECT_NEAR(ahead_up.y, 0, 1e-12);
+  c.pitch_deg = 0;
+  c.roll_deg = 20;  // right wing down: the camera's right axis dips, so world up leans left
+  r = viewRotation(c);
+  EXPECT_LT((r * glm::dvec3(0, 0, 1)).x, -0.3);
+}
+
+TEST(View, ReverseZMapsNearToOneAndFarToZero) {
+  EXPECT_NEAR(reverseZDepth(0.1, 100000.0, 0.1), 1.0, 1e-12);
+  EXPECT_NEAR(reverseZDepth(0.1, 100000.0, 100000.0), 0.0, 1e-12);
+  const glm::dmat4 p = reverseZProjection(45, 1.5, 0.1, 100000.0);
+  const glm::dvec4 clip = p * glm::dvec4(0, 0, -50.0, 1);
+  EXPECT_NEAR(clip.z / clip.w, reverseZDepth(0.1, 100000.0, 50.0), 1e-12);
+}
+
+TEST(View, ReverseZFloatDepthSeparatesSurfacesFarAway) {
+  // Near 0.1 m / far 100 km: two surfaces 5 m apart at 50 km must get different float32
+  // depths. A conventional 24-bit depth buffer cannot separate them (shown for contrast).
+  const double n = 0.1, f = 100000.0;
+  const float a = static_cast<float>(reverseZDepth(n, f, 50000.0));
+  const float b = static_cast<float>(reverseZDepth(n, f, 50005.0));
+  EXPECT_GT(a, b);
+  auto conventional24 = [&](double d) {
+    const double z = (f + n) / (f - n) - 2.0 * f * n / ((f - n) * d);  // NDC [-1, 1]
+    return static_cast<uint32_t>(std::llround((z * 0.5 + 0.5) * 16777215.0));
+  };
+  EXPECT_EQ(conventional24(50000.0), conventional24(50005.0));
+}
+
+TEST(View, FrustumCullsBehindAndKeepsCameraInsideBox) {
+  Camera c;
+  c.heading_deg = 0;  // looking north
+  const Frustum fr = makeFrustum(c);
+  const Aabb ahead{{-10, 100, -10}, {10, 120, 10}};
+  const Aabb behind{{-10, -120, -10}, {10, -100, 10}};
+  const Aabb around{{-1, -1, -1}, {1, 1, 1}};  // camera inside the box
+  const Aabb beyondFar{{-10, 200000, -10}, {10, 200010, 10}};
+  EXPECT_TRUE(fr.intersects(ahead));
+  EXPECT_FALSE(fr.intersects(behind));
+  EXPECT_TRUE(fr.intersects(around));
+  EXPECT_FALSE(fr.intersects(beyondFar));
+  EXPECT_DOUBLE_EQ(distanceToBox(around, {0, 0, 0}), 0.0);
+  EXPECT_DOUBLE_EQ(distanceToBox(ahead, {0, 0, 0}), 100.0);
+}
+
+TEST(Heightfield, DeterministicPerSeedAndInRange) {
+  HeightfieldDesc d;
+  d.postsX = d.postsY = 65;
+  d.heightScale_m = 600;
+  std::vector<float> a(65 * 65), b(65 * 65), c(65 * 65);
+  EXPECT_EQ(generateHeightfield(d, a), 65u * 65u);
+  generateHeightfield(d, b);
+  d.seed = 2;
+  generateHeightfield(d, c);
+  EXPECT_EQ(a, b);
+  EXPECT_NE(a, c);
+  float lo = 1e9f, hi = -1e9f;
+  for (float h : a) {
+    lo = std::min(lo, h);
+    hi = std::max(hi, h);
+  }
+  EXPECT_FLOAT_EQ(lo, 0.0f);
+  EXPECT_NEAR(hi, 600.0f, 1e-3f);
+}
+
+namespace {
+TerrainGridDesc smallTerrain(glm::dvec3 offset) {
+  TerrainGridDesc d;
+  d.heights.postsX = d.heights.postsY = 101;  // 100 quads: chunks of 32 leave edge chunks of 4
+  d.heights.postSpacing_m = 10;
+  d.heights.heightScale_m = 300;
+  d.offset_m = offset;
+  d.chunkQuads = 32;
+  return d;
+}
+}  // namespace
+
+TEST(TerrainGrid, ChunksCoverTheGridWithEdgeChunks) {
+  const TerrainGrid g(smallTerrain({0, 0, 0}));
+  ASSERT_EQ(g.chunks().size(), 16u);
+  EXPECT_EQ(g.totalTriangles(), 2u * 100u * 100u);
+  EXPECT_EQ(g.chunks().back().quadsX, 4);
+  for (const auto& c : g.chunks()) {
+    EXPECT_EQ(c.indexCount, 6u * c.quadsX * c.quadsY);
+    EXPECT_LE(c.bounds.min.z, c.bounds.max.z);
+  }
+  // Every index stays inside its chunk's vertex block.
+  for (size_t i = 0; i < g.chunks().size(); ++i) {
+    const auto& c = g.chunks()[i];
+    const uint32_t nv = static_cast<uint32_t>((c.quadsX + 1) * (c.quadsY + 1));
+    for (uint32_t k = 0; k < c.indexCount; ++k) ASSERT_LT(g.indices()[c.firstIndex + k], nv);
+  }
+}
+
+TEST(TerrainGrid, HeightAtMatchesVerticesAndIgnoresPlacement) {
+  const TerrainGrid a(smallTerrain({0, 0, 0}));
+  const TerrainGrid far(smallTerrain({1.0e6, -3.0e6, 250.0}));
+  // Vertex (x=3, y=2) of chunk 0.
+  const auto& v = a.vertices()[2 * 33 + 3];
+  EXPECT_NEAR(a.heightAt(30, 20), static_cast<double>(v.position[2]), 1e-4);
+  EXPECT_NEAR(far.heightAt(1.0e6 + 30, -3.0e6 + 20), static_cast<double>(v.position[2]) + 250.0, 1e-4);
+  // Vertex data is relative to the chunk: identical wherever the terrain is placed.
+  ASSERT_EQ(a.vertices().size(), far.vertices().size());
+  for (size_t i = 0; i < a.vertices().size(); ++i) ASSERT_EQ(a.vertices()[i].position[0], far.vertices()[i].position[0]);
+  // Outside the grid and NaN input clamp instead of reading out of bounds.
+  EXPECT_TRUE(std::isfinite(a.heightAt(-1e9, 1e9)));
+  EXPECT_TRUE(std::isfinite(a.heightAt(std::nan(""), 0)));
+}
+
+TEST(TerrainGrid, SelectionIsFrustumCulled) {
+  const TerrainGrid g(smallTerrain({0, 0, 0}));
+  std::vector<uint32_t> out(g.chunks().size());
+  Camera c;
+  c.eye_m = {500, -50, 400};
+  c.heading_deg = 0;
+  c.pitch_deg = -30;
+  const size_t n = g.select(makeFrustum(c), c.eye_m, out);
+  EXPECT_GT(n, 0u);
+  EXPECT_LT(n, g.chunks().size());
+  c.heading_deg = 180;  // looking away from the terrain
+  EXPECT_EQ(g.select(makeFrustum(c), c.eye_m, out), 0u);
+}

@@ -1,0 +1,132 @@
+// Host recordings: parsing with precise errors, truncation at every length, round trip,
+// replay by slot time, looping, and the committed built-in recording.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include "io/replay.h"
+
+using namespace ig::io;
+
+namespace {
+const char* kGood =
+    "igd-recording 1\n"
+    "# comment line\n"
+    "0.0 0 100.0  10 20 300  90 -5 2  45 0.1 100000\n"
+    "0.5 1 100.5  11 21 301  91 -5 2  45 0.1 100000   # trailing comment\n"
+    "1.0 2 101.0  12 22 302  92 -5 2  45 0.1 100000\n";
+
+std::string parseError(const std::string& text) {
+  Recording r;
+  std::string e;
+  EXPECT_FALSE(parseRecording(text, "rec.txt", r, e)) << text;
+  return e;
+}
+}  // namespace
+
+TEST(Replay, ParsesFieldsWithUnits) {
+  Recording r;
+  std::string e;
+  ASSERT_TRUE(parseRecording(kGood, "rec.txt", r, e)) << e;
+  ASSERT_EQ(r.samples.size(), 3u);
+  const HostState& s = r.samples[1].state;
+  EXPECT_EQ(s.hostFrame, 1u);
+  EXPECT_DOUBLE_EQ(s.simTime_s, 100.5);
+  EXPECT_DOUBLE_EQ(s.eyeEnu_m.y, 21.0);
+  EXPECT_DOUBLE_EQ(s.heading_deg, 91.0);
+  EXPECT_DOUBLE_EQ(r.duration_s(), 1.0);
+}
+
+TEST(Replay, ErrorsNameFileLineFieldAndValue) {
+  EXPECT_EQ(parseError("bogus 1\n"), "rec.txt:1: expected header 'igd-recording 1', got 'bogus 1'");
+  EXPECT_EQ(parseError("igd-recording 1\n0 0 0 1 2 3 4 5 6 45 0.1\n"), "rec.txt:2: expected 12 fields, got 11");
+  EXPECT_EQ(parseError("igd-recording 1\n0 0 0 1 nan 3 4 5 6 45 0.1 1000\n"),
+            "rec.txt:2: north_m = 'nan': not a finite number");
+  EXPECT_EQ(parseError("igd-recording 1\n0 0 0 1 2 3 4 5 6 45 0.1 1000\n\n-1 0 0 1 2 3 4 5 6 45 0.1 1000\n"),
+            "rec.txt:4: t_s = '-1': must be >= 0 and non-decreasing");
+  EXPECT_EQ(parseError("igd-recording 1\n0 0 0 1 2 3 4 5 6 190 0.1 1000\n"),
+            "rec.txt:2: fovy_deg = '190': must be in (0, 180)");
+  EXPECT_EQ(parseError("igd-recording 1\n0 0 0 1 2 3 4 5 6 45 0 1000\n"),
+            "rec.txt:2: near_m/far_m = '0 1000': need 0 < near_m < far_m");
+  EXPECT_EQ(parseError("igd-recording 1\n0 1.5 0 1 2 3 4 5 6 45 0.1 1000\n"),
+            "rec.txt:2: host_frame = '1.5': not a non-negative integer");
+  EXPECT_EQ(parseError("igd-recording 1\n"), "rec.txt:1: recording has no samples");
+  EXPECT_EQ(parseError(""), "rec.txt:0: empty recording: expected header 'igd-recording 1'");
+}
+
+TEST(Replay, TruncatedAtEveryLengthFailsCleanlyOrParsesAPrefix) {
+  const std::string full = kGood;
+  for (size_t n = 0; n <= full.size(); ++n) {
+    Recording r;
+    r.samples.push_back({});  // sentinel: must survive a failed parse
+    std::string e;
+    if (parseRecording(full.substr(0, n), "cut", r, e)) {
+      EXPECT_GE(r.samples.size(), 1u);
+      EXPECT_LE(r.samples.size(), 3u);
+    } else {
+      EXPECT_EQ(r.samples.size(), 1u) << "output touched on failure at length " << n;
+      EXPECT_EQ(e.rfind("cut:", 0), 0u);
+    }
+  }
+}
+
+TEST(Replay, FormatParseRoundTrip) {
+  const Recording a = makeDefaultRecording(30.0, 2.0);
+  Recording b;
+  std::string e;
+  ASSERT_TRUE(parseRecording(formatRecording(a), "rt", b, e)) << e;
+  ASSERT_EQ(a.samples.size(), b.samples.size());
+  for (size_t i = 0; i < a.samples.size(); ++i) {
+    EXPECT_NEAR(a.samples[i].t_s, b.samples[i].t_s, 1e-4);
+    EXPECT_NEAR(a.samples[i].state.eyeEnu_m.x, b.samples[i].state.eyeEnu_m.x, 1e-3);
+    EXPECT_EQ(a.samples[i].state.hostFrame, b.samples[i].state.hostFrame);
+  }
+}
+
+TEST(Replay, CommittedDefaultRecordingIsTheBuiltInOne) {
+  std::ifstream in(std::string(IG_SOURCE_DIR) + "/config/recordings/default.rec");
+  ASSERT_TRUE(in);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  EXPECT_EQ(ss.str(), formatRecording(makeDefaultRecording(60.0, 20.0)))
+      << "regenerate with: build/igtool make-recording";
+}
+
+TEST(Replay, SourcePublishesNewestSampleBySlotTime) {
+  Recording r;
+  std::string e;
+  ASSERT_TRUE(parseRecording(kGood, "rec.txt", r, e));
+  LatestValueMailbox<HostState> box;
+  ReplaySource src(r, false);
+  HostState out;
+  uint64_t seq = 0;
+  EXPECT_TRUE(src.advanceTo(0.0, box));
+  ASSERT_TRUE(box.readIfNewer(out, seq));
+  EXPECT_EQ(out.hostFrame, 0u);
+  EXPECT_TRUE(src.advanceTo(0.2, box));
+  EXPECT_FALSE(box.readIfNewer(out, seq));  // nothing new between samples
+  EXPECT_TRUE(src.advanceTo(1.0, box));     // jumps over sample 1 to the newest
+  ASSERT_TRUE(box.readIfNewer(out, seq));
+  EXPECT_EQ(out.hostFrame, 2u);
+  EXPECT_FALSE(src.advanceTo(1.5, box));  // past the end, not looping
+  EXPECT_EQ(sampleAt(r, 0.7).state.hostFrame, 1u);
+  EXPECT_EQ(sampleAt(r, -5).state.hostFrame, 0u);
+}
+
+TEST(Replay, LoopingRestartsAtTheBeginning) {
+  Recording r;
+  std::string e;
+  ASSERT_TRUE(parseRecording(kGood, "rec.txt", r, e));
+  LatestValueMailbox<HostState> box;
+  ReplaySource src(r, true);
+  HostState out;
+  uint64_t seq = 0;
+  src.advanceTo(1.0, box);
+  box.readIfNewer(out, seq);
+  EXPECT_EQ(out.hostFrame, 2u);
+  EXPECT_TRUE(src.advanceTo(1.6, box));  // 0.6 into the second loop
+  ASSERT_TRUE(box.readIfNewer(out, seq));
+  EXPECT_EQ(out.hostFrame, 1u);
+}
