@@ -45,7 +45,9 @@ struct TerrainLayer {
   size_t selectedCount = 0;
 };
 
-lod::TerrainGridDesc terrainDesc(const TerrainLayerConfig& t) {
+}  // namespace
+
+lod::TerrainGridDesc terrainGridDesc(const TerrainLayerConfig& t) {
   lod::TerrainGridDesc d;
   const int quads = static_cast<int>(std::llround(t.size_m / t.gridStep_m));
   d.heights.seed = t.seed;
@@ -56,8 +58,6 @@ lod::TerrainGridDesc terrainDesc(const TerrainLayerConfig& t) {
   d.chunkQuads = t.chunkQuads;
   return d;
 }
-
-}  // namespace
 
 bool hostStateValid(const io::HostState& s, std::string* why) {
   auto bad = [&](const char* what, double v) {
@@ -139,7 +139,7 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
   s->info_.context = m.context->description();
 
   if (scene.terrain) {
-    m.terrain = std::make_unique<TerrainLayer>(terrainDesc(*scene.terrain));
+    m.terrain = std::make_unique<TerrainLayer>(terrainGridDesc(*scene.terrain));
     if (!m.renderer.addTerrain(m.terrain->grid, error)) return nullptr;
     s->info_.layers.push_back("terrain");
     s->info_.terrainTriangles = m.terrain->grid.totalTriangles();

@@ -22,6 +22,7 @@
 #include "ig/stats.h"
 #include "io/host_state.h"
 #include "io/mailbox.h"
+#include "lod/terrain_grid.h"
 #include "render/image.h"
 
 namespace ig {
@@ -34,6 +35,9 @@ struct ServiceInfo {
   uint32_t threads = 1;              // threads the service runs (1 = render thread only)
   uint64_t terrainTriangles = 0;     // triangles in the whole terrain (0 = no terrain)
 };
+
+// The terrain grid a scene's [terrain] table describes.
+lod::TerrainGridDesc terrainGridDesc(const TerrainLayerConfig& terrain);
 
 // Why a host sample was rejected (kept the previous one).
 bool hostStateValid(const io::HostState& s, std::string* why = nullptr);

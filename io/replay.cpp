@@ -17,6 +17,8 @@ constexpr const char* kFieldNames[] = {"t_s",         "host_frame", "sim_time_s"
                                        "north_m",     "up_m",       "heading_deg", "pitch_deg",
                                        "roll_deg",    "fovy_deg",   "near_m",     "far_m"};
 constexpr size_t kFieldCount = std::size(kFieldNames);
+// Timestamps are written to 0.1 ms: a sample within that of the replay time is due.
+constexpr double kTimeTolerance_s = 1e-4;
 
 std::string_view trim(std::string_view s) {
   while (!s.empty() && (s.front() == ' ' || s.front() == '\t' || s.front() == '\r')) s.remove_prefix(1);
@@ -142,7 +144,7 @@ bool saveRecording(const std::string& file, const Recording& recording, std::str
 
 const HostSample& sampleAt(const Recording& recording, double t_s) {
   const auto& v = recording.samples;
-  auto it = std::upper_bound(v.begin(), v.end(), t_s, [](double t, const HostSample& s) { return t < s.t_s; });
+  auto it = std::upper_bound(v.begin(), v.end(), t_s + kTimeTolerance_s, [](double t, const HostSample& s) { return t < s.t_s; });
   return it == v.begin() ? v.front() : *(it - 1);
 }
 
@@ -153,10 +155,9 @@ bool ReplaySource::advanceTo(double t_s, LatestValueMailbox<HostState>& mailbox)
     loopBase_s_ += recording_.duration_s() * std::floor((t_s - loopBase_s_) / recording_.duration_s());
     next_ = 0;
   }
-  const double local = t_s - loopBase_s_;
+  const double local = t_s - loopBase_s_ + kTimeTolerance_s;
   size_t newest = next_;
   while (newest < samples.size() && samples[newest].t_s <= local) ++newest;
-  if (newest == next_ && next_ == 0 && samples[0].t_s > local) return true;  // before first sample
   if (newest != next_) {
     mailbox.publish(samples[newest - 1].state);
     next_ = newest;

@@ -52,6 +52,7 @@ namespace ig::render {
   X(PFNGLUSEPROGRAMPROC, UseProgram)                                                                  \
   X(PFNGLGETUNIFORMLOCATIONPROC, GetUniformLocation)                                                  \
   X(PFNGLPROGRAMUNIFORMMATRIX4FVPROC, ProgramUniformMatrix4fv)                                        \
+  X(PFNGLPROGRAMUNIFORM2FVPROC, ProgramUniform2fv)                                                    \
   X(PFNGLPROGRAMUNIFORM3FVPROC, ProgramUniform3fv)                                                    \
   X(PFNGLPROGRAMUNIFORM1FPROC, ProgramUniform1f)                                                      \
   X(PFNGLCREATEFRAMEBUFFERSPROC, CreateFramebuffers)                                                  \

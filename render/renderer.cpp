@@ -18,12 +18,12 @@ uniform mat4 uViewProjection;             // projection * world->camera rotation
 uniform vec3 uChunkOffset;                // chunk origin - eye, computed in double on the CPU
 out vec3 vEyeToPoint;
 out vec3 vNormal;
-out float vHeight;
+out vec3 vLocal;
 void main() {
   vec3 rel = aPosition + uChunkOffset;
   vEyeToPoint = rel;
   vNormal = aNormal;
-  vHeight = aPosition.z;
+  vLocal = aPosition;
   gl_Position = uViewProjection * vec4(rel, 1.0);
 }
 )";
@@ -31,7 +31,7 @@ void main() {
 const char* kTerrainFs = R"(#version 450 core
 in vec3 vEyeToPoint;
 in vec3 vNormal;
-in float vHeight;
+in vec3 vLocal;                          // chunk-relative position: precise at any world offset
 uniform vec3 uSunDirection;
 uniform vec3 uSunColor;
 uniform float uAmbient;
@@ -39,18 +39,35 @@ uniform vec3 uFogColor;
 uniform float uFogDensity;               // per metre; 0 = no fog
 uniform float uHeightScale;
 out vec4 fragColor;
+uniform vec2 uDetailPhase;               // chunk origin mod 1024 m (computed in double)
+float hash(vec2 p) { return fract(sin(dot(p, vec2(127.1, 311.7))) * 43758.5453); }
+// Value noise with integer period `period` (cells), so the pattern tiles the world every
+// 1024 m and stays seamless across chunk borders.
+float noise(vec2 p, float period) {
+  vec2 i = floor(p), f = fract(p);
+  f = f * f * (3.0 - 2.0 * f);
+  vec2 i0 = mod(i, period), i1 = mod(i + 1.0, period);
+  return mix(mix(hash(i0), hash(vec2(i1.x, i0.y)), f.x), mix(hash(vec2(i0.x, i1.y)), hash(i1), f.x), f.y);
+}
 void main() {
   vec3 n = normalize(vNormal);
   float slope = 1.0 - n.z;
-  float h = vHeight / max(uHeightScale, 1.0);
+  float h = vLocal.z / max(uHeightScale, 1.0);
+  // Ground detail for low-level flight: 0.25 m and 2 m value noise, faded out with distance
+  // before it would alias.
+  float dist = length(vEyeToPoint);
+  vec2 q = vLocal.xy + uDetailPhase;
+  float detail = (noise(q * 4.0, 4096.0) - 0.5) * (1.0 - smoothstep(5.0, 40.0, dist)) +
+                 (noise(q * 0.5, 512.0) - 0.5) * (1.0 - smoothstep(60.0, 400.0, dist));
   vec3 grass = vec3(0.28, 0.40, 0.17);
   vec3 rock = vec3(0.46, 0.42, 0.37);
   vec3 snow = vec3(0.92, 0.93, 0.95);
   vec3 albedo = mix(grass, rock, smoothstep(0.12, 0.35, slope + 0.25 * h));
   albedo = mix(albedo, snow, smoothstep(0.78, 0.86, h) * (1.0 - smoothstep(0.35, 0.55, slope)));
+  albedo *= 1.0 + 0.35 * detail;
   float diffuse = max(dot(n, uSunDirection), 0.0);
   vec3 lit = albedo * (uAmbient + (1.0 - uAmbient) * diffuse * uSunColor);
-  float fog = exp(-uFogDensity * length(vEyeToPoint));
+  float fog = exp(-uFogDensity * dist);
   fragColor = vec4(mix(uFogColor, lit, fog), 1.0);
 }
 )";
@@ -82,6 +99,7 @@ class TerrainPass {
     uFogColor_ = gl.GetUniformLocation(p, "uFogColor");
     uFogDensity_ = gl.GetUniformLocation(p, "uFogDensity");
     uHeightScale_ = gl.GetUniformLocation(p, "uHeightScale");
+    uDetailPhase_ = gl.GetUniformLocation(p, "uDetailPhase");
 
     const auto vertices = grid.vertices();
     const auto indices = grid.indices();
@@ -133,6 +151,9 @@ class TerrainPass {
       const lod::TerrainChunk& c = chunks_[i];
       const glm::vec3 offset(c.origin_m - camera.eye_m);  // double subtraction, then float
       gl.ProgramUniform3fv(p, uChunkOffset_, 1, glm::value_ptr(offset));
+      const glm::vec2 phase(std::fmod(std::fmod(c.origin_m.x, 1024.0) + 1024.0, 1024.0),
+                            std::fmod(std::fmod(c.origin_m.y, 1024.0) + 1024.0, 1024.0));
+      gl.ProgramUniform2fv(p, uDetailPhase_, 1, glm::value_ptr(phase));
       gl.DrawElementsBaseVertex(GL_TRIANGLES, static_cast<GLsizei>(c.indexCount), GL_UNSIGNED_INT,
                                 reinterpret_cast<const void*>(static_cast<uintptr_t>(c.firstIndex) * sizeof(uint32_t)),
                                 static_cast<GLint>(c.firstVertex));
@@ -152,7 +173,7 @@ class TerrainPass {
   uint64_t bytes_ = 0;
   float heightScale_ = 1.0f;
   GLint uViewProjection_ = -1, uChunkOffset_ = -1, uSunDirection_ = -1, uSunColor_ = -1, uAmbient_ = -1,
-        uFogColor_ = -1, uFogDensity_ = -1, uHeightScale_ = -1;
+        uFogColor_ = -1, uFogDensity_ = -1, uHeightScale_ = -1, uDetailPhase_ = -1;
 };
 
 Renderer::Renderer() = default;

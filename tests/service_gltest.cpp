@@ -1,0 +1,174 @@
+// The service as a whole on a headless context: only the layers a scene names are built,
+// bad host input is rejected without losing the last good eyepoint, the frame loop runs
+// with a fake clock, and GL stays error-free.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+
+#include "gl_fixture.h"
+#include "ig/clock.h"
+
+using namespace ig;
+
+TEST(ServiceGL, SceneWithoutTerrainBuildsNoPassAndNoBuffer) {
+  ServiceConfig cfg;
+  SceneConfig scene;
+  test::defaultConfigs(cfg, scene);
+  scene.terrain.reset();
+  std::string error;
+  auto service = Service::create(cfg, scene, error);
+  ASSERT_TRUE(service) << error;
+  EXPECT_TRUE(service->info().layers.empty());
+  EXPECT_EQ(service->info().passes, 0u);
+  EXPECT_EQ(service->info().gpuBufferBytes, 0u);
+  EXPECT_EQ(service->info().threads, 1u);
+  render::Image image;
+  const FrameRecord r = service->renderOnce(test::defaultHostAt(5.0), &image);
+  EXPECT_EQ(r.triangles, 0u);
+  EXPECT_EQ(r.drawCalls, 0u);
+  EXPECT_EQ(r.passes, 0u);
+  // Only sky: every pixel has the background colour.
+  for (size_t i = 4; i < image.rgba.size(); i += 4) ASSERT_EQ(image.rgba[i], image.rgba[0]);
+}
+
+TEST(ServiceGL, SceneWithTerrainBuildsExactlyOnePass) {
+  ServiceConfig cfg;
+  SceneConfig scene;
+  test::defaultConfigs(cfg, scene);
+  std::string error;
+  auto service = Service::create(cfg, scene, error);
+  ASSERT_TRUE(service) << error;
+  ASSERT_EQ(service->info().layers.size(), 1u);
+  EXPECT_EQ(service->info().layers[0], "terrain");
+  EXPECT_EQ(service->info().passes, 1u);
+  EXPECT_GT(service->info().gpuBufferBytes, 1'000'000u);
+  EXPECT_EQ(service->info().terrainTriangles, 2u * 256u * 256u);
+}
+
+TEST(ServiceGL, LayersOfLaterWorkAreRefusedByName) {
+  ServiceConfig cfg;
+  SceneConfig scene;
+  test::defaultConfigs(cfg, scene);
+  scene.forest = ForestLayerConfig{"trees.dat"};
+  std::string error;
+  EXPECT_FALSE(Service::create(cfg, scene, error));
+  EXPECT_NE(error.find("[forest]"), std::string::npos) << error;
+  EXPECT_NE(error.find("trees.dat"), std::string::npos) << error;
+}
+
+TEST(ServiceGL, MissingReplayFileIsNamed) {
+  ServiceConfig cfg;
+  SceneConfig scene;
+  test::defaultConfigs(cfg, scene);
+  cfg.host = HostSource::Replay;
+  cfg.replayFile = "/nonexistent/path.rec";
+  std::string error;
+  EXPECT_FALSE(Service::create(cfg, scene, error));
+  EXPECT_NE(error.find("/nonexistent/path.rec"), std::string::npos) << error;
+}
+
+TEST(ServiceGL, NaNHostInputIsRejectedAndTheLastGoodEyepointKept) {
+  ServiceConfig cfg;
+  SceneConfig scene;
+  test::defaultConfigs(cfg, scene);
+  cfg.frames = 1;
+  std::string error;
+  auto service = Service::create(cfg, scene, error);
+  ASSERT_TRUE(service) << error;
+  FakeClock clock;
+  std::atomic<bool> stop{false};
+
+  io::HostState good = test::defaultHostAt(2.0);
+  service->mailbox().publish(good);
+  ASSERT_EQ(service->run(clock, stop), 0);
+  EXPECT_EQ(service->currentHost().eyeEnu_m, good.eyeEnu_m);
+
+  io::HostState bad = good;
+  bad.eyeEnu_m.x = std::numeric_limits<double>::quiet_NaN();
+  bad.hostFrame = 999;
+  service->mailbox().publish(bad);
+  ASSERT_EQ(service->run(clock, stop), 0);
+  EXPECT_EQ(service->hostRejected(), 1u);
+  EXPECT_EQ(service->currentHost().eyeEnu_m, good.eyeEnu_m);
+  EXPECT_NE(service->currentHost().hostFrame, 999u);
+
+  io::HostState badFov = good;
+  badFov.fovY_deg = 0.0;
+  EXPECT_FALSE(hostStateValid(badFov));
+  io::HostState badClip = good;
+  badClip.near_m = 100;
+  badClip.far_m = 50;
+  std::string why;
+  EXPECT_FALSE(hostStateValid(badClip, &why));
+  EXPECT_EQ(why.rfind("far_m", 0), 0u) << why;
+}
+
+TEST(ServiceGL, EyepointInsideTerrainAndAtExtremeClipPlanesRendersWithoutGlErrors) {
+  ServiceConfig cfg;
+  SceneConfig scene;
+  test::defaultConfigs(cfg, scene);
+  std::string error;
+  auto service = Service::create(cfg, scene, error);
+  ASSERT_TRUE(service) << error;
+  io::HostState h = test::defaultHostAt(0.0);
+  for (double z : {-50.0, 0.0, 5.0, 1.0e5}) {  // under, on, just above the ground, very high
+    for (double pitch : {-90.0, 0.0, 90.0}) {
+      h.eyeEnu_m.z = z;
+      h.pitch_deg = pitch;
+      h.near_m = 0.1;
+      h.far_m = 100000.0;
+      const FrameRecord r = service->renderOnce(h, nullptr);
+      EXPECT_LE(r.triangles, service->info().terrainTriangles);
+    }
+  }
+}
+
+TEST(ServiceGL, RunWritesStatsAndSnapshotsWithAFakeClock) {
+  const auto dir = std::filesystem::temp_directory_path() / ("igd_service_gltest_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  ServiceConfig cfg;
+  SceneConfig scene;
+  test::defaultConfigs(cfg, scene);
+  cfg.host = HostSource::Replay;
+  cfg.replayFile = test::kSource + "/config/recordings/default.rec";
+  cfg.frames = 12;
+  cfg.rate_hz = 30;
+  cfg.statsFile = (dir / "stats.jsonl").string();
+  cfg.statsFormat = StatsFormat::JsonLines;
+  cfg.snapshotDir = (dir / "snap").string();
+  cfg.snapshotEvery = 5;
+  std::string error;
+  auto service = Service::create(cfg, scene, error);
+  ASSERT_TRUE(service) << error;
+  FakeClock clock;
+  std::atomic<bool> stop{false};
+  ASSERT_EQ(service->run(clock, stop), 0);
+  EXPECT_EQ(clock.sleeps(), 12);  // paced: one absolute-deadline sleep per frame
+  const RunSummary s = service->summary();
+  EXPECT_EQ(s.frames, 12);
+  EXPECT_EQ(s.overruns, 0);  // the fake clock does not move while the GPU works
+  EXPECT_GT(s.triangles_p50, 0u);
+  EXPECT_TRUE(std::filesystem::exists(dir / "snap" / "frame_000000.png"));
+  EXPECT_TRUE(std::filesystem::exists(dir / "snap" / "frame_000010.png"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "snap" / "frame_000011.png"));
+  std::ifstream in(dir / "stats.jsonl");
+  std::string line;
+  std::getline(in, line);
+  EXPECT_NE(line.find("\"layers\":[\"terrain\"]"), std::string::npos) << line;
+  int frames = 0;
+  uint64_t lastHostFrame = 0;
+  while (std::getline(in, line)) {
+    ++frames;
+    const auto pos = line.find("\"host_frame\":");
+    ASSERT_NE(pos, std::string::npos);
+    lastHostFrame = std::stoull(line.substr(pos + 13));
+  }
+  EXPECT_EQ(frames, 12);
+  // Frame 11 at 30 Hz is replay time 0.3667 s: host frame 22 of the 60 Hz recording.
+  EXPECT_EQ(lastHostFrame, 22u);
+  std::filesystem::remove_all(dir);
+}
