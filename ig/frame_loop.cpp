@@ -17,8 +17,12 @@ const char* phaseName(Phase p) {
   return "?";
 }
 
-FramePacer::FramePacer(Clock& clock, double rate_hz, bool freeRun)
-    : clock_(clock), rate_hz_(rate_hz), period_ns_(static_cast<int64_t>(std::llround(1e9 / rate_hz))), freeRun_(freeRun) {
+FramePacer::FramePacer(Clock& clock, double rate_hz, bool freeRun, double budget_ms)
+    : clock_(clock),
+      rate_hz_(rate_hz),
+      period_ns_(static_cast<int64_t>(std::llround(1e9 / rate_hz))),
+      budget_ns_(static_cast<int64_t>(std::llround(budget_ms * 1e6))),
+      freeRun_(freeRun) {
   assert(rate_hz > 0 && "FramePacer: rate_hz must be > 0");
 }
 
@@ -53,12 +57,14 @@ const FrameTiming& FramePacer::endFrame() {
   timing_.work_ms = static_cast<double>(end - frameStart_ns_) * 1e-6;
   ++frames_;
   int64_t next = timing_.frame + 1;
-  if (freeRun_) {
-    timing_.overrun = end - frameStart_ns_ > period_ns_;
+  const int64_t nextSlotTime = t0_ns_ + next * period_ns_;
+  if (budget_ns_ > 0) {
+    timing_.overrun = end - frameStart_ns_ > budget_ns_;
   } else {
-    const int64_t nextSlotTime = t0_ns_ + next * period_ns_;
-    timing_.overrun = end > nextSlotTime;
-    if (timing_.overrun) {
+    timing_.overrun = freeRun_ ? end - frameStart_ns_ > period_ns_ : end > nextSlotTime;
+  }
+  if (!freeRun_) {
+    if (end > nextSlotTime) {
       // First slot that has not started yet: skip the ones we ran past.
       const int64_t firstFuture = (end - t0_ns_) / period_ns_ + 1;
       timing_.missedSlots = firstFuture - next;

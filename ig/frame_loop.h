@@ -1,8 +1,9 @@
 // Fixed-rate frame pacing with absolute deadlines, per-phase timing and overrun accounting.
 //
 // Frame slots are t0 + k * period. A frame starts at its slot. A frame whose work ends after
-// the start of the next slot is an overrun; the slots it ran past are skipped (counted as
-// missed) so the loop stays phase-locked to real time instead of drifting. In free-run mode
+// the start of the next slot is an overrun (or, with a work budget, whose work exceeds the
+// budget); the slots it ran past are skipped (counted as missed) so the loop stays
+// phase-locked to real time instead of drifting. In free-run mode
 // (tests, benchmarks, offline replay) nothing sleeps and every slot is used, so the
 // simulation time of frame k is still k * period.
 #pragma once
@@ -25,13 +26,14 @@ struct FrameTiming {
   double interval_ms = 0.0;   // since the previous frame's start
   std::array<double, kPhaseCount> phase_ms{};
   double work_ms = 0.0;       // start to end of the last phase
-  bool overrun = false;       // work ran past the next slot
+  bool overrun = false;       // work exceeded the budget (default: ran past the next slot)
   int64_t missedSlots = 0;    // slots skipped after this frame
 };
 
 class FramePacer {
  public:
-  FramePacer(Clock& clock, double rate_hz, bool freeRun);
+  // budget_ms > 0: a frame whose work exceeds it is an overrun; 0: the frame period.
+  FramePacer(Clock& clock, double rate_hz, bool freeRun, double budget_ms = 0.0);
 
   // Sleeps until the next slot and starts the frame; returns its slot number.
   int64_t beginFrame();
@@ -53,6 +55,7 @@ class FramePacer {
   Clock& clock_;
   double rate_hz_;
   int64_t period_ns_;
+  int64_t budget_ns_;         // 0 = the period
   bool freeRun_;
   bool started_ = false;
   int64_t t0_ns_ = 0;

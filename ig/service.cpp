@@ -177,7 +177,7 @@ FrameRecord Service::renderOnce(const io::HostState& host, render::Image* image)
   const lod::Camera cam = m.cameraFor(host);
   if (m.terrain) {
     const lod::Frustum fr = lod::makeFrustum(cam);
-    m.terrain->selectedCount = m.terrain->grid.select(fr, cam.eye_m, m.terrain->selected);
+    m.terrain->selectedCount = m.terrain->grid.select(fr, cam.eye_m, static_cast<uint64_t>(m.config.budgetTriangles), m.terrain->selected);
   }
   m.renderer.beginFrame(cam, m.lighting);
   if (m.terrain) m.renderer.drawTerrain(std::span(m.terrain->selected.data(), m.terrain->selectedCount));
@@ -226,7 +226,7 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop) {
   }
 
   SystemdNotifier notifier(cfg.watchdogInterval_s);
-  FramePacer pacer(clock, cfg.rate_hz, cfg.freeRun);
+  FramePacer pacer(clock, cfg.rate_hz, cfg.freeRun, cfg.budgetFrame_ms);
   notifier.ready("rendering at " + std::to_string(cfg.rate_hz) + " Hz");
   std::string why;
   bool hostWasBad = false;
@@ -263,7 +263,7 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop) {
     const lod::Camera cam = m.cameraFor(host_);
     if (m.terrain) {
       const lod::Frustum fr = lod::makeFrustum(cam);
-      m.terrain->selectedCount = m.terrain->grid.select(fr, cam.eye_m, m.terrain->selected);
+      m.terrain->selectedCount = m.terrain->grid.select(fr, cam.eye_m, static_cast<uint64_t>(m.config.budgetTriangles), m.terrain->selected);
     }
     pacer.endPhase(Phase::Lod);
 

@@ -86,14 +86,25 @@ double TerrainGrid::heightAt(double east_m, double north_m) const {
   return desc_.offset_m.z + a + (b - a) * ty;
 }
 
-size_t TerrainGrid::select(const Frustum& frustum, const glm::dvec3& eye_m, std::span<uint32_t> out) const {
+size_t TerrainGrid::select(const Frustum& frustum, const glm::dvec3& eye_m, uint64_t maxTriangles,
+                           std::span<uint32_t> out) const {
   assert(out.size() >= chunks_.size() && "TerrainGrid::select: output span too small");
   size_t n = 0;
   for (size_t i = 0; i < chunks_.size(); ++i) {
     const Aabb rel{chunks_[i].bounds.min - eye_m, chunks_[i].bounds.max - eye_m};
     if (frustum.intersects(rel)) out[n++] = static_cast<uint32_t>(i);
   }
-  return n;
+  // Nearest first (front-to-back also helps early depth rejection); in place, no allocation.
+  std::sort(out.begin(), out.begin() + static_cast<std::ptrdiff_t>(n), [&](uint32_t a, uint32_t b) {
+    return distanceToBox(chunks_[a].bounds, eye_m) < distanceToBox(chunks_[b].bounds, eye_m);
+  });
+  uint64_t triangles = 0;
+  size_t kept = 0;
+  while (kept < n && triangles + triangleCount(chunks_[out[kept]]) <= maxTriangles) {
+    triangles += triangleCount(chunks_[out[kept]]);
+    ++kept;
+  }
+  return kept;
 }
 
 }  // namespace ig::lod

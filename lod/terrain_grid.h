@@ -4,7 +4,8 @@
 // replaces the per-frame selection with ROAM + enhMerge.
 //
 // Selection rule (per frame): a chunk is drawn if its bounding box intersects the view
-// frustum; it is drawn whole at full resolution.
+// frustum; it is drawn whole at full resolution, nearest chunks first, and chunks that would
+// take the frame past its triangle budget are dropped, farthest first.
 #pragma once
 
 #include <cstdint>
@@ -53,9 +54,10 @@ class TerrainGrid {
   double heightAt(double east_m, double north_m) const;
   const TerrainGridDesc& desc() const { return desc_; }
 
-  // Appends indices (into chunks()) of the chunks to draw for this view. `out` must have
-  // room for chunks().size() entries; returns the number written. No allocation.
-  size_t select(const Frustum& frustum, const glm::dvec3& eye_m, std::span<uint32_t> out) const;
+  // Writes the indices (into chunks()) of the chunks to draw for this view, nearest first,
+  // within `maxTriangles`. `out` must have room for chunks().size() entries; returns the
+  // number written. No allocation.
+  size_t select(const Frustum& frustum, const glm::dvec3& eye_m, uint64_t maxTriangles, std::span<uint32_t> out) const;
 
  private:
   TerrainGridDesc desc_;

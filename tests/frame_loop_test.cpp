@@ -131,3 +131,17 @@ TEST(Stats, SummaryPercentilesAndFixedCapacity) {
   EXPECT_DOUBLE_EQ(s.workMs_max, 150.0);
   EXPECT_EQ(s.triangles_p50, 1000u);
 }
+
+TEST(FramePacer, WorkBudgetDefinesOverrunsWithoutChangingPacing) {
+  FakeClock clock;
+  FramePacer pacer(clock, 50.0, false, 8.0);  // 20 ms period, 8 ms work budget
+  pacer.beginFrame();
+  clock.advance_ns(9 * kMs);  // over budget, well inside the period
+  const FrameTiming& t = pacer.endFrame();
+  EXPECT_TRUE(t.overrun);
+  EXPECT_EQ(t.missedSlots, 0);
+  EXPECT_EQ(pacer.beginFrame(), 1);  // the next slot is still used
+  clock.advance_ns(7 * kMs);
+  EXPECT_FALSE(pacer.endFrame().overrun);
+  EXPECT_EQ(pacer.overruns(), 1);
+}

@@ -175,9 +175,16 @@ TEST(TerrainGrid, SelectionIsFrustumCulled) {
   c.eye_m = {500, -50, 400};
   c.heading_deg = 0;
   c.pitch_deg = -30;
-  const size_t n = g.select(makeFrustum(c), c.eye_m, out);
-  EXPECT_GT(n, 0u);
+  const size_t n = g.select(makeFrustum(c), c.eye_m, UINT64_MAX, out);
+  EXPECT_GT(n, 1u);
   EXPECT_LT(n, g.chunks().size());
+  for (size_t i = 1; i < n; ++i)  // nearest first
+    EXPECT_LE(distanceToBox(g.chunks()[out[i - 1]].bounds, c.eye_m), distanceToBox(g.chunks()[out[i]].bounds, c.eye_m));
+  // A budget of one full chunk keeps exactly the nearest one.
+  const uint32_t nearest = out[0];
+  EXPECT_EQ(g.select(makeFrustum(c), c.eye_m, g.triangleCount(g.chunks()[nearest]), out), 1u);
+  EXPECT_EQ(out[0], nearest);
+  EXPECT_EQ(g.select(makeFrustum(c), c.eye_m, 0, out), 0u);
   c.heading_deg = 180;  // looking away from the terrain
-  EXPECT_EQ(g.select(makeFrustum(c), c.eye_m, out), 0u);
+  EXPECT_EQ(g.select(makeFrustum(c), c.eye_m, UINT64_MAX, out), 0u);
 }

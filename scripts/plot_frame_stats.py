@@ -1,0 +1,73 @@
+#!/usr/bin/env python3
+"""Plot an igd per-frame stats file (CSV or JSON lines) to a PNG a person can read at a glance.
+
+    scripts/plot_frame_stats.py out/frame_stats.csv out/frame_times.png
+
+Top: work per frame stacked by phase (input, lod, submit, gpu_finish, present) with the frame
+period as a dashed line; overruns marked in red. Bottom: triangles drawn per frame.
+"""
+import csv
+import json
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+PHASES = ["input_ms", "lod_ms", "submit_ms", "gpu_finish_ms", "present_ms"]
+
+
+def load(path):
+    rows, run = [], {}
+    with open(path, encoding="utf-8") as f:
+        if path.endswith(".csv"):
+            rows = [{k: float(v) for k, v in r.items()} for r in csv.DictReader(f)]
+        else:
+            for line in f:
+                obj = json.loads(line)
+                if "run" in obj:
+                    run = obj["run"]
+                else:
+                    rows.append({k: float(v) for k, v in obj.items()})
+    return rows, run
+
+
+def main():
+    if len(sys.argv) != 3:
+        sys.exit("usage: plot_frame_stats.py STATS(.csv|.jsonl) OUT.png")
+    rows, run = load(sys.argv[1])
+    if not rows:
+        sys.exit(f"{sys.argv[1]}: no frames")
+    frames = [r["frame"] for r in rows]
+    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(11, 6.5), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
+    bottom = [0.0] * len(rows)
+    for phase in PHASES:
+        values = [r.get(phase, 0.0) for r in rows]
+        ax.bar(frames, values, bottom=bottom, width=1.0, label=phase.replace("_ms", ""), linewidth=0)
+        bottom = [b + v for b, v in zip(bottom, values)]
+    intervals = sorted(r["interval_ms"] for r in rows[1:]) or [0.0]
+    period = run.get("rate_hz") and 1000.0 / run["rate_hz"]
+    if not period:
+        period = intervals[len(intervals) // 2]
+    ax.axhline(period, color="k", linestyle="--", linewidth=1, label=f"period {period:.1f} ms")
+    over = [r for r in rows if r["overrun"]]
+    if over:
+        ax.scatter([r["frame"] for r in over], [r["work_ms"] for r in over], color="red", s=12, zorder=5,
+                   label=f"overrun ({len(over)})")
+    work = sorted(r["work_ms"] for r in rows)
+    p50, p99 = work[len(work) // 2], work[min(len(work) - 1, int(len(work) * 0.99))]
+    ax.set_title(f"igd frame work: {len(rows)} frames, p50 {p50:.1f} ms, p99 {p99:.1f} ms, "
+                 f"overruns {len(over)}")
+    ax.set_ylabel("ms per frame")
+    ax.legend(loc="upper right", fontsize=8, ncol=4)
+    ax2.plot(frames, [r["triangles"] for r in rows], color="tab:green")
+    ax2.set_ylabel("triangles")
+    ax2.set_xlabel("frame")
+    fig.tight_layout()
+    fig.savefig(sys.argv[2], dpi=100)
+    print(f"plot: {sys.argv[2]}")
+
+
+if __name__ == "__main__":
+    main()
