@@ -6,6 +6,7 @@
 #include <span>
 
 #include "ig/frame_loop.h"
+#include "ig/snapshot_writer.h"
 #include "ig/systemd.h"
 #include "io/replay.h"
 #include "lod/geo.h"
@@ -87,8 +88,7 @@ struct Service::Impl {
   render::Lighting lighting;
   SummaryCollector summary{1};
   int64_t overruns = 0, missed = 0;
-  render::Image snapshot;
-  uint64_t snapshotFailures = 0;
+  std::unique_ptr<SnapshotWriter> snapshots;  // only when the config asks for snapshots
 
   lod::Camera cameraFor(const io::HostState& h) const {
     lod::Camera c;
@@ -143,6 +143,16 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
     if (!m.renderer.addTerrain(m.terrain->grid, error)) return nullptr;
     s->info_.layers.push_back("terrain");
     s->info_.terrainTriangles = m.terrain->grid.totalTriangles();
+  }
+  if (config.snapshotEvery > 0 || !config.snapshotFrames.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(config.snapshotDir, ec);
+    if (ec) {
+      error = "output.snapshot_dir '" + config.snapshotDir + "': cannot create: " + ec.message();
+      return nullptr;
+    }
+    m.snapshots = std::make_unique<SnapshotWriter>(3, config.width_px, config.height_px);
+    ++s->info_.threads;
   }
   s->info_.passes = m.renderer.passCount();
   s->info_.gpuBufferBytes = m.renderer.bufferBytes();
@@ -214,16 +224,6 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop) {
       return 1;
     }
   }
-  const bool snapshots = cfg.snapshotEvery > 0 || !cfg.snapshotFrames.empty();
-  if (snapshots) {
-    std::error_code ec;
-    std::filesystem::create_directories(cfg.snapshotDir, ec);
-    if (ec) {
-      std::fprintf(stderr, "igd: output.snapshot_dir '%s': cannot create: %s\n", cfg.snapshotDir.c_str(),
-                   ec.message().c_str());
-      return 1;
-    }
-  }
 
   SystemdNotifier notifier(cfg.watchdogInterval_s);
   FramePacer pacer(clock, cfg.rate_hz, cfg.freeRun, cfg.budgetFrame_ms);
@@ -282,18 +282,21 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop) {
     const int64_t n = pacer.frames();  // frames completed before this one = this frame's index
     bool snap = cfg.snapshotEvery > 0 && n % cfg.snapshotEvery == 0;
     for (int64_t f : cfg.snapshotFrames) snap = snap || f == n;
-    if (snap) {
-      m.renderer.readPixels(m.snapshot);
-      std::snprintf(snapshotPath, sizeof snapshotPath, "%s/frame_%06lld.png", cfg.snapshotDir.c_str(),
-                    static_cast<long long>(n));
-      if (!render::writePng(snapshotPath, m.snapshot, error) && m.snapshotFailures++ == 0)
-        std::fprintf(stderr, "igd: snapshot failed (further failures counted, not logged): %s\n", error.c_str());
+    if (snap && m.snapshots) {
+      // Read back here; encode and write on the snapshot thread.
+      if (render::Image* image = m.snapshots->acquire()) {
+        m.renderer.readPixels(*image);
+        std::snprintf(snapshotPath, sizeof snapshotPath, "%s/frame_%06lld.png", cfg.snapshotDir.c_str(),
+                      static_cast<long long>(n));
+        m.snapshots->submit(image, snapshotPath);
+      }
     }
     pacer.endPhase(Phase::Present);
 
     // report
     FrameRecord r;
     r.timing = pacer.endFrame();
+    r.period_ms = pacer.period_s() * 1e3;
     r.triangles = st.triangles;
     r.drawCalls = st.drawCalls;
     r.passes = st.passes;
@@ -305,6 +308,14 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop) {
     notifier.watchdog(clock.now_ns());
   }
   notifier.stopping();
+  if (m.snapshots) {
+    m.snapshots->flush();
+    if (m.snapshots->failed() > 0 || m.snapshots->dropped() > 0)
+      std::fprintf(stderr, "igd: snapshots: %llu written, %llu dropped (writer busy), %llu failed (first: %s)\n",
+                   static_cast<unsigned long long>(m.snapshots->written()),
+                   static_cast<unsigned long long>(m.snapshots->dropped()),
+                   static_cast<unsigned long long>(m.snapshots->failed()), m.snapshots->firstError().c_str());
+  }
   m.overruns = pacer.overruns();
   m.missed = pacer.missedSlots();
   const std::string glErr = m.renderer.errors();

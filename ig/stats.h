@@ -15,6 +15,7 @@ namespace ig {
 
 struct FrameRecord {
   FrameTiming timing;
+  double period_ms = 0.0;       // the frame period (1000 / rate_hz)
   uint64_t triangles = 0;
   uint32_t drawCalls = 0;
   uint32_t passes = 0;          // render passes this frame (one per layer the scene has)

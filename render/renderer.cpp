@@ -1,5 +1,6 @@
 #include "render/renderer.h"
 
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
@@ -255,13 +256,10 @@ void Renderer::readPixels(Image& out) {
   gl.ReadPixels(0, 0, width_, height_, GL_RGBA, GL_UNSIGNED_BYTE, out.rgba.data());
   // GL's row 0 is the bottom; images store the top row first.
   const size_t pitch = static_cast<size_t>(width_) * 4;
-  std::vector<uint8_t> row(pitch);
   for (int y = 0; y < height_ / 2; ++y) {
     uint8_t* a = out.rgba.data() + static_cast<size_t>(y) * pitch;
     uint8_t* b = out.rgba.data() + static_cast<size_t>(height_ - 1 - y) * pitch;
-    std::copy(a, a + pitch, row.data());
-    std::copy(b, b + pitch, a);
-    std::copy(row.data(), row.data() + pitch, b);
+    std::swap_ranges(a, a + pitch, b);
   }
 }
 

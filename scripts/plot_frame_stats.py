@@ -1,4 +1,4 @@
-#!/usr/bin/env python3
+#!/usr/bin/python3
 """Plot an igd per-frame stats file (CSV or JSON lines) to a PNG a person can read at a glance.
 
     scripts/plot_frame_stats.py out/frame_stats.csv out/frame_times.png
@@ -46,10 +46,7 @@ def main():
         values = [r.get(phase, 0.0) for r in rows]
         ax.bar(frames, values, bottom=bottom, width=1.0, label=phase.replace("_ms", ""), linewidth=0)
         bottom = [b + v for b, v in zip(bottom, values)]
-    intervals = sorted(r["interval_ms"] for r in rows[1:]) or [0.0]
-    period = run.get("rate_hz") and 1000.0 / run["rate_hz"]
-    if not period:
-        period = intervals[len(intervals) // 2]
+    period = rows[0]["period_ms"]
     ax.axhline(period, color="k", linestyle="--", linewidth=1, label=f"period {period:.1f} ms")
     over = [r for r in rows if r["overrun"]]
     if over:

@@ -1,0 +1,37 @@
+// The snapshot writer: PNGs are written off the frame thread, slots are fixed, a full writer
+// drops (and counts) instead of blocking, and a failing path is reported, not fatal.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+
+#include "ig/snapshot_writer.h"
+
+using namespace ig;
+
+TEST(SnapshotWriter, WritesQueuedImagesAndDropsWhenAllSlotsAreBusy) {
+  const auto dir = std::filesystem::temp_directory_path() / ("igd_snap_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  SnapshotWriter w(2, 8, 4);
+  render::Image* a = w.acquire();
+  render::Image* b = w.acquire();
+  ASSERT_NE(a, nullptr);
+  ASSERT_NE(b, nullptr);
+  EXPECT_NE(a, b);
+  EXPECT_EQ(a->rgba.size(), 8u * 4u * 4u);  // preallocated at start-up
+  EXPECT_EQ(w.acquire(), nullptr);          // both slots filling: dropped, not blocked
+  EXPECT_EQ(w.dropped(), 1u);
+  a->rgba.assign(a->rgba.size(), 200);
+  w.submit(a, (dir / "a.png").c_str());
+  w.submit(b, "/nonexistent-dir/b.png");
+  w.flush();
+  EXPECT_EQ(w.written(), 1u);
+  EXPECT_EQ(w.failed(), 1u);
+  EXPECT_NE(w.firstError().find("/nonexistent-dir/b.png"), std::string::npos) << w.firstError();
+  render::Image back;
+  std::string error;
+  ASSERT_TRUE(render::readPng((dir / "a.png").string(), back, error)) << error;
+  EXPECT_EQ(back.width, 8);
+  EXPECT_EQ(back.rgba[0], 200);
+  EXPECT_NE(w.acquire(), nullptr);  // slots are free again after the writes
+  std::filesystem::remove_all(dir);
+}
