@@ -102,6 +102,33 @@ struct Service::Impl {
     c.aspect = static_cast<double>(config.width_px) / static_cast<double>(config.height_px);
     return c;
   }
+
+  // lod phase: every layer the scene has selects what to draw.
+  void select(const lod::Camera& cam) {
+    if (terrain) {
+      const lod::Frustum fr = lod::makeFrustum(cam);
+      terrain->selectedCount =
+          terrain->grid.select(fr, cam.eye_m, static_cast<uint64_t>(config.budgetTriangles), terrain->selected);
+    }
+  }
+
+  // submit phase: the selections become GL work.
+  render::RenderStats submit(const lod::Camera& cam) {
+    renderer.beginFrame(cam, lighting);
+    if (terrain) renderer.drawTerrain(std::span(terrain->selected.data(), terrain->selectedCount));
+    return renderer.endFrame();
+  }
+
+  static FrameRecord record(const render::RenderStats& st, const io::HostState& host) {
+    FrameRecord r;
+    r.triangles = st.triangles;
+    r.drawCalls = st.drawCalls;
+    r.passes = st.passes;
+    r.hostFrame = host.hostFrame;
+    r.simTime_s = host.simTime_s;
+    r.eyeHeight_m = host.eyeEnu_m.z;
+    return r;
+  }
 };
 
 Service::Service() : impl_(std::make_unique<Impl>()) {}
@@ -183,24 +210,12 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
 
 FrameRecord Service::renderOnce(const io::HostState& host, render::Image* image) {
   Impl& m = *impl_;
-  FrameRecord r;
   const lod::Camera cam = m.cameraFor(host);
-  if (m.terrain) {
-    const lod::Frustum fr = lod::makeFrustum(cam);
-    m.terrain->selectedCount = m.terrain->grid.select(fr, cam.eye_m, static_cast<uint64_t>(m.config.budgetTriangles), m.terrain->selected);
-  }
-  m.renderer.beginFrame(cam, m.lighting);
-  if (m.terrain) m.renderer.drawTerrain(std::span(m.terrain->selected.data(), m.terrain->selectedCount));
-  const render::RenderStats st = m.renderer.endFrame();
+  m.select(cam);
+  const render::RenderStats st = m.submit(cam);
   m.renderer.finish();
   if (image) m.renderer.readPixels(*image);
-  r.triangles = st.triangles;
-  r.drawCalls = st.drawCalls;
-  r.passes = st.passes;
-  r.hostFrame = host.hostFrame;
-  r.simTime_s = host.simTime_s;
-  r.eyeHeight_m = host.eyeEnu_m.z;
-  return r;
+  return Impl::record(st, host);
 }
 
 int Service::run(Clock& clock, const std::atomic<bool>& stop) {
@@ -294,15 +309,9 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop) {
     pacer.endPhase(Phase::Present);
 
     // report
-    FrameRecord r;
+    FrameRecord r = Impl::record(st, host_);
     r.timing = pacer.endFrame();
     r.period_ms = pacer.period_s() * 1e3;
-    r.triangles = st.triangles;
-    r.drawCalls = st.drawCalls;
-    r.passes = st.passes;
-    r.hostFrame = host_.hostFrame;
-    r.simTime_s = host_.simTime_s;
-    r.eyeHeight_m = host_.eyeEnu_m.z;
     stats.write(r);
     m.summary.add(r);
     notifier.watchdog(clock.now_ns());
