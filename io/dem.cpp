@@ -1,0 +1,324 @@
+#include "io/dem.h"
+
+#include <png.h>
+#include <tiffio.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+
+namespace ig::io {
+namespace {
+
+std::string lower(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+bool sizeOk(const std::string& file, int64_t w, int64_t h, const DemLoadOptions& o, std::string& error) {
+  if (w < 2 || h < 2) {
+    error = file + ": DEM size " + std::to_string(w) + "x" + std::to_string(h) + " is too small (need >= 2x2)";
+    return false;
+  }
+  if (w * h > o.maxSamples) {
+    error = file + ": DEM size " + std::to_string(w) + "x" + std::to_string(h) + " exceeds the limit of " +
+            std::to_string(o.maxSamples) + " samples";
+    return false;
+  }
+  return true;
+}
+
+// Marks voids (no-data, NaN, inf), applies the void policy.
+bool finish(const std::string& file, const DemLoadOptions& o, bool hasNoData, double noData, Dem& dem,
+            std::string& error) {
+  std::vector<uint8_t> isVoid(dem.heights_m.size(), 0);
+  uint64_t voids = 0;
+  for (size_t i = 0; i < dem.heights_m.size(); ++i) {
+    const float h = dem.heights_m[i];
+    if (!std::isfinite(h) || (hasNoData && static_cast<double>(h) == noData)) {
+      isVoid[i] = 1;
+      ++voids;
+    }
+  }
+  if (voids == 0) return true;
+  const double share = static_cast<double>(voids) / static_cast<double>(dem.heights_m.size());
+  if (o.voids == DemVoids::Reject) {
+    error = file + ": " + std::to_string(voids) + " void samples (no-data/NaN) and voids are set to be rejected";
+    return false;
+  }
+  if (share > o.maxVoidFraction) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%.1f %%", share * 100.0);
+    error = file + ": " + buf + " of the samples are voids (limit " + std::to_string(o.maxVoidFraction * 100.0) + " %)";
+    return false;
+  }
+  if (!fillVoids(dem.heights_m, dem.width, dem.height, isVoid)) {
+    error = file + ": no valid sample";
+    return false;
+  }
+  dem.voidsFilled = voids;
+  return true;
+}
+
+bool loadPng16(const std::string& file, const DemLoadOptions& o, Dem& dem, std::string& error) {
+  png_image png{};
+  png.version = PNG_IMAGE_VERSION;
+  if (!png_image_begin_read_from_file(&png, file.c_str())) {
+    error = file + ": not a readable PNG: " + png.message;
+    return false;
+  }
+  if (!sizeOk(file, png.width, png.height, o, error)) {
+    png_image_free(&png);
+    return false;
+  }
+  if (!(png.format & PNG_FORMAT_FLAG_LINEAR) && (png.format & PNG_FORMAT_FLAG_COLOR)) {
+    // 8-bit colour PNGs are almost always a mistake for a DEM; accept only greyscale.
+    error = file + ": colour PNG; a DEM must be a 16-bit (or 8-bit) greyscale PNG";
+    png_image_free(&png);
+    return false;
+  }
+  png.format = PNG_FORMAT_LINEAR_Y;  // 16-bit grey, linear (no gamma change for 16-bit input)
+  std::vector<uint16_t> raw(static_cast<size_t>(png.width) * png.height);
+  if (!png_image_finish_read(&png, nullptr, raw.data(), 0, nullptr)) {
+    error = file + ": PNG decode failed: " + png.message;
+    png_image_free(&png);
+    return false;
+  }
+  dem.width = static_cast<int>(png.width);
+  dem.height = static_cast<int>(png.height);
+  dem.heights_m.resize(raw.size());
+  for (size_t i = 0; i < raw.size(); ++i)
+    dem.heights_m[i] = static_cast<float>(o.pngOffset_m + o.pngScale_m * raw[i]);
+  dem.format = "png16";
+  return finish(file, o, o.hasNoData, o.pngOffset_m + o.pngScale_m * o.noData, dem, error);
+}
+
+bool loadHgt(const std::string& file, const DemLoadOptions& o, Dem& dem, std::string& error) {
+  std::error_code ec;
+  const auto bytes = std::filesystem::file_size(file, ec);
+  if (ec) {
+    error = file + ": cannot stat: " + ec.message();
+    return false;
+  }
+  // SRTM tiles are square, big-endian int16: 1201 x 1201 (3") or 3601 x 3601 (1").
+  const auto samples = static_cast<int64_t>(bytes / 2);
+  const auto side = static_cast<int64_t>(std::llround(std::sqrt(static_cast<double>(samples))));
+  if (bytes % 2 != 0 || side * side != samples) {
+    error = file + ": " + std::to_string(bytes) + " bytes is not a square grid of 16-bit samples (.hgt)";
+    return false;
+  }
+  if (!sizeOk(file, side, side, o, error)) return false;
+  std::ifstream in(file, std::ios::binary);
+  std::vector<uint8_t> raw(bytes);
+  if (!in.read(reinterpret_cast<char*>(raw.data()), static_cast<std::streamsize>(bytes))) {
+    error = file + ": read failed";
+    return false;
+  }
+  dem.width = dem.height = static_cast<int>(side);
+  dem.heights_m.resize(static_cast<size_t>(samples));
+  for (size_t i = 0; i < dem.heights_m.size(); ++i)
+    dem.heights_m[i] = static_cast<float>(static_cast<int16_t>((raw[2 * i] << 8) | raw[2 * i + 1]));
+  // Latitude from the SRTM file name (N46E007.hgt): the sample spacing east-west shrinks with
+  // cos(latitude); north-south it is 1/(side-1) degree. We use the north-south spacing.
+  dem.spacing_m = 111320.0 / static_cast<double>(side - 1);
+  dem.format = "hgt";
+  return finish(file, o, true, -32768.0, dem, error);
+}
+
+struct TiffCloser {
+  void operator()(TIFF* t) const { TIFFClose(t); }
+};
+
+// GeoTIFF / GDAL tags libtiff does not know: registered through a tag extender so that
+// TIFFGetField reads them with a known signature.
+constexpr ttag_t kModelPixelScaleTag = 33550;  // double[3]: sample spacing x, y, z
+constexpr ttag_t kGdalNoDataTag = 42113;       // ASCII: the no-data value
+TIFFExtendProc gParentExtender = nullptr;
+void extendTags(TIFF* tif) {
+  static const TIFFFieldInfo info[] = {
+      {kModelPixelScaleTag, -1, -1, TIFF_DOUBLE, FIELD_CUSTOM, 1, 1, const_cast<char*>("ModelPixelScaleTag")},
+      {kGdalNoDataTag, -1, -1, TIFF_ASCII, FIELD_CUSTOM, 1, 0, const_cast<char*>("GDALNoDataValue")}};
+  TIFFMergeFieldInfo(tif, info, 2);
+  if (gParentExtender) gParentExtender(tif);
+}
+
+bool loadGeoTiff(const std::string& file, const DemLoadOptions& o, Dem& dem, std::string& error) {
+  static const bool extended = [] {
+    gParentExtender = TIFFSetTagExtender(extendTags);
+    return true;
+  }();
+  (void)extended;
+  TIFFSetWarningHandler(nullptr);
+  static thread_local std::string tiffError;
+  TIFFSetErrorHandler([](const char* module, const char* fmt, va_list ap) {
+    char buf[512];
+    std::vsnprintf(buf, sizeof buf, fmt, ap);
+    tiffError = std::string(module ? module : "tiff") + ": " + buf;
+  });
+  tiffError.clear();
+  std::unique_ptr<TIFF, TiffCloser> tif(TIFFOpen(file.c_str(), "r"));
+  if (!tif) {
+    error = file + ": not a readable TIFF" + (tiffError.empty() ? "" : " (" + tiffError + ")");
+    return false;
+  }
+  uint32_t w = 0, h = 0;
+  uint16_t spp = 1, bps = 0, format = SAMPLEFORMAT_UINT;
+  TIFFGetField(tif.get(), TIFFTAG_IMAGEWIDTH, &w);
+  TIFFGetField(tif.get(), TIFFTAG_IMAGELENGTH, &h);
+  TIFFGetFieldDefaulted(tif.get(), TIFFTAG_SAMPLESPERPIXEL, &spp);
+  TIFFGetFieldDefaulted(tif.get(), TIFFTAG_BITSPERSAMPLE, &bps);
+  TIFFGetFieldDefaulted(tif.get(), TIFFTAG_SAMPLEFORMAT, &format);
+  if (!sizeOk(file, w, h, o, error)) return false;
+  if (spp != 1) {
+    error = file + ": " + std::to_string(spp) + " samples per pixel; a DEM needs exactly 1 band";
+    return false;
+  }
+  const bool supported = (format == SAMPLEFORMAT_INT && (bps == 16 || bps == 32)) ||
+                         (format == SAMPLEFORMAT_UINT && bps == 16) || (format == SAMPLEFORMAT_IEEEFP && bps == 32);
+  if (!supported) {
+    error = file + ": sample format " + std::to_string(format) + " with " + std::to_string(bps) +
+            " bits is not supported (int16, uint16, int32, float32)";
+    return false;
+  }
+  dem.width = static_cast<int>(w);
+  dem.height = static_cast<int>(h);
+  dem.heights_m.assign(static_cast<size_t>(w) * h, 0.0f);
+  auto convert = [&](const uint8_t* src, size_t count, float* dst) {
+    for (size_t i = 0; i < count; ++i) {
+      if (format == SAMPLEFORMAT_IEEEFP) {
+        float v;
+        std::memcpy(&v, src + 4 * i, 4);
+        dst[i] = v;
+      } else if (format == SAMPLEFORMAT_INT && bps == 32) {
+        int32_t v;
+        std::memcpy(&v, src + 4 * i, 4);
+        dst[i] = static_cast<float>(v);
+      } else if (format == SAMPLEFORMAT_INT) {
+        int16_t v;
+        std::memcpy(&v, src + 2 * i, 2);
+        dst[i] = static_cast<float>(v);
+      } else {
+        uint16_t v;
+        std::memcpy(&v, src + 2 * i, 2);
+        dst[i] = static_cast<float>(v);
+      }
+    }
+  };
+  const size_t bytesPerSample = bps / 8;
+  if (TIFFIsTiled(tif.get())) {
+    uint32_t tw = 0, th = 0;
+    TIFFGetField(tif.get(), TIFFTAG_TILEWIDTH, &tw);
+    TIFFGetField(tif.get(), TIFFTAG_TILELENGTH, &th);
+    std::vector<uint8_t> tile(static_cast<size_t>(TIFFTileSize(tif.get())));
+    std::vector<float> row(tw);
+    for (uint32_t ty = 0; ty < h; ty += th) {
+      for (uint32_t tx = 0; tx < w; tx += tw) {
+        if (TIFFReadTile(tif.get(), tile.data(), tx, ty, 0, 0) < 0) {
+          error = file + ": tile at (" + std::to_string(tx) + ", " + std::to_string(ty) + ") unreadable: " + tiffError;
+          return false;
+        }
+        for (uint32_t y = 0; y < th && ty + y < h; ++y) {
+          convert(tile.data() + static_cast<size_t>(y) * tw * bytesPerSample, tw, row.data());
+          const uint32_t n = std::min(tw, w - tx);
+          std::copy(row.begin(), row.begin() + n, dem.heights_m.begin() + static_cast<std::ptrdiff_t>((ty + y) * static_cast<size_t>(w) + tx));
+        }
+      }
+    }
+  } else {
+    std::vector<uint8_t> line(static_cast<size_t>(TIFFScanlineSize(tif.get())));
+    for (uint32_t y = 0; y < h; ++y) {
+      if (TIFFReadScanline(tif.get(), line.data(), y, 0) < 0) {
+        error = file + ": row " + std::to_string(y) + " unreadable: " + tiffError;
+        return false;
+      }
+      convert(line.data(), w, dem.heights_m.data() + static_cast<size_t>(y) * w);
+    }
+  }
+  // GeoTIFF pixel scale (tag 33550): sample spacing in the file's units (metres for projected
+  // DEMs, degrees for geographic ones: converted at the equator scale).
+  uint16_t count = 0;
+  double* scale = nullptr;
+  if (TIFFGetField(tif.get(), kModelPixelScaleTag, &count, &scale) == 1 && scale && count >= 2 && scale[1] > 0) {
+    dem.spacing_m = scale[1] < 1.0 ? scale[1] * 111320.0 : scale[1];
+  }
+  bool hasNoData = o.hasNoData;
+  double noData = o.noData;
+  char* gdalNoData = nullptr;
+  if (TIFFGetField(tif.get(), kGdalNoDataTag, &gdalNoData) == 1 && gdalNoData) {
+    char* end = nullptr;
+    const double v = std::strtod(gdalNoData, &end);
+    if (end != gdalNoData) {
+      hasNoData = true;
+      noData = v;
+    }
+  }
+  dem.format = "geotiff";
+  return finish(file, o, hasNoData, noData, dem, error);
+}
+
+}  // namespace
+
+bool fillVoids(std::vector<float>& heights, int width, int height, std::vector<uint8_t>& isVoid) {
+  std::vector<size_t> pending, next;
+  for (size_t i = 0; i < isVoid.size(); ++i)
+    if (isVoid[i]) pending.push_back(i);
+  if (pending.size() == heights.size()) return false;
+  std::vector<std::pair<size_t, float>> fills;
+  while (!pending.empty()) {
+    next.clear();
+    fills.clear();
+    for (size_t i : pending) {
+      const int x = static_cast<int>(i % static_cast<size_t>(width)), y = static_cast<int>(i / static_cast<size_t>(width));
+      double sum = 0.0;
+      int n = 0;
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const int nx = x + dx, ny = y + dy;
+          if ((dx == 0 && dy == 0) || nx < 0 || ny < 0 || nx >= width || ny >= height) continue;
+          const size_t j = static_cast<size_t>(ny) * static_cast<size_t>(width) + static_cast<size_t>(nx);
+          if (!isVoid[j]) {
+            sum += static_cast<double>(heights[j]);
+            ++n;
+          }
+        }
+      if (n > 0) fills.emplace_back(i, static_cast<float>(sum / n));
+      else next.push_back(i);
+    }
+    // Apply after the sweep so the result does not depend on the scan order.
+    for (const auto& [i, h] : fills) {
+      heights[i] = h;
+      isVoid[i] = 0;
+    }
+    pending.swap(next);
+  }
+  return true;
+}
+
+bool loadDem(const std::string& file, const DemLoadOptions& options, Dem& out, std::string& error) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(file, ec)) {
+    error = file + ": no such file";
+    return false;
+  }
+  const std::string ext = lower(std::filesystem::path(file).extension().string());
+  Dem dem;
+  bool ok = false;
+  if (ext == ".png") ok = loadPng16(file, options, dem, error);
+  else if (ext == ".tif" || ext == ".tiff") ok = loadGeoTiff(file, options, dem, error);
+  else if (ext == ".hgt") ok = loadHgt(file, options, dem, error);
+  else {
+    error = file + ": unknown DEM extension '" + ext + "' (expected .png, .tif, .tiff or .hgt)";
+    return false;
+  }
+  if (!ok) return false;
+  out = std::move(dem);
+  return true;
+}
+
+}  // namespace ig::io

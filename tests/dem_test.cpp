@@ -1,0 +1,236 @@
+// DEM readers: 16-bit PNG, GeoTIFF (strips and tiles, int16 and float32, GDAL no-data) and
+// SRTM .hgt written by this test with libpng / libtiff / plain bytes; voids filled or
+// rejected; truncated and corrupt files rejected with a message naming the file.
+#include <gtest/gtest.h>
+
+#include <png.h>
+#include <tiffio.h>
+
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+
+#include "io/dem.h"
+
+using namespace ig::io;
+namespace fs = std::filesystem;
+
+namespace {
+
+struct TempDir {
+  fs::path path = fs::temp_directory_path() / ("igd_dem_test_" + std::to_string(::getpid()));
+  TempDir() { fs::create_directories(path); }
+  ~TempDir() { fs::remove_all(path); }
+  std::string operator/(const std::string& name) const { return (path / name).string(); }
+};
+
+float sampleHeight(int x, int y) { return static_cast<float>(100 + 3 * x + 7 * y); }
+
+void writePng16(const std::string& file, int w, int h) {
+  std::vector<uint16_t> v(static_cast<size_t>(w) * h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) v[static_cast<size_t>(y) * w + x] = static_cast<uint16_t>(sampleHeight(x, y));
+  png_image png{};
+  png.version = PNG_IMAGE_VERSION;
+  png.width = static_cast<png_uint_32>(w);
+  png.height = static_cast<png_uint_32>(h);
+  png.format = PNG_FORMAT_LINEAR_Y;
+  ASSERT_TRUE(png_image_write_to_file(&png, file.c_str(), 0, v.data(), 0, nullptr)) << png.message;
+}
+
+void writeTiff(const std::string& file, int w, int h, bool floatSamples, bool tiled, const char* noData,
+               const std::vector<std::pair<int, int>>& voids = {}) {
+  TIFF* t = TIFFOpen(file.c_str(), "w");
+  ASSERT_NE(t, nullptr);
+  TIFFSetField(t, TIFFTAG_IMAGEWIDTH, w);
+  TIFFSetField(t, TIFFTAG_IMAGELENGTH, h);
+  TIFFSetField(t, TIFFTAG_SAMPLESPERPIXEL, 1);
+  TIFFSetField(t, TIFFTAG_BITSPERSAMPLE, floatSamples ? 32 : 16);
+  TIFFSetField(t, TIFFTAG_SAMPLEFORMAT, floatSamples ? SAMPLEFORMAT_IEEEFP : SAMPLEFORMAT_INT);
+  TIFFSetField(t, TIFFTAG_PHOTOMETRIC, PHOTOMETRIC_MINISBLACK);
+  TIFFSetField(t, TIFFTAG_PLANARCONFIG, PLANARCONFIG_CONTIG);
+  std::vector<float> f(static_cast<size_t>(w) * h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) f[static_cast<size_t>(y) * w + x] = sampleHeight(x, y);
+  for (auto [x, y] : voids) f[static_cast<size_t>(y) * w + x] = floatSamples ? NAN : -9999.0f;
+  if (noData) {
+    static const TIFFFieldInfo info[] = {{42113, -1, -1, TIFF_ASCII, FIELD_CUSTOM, 1, 0, const_cast<char*>("GDALNoDataValue")}};
+    TIFFMergeFieldInfo(t, info, 1);
+    TIFFSetField(t, 42113, noData);
+  }
+  const size_t bps = floatSamples ? 4 : 2;
+  auto pack = [&](const float* src, size_t n, std::vector<uint8_t>& dst) {
+    dst.resize(n * bps);
+    for (size_t i = 0; i < n; ++i) {
+      if (floatSamples) std::memcpy(&dst[4 * i], &src[i], 4);
+      else {
+        const auto v = static_cast<int16_t>(src[i]);
+        std::memcpy(&dst[2 * i], &v, 2);
+      }
+    }
+  };
+  std::vector<uint8_t> buf;
+  if (tiled) {
+    const int tw = 16, th = 16;
+    TIFFSetField(t, TIFFTAG_TILEWIDTH, tw);
+    TIFFSetField(t, TIFFTAG_TILELENGTH, th);
+    std::vector<float> tile(static_cast<size_t>(tw) * th, 0.0f);
+    for (int ty = 0; ty < h; ty += th)
+      for (int tx = 0; tx < w; tx += tw) {
+        for (int y = 0; y < th; ++y)
+          for (int x = 0; x < tw; ++x)
+            tile[static_cast<size_t>(y) * tw + x] =
+                (tx + x < w && ty + y < h) ? f[static_cast<size_t>(ty + y) * w + tx + x] : 0.0f;
+        pack(tile.data(), tile.size(), buf);
+        ASSERT_GE(TIFFWriteTile(t, buf.data(), static_cast<uint32_t>(tx), static_cast<uint32_t>(ty), 0, 0), 0);
+      }
+  } else {
+    for (int y = 0; y < h; ++y) {
+      pack(f.data() + static_cast<size_t>(y) * w, static_cast<size_t>(w), buf);
+      ASSERT_GE(TIFFWriteScanline(t, buf.data(), static_cast<uint32_t>(y), 0), 0);
+    }
+  }
+  TIFFClose(t);
+}
+
+void writeHgt(const std::string& file, int side, std::vector<std::pair<int, int>> voids = {}) {
+  std::vector<uint8_t> b(static_cast<size_t>(side) * side * 2);
+  for (int y = 0; y < side; ++y)
+    for (int x = 0; x < side; ++x) {
+      int16_t v = static_cast<int16_t>(sampleHeight(x, y));
+      for (auto [vx, vy] : voids)
+        if (vx == x && vy == y) v = -32768;
+      const size_t i = (static_cast<size_t>(y) * side + x) * 2;
+      b[i] = static_cast<uint8_t>((static_cast<uint16_t>(v) >> 8) & 0xFF);
+      b[i + 1] = static_cast<uint8_t>(static_cast<uint16_t>(v) & 0xFF);
+    }
+  std::ofstream(file, std::ios::binary).write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
+}
+
+void expectSamples(const Dem& d, int w, int h) {
+  ASSERT_EQ(d.width, w);
+  ASSERT_EQ(d.height, h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) ASSERT_FLOAT_EQ(d.at(x, y), sampleHeight(x, y)) << x << "," << y;
+}
+
+}  // namespace
+
+TEST(Dem, Png16) {
+  TempDir tmp;
+  writePng16(tmp / "a.png", 37, 20);  // non-power-of-two
+  Dem d;
+  std::string e;
+  ASSERT_TRUE(loadDem(tmp / "a.png", {}, d, e)) << e;
+  expectSamples(d, 37, 20);
+  DemLoadOptions o;
+  o.pngScale_m = 0.5;
+  o.pngOffset_m = -10;
+  ASSERT_TRUE(loadDem(tmp / "a.png", o, d, e)) << e;
+  EXPECT_FLOAT_EQ(d.at(1, 0), -10.0f + 0.5f * sampleHeight(1, 0));
+}
+
+TEST(Dem, GeoTiffStripsTilesInt16Float32) {
+  TempDir tmp;
+  writeTiff(tmp / "s.tif", 40, 33, false, false, nullptr);
+  writeTiff(tmp / "t.tiff", 40, 33, true, true, nullptr);  // tiles overhang the edges
+  Dem d;
+  std::string e;
+  ASSERT_TRUE(loadDem(tmp / "s.tif", {}, d, e)) << e;
+  expectSamples(d, 40, 33);
+  EXPECT_EQ(d.format, "geotiff");
+  ASSERT_TRUE(loadDem(tmp / "t.tiff", {}, d, e)) << e;
+  expectSamples(d, 40, 33);
+}
+
+TEST(Dem, VoidsAreFilledFromTheirNeighboursOrRejected) {
+  TempDir tmp;
+  // A NaN hole in float data and a GDAL no-data hole in int16 data.
+  writeTiff(tmp / "nan.tif", 20, 20, true, false, nullptr, {{5, 5}, {6, 5}, {5, 6}, {6, 6}});
+  writeTiff(tmp / "nd.tif", 20, 20, false, false, "-9999", {{0, 0}, {10, 10}});
+  Dem d;
+  std::string e;
+  ASSERT_TRUE(loadDem(tmp / "nan.tif", {}, d, e)) << e;
+  EXPECT_EQ(d.voidsFilled, 4u);
+  for (float h : d.heights_m) ASSERT_TRUE(std::isfinite(h));
+  // The field is a plane: a hole filled from its rim lies within the rim's range.
+  EXPECT_NEAR(d.at(5, 5), sampleHeight(5, 5), 12.0f);
+  ASSERT_TRUE(loadDem(tmp / "nd.tif", {}, d, e)) << e;
+  EXPECT_EQ(d.voidsFilled, 2u);
+  EXPECT_GT(d.at(0, 0), 50.0f);  // not -9999
+  DemLoadOptions reject;
+  reject.voids = DemVoids::Reject;
+  EXPECT_FALSE(loadDem(tmp / "nd.tif", reject, d, e));
+  EXPECT_NE(e.find("nd.tif"), std::string::npos);
+  EXPECT_NE(e.find("2 void samples"), std::string::npos) << e;
+}
+
+TEST(Dem, MostlyVoidIsRejectedAndAllVoidCannotBeFilled) {
+  std::vector<float> h(9, 1.0f);
+  std::vector<uint8_t> v(9, 1);
+  EXPECT_FALSE(fillVoids(h, 3, 3, v));
+  TempDir tmp;
+  std::vector<std::pair<int, int>> many;
+  for (int y = 0; y < 20; ++y)
+    for (int x = 0; x < 15; ++x) many.emplace_back(x, y);
+  writeTiff(tmp / "holes.tif", 20, 20, true, false, nullptr, many);
+  Dem d;
+  std::string e;
+  EXPECT_FALSE(loadDem(tmp / "holes.tif", {}, d, e));
+  EXPECT_NE(e.find("75.0 %"), std::string::npos) << e;
+}
+
+TEST(Dem, SrtmHgtBigEndianWithVoids) {
+  TempDir tmp;
+  writeHgt(tmp / "N46E007.hgt", 121, {{3, 4}});
+  Dem d;
+  std::string e;
+  ASSERT_TRUE(loadDem(tmp / "N46E007.hgt", {}, d, e)) << e;
+  EXPECT_EQ(d.width, 121);
+  EXPECT_EQ(d.voidsFilled, 1u);
+  EXPECT_FLOAT_EQ(d.at(7, 9), sampleHeight(7, 9));
+  EXPECT_NEAR(d.spacing_m, 111320.0 / 120.0, 1e-6);
+}
+
+TEST(Dem, TwoByTwoIsTheSmallestAccepted) {
+  TempDir tmp;
+  writePng16(tmp / "two.png", 2, 2);
+  writePng16(tmp / "one.png", 1, 5);
+  Dem d;
+  std::string e;
+  ASSERT_TRUE(loadDem(tmp / "two.png", {}, d, e)) << e;
+  expectSamples(d, 2, 2);
+  EXPECT_FALSE(loadDem(tmp / "one.png", {}, d, e));
+  EXPECT_NE(e.find("1x5"), std::string::npos) << e;
+}
+
+TEST(Dem, CorruptAndTruncatedFilesFailCleanlyNamingTheFile) {
+  TempDir tmp;
+  writePng16(tmp / "a.png", 30, 30);
+  writeTiff(tmp / "a.tif", 30, 30, false, false, nullptr);
+  writeHgt(tmp / "a.hgt", 31);
+  for (const std::string name : {"a.png", "a.tif", "a.hgt"}) {
+    std::ifstream in(tmp / name, std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    // Cuts into the header and into the sample data (not into trailers after complete data,
+    // and never at an even .hgt length that is itself a valid smaller square).
+    for (size_t cut : {size_t{0}, size_t{1}, size_t{7}, size_t{33}, bytes.size() / 2 | 1, bytes.size() * 3 / 4 | 1}) {
+      const std::string file = tmp / ("cut_" + name);
+      std::ofstream(file, std::ios::binary | std::ios::trunc).write(bytes.data(), static_cast<std::streamsize>(cut));
+      Dem d;
+      d.width = 77;  // must survive a failed load
+      std::string e;
+      EXPECT_FALSE(loadDem(file, {}, d, e)) << name << " cut at " << cut;
+      EXPECT_EQ(d.width, 77);
+      EXPECT_NE(e.find("cut_" + name), std::string::npos) << e;
+    }
+  }
+  Dem d;
+  std::string e;
+  EXPECT_FALSE(loadDem(tmp / "missing.png", {}, d, e));
+  EXPECT_NE(e.find("no such file"), std::string::npos);
+  std::ofstream(tmp / "x.asc") << "ncols 2";
+  EXPECT_FALSE(loadDem(tmp / "x.asc", {}, d, e));
+  EXPECT_NE(e.find("'.asc'"), std::string::npos) << e;
+}
