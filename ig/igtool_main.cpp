@@ -2,10 +2,14 @@
 // recording, compare images, check configs.
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
+
+#include <chrono>
 #include <cstdio>
 
 #include "ig/app_common.h"
 #include "ig/service.h"
+#include "io/dem.h"
 #include "io/replay.h"
 #include "render/image.h"
 
@@ -108,7 +112,41 @@ int main(int argc, char** argv) {
       "check-config", "Validate service configs (and the scenes they name); print the first error of each\n"
                       "with file, line, key and value. Exit 2 if any is bad.");
   check->add_option("files", checkFiles, "Service config files")->required();
+  std::string demFile;
+  ig::io::DemLoadOptions demOptions;
+  bool demReject = false;
+  CLI::App* demInfo = app.add_subcommand(
+      "dem-info", "Load a DEM (16-bit PNG, GeoTIFF, SRTM .hgt) as igd would and print its size, height range,\n"
+                  "voids filled and load time. Exit 2 if the file is rejected (the message says why).");
+  demInfo->add_option("file", demFile, "DEM file")->required();
+  demInfo->add_option("--png-scale", demOptions.pngScale_m, "16-bit PNG: metres per unit")->capture_default_str();
+  demInfo->add_option("--png-offset", demOptions.pngOffset_m, "16-bit PNG: height of value 0 in metres")->capture_default_str();
+  demInfo->add_flag("--reject-voids", demReject, "Reject a DEM with voids instead of filling them");
+  demInfo->add_option("--max-void-fraction", demOptions.maxVoidFraction, "Reject above this share of voids")
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
+
+  if (demInfo->parsed()) {
+    if (demReject) demOptions.voids = ig::io::DemVoids::Reject;
+    ig::io::Dem dem;
+    std::string error;
+    const auto t0 = std::chrono::steady_clock::now();
+    if (!ig::io::loadDem(demFile, demOptions, dem, error)) {
+      std::fprintf(stderr, "igtool dem-info: %s\n", error.c_str());
+      return 2;
+    }
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    float lo = dem.heights_m[0], hi = dem.heights_m[0];
+    for (float h : dem.heights_m) {
+      lo = std::min(lo, h);
+      hi = std::max(hi, h);
+    }
+    std::printf("{\"file\":\"%s\",\"format\":\"%s\",\"width\":%d,\"height\":%d,\"spacing_m\":%.4f,"
+                "\"min_m\":%.2f,\"max_m\":%.2f,\"voids_filled\":%llu,\"load_ms\":%.1f}\n",
+                demFile.c_str(), dem.format.c_str(), dem.width, dem.height, dem.spacing_m, static_cast<double>(lo),
+                static_cast<double>(hi), static_cast<unsigned long long>(dem.voidsFilled), ms);
+    return 0;
+  }
 
   if (render->parsed()) return renderCommand(configFile, o, time_s, out);
   if (makeRec->parsed()) {
