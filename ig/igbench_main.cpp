@@ -1,6 +1,6 @@
 // igbench: benchmarks. Each suite prints one JSON object on stdout with --json (for scripts
 // and side-by-side comparisons), or a human summary without it.
-#include <CLI/CLI.hpp>
+#include "ig/cli.h"
 
 #include <atomic>
 #include <cstdio>
@@ -89,7 +89,7 @@ int main(int argc, char** argv) {
   frame->add_option("--output", o.output, "Context: headless | osmesa | window");
   frame->add_option("--scene", o.sceneFile, "Scene config (default: the config's)");
   frame->add_flag("--json", json, "Print one JSON object instead of the human summary");
-  CLI11_PARSE(app, argc, argv);
+  if (const auto rc = ig::parseCommandLine(app, argc, argv)) return *rc;
 
   if (frame->parsed()) return runFrameSuite(configFile, o, json);
   return 2;

@@ -1,5 +1,5 @@
 // igd: the image generator service. See README.md and `igd --help`.
-#include <CLI/CLI.hpp>
+#include "ig/cli.h"
 
 #include <atomic>
 #include <csignal>
@@ -41,7 +41,7 @@ int main(int argc, char** argv) {
   app.add_option("--scene", o.sceneFile, "Scene config (TOML); overrides scene.file");
   app.add_option("--replay", o.replayFile, "Host recording to replay; sets host.source = replay");
   app.add_flag("--check-config", checkOnly, "Load and validate the configs, print a summary, exit");
-  CLI11_PARSE(app, argc, argv);
+  if (const auto rc = ig::parseCommandLine(app, argc, argv)) return *rc;
 
   ig::ServiceConfig config;
   ig::SceneConfig scene;

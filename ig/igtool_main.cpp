@@ -1,6 +1,6 @@
 // igtool: offline tools around igd — render one frame to PNG, make the built-in host
 // recording, compare images, check configs.
-#include <CLI/CLI.hpp>
+#include "ig/cli.h"
 
 #include <algorithm>
 
@@ -34,6 +34,9 @@ int renderCommand(const std::string& configFile, const ig::Overrides& o, double 
   }
   config.replayFile = "";
   config.host = ig::HostSource::None;
+  config.snapshotEvery = 0;  // one frame to --out: no snapshot folder, thread or stats file
+  config.snapshotFrames.clear();
+  config.statsFile.clear();
   auto service = ig::Service::create(config, scene, error);
   if (!service) {
     std::fprintf(stderr, "igtool render: start-up failed: %s\n", error.c_str());
@@ -124,7 +127,7 @@ int main(int argc, char** argv) {
   demInfo->add_flag("--reject-voids", demReject, "Reject a DEM with voids instead of filling them");
   demInfo->add_option("--max-void-fraction", demOptions.maxVoidFraction, "Reject above this share of voids")
       ->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  if (const auto rc = ig::parseCommandLine(app, argc, argv)) return *rc;
 
   if (demInfo->parsed()) {
     if (demReject) demOptions.voids = ig::io::DemVoids::Reject;

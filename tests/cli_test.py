@@ -1,0 +1,560 @@
+#!/usr/bin/env python3
+"""Integration tests that drive the real igd, igtool and igbench binaries and real peers
+(a unix-datagram sd_notify listener, an Xvfb X server, signals, the file system).
+
+Run:  IGD=build/igd IGTOOL=build/igtool IGBENCH=build/igbench SRC=. python3 tests/cli_test.py [Class[.test]...]
+(ctest does this: test `cli_test`). Standard library only. Every test writes only under its own
+tempfile.TemporaryDirectory, uses loopback / unix sockets only, and bounds every child process
+with a timeout. The last line printed is `cli_test: N passed, M failed`; the exit status is
+non-zero unless every test passed.
+"""
+
+import json
+import os
+import re
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+import tomllib
+import unittest
+
+# Bounds for child processes (seconds). The slowest legitimate runs here take ~2-3 s.
+QUICK = 30        # config checks, --help, tools
+RUN = 60          # rendering runs
+XVFB_START = 10   # Xvfb until its socket appears
+
+# The stats CSV columns, as documented in config/igd.toml ([stats] file).
+STATS_COLUMNS = [
+    "frame", "t_ms", "period_ms", "interval_ms", "lateness_ms",
+    "input_ms", "lod_ms", "submit_ms", "gpu_finish_ms", "present_ms",
+    "work_ms", "overrun", "missed_slots", "triangles", "draw_calls", "passes",
+    "host_frame", "sim_time_s", "eye_up_m",
+]
+
+
+def _env_path(name):
+    value = os.environ.get(name)
+    if not value:
+        sys.exit(f"cli_test: environment variable {name} is not set "
+                 "(need IGD, IGTOOL, IGBENCH and SRC; see the top of this file)")
+    return os.path.abspath(value)
+
+
+IGD = _env_path("IGD")
+IGTOOL = _env_path("IGTOOL")
+IGBENCH = _env_path("IGBENCH")
+SRC = _env_path("SRC")
+CONFIG = os.path.join(SRC, "config", "igd.toml")
+SCENE = os.path.join(SRC, "config", "scenes", "default.toml")
+RECORDING = os.path.join(SRC, "config", "recordings", "default.rec")
+
+
+def run(args, timeout=QUICK, env=None, cwd=None):
+    """Runs a command to completion; returns CompletedProcess with text stdout/stderr."""
+    return subprocess.run(args, stdin=subprocess.DEVNULL, capture_output=True, text=True,
+                          timeout=timeout, env=env, cwd=cwd)
+
+
+def describe(proc):
+    return (f"\n$ {' '.join(proc.args)}\nexit status {proc.returncode}\n"
+            f"--- stdout ---\n{proc.stdout}--- stderr ---\n{proc.stderr}")
+
+
+def toml_str(s):
+    # TOML basic strings share JSON's escapes for everything a path can hold.
+    return json.dumps(s)
+
+
+def write(path, text):
+    with open(path, "w", encoding="utf-8") as f:
+        f.write(text)
+    return path
+
+
+def service_config_copy(tmp):
+    """A copy of config/igd.toml in `tmp` whose inputs (scene, recording) point at the repository
+    and whose outputs (stats file, snapshots) point into `tmp`. Returns its path."""
+    with open(CONFIG, "rb") as f:
+        original = tomllib.load(f)
+    config_dir = os.path.dirname(CONFIG)
+    rewrites = {
+        ("output", "snapshot_dir"): os.path.join(tmp, "snapshots"),
+        ("stats", "file"): os.path.join(tmp, "frame_stats.csv"),
+        ("host", "replay_file"): os.path.normpath(os.path.join(config_dir, original["host"]["replay_file"])),
+        ("scene", "file"): os.path.normpath(os.path.join(config_dir, original["scene"]["file"])),
+    }
+    done = set()
+    table = ""
+    out = []
+    with open(CONFIG, encoding="utf-8") as f:
+        for line in f:
+            m = re.match(r"^\s*\[([A-Za-z0-9_.]+)\]\s*(#.*)?$", line)
+            if m:
+                table = m.group(1)
+            m = re.match(r"^(\s*)([A-Za-z0-9_]+)\s*=", line)
+            if m and (table, m.group(2)) in rewrites:
+                key = (table, m.group(2))
+                assert key not in done, f"{CONFIG}: {key} set twice"
+                done.add(key)
+                line = f"{m.group(1)}{m.group(2)} = {toml_str(rewrites[key])}\n"
+            out.append(line)
+    missing = set(rewrites) - done
+    assert not missing, f"{CONFIG}: keys not found for rewriting: {sorted(missing)}"
+    path = write(os.path.join(tmp, "igd.toml"), "".join(out))
+    with open(path, "rb") as f:
+        tomllib.load(f)  # still valid TOML
+    return path
+
+
+class Tmp(unittest.TestCase):
+    def setUp(self):
+        self._tmp = tempfile.TemporaryDirectory(prefix="igd-cli-")
+        self.tmp = self._tmp.name
+        self.addCleanup(self._tmp.cleanup)
+
+    def assertExit(self, proc, code):
+        self.assertEqual(proc.returncode, code, describe(proc))
+
+    def assertMentions(self, proc, *needles, stream="stderr"):
+        text = getattr(proc, stream)
+        for n in needles:
+            self.assertIn(str(n), text, f"{stream} does not mention {n!r}" + describe(proc))
+
+
+# ------------------------------------------------------------------------------------------------
+# a. config errors, bad options, --help
+# ------------------------------------------------------------------------------------------------
+class ConfigErrors(Tmp):
+    def service(self, body, scene=None):
+        """Writes a service config with `body` plus a [scene] table; returns its path."""
+        text = body.rstrip("\n") + "\n[scene]\nfile = " + toml_str(scene or SCENE) + "\n"
+        return write(os.path.join(self.tmp, "bad.toml"), text)
+
+    def expect_config_error(self, config, *needles):
+        """Both --check-config and a normal start must exit 2 and name everything in `needles`."""
+        runs = {
+            "--check-config": [IGD, "--config", config, "--check-config"],
+            "start": [IGD, "--config", config, "--frames", "3", "--free-run", "--width", "64",
+                      "--height", "36", "--stats", os.path.join(self.tmp, "s.csv"),
+                      "--snapshot-dir", os.path.join(self.tmp, "snap")],
+        }
+        for how, args in runs.items():
+            with self.subTest(how=how):
+                p = run(args, cwd=self.tmp)
+                self.assertExit(p, 2)
+                self.assertMentions(p, *needles)
+                self.assertNotIn("config OK", p.stdout + p.stderr)
+
+    def test_unknown_key(self):
+        c = self.service("[frame]\nrate_hz = 30\nwarp_factor = 9\n")
+        self.expect_config_error(c, f"{c}:3", "frame.warp_factor", "9", "unknown key")
+
+    def test_value_out_of_range(self):
+        c = self.service("[frame]\nrate_hz = 5000\n")
+        self.expect_config_error(c, f"{c}:2", "frame.rate_hz", "5000", "out of range")
+
+    def test_wrong_type(self):
+        c = self.service("[output]\nmode = \"headless\"\nwidth_px = \"wide\"\n")
+        self.expect_config_error(c, f"{c}:3", "output.width_px", "wide", "wrong type")
+
+    def test_bad_enum(self):
+        c = self.service("[output]\nmode = \"hologram\"\n")
+        self.expect_config_error(c, f"{c}:2", "output.mode", "hologram", "headless")
+
+    def test_toml_syntax_error(self):
+        c = self.service("[frame]\nfree_run = false\nrate_hz = = 30\n")
+        self.expect_config_error(c, f"{c}:3")
+
+    def test_missing_config_file(self):
+        c = os.path.join(self.tmp, "no-such-igd.toml")
+        self.expect_config_error(c, c, "cannot open")
+
+    def test_missing_scene_file(self):
+        scene = os.path.join(self.tmp, "no-such-scene.toml")
+        c = self.service("[host]\nsource = \"none\"\n", scene=scene)
+        self.expect_config_error(c, scene)
+
+    def test_bad_value_in_scene_file(self):
+        scene = write(os.path.join(self.tmp, "scene.toml"), "name = \"s\"\n[sun]\nazimuth_deg = 10\nambient = 7\n")
+        c = self.service("[host]\nsource = \"none\"\n", scene=scene)
+        self.expect_config_error(c, f"{scene}:4", "sun.ambient", "7", "out of range")
+
+    def test_bad_command_line_overrides(self):
+        cases = [
+            (["--output", "bogus"], "--output", "bogus"),
+            (["--width", "5"], "--width", "5"),
+            (["--height", "99999"], "--height", "99999"),
+            (["--stats-format", "xml"], "--stats-format", "xml"),
+            (["--frames", "-1"], "--frames", "-1"),
+            (["--snapshot-every", "-2"], "--snapshot-every", "-2"),
+        ]
+        for args, option, value in cases:
+            for extra in (["--check-config"], ["--frames", "2", "--free-run"] if option != "--frames" else []):
+                with self.subTest(args=args + extra):
+                    p = run([IGD, "--config", CONFIG] + args + extra + ["--stats", os.path.join(self.tmp, "s.csv"),
+                                                                       "--snapshot-dir", os.path.join(self.tmp, "snap")],
+                            cwd=self.tmp)
+                    self.assertExit(p, 2)
+                    self.assertMentions(p, f"{option} = {value}")
+
+    def test_unparsable_command_line_exits_2(self):
+        # igd --help documents "Exit codes: ... 2 bad config or option". That must also hold for
+        # options the command-line parser itself rejects, not only for values igd validates.
+        for args in (["--width", "abc"], ["--frames", "many"], ["--no-such-option"], ["--config"]):
+            with self.subTest(args=args):
+                p = run([IGD, "--config", CONFIG, "--check-config"] + args, cwd=self.tmp)
+                self.assertExit(p, 2)
+                self.assertTrue(p.stderr.strip(), "no message on stderr" + describe(p))
+
+    def test_help(self):
+        expected = {
+            (IGD,): ["--config", "--frames", "--free-run", "--output", "--width", "--height", "--stats",
+                     "--stats-format", "--snapshot-dir", "--snapshot-every", "--scene", "--replay",
+                     "--check-config", "--help", "Exit codes"],
+            (IGTOOL,): ["render", "make-recording", "compare", "check-config", "dem-info"],
+            (IGTOOL, "render"): ["--config", "--time", "--out", "--width", "--height", "--output", "--scene"],
+            (IGTOOL, "make-recording"): ["--rate", "--duration", "--out"],
+            (IGTOOL, "compare"): ["--max-rmse"],
+            (IGTOOL, "dem-info"): ["--png-scale", "--png-offset", "--reject-voids", "--max-void-fraction"],
+            (IGBENCH,): ["frame"],
+            (IGBENCH, "frame"): ["--config", "--frames", "--width", "--height", "--output", "--scene", "--json"],
+        }
+        for cmd, words in expected.items():
+            with self.subTest(cmd=" ".join(os.path.basename(c) for c in cmd)):
+                p = run(list(cmd) + ["--help"], cwd=self.tmp)
+                self.assertExit(p, 0)
+                for w in words:
+                    self.assertRegex(p.stdout, r"(^|[\s,])" + re.escape(w) + r"\b",
+                                     f"--help does not mention {w}" + describe(p))
+
+
+# ------------------------------------------------------------------------------------------------
+# b, c. start-up failures
+# ------------------------------------------------------------------------------------------------
+class StartupFailures(Tmp):
+    def replay_config(self, replay_file):
+        return write(os.path.join(self.tmp, "replay.toml"),
+                     "[frame]\nfree_run = true\nframes = 3\n[output]\nwidth_px = 64\nheight_px = 36\n"
+                     f"[stats]\nfile = \"\"\n[host]\nsource = \"replay\"\nreplay_file = {toml_str(replay_file)}\n"
+                     f"[scene]\nfile = {toml_str(SCENE)}\n")
+
+    def test_missing_replay_file_exit_3(self):
+        missing = os.path.join(self.tmp, "no-such-recording.rec")
+        c = self.replay_config(missing)
+        p = run([IGD, "--config", c, "--check-config"], cwd=self.tmp)
+        self.assertExit(p, 0)  # existence is checked when the service starts, not by --check-config
+        p = run([IGD, "--config", c], timeout=RUN, cwd=self.tmp)
+        self.assertExit(p, 3)
+        self.assertMentions(p, missing, "host.replay_file")
+
+    def test_nan_in_recording(self):
+        with open(RECORDING, encoding="utf-8") as f:
+            lines = f.readlines()[:6]
+        # line 4 (1-based) is the second sample; its 5th field is north_m.
+        fields = lines[3].split()
+        self.assertEqual(len(fields), 12, lines[3])
+        fields[4] = "nan"
+        lines[3] = " ".join(fields) + "\n"
+        rec = write(os.path.join(self.tmp, "nan.rec"), "".join(lines))
+        c = self.replay_config(rec)
+        for args in ([IGD, "--config", c], [IGD, "--config", CONFIG, "--replay", rec, "--frames", "3", "--free-run",
+                                            "--stats", "", "--snapshot-dir", os.path.join(self.tmp, "snap")]):
+            with self.subTest(args=args[2:]):
+                p = run(args, timeout=RUN, cwd=self.tmp)
+                self.assertNotEqual(p.returncode, 0, describe(p))
+                self.assertExit(p, 3)
+                self.assertMentions(p, f"{rec}:4", "north_m", "nan")
+
+
+# ------------------------------------------------------------------------------------------------
+# d, e. running as a service: SIGTERM, stats, sd_notify
+# ------------------------------------------------------------------------------------------------
+def complete_lines(path):
+    try:
+        with open(path, encoding="utf-8") as f:
+            data = f.read()
+    except FileNotFoundError:
+        return []
+    return data.split("\n")[:-1]  # only newline-terminated lines
+
+
+class Service(Tmp):
+    def test_sigterm_stops_cleanly(self):
+        config = service_config_copy(self.tmp)
+        stats = os.path.join(self.tmp, "stats", "frames.csv")
+        err_path = os.path.join(self.tmp, "igd.stderr")
+        with open(err_path, "w") as err:
+            proc = subprocess.Popen([IGD, "--config", config, "--frames", "0", "--width", "160", "--height", "90",
+                                     "--stats", stats, "--snapshot-dir", os.path.join(self.tmp, "snapshots")],
+                                    stdin=subprocess.DEVNULL, stdout=err, stderr=err, cwd=self.tmp)
+        try:
+            deadline = time.monotonic() + 30
+            while len(complete_lines(stats)) < 6:  # header + 5 frames
+                if proc.poll() is not None:
+                    self.fail(f"igd exited early with {proc.returncode}:\n{open(err_path).read()}")
+                if time.monotonic() > deadline:
+                    self.fail(f"stats file {stats} has fewer than 5 frame lines after 30 s "
+                              f"({len(complete_lines(stats))} lines)")
+                time.sleep(0.05)
+            self.assertIsNone(proc.poll(), "igd exited on its own although --frames 0 means run until SIGTERM")
+            t0 = time.monotonic()
+            proc.send_signal(signal.SIGTERM)
+            try:
+                rc = proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                self.fail("igd did not exit within 10 s of SIGTERM")
+            elapsed = time.monotonic() - t0
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait(timeout=10)
+        stderr = open(err_path).read()
+        self.assertEqual(rc, 0, f"exit status after SIGTERM ({elapsed:.2f} s):\n{stderr}")
+
+        lines = complete_lines(stats)
+        with open(stats, encoding="utf-8") as f:
+            self.assertTrue(f.read().endswith("\n"), "stats file does not end with a complete line")
+        header = lines[0].split(",")
+        self.assertEqual(header, STATS_COLUMNS, "stats CSV header differs from the columns documented in config/igd.toml")
+        self.assertGreaterEqual(len(lines) - 1, 5)
+        expected_frame = 0
+        for i, line in enumerate(lines[1:], start=2):
+            fields = line.split(",")
+            self.assertEqual(len(fields), len(header), f"{stats}:{i}: {len(fields)} fields, header has {len(header)}: {line}")
+            for name, value in zip(header, fields):
+                self.assertRegex(value, r"^-?[0-9]+(\.[0-9]+)?$", f"{stats}:{i}: {name} = {value!r} is not a number")
+            # Frame numbers are slot numbers: consecutive, except that an overrun skips the
+            # slots it ran past (reported in that row's missed_slots).
+            row = dict(zip(header, fields))
+            self.assertEqual(int(row["frame"]), expected_frame, f"{stats}:{i}: frame number out of sequence")
+            expected_frame = int(row["frame"]) + 1 + int(row["missed_slots"])
+        self.assertIn(f"{len(lines) - 1} frames", stderr, "the exit summary should count the frames in the stats file")
+        # Snapshots: the default config writes one every 60 frames, starting with frame 0.
+        self.assertTrue(os.path.isfile(os.path.join(self.tmp, "snapshots", "frame_000000.png")),
+                        f"no snapshot of frame 0 in {self.tmp}/snapshots: {os.listdir(self.tmp)}")
+
+    def test_sd_notify(self):
+        config = service_config_copy(self.tmp)
+        sock_path = os.path.join(self.tmp, "notify.sock")
+        sock = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+        self.addCleanup(sock.close)
+        sock.bind(sock_path)
+        sock.settimeout(0.1)
+        messages = []  # (receive time, text)
+        stop = threading.Event()
+
+        def receive():
+            while not stop.is_set():
+                try:
+                    data = sock.recv(4096)
+                except socket.timeout:
+                    continue
+                except OSError:
+                    return
+                messages.append((time.monotonic(), data.decode("utf-8", "replace")))
+
+        reader = threading.Thread(target=receive, daemon=True)
+        reader.start()
+        env = dict(os.environ, NOTIFY_SOCKET=sock_path, WATCHDOG_USEC="200000")
+        env.pop("WATCHDOG_PID", None)  # sd_watchdog_enabled() requires it to equal getpid() when set
+        t0 = time.monotonic()
+        try:
+            p = run([IGD, "--config", config, "--frames", "60", "--width", "160", "--height", "90",
+                     "--stats", os.path.join(self.tmp, "stats.csv"), "--snapshot-every", "0"],
+                    timeout=RUN, env=env, cwd=self.tmp)
+        finally:
+            time.sleep(0.3)  # let the last datagrams arrive
+            stop.set()
+            reader.join(timeout=5)
+        wall = time.monotonic() - t0
+        self.assertExit(p, 0)
+        texts = [m for _, m in messages]
+        summary = f"\ndatagrams received: {texts}" + describe(p)
+        self.assertTrue(texts, "no sd_notify datagram received" + summary)
+        self.assertIn("READY=1", texts[0].split("\n"), "first datagram must be READY=1" + summary)
+        self.assertTrue(any(l.startswith("STATUS=") for l in texts[0].split("\n")),
+                        "READY=1 should carry a STATUS=" + summary)
+        self.assertEqual(texts[-1].split("\n"), ["STOPPING=1"], "last datagram must be STOPPING=1" + summary)
+        self.assertEqual(sum("READY=1" in t.split("\n") for t in texts), 1, "READY=1 sent more than once" + summary)
+        pings = sum("WATCHDOG=1" in t.split("\n") for t in texts)
+        # 60 frames at 30 Hz = 2 s, pings every WATCHDOG_USEC / 2 = 100 ms -> about 20.
+        print(f"\n  sd_notify: {len(texts)} datagrams, {pings} WATCHDOG=1 in {wall:.2f} s", end=" ")
+        self.assertGreaterEqual(pings, 5, "too few WATCHDOG=1 pings" + summary)
+        self.assertLessEqual(pings, wall / 0.1 + 2, f"WATCHDOG=1 not rate-limited to 100 ms ({wall:.2f} s)" + summary)
+        for t in texts:
+            for line in t.split("\n"):
+                self.assertRegex(line, r"^(READY=1|STATUS=.*|WATCHDOG=1|STOPPING=1)$", summary)
+
+
+# ------------------------------------------------------------------------------------------------
+# f, g. other outputs: a real X server (Xvfb), OSMesa
+# ------------------------------------------------------------------------------------------------
+def free_display():
+    for n in range(93, 400):
+        if not os.path.exists(f"/tmp/.X11-unix/X{n}") and not os.path.exists(f"/tmp/.X{n}-lock"):
+            yield n
+
+
+class Outputs(Tmp):
+    def start_xvfb(self):
+        import shutil
+        xvfb = shutil.which("Xvfb")
+        if xvfb is None:
+            self.fail("Xvfb is not installed: the window-mode test needs it (Debian package xvfb; "
+                      "scripts/setup installs it)")
+        log_path = os.path.join(self.tmp, "xvfb.log")
+        for attempt, n in enumerate(free_display()):
+            if attempt >= 5:
+                break
+            log = open(log_path, "w")
+            proc = subprocess.Popen([xvfb, f":{n}", "-screen", "0", "640x480x24", "-nolisten", "tcp"],
+                                    stdin=subprocess.DEVNULL, stdout=log, stderr=log)
+            log.close()
+            self.addCleanup(self.stop, proc)
+            deadline = time.monotonic() + XVFB_START
+            while time.monotonic() < deadline and proc.poll() is None:
+                if os.path.exists(f"/tmp/.X11-unix/X{n}"):
+                    return f":{n}"
+                time.sleep(0.05)
+            self.stop(proc)  # lost a race for the display number, or too slow: try the next one
+        self.fail(f"could not start Xvfb; last log:\n{open(log_path).read()}")
+
+    @staticmethod
+    def stop(proc):
+        if proc.poll() is None:
+            proc.terminate()
+            try:
+                proc.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait(timeout=5)
+
+    def test_window_mode_on_xvfb(self):
+        config = service_config_copy(self.tmp)
+        display = self.start_xvfb()
+        env = dict(os.environ, DISPLAY=display)
+        env.pop("WAYLAND_DISPLAY", None)
+        p = run([IGD, "--config", config, "--output", "window", "--frames", "20", "--width", "320", "--height", "180",
+                 "--free-run"], timeout=RUN, env=env, cwd=self.tmp)
+        self.assertExit(p, 0)
+        self.assertMentions(p, "GLFW window", "20 frames")
+
+    def test_osmesa(self):
+        config = service_config_copy(self.tmp)
+        p = run([IGD, "--config", config, "--output", "osmesa", "--frames", "5", "--free-run", "--width", "160",
+                 "--height", "90"], timeout=RUN, cwd=self.tmp)
+        self.assertExit(p, 0)
+        self.assertMentions(p, "OSMesa", "5 frames")
+
+
+# ------------------------------------------------------------------------------------------------
+# h, i. igbench and igtool
+# ------------------------------------------------------------------------------------------------
+class Tools(Tmp):
+    def test_igbench_frame_json(self):
+        config = service_config_copy(self.tmp)
+        p = run([IGBENCH, "frame", "--config", config, "--json", "--frames", "20", "--width", "160", "--height", "90"],
+                timeout=RUN, cwd=self.tmp)
+        self.assertExit(p, 0)
+        lines = [l for l in p.stdout.splitlines() if l.strip()]
+        self.assertEqual(len(lines), 1, "expected exactly one JSON line on stdout" + describe(p))
+        obj = json.loads(p.stdout)
+        self.assertIsInstance(obj, dict)
+        for key in ("frames", "target_hz", "frame_ms_p50", "frame_ms_p99", "overruns", "triangles_p50"):
+            self.assertIn(key, obj, p.stdout)
+        self.assertEqual(obj["frames"], 20)
+        self.assertGreater(obj["target_hz"], 0)
+        self.assertGreater(obj["frame_ms_p50"], 0)
+        self.assertGreaterEqual(obj["frame_ms_p99"], obj["frame_ms_p50"])
+        self.assertGreaterEqual(obj["overruns"], 0)
+        self.assertGreater(obj["triangles_p50"], 0)
+        self.assertEqual(os.listdir(self.tmp), ["igd.toml"], "igbench must not write stats or snapshots")
+
+    def test_igtool_make_recording(self):
+        out = os.path.join(self.tmp, "r.rec")
+        p = run([IGTOOL, "make-recording", "--rate", "10", "--duration", "1", "--out", out], cwd=self.tmp)
+        self.assertExit(p, 0)
+        with open(out, encoding="utf-8") as f:
+            lines = f.read().splitlines()
+        self.assertEqual(lines[0], "igd-recording 1")
+        samples = [l for l in lines[1:] if l.strip() and not l.lstrip().startswith("#")]
+        self.assertEqual(len(samples), 11, "\n".join(lines))
+        times = [float(s.split()[0]) for s in samples]
+        self.assertEqual(times, sorted(times))
+        self.assertAlmostEqual(times[-1], 1.0)
+        self.assertTrue(all(len(s.split()) == 12 for s in samples))
+        # igd accepts it as a replay.
+        p = run([IGD, "--config", service_config_copy(self.tmp), "--replay", out, "--frames", "3", "--free-run",
+                 "--width", "64", "--height", "36"], timeout=RUN, cwd=self.tmp)
+        self.assertExit(p, 0)
+
+    def render(self, name, time_s="1"):
+        out = os.path.join(self.tmp, name)
+        p = run([IGTOOL, "render", "--config", service_config_copy(self.tmp), "--width", "64", "--height", "36",
+                 "--time", time_s, "--out", out], timeout=RUN, cwd=self.tmp)
+        self.assertExit(p, 0)
+        return out
+
+    def test_igtool_render_png(self):
+        out = self.render("x.png")
+        with open(out, "rb") as f:
+            data = f.read()
+        self.assertEqual(data[:8], b"\x89PNG\r\n\x1a\n")
+        self.assertEqual(data[12:16], b"IHDR")
+        self.assertEqual(int.from_bytes(data[16:20], "big"), 64)
+        self.assertEqual(int.from_bytes(data[20:24], "big"), 36)
+
+    def test_igtool_compare(self):
+        a = self.render("a.png", "1")
+        p = run([IGTOOL, "compare", a, a], cwd=self.tmp)
+        self.assertExit(p, 0)
+        self.assertRegex(p.stdout, r"^rmse 0\.0+ ")
+        # A different view must not compare equal with a zero tolerance.
+        b = self.render("b.png", "15")
+        p = run([IGTOOL, "compare", a, b, "--max-rmse", "0"], cwd=self.tmp)
+        self.assertExit(p, 1)
+        self.assertNotRegex(p.stdout, r"^rmse 0\.0+ ")
+        # A file that is not a PNG is an error, not a difference.
+        junk = write(os.path.join(self.tmp, "junk.png"), "not a png")
+        p = run([IGTOOL, "compare", a, junk], cwd=self.tmp)
+        self.assertExit(p, 2)
+        self.assertMentions(p, junk)
+
+
+def main():
+    missing = [p for p in (IGD, IGTOOL, IGBENCH) if not os.access(p, os.X_OK)]
+    if missing:
+        sys.exit(f"cli_test: not executable: {missing}")
+    t0 = time.monotonic()
+    # Optional arguments select tests, e.g. `cli_test.py Service Tools.test_igtool_compare`.
+    module = sys.modules[__name__]
+    loader = unittest.defaultTestLoader
+    if len(sys.argv) > 1:
+        suite = loader.loadTestsFromNames(sys.argv[1:], module)
+    else:
+        suite = loader.loadTestsFromModule(module)
+    result = unittest.TextTestRunner(verbosity=2, stream=sys.stdout).run(suite)
+    # Count test methods, not sub-tests: a method with any failing sub-test counts once.
+    def method_id(test):
+        return getattr(test, "test_case", test).id()
+
+    bad = {method_id(t) for t, _ in result.failures + result.errors}
+    bad |= {method_id(t) for t in result.unexpectedSuccesses}
+    skipped = {method_id(t) for t, _ in result.skipped}
+    if skipped:
+        print(f"cli_test: skipped (not allowed): {sorted(skipped)}")
+    failed = len(bad | skipped)
+    passed = result.testsRun - failed
+    if bad:
+        print("cli_test: failed: " + ", ".join(sorted(t.split(".", 1)[-1] for t in bad)))
+    print(f"cli_test: {time.monotonic() - t0:.1f} s")
+    print(f"cli_test: {passed} passed, {failed} failed", flush=True)
+    return 0 if failed == 0 and result.wasSuccessful() else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
