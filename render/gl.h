@@ -10,6 +10,9 @@
 
 namespace ig::render {
 
+// glcorearb.h of this Mesa version has no pointer type for glDrawArrays.
+using PFNIGDRAWARRAYSPROC = void(APIENTRYP)(GLenum mode, GLint first, GLsizei count);
+
 // X-macro list: (pointer type, name without the "gl" prefix).
 #define IG_GL_FUNCTIONS(X)                                                                            \
   X(PFNGLGETSTRINGPROC, GetString)                                                                    \
@@ -66,7 +69,9 @@ namespace ig::render {
   X(PFNGLDELETERENDERBUFFERSPROC, DeleteRenderbuffers)                                                \
   X(PFNGLNAMEDRENDERBUFFERSTORAGEPROC, NamedRenderbufferStorage)                                      \
   X(PFNGLBLITNAMEDFRAMEBUFFERPROC, BlitNamedFramebuffer)                                              \
-  X(PFNGLDRAWELEMENTSBASEVERTEXPROC, DrawElementsBaseVertex)
+  X(PFNGLDRAWELEMENTSBASEVERTEXPROC, DrawElementsBaseVertex)                                          \
+  X(PFNIGDRAWARRAYSPROC, DrawArrays)                                                                    \
+  X(PFNGLNAMEDBUFFERSUBDATAPROC, NamedBufferSubData)
 
 struct GlApi {
 #define IG_GL_DECLARE(type, name) type name = nullptr;

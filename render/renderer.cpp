@@ -83,9 +83,11 @@ struct Renderer::Target {
   GlRenderbuffer depth;
 };
 
+// Draws terrain with the terrain program: either a static chunked grid (uploaded once), or a
+// dynamic triangle list re-uploaded each frame (ROAM / block LOD output), or both.
 class TerrainPass {
  public:
-  bool init(const lod::TerrainGrid& grid, std::string& error) {
+  bool initProgram(double heightScale_m, std::string& error) {
     program_ = buildProgram(kTerrainVs, kTerrainFs, error);
     if (!program_) {
       error = "terrain pass: " + error;
@@ -101,7 +103,12 @@ class TerrainPass {
     uFogDensity_ = gl.GetUniformLocation(p, "uFogDensity");
     uHeightScale_ = gl.GetUniformLocation(p, "uHeightScale");
     uDetailPhase_ = gl.GetUniformLocation(p, "uDetailPhase");
+    heightScale_ = static_cast<float>(heightScale_m);
+    return true;
+  }
 
+  bool initStatic(const lod::TerrainGrid& grid, std::string& error) {
+    if (!initProgram(grid.desc().heights.heightScale_m, error)) return false;
     const auto vertices = grid.vertices();
     const auto indices = grid.indices();
     GLuint ids[2];
@@ -112,27 +119,79 @@ class TerrainPass {
     const auto ibytes = static_cast<GLsizeiptr>(indices.size_bytes());
     gl.NamedBufferStorage(vertexBuffer_.id(), vbytes, vertices.data(), 0);
     gl.NamedBufferStorage(indexBuffer_.id(), ibytes, indices.data(), 0);
-    bytes_ = static_cast<uint64_t>(vbytes + ibytes);
+    bytes_ += static_cast<uint64_t>(vbytes + ibytes);
+    vertexArray_ = makeVertexArray(vertexBuffer_.id());
+    gl.VertexArrayElementBuffer(vertexArray_.id(), indexBuffer_.id());
+    chunks_.assign(grid.chunks().begin(), grid.chunks().end());
+    return true;
+  }
 
+  bool initDynamic(size_t capacityVertices, double heightScale_m, std::string& error) {
+    if (!program_ && !initProgram(heightScale_m, error)) return false;
+    GLuint id = 0;
+    gl.CreateBuffers(1, &id);
+    dynamicBuffer_ = GlBuffer::wrap(id);
+    const auto bytes = static_cast<GLsizeiptr>(capacityVertices * sizeof(lod::TerrainVertex));
+    gl.NamedBufferStorage(id, bytes, nullptr, GL_DYNAMIC_STORAGE_BIT);
+    bytes_ += static_cast<uint64_t>(bytes);
+    dynamicCapacity_ = capacityVertices;
+    dynamicArray_ = makeVertexArray(id);
+    return true;
+  }
+
+  void draw(const lod::Camera& camera, const Lighting& lighting, std::span<const uint32_t> chunkIndices,
+            RenderStats& stats) {
+    const GLuint p = begin(camera, lighting);
+    gl.BindVertexArray(vertexArray_.id());
+    for (uint32_t i : chunkIndices) {
+      const lod::TerrainChunk& c = chunks_[i];
+      setOrigin(p, c.origin_m, camera);
+      gl.DrawElementsBaseVertex(GL_TRIANGLES, static_cast<GLsizei>(c.indexCount), GL_UNSIGNED_INT,
+                                reinterpret_cast<const void*>(static_cast<uintptr_t>(c.firstIndex) * sizeof(uint32_t)),
+                                static_cast<GLint>(c.firstVertex));
+      stats.triangles += c.indexCount / 3;
+      ++stats.drawCalls;
+    }
+    gl.BindVertexArray(0);
+  }
+
+  // Uploads `vertices` (a triangle list, at most the capacity) and draws it. Returns the
+  // bytes uploaded.
+  uint64_t drawDynamic(const lod::Camera& camera, const Lighting& lighting, const glm::dvec3& origin_m,
+                       std::span<const lod::TerrainVertex> vertices, RenderStats& stats) {
+    const size_t n = std::min(vertices.size(), dynamicCapacity_) / 3 * 3;
+    if (n == 0) return 0;
+    gl.NamedBufferSubData(dynamicBuffer_.id(), 0, static_cast<GLsizeiptr>(n * sizeof(lod::TerrainVertex)), vertices.data());
+    const GLuint p = begin(camera, lighting);
+    setOrigin(p, origin_m, camera);
+    gl.BindVertexArray(dynamicArray_.id());
+    gl.DrawArrays(GL_TRIANGLES, 0, static_cast<GLsizei>(n));
+    gl.BindVertexArray(0);
+    stats.triangles += n / 3;
+    ++stats.drawCalls;
+    return n * sizeof(lod::TerrainVertex);
+  }
+
+  uint64_t bytes() const { return bytes_; }
+  bool hasStatic() const { return static_cast<bool>(vertexArray_); }
+  bool hasDynamic() const { return static_cast<bool>(dynamicArray_); }
+
+ private:
+  static GlVertexArray makeVertexArray(GLuint buffer) {
     GLuint vao = 0;
     gl.CreateVertexArrays(1, &vao);
-    vertexArray_ = GlVertexArray::wrap(vao);
-    gl.VertexArrayVertexBuffer(vao, 0, vertexBuffer_.id(), 0, sizeof(lod::TerrainVertex));
-    gl.VertexArrayElementBuffer(vao, indexBuffer_.id());
+    gl.VertexArrayVertexBuffer(vao, 0, buffer, 0, sizeof(lod::TerrainVertex));
     gl.EnableVertexArrayAttrib(vao, 0);
     gl.VertexArrayAttribFormat(vao, 0, 3, GL_FLOAT, GL_FALSE, offsetof(lod::TerrainVertex, position));
     gl.VertexArrayAttribBinding(vao, 0, 0);
     gl.EnableVertexArrayAttrib(vao, 1);
     gl.VertexArrayAttribFormat(vao, 1, 3, GL_FLOAT, GL_FALSE, offsetof(lod::TerrainVertex, normal));
     gl.VertexArrayAttribBinding(vao, 1, 0);
-
-    chunks_.assign(grid.chunks().begin(), grid.chunks().end());
-    heightScale_ = static_cast<float>(grid.desc().heights.heightScale_m);
-    return true;
+    return GlVertexArray::wrap(vao);
   }
 
-  void draw(const lod::Camera& camera, const Lighting& lighting, std::span<const uint32_t> chunkIndices,
-            RenderStats& stats) {
+  // Per-draw uniforms shared by both paths; returns the program.
+  GLuint begin(const lod::Camera& camera, const Lighting& lighting) {
     const GLuint p = program_.id();
     const glm::mat4 viewProjection(lod::reverseZProjection(camera.fovY_deg, camera.aspect, camera.near_m, camera.far_m) *
                                    glm::dmat4(lod::viewRotation(camera)));
@@ -147,29 +206,22 @@ class TerrainPass {
     gl.ProgramUniform1f(p, uFogDensity_, lighting.fog ? static_cast<float>(3.912 / lighting.fogVisibility_m) : 0.0f);
     gl.ProgramUniform1f(p, uHeightScale_, heightScale_);
     gl.UseProgram(p);
-    gl.BindVertexArray(vertexArray_.id());
-    for (uint32_t i : chunkIndices) {
-      const lod::TerrainChunk& c = chunks_[i];
-      const glm::vec3 offset(c.origin_m - camera.eye_m);  // double subtraction, then float
-      gl.ProgramUniform3fv(p, uChunkOffset_, 1, glm::value_ptr(offset));
-      const glm::vec2 phase(std::fmod(std::fmod(c.origin_m.x, 1024.0) + 1024.0, 1024.0),
-                            std::fmod(std::fmod(c.origin_m.y, 1024.0) + 1024.0, 1024.0));
-      gl.ProgramUniform2fv(p, uDetailPhase_, 1, glm::value_ptr(phase));
-      gl.DrawElementsBaseVertex(GL_TRIANGLES, static_cast<GLsizei>(c.indexCount), GL_UNSIGNED_INT,
-                                reinterpret_cast<const void*>(static_cast<uintptr_t>(c.firstIndex) * sizeof(uint32_t)),
-                                static_cast<GLint>(c.firstVertex));
-      stats.triangles += c.indexCount / 3;
-      ++stats.drawCalls;
-    }
-    gl.BindVertexArray(0);
+    return p;
   }
 
-  uint64_t bytes() const { return bytes_; }
+  // Camera-relative placement: origin - eye in double, then float.
+  void setOrigin(GLuint p, const glm::dvec3& origin_m, const lod::Camera& camera) const {
+    const glm::vec3 offset(origin_m - camera.eye_m);
+    gl.ProgramUniform3fv(p, uChunkOffset_, 1, glm::value_ptr(offset));
+    const glm::vec2 phase(std::fmod(std::fmod(origin_m.x, 1024.0) + 1024.0, 1024.0),
+                          std::fmod(std::fmod(origin_m.y, 1024.0) + 1024.0, 1024.0));
+    gl.ProgramUniform2fv(p, uDetailPhase_, 1, glm::value_ptr(phase));
+  }
 
- private:
   GlProgram program_;
-  GlBuffer vertexBuffer_, indexBuffer_;
-  GlVertexArray vertexArray_;
+  GlBuffer vertexBuffer_, indexBuffer_, dynamicBuffer_;
+  GlVertexArray vertexArray_, dynamicArray_;
+  size_t dynamicCapacity_ = 0;
   std::vector<lod::TerrainChunk> chunks_;
   uint64_t bytes_ = 0;
   float heightScale_ = 1.0f;
@@ -220,9 +272,20 @@ bool Renderer::init(int width_px, int height_px, std::string& error) {
 
 bool Renderer::addTerrain(const lod::TerrainGrid& grid, std::string& error) {
   auto pass = std::make_unique<TerrainPass>();
-  if (!pass->init(grid, error)) return false;
+  if (!pass->initStatic(grid, error)) return false;
   terrain_ = std::move(pass);
   return true;
+}
+
+bool Renderer::addTerrainMesh(size_t capacityVertices, double heightScale_m, std::string& error) {
+  auto pass = std::make_unique<TerrainPass>();
+  if (!pass->initDynamic(capacityVertices, heightScale_m, error)) return false;
+  terrainMesh_ = std::move(pass);
+  return true;
+}
+
+uint64_t Renderer::drawTerrainMesh(const glm::dvec3& origin_m, std::span<const lod::TerrainVertex> vertices) {
+  return terrainMesh_ ? terrainMesh_->drawDynamic(camera_, lighting_, origin_m, vertices, stats_) : 0;
 }
 
 void Renderer::beginFrame(const lod::Camera& camera, const Lighting& lighting) {
@@ -265,7 +328,9 @@ void Renderer::readPixels(Image& out) {
 
 unsigned Renderer::framebuffer() const { return target_ ? target_->fbo.id() : 0; }
 
-uint64_t Renderer::bufferBytes() const { return terrain_ ? terrain_->bytes() : 0; }
+uint64_t Renderer::bufferBytes() const {
+  return (terrain_ ? terrain_->bytes() : 0) + (terrainMesh_ ? terrainMesh_->bytes() : 0);
+}
 
 std::string Renderer::errors() const { return glErrors(); }
 

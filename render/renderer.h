@@ -46,10 +46,16 @@ class Renderer {
   // Uploads a terrain once (start-up). Creates the terrain pass.
   bool addTerrain(const lod::TerrainGrid& grid, std::string& error);
   bool hasTerrain() const { return terrain_ != nullptr; }
+  // Creates the pass for a terrain triangle list that changes every frame (ROAM, block LOD),
+  // with a vertex buffer of `capacityVertices` allocated once.
+  bool addTerrainMesh(size_t capacityVertices, double heightScale_m, std::string& error);
 
   // One frame: begin (clear), draw the selected items of each pass, end.
   void beginFrame(const lod::Camera& camera, const Lighting& lighting);
   void drawTerrain(std::span<const uint32_t> chunkIndices);
+  // Uploads and draws a triangle list (3 vertices a triangle, positions relative to
+  // `origin_m`). Returns the bytes uploaded.
+  uint64_t drawTerrainMesh(const glm::dvec3& origin_m, std::span<const lod::TerrainVertex> vertices);
   RenderStats endFrame();
   // Blocks until the GPU has finished the frame (timing with a monotonic clock: timer
   // queries are not trustworthy on llvmpipe).
@@ -62,7 +68,7 @@ class Renderer {
   int height() const { return height_; }
   // Bytes of GPU buffers owned by passes (0 when the scene has no layers).
   uint64_t bufferBytes() const;
-  uint32_t passCount() const { return terrain_ ? 1u : 0u; }
+  uint32_t passCount() const { return (terrain_ ? 1u : 0u) + (terrainMesh_ ? 1u : 0u); }
   // Pending GL errors, "" if none.
   std::string errors() const;
 
@@ -70,6 +76,7 @@ class Renderer {
   struct Target;
   std::unique_ptr<Target> target_;
   std::unique_ptr<TerrainPass> terrain_;
+  std::unique_ptr<TerrainPass> terrainMesh_;
   int width_ = 0, height_ = 0;
   lod::Camera camera_;
   Lighting lighting_;
