@@ -6,6 +6,7 @@
 #include <cstdio>
 
 #include "ig/app_common.h"
+#include "ig/bench_terrain.h"
 #include "ig/clock.h"
 #include "ig/service.h"
 
@@ -89,7 +90,29 @@ int main(int argc, char** argv) {
   frame->add_option("--output", o.output, "Context: headless | osmesa | window");
   frame->add_option("--scene", o.sceneFile, "Scene config (default: the config's)");
   frame->add_flag("--json", json, "Print one JSON object instead of the human summary");
+  ig::TerrainBenchOptions terrainOptions;
+  bool noRender = false;
+  CLI::App* terrain = app.add_subcommand(
+      "terrain",
+      "ROAM with enhMerge against ROAM with diamond merges only, ROAM rebuilt every frame and block\n"
+      "LOD, at 1 px tolerance on a real DEM, along a flight path that flies, turns hard (90 deg/s)\n"
+      "and teleports; then a tolerance sweep (0.5, 1, 2, 4, 8 px) rendered headless against a\n"
+      "full-resolution reference render of the same view. JSON fields: dem, samples, methods\n"
+      "{roam_enhmerge, roam_merge, roam_rebuild, block: update_ms_p50, update_ms_p99,\n"
+      "teleport_update_ms, triangles_p50, max_error_px, uploads_p50 (triangles new since the last\n"
+      "frame)}, block_triangles_at_equal_error, roam_triangles_at_equal_error, sweep [{tolerance_px,\n"
+      "triangles, update_ms, render_ms, rmse, psnr_db}]. Run scripts/fetch-data first.");
+  terrain->add_option("--dem", terrainOptions.demFile, "DEM file (.hgt, .tif, 16-bit .png)")->capture_default_str();
+  terrain->add_option("--frames", terrainOptions.frames, "Flight path frames")->capture_default_str()->check(CLI::Range(12, 100000));
+  terrain->add_option("--width", terrainOptions.width_px, "Viewport width in pixels")->capture_default_str();
+  terrain->add_option("--height", terrainOptions.height_px, "Viewport height in pixels")->capture_default_str();
+  terrain->add_flag("--no-render", noRender, "Skip the sweep's rendering (render_ms, rmse, psnr_db = 0)");
+  terrain->add_flag("--json", terrainOptions.json, "Print one JSON object instead of the human summary");
   if (const auto rc = ig::parseCommandLine(app, argc, argv)) return *rc;
+  if (terrain->parsed()) {
+    terrainOptions.render = !noRender;
+    return ig::runTerrainBench(terrainOptions);
+  }
 
   if (frame->parsed()) return runFrameSuite(configFile, o, json);
   return 2;

@@ -1,0 +1,342 @@
+#include "ig/bench_terrain.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "ig/stats.h"
+#include "io/dem.h"
+#include "lod/block_lod.h"
+#include "lod/roam.h"
+#include "render/context.h"
+#include "render/image.h"
+#include "render/renderer.h"
+
+namespace ig {
+namespace {
+
+using BenchClock = std::chrono::steady_clock;
+double msSince(BenchClock::time_point t0) { return std::chrono::duration<double, std::milli>(BenchClock::now() - t0).count(); }
+
+struct PathFrame {
+  lod::Camera camera;
+  bool teleport = false;
+};
+
+// Flies north-north-east 120 m above the DEM's highest point, turns hard (90 deg/s) in the
+// middle third, teleports to the north-east corner at 2/3 and flies on.
+std::vector<PathFrame> flightPath(const io::Dem& dem, double spacing_m, int frames, double aspect) {
+  std::vector<PathFrame> path;
+  float top = dem.heights_m[0];
+  for (float h : dem.heights_m) top = std::max(top, h);
+  const double extentX = (dem.width - 1) * spacing_m, extentY = (dem.height - 1) * spacing_m;
+  glm::dvec3 eye{0.55 * extentX, 0.3 * extentY, static_cast<double>(top) + 120.0};
+  double heading = 20.0;
+  constexpr double kDt = 1.0 / 60.0, kSpeed = 250.0;
+  for (int i = 0; i < frames; ++i) {
+    PathFrame f;
+    if (i == 2 * frames / 3) {
+      eye = {0.9 * extentX, 0.85 * extentY, eye.z};
+      heading = 200.0;
+      f.teleport = true;
+    } else if (i > frames / 3 && i < 2 * frames / 3) {
+      heading += 90.0 * kDt;
+    }
+    const double h = heading * 3.14159265358979323846 / 180.0;
+    eye += glm::dvec3(std::sin(h), std::cos(h), 0.0) * (kSpeed * kDt);
+    f.camera.eye_m = eye;
+    f.camera.heading_deg = heading;
+    f.camera.pitch_deg = -8.0;
+    f.camera.fovY_deg = 45.0;
+    f.camera.aspect = aspect;
+    f.camera.near_m = 0.5;
+    f.camera.far_m = 100000.0;
+    path.push_back(f);
+  }
+  return path;
+}
+
+// Changed triangles between frames (what a renderer must upload): sorted keys, merge diff.
+uint64_t triangleKey(const lod::RoamTriangle& t) {
+  uint64_t k[3];
+  for (int i = 0; i < 3; ++i)
+    k[i] = (static_cast<uint64_t>(static_cast<uint32_t>(t.v[i].x)) << 16) ^ static_cast<uint32_t>(t.v[i].y);
+  std::sort(k, k + 3);
+  return (k[0] * 0x9E3779B97F4A7C15ull) ^ (k[1] * 0xC2B2AE3D27D4EB4Full) ^ (k[2] * 0x165667B19E3779F9ull);
+}
+uint64_t changedTriangles(std::vector<uint64_t>& prev, std::vector<uint64_t>& cur) {
+  std::sort(cur.begin(), cur.end());
+  uint64_t added = 0;
+  size_t i = 0, j = 0;
+  while (j < cur.size()) {
+    if (i < prev.size() && prev[i] < cur[j]) ++i;
+    else if (i < prev.size() && prev[i] == cur[j]) ++i, ++j;
+    else ++added, ++j;
+  }
+  prev.swap(cur);
+  return added;
+}
+
+struct MethodResult {
+  std::string name;
+  double updateP50 = 0, updateP99 = 0, teleport = 0, maxErrorPx = 0;
+  uint64_t trianglesP50 = 0, uploadsP50 = 0;
+};
+
+lod::RoamView viewFor(const lod::Camera& cam, int height_px, double tolerance_px) {
+  lod::RoamView v;
+  v.camera = cam;
+  v.viewportHeight_px = height_px;
+  v.tolerance_px = tolerance_px;
+  return v;
+}
+
+MethodResult flyRoam(const io::Dem& dem, double spacing_m, const std::vector<PathFrame>& path, lod::RoamMode mode,
+                     const char* name, int height_px, double tolerance_px) {
+  lod::Roam roam(dem.heights_m, dem.width, dem.height, spacing_m, {0, 0, 0});
+  std::vector<double> ms, tris, uploads;
+  std::vector<lod::RoamTriangle> out;
+  std::vector<uint64_t> prev, cur;
+  MethodResult r;
+  r.name = name;
+  for (const PathFrame& f : path) {
+    const auto t0 = BenchClock::now();
+    const lod::RoamStats st = roam.update(viewFor(f.camera, height_px, tolerance_px), mode);
+    const double t = msSince(t0);
+    ms.push_back(t);
+    if (f.teleport) r.teleport = t;
+    tris.push_back(static_cast<double>(st.triangles));
+    r.maxErrorPx = std::max(r.maxErrorPx, st.maxErrorPx);
+    out.resize(roam.triangleCount());
+    out.resize(roam.emitTriangles(out));
+    cur.clear();
+    for (const auto& tri : out) cur.push_back(triangleKey(tri));
+    uploads.push_back(static_cast<double>(changedTriangles(prev, cur)));
+  }
+  r.updateP50 = percentile(ms, 50);
+  r.updateP99 = percentile(ms, 99);
+  r.trianglesP50 = static_cast<uint64_t>(percentile(tris, 50));
+  r.uploadsP50 = static_cast<uint64_t>(percentile(uploads, 50));
+  return r;
+}
+
+MethodResult flyBlock(const io::Dem& dem, double spacing_m, const std::vector<PathFrame>& path, int height_px,
+                      double tolerance_px) {
+  lod::BlockLod block(dem.heights_m, dem.width, dem.height, spacing_m, {0, 0, 0});
+  std::vector<double> ms, tris, uploads;
+  std::vector<lod::RoamTriangle> out;
+  std::vector<uint64_t> prev, cur;
+  MethodResult r;
+  r.name = "block";
+  for (const PathFrame& f : path) {
+    const auto t0 = BenchClock::now();
+    const lod::BlockLodStats st = block.update(viewFor(f.camera, height_px, tolerance_px));
+    const double t = msSince(t0);
+    ms.push_back(t);
+    if (f.teleport) r.teleport = t;
+    tris.push_back(static_cast<double>(st.triangles));
+    r.maxErrorPx = std::max(r.maxErrorPx, st.maxErrorPx);
+    out.resize(block.triangleBound());
+    out.resize(block.emitTriangles(out));
+    cur.clear();
+    for (const auto& tri : out) cur.push_back(triangleKey(tri));
+    uploads.push_back(static_cast<double>(changedTriangles(prev, cur)));
+  }
+  r.updateP50 = percentile(ms, 50);
+  r.updateP99 = percentile(ms, 99);
+  r.trianglesP50 = static_cast<uint64_t>(percentile(tris, 50));
+  r.uploadsP50 = static_cast<uint64_t>(percentile(uploads, 50));
+  return r;
+}
+
+// Vertex normal from the DEM (central differences): depends only on the grid vertex, so
+// lighting has no cracks between triangles of different levels.
+lod::TerrainVertex meshVertex(const io::Dem& dem, double spacing_m, int x, int y) {
+  x = std::clamp(x, 0, dem.width - 1);
+  y = std::clamp(y, 0, dem.height - 1);
+  auto h = [&](int i, int j) {
+    return static_cast<double>(dem.at(std::clamp(i, 0, dem.width - 1), std::clamp(j, 0, dem.height - 1)));
+  };
+  const glm::dvec3 n = glm::normalize(glm::dvec3(h(x - 1, y) - h(x + 1, y), h(x, y - 1) - h(x, y + 1), 2.0 * spacing_m));
+  lod::TerrainVertex v{};
+  v.position[0] = static_cast<float>(x * spacing_m);
+  v.position[1] = static_cast<float>(y * spacing_m);
+  v.position[2] = static_cast<float>(h(x, y));
+  v.normal[0] = static_cast<float>(n.x);
+  v.normal[1] = static_cast<float>(n.y);
+  v.normal[2] = static_cast<float>(n.z);
+  return v;
+}
+
+struct SweepRow {
+  double tolerance = 0, updateMs = 0, renderMs = 0, rmse = 0, psnr = 0;
+  uint64_t triangles = 0;
+};
+
+std::string jsonEscape(const std::string& s) {
+  std::string o;
+  for (char c : s) {
+    if (c == '"' || c == '\\') o += '\\';
+    o += c;
+  }
+  return o;
+}
+
+}  // namespace
+
+int runTerrainBench(const TerrainBenchOptions& o) {
+  io::Dem dem;
+  std::string error;
+  const auto tLoad = BenchClock::now();
+  if (!io::loadDem(o.demFile, {}, dem, error)) {
+    std::fprintf(stderr, "igbench terrain: %s (scripts/fetch-data fetches the default DEM)\n", error.c_str());
+    return 2;
+  }
+  const double loadMs = msSince(tLoad);
+  // Rows are stored north first; the LOD grids use row = y north-up, so flip once.
+  for (int y = 0; y < dem.height / 2; ++y)
+    std::swap_ranges(dem.heights_m.begin() + static_cast<std::ptrdiff_t>(y) * dem.width,
+                     dem.heights_m.begin() + static_cast<std::ptrdiff_t>(y + 1) * dem.width,
+                     dem.heights_m.begin() + static_cast<std::ptrdiff_t>(dem.height - 1 - y) * dem.width);
+  const double spacing = dem.spacing_m > 0 ? dem.spacing_m : 30.0;
+  const double aspect = static_cast<double>(o.width_px) / o.height_px;
+  const auto path = flightPath(dem, spacing, o.frames, aspect);
+
+  std::vector<MethodResult> methods;
+  methods.push_back(flyRoam(dem, spacing, path, lod::RoamMode::EnhMerge, "roam_enhmerge", o.height_px, 1.0));
+  methods.push_back(flyRoam(dem, spacing, path, lod::RoamMode::MergeQueue, "roam_merge", o.height_px, 1.0));
+  methods.push_back(flyRoam(dem, spacing, path, lod::RoamMode::Rebuild, "roam_rebuild", o.height_px, 1.0));
+  methods.push_back(flyBlock(dem, spacing, path, o.height_px, 1.0));
+
+  // Equal error (1 px) at the reference view: triangles each method needs.
+  const lod::Camera refCam = path[static_cast<size_t>(o.frames / 4)].camera;
+  lod::Roam refRoam(dem.heights_m, dem.width, dem.height, spacing, {0, 0, 0});
+  refRoam.update(viewFor(refCam, o.height_px, 1.0), lod::RoamMode::Rebuild);
+  lod::BlockLod refBlock(dem.heights_m, dem.width, dem.height, spacing, {0, 0, 0});
+  const lod::BlockLodStats blockStats = refBlock.update(viewFor(refCam, o.height_px, 1.0));
+  std::vector<lod::RoamTriangle> tris(refRoam.triangleCount());
+  const uint64_t roamEqual = refRoam.emitTriangles(tris);
+  const uint64_t blockEqual = blockStats.triangles;
+
+  // Sweep: what accuracy costs in time.
+  const double tolerances[] = {0.5, 1.0, 2.0, 4.0, 8.0};
+  std::vector<SweepRow> sweep;
+  std::unique_ptr<render::GlContext> context;
+  std::unique_ptr<render::Renderer> renderer;
+  render::Image reference, image;
+  render::Lighting light;
+  light.sunDirection = glm::normalize(glm::dvec3(-0.5, 0.6, 0.6));
+  light.fogVisibility_m = 60000.0;
+  std::vector<lod::TerrainVertex> vertices;
+  std::string contextName = "none";
+  auto renderMesh = [&](std::span<const lod::RoamTriangle> list, render::Image& out) {
+    vertices.clear();
+    for (const auto& t : list)
+      for (const auto& v : t.v) vertices.push_back(meshVertex(dem, spacing, v.x, v.y));
+    // Median of 5 draws (upload + draw + glFinish): one frame alone is too noisy here.
+    std::vector<double> times;
+    for (int i = 0; i < 5; ++i) {
+      renderer->beginFrame(refCam, light);
+      const auto t0 = BenchClock::now();
+      renderer->drawTerrainMesh({0, 0, 0}, vertices);
+      renderer->endFrame();
+      renderer->finish();
+      times.push_back(msSince(t0));
+    }
+    renderer->readPixels(out);
+    return percentile(times, 50);
+  };
+  if (o.render) {
+    context = render::createContext(render::ContextKind::Headless, o.width_px, o.height_px, error);
+    renderer = std::make_unique<render::Renderer>();
+    const size_t full = 2ull * (dem.width - 1) * (dem.height - 1);
+    float lo = dem.heights_m[0], hi = lo;
+    for (float h : dem.heights_m) lo = std::min(lo, h), hi = std::max(hi, h);
+    if (!context || !renderer->init(o.width_px, o.height_px, error) ||
+        !renderer->addTerrainMesh(full * 3, static_cast<double>(hi - lo), error)) {
+      std::fprintf(stderr, "igbench terrain: %s\n", error.c_str());
+      return 3;
+    }
+    contextName = context->description();
+    // Reference: every DEM sample (full resolution).
+    std::vector<lod::RoamTriangle> all;
+    all.reserve(full);
+    for (int y = 0; y + 1 < dem.height; ++y)
+      for (int x = 0; x + 1 < dem.width; ++x) {
+        all.push_back({{{x, y}, {x + 1, y}, {x + 1, y + 1}}});
+        all.push_back({{{x, y}, {x + 1, y + 1}, {x, y + 1}}});
+      }
+    renderMesh(all, reference);
+    if (const char* dump = std::getenv("IGBENCH_DUMP_REFERENCE")) render::writePng(dump, reference, error);
+  }
+  for (double tol : tolerances) {
+    SweepRow row;
+    row.tolerance = tol;
+    lod::Roam roam(dem.heights_m, dem.width, dem.height, spacing, {0, 0, 0});
+    std::vector<double> ms;
+    for (size_t i = 0; i <= static_cast<size_t>(o.frames / 4); ++i) {  // fly to the reference view
+      const auto t0 = BenchClock::now();
+      roam.update(viewFor(path[i].camera, o.height_px, tol), lod::RoamMode::EnhMerge);
+      ms.push_back(msSince(t0));
+    }
+    row.updateMs = percentile(ms, 50);
+    std::vector<lod::RoamTriangle> list(roam.triangleCount());
+    list.resize(roam.emitTriangles(list));
+    row.triangles = list.size();
+    if (o.render) {
+      row.renderMs = renderMesh(list, image);
+      row.rmse = render::rmse(image, reference);
+      row.psnr = row.rmse > 0 ? 20.0 * std::log10(255.0 / row.rmse) : 99.0;
+    }
+    sweep.push_back(row);
+  }
+
+  if (o.json) {
+    std::printf("{\"suite\":\"terrain\",\"dem\":\"%s\",\"samples\":%lld,\"width\":%d,\"height\":%d,\"spacing_m\":%.3f,"
+                "\"load_ms\":%.1f,\"frames\":%d,\"renderer\":\"%s\",\"tolerance_px\":1.0,\"methods\":{",
+                jsonEscape(o.demFile).c_str(), static_cast<long long>(dem.width) * dem.height, dem.width, dem.height,
+                spacing, loadMs, o.frames, jsonEscape(contextName).c_str());
+    for (size_t i = 0; i < methods.size(); ++i) {
+      const MethodResult& m = methods[i];
+      std::printf("%s\"%s\":{\"update_ms_p50\":%.4f,\"update_ms_p99\":%.4f,\"teleport_update_ms\":%.4f,"
+                  "\"triangles_p50\":%llu,\"max_error_px\":%.4f,\"uploads_p50\":%llu}",
+                  i ? "," : "", m.name.c_str(), m.updateP50, m.updateP99, m.teleport,
+                  static_cast<unsigned long long>(m.trianglesP50), m.maxErrorPx,
+                  static_cast<unsigned long long>(m.uploadsP50));
+    }
+    std::printf("},\"block_triangles_at_equal_error\":%llu,\"roam_triangles_at_equal_error\":%llu,\"sweep\":[",
+                static_cast<unsigned long long>(blockEqual), static_cast<unsigned long long>(roamEqual));
+    for (size_t i = 0; i < sweep.size(); ++i) {
+      const SweepRow& s = sweep[i];
+      std::printf("%s{\"tolerance_px\":%.2f,\"triangles\":%llu,\"update_ms\":%.4f,\"render_ms\":%.3f,\"rmse\":%.4f,"
+                  "\"psnr_db\":%.3f}",
+                  i ? "," : "", s.tolerance, static_cast<unsigned long long>(s.triangles), s.updateMs, s.renderMs,
+                  s.rmse, s.psnr);
+    }
+    std::printf("]}\n");
+  } else {
+    std::printf("terrain suite: %s (%dx%d samples, %.1f m, loaded in %.0f ms), %d-frame flight with a teleport\n",
+                o.demFile.c_str(), dem.width, dem.height, spacing, loadMs, o.frames);
+    std::printf("  %-14s %10s %10s %12s %10s %9s %10s\n", "method", "upd p50", "upd p99", "teleport ms", "tris p50",
+                "max err", "uploads");
+    for (const auto& m : methods)
+      std::printf("  %-14s %10.3f %10.3f %12.3f %10llu %9.2f %10llu\n", m.name.c_str(), m.updateP50, m.updateP99,
+                  m.teleport, static_cast<unsigned long long>(m.trianglesP50), m.maxErrorPx,
+                  static_cast<unsigned long long>(m.uploadsP50));
+    std::printf("  at 1 px: block LOD %llu triangles, ROAM %llu (%.2fx)\n", static_cast<unsigned long long>(blockEqual),
+                static_cast<unsigned long long>(roamEqual),
+                blockEqual ? static_cast<double>(roamEqual) / static_cast<double>(blockEqual) : 0.0);
+    std::printf("  sweep (ROAM enhMerge): tol px, triangles, update ms, render ms, rmse, psnr dB\n");
+    for (const auto& s : sweep)
+      std::printf("    %5.2f %9llu %9.3f %9.2f %8.3f %7.2f\n", s.tolerance, static_cast<unsigned long long>(s.triangles),
+                  s.updateMs, s.renderMs, s.rmse, s.psnr);
+  }
+  return 0;
+}
+
+}  // namespace ig

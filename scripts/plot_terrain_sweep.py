@@ -1,0 +1,48 @@
+#!/usr/bin/python3
+"""What accuracy costs in time: plot the sweep of `igbench terrain --json` to a PNG.
+
+    build/igbench terrain --json > out/terrain.json
+    scripts/plot_terrain_sweep.py out/terrain.json out/terrain_sweep.png
+
+Left: triangles and update time against the screen-space tolerance. Right: image error
+(PSNR against the full-resolution render) against render time.
+"""
+import json
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+
+def main():
+    if len(sys.argv) != 3:
+        sys.exit("usage: plot_terrain_sweep.py TERRAIN.json OUT.png")
+    with open(sys.argv[1], encoding="utf-8") as f:
+        d = json.load(f)
+    sweep = d["sweep"]
+    tol = [s["tolerance_px"] for s in sweep]
+    fig, (a, b) = plt.subplots(1, 2, figsize=(12, 4.5))
+    a.plot(tol, [s["triangles"] for s in sweep], "o-", color="tab:green", label="triangles")
+    a.set_xscale("log", base=2)
+    a.set_yscale("log")
+    a.set_xlabel("tolerance (px)")
+    a.set_ylabel("triangles")
+    a2 = a.twinx()
+    a2.plot(tol, [s["update_ms"] for s in sweep], "s--", color="tab:blue", label="update ms (p50)")
+    a2.set_ylabel("ROAM update ms (p50)")
+    a.set_title(f"{d['dem']}: triangles and update time")
+    b.plot([s["render_ms"] for s in sweep], [s["psnr_db"] for s in sweep], "o-", color="tab:red")
+    for s in sweep:
+        b.annotate(f"{s['tolerance_px']:g} px", (s["render_ms"], s["psnr_db"]), textcoords="offset points", xytext=(4, 4))
+    b.set_xlabel("render ms (glFinish)")
+    b.set_ylabel("PSNR vs full resolution (dB)")
+    b.set_title("image error against render time")
+    fig.tight_layout()
+    fig.savefig(sys.argv[2], dpi=100)
+    print(f"plot: {sys.argv[2]}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,176 @@
+// Block LOD (regular decimation with crack-fixing fans), the baseline for ROAM: the emitted
+// mesh tiles the DEM exactly (no holes, no overlaps, no T-junctions) for any mix of levels,
+// levels follow the error rule, and hard cases (flat, cliffs, tiny and odd DEMs, camera on
+// or under the surface, NaN) behave.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <map>
+#include <vector>
+
+#include "lod/block_lod.h"
+#include "lod/heightfield.h"
+
+using namespace ig::lod;
+
+namespace {
+
+struct Dem {
+  int w, h;
+  std::vector<float> z;
+};
+
+Dem fractal(int w, int h, uint32_t seed = 7) {
+  HeightfieldDesc d;
+  d.seed = seed;
+  d.postsX = w;
+  d.postsY = h;
+  d.postSpacing_m = 30.0;
+  d.heightScale_m = 800.0;
+  Dem dem{w, h, std::vector<float>(static_cast<size_t>(w) * h)};
+  generateHeightfield(d, dem.z);
+  return dem;
+}
+
+// Checks that the triangles (clamped to the DEM) tile [0, w-1] x [0, h-1]: positive area,
+// areas sum to the rectangle, every edge inside the rectangle used by exactly two triangles
+// with opposite directions (no holes, no overlaps, no T-junctions), boundary edges once.
+::testing::AssertionResult tilesDem(std::span<const RoamTriangle> tris, int w, int h) {
+  std::map<std::tuple<int, int, int, int>, int> directed;
+  int64_t area2 = 0;
+  for (const auto& t0 : tris) {
+    RoamTriangle t = t0;
+    for (auto& v : t.v) {
+      v.x = std::clamp(v.x, 0, w - 1);
+      v.y = std::clamp(v.y, 0, h - 1);
+    }
+    const int64_t a = static_cast<int64_t>(t.v[1].x - t.v[0].x) * (t.v[2].y - t.v[0].y) -
+                      static_cast<int64_t>(t.v[2].x - t.v[0].x) * (t.v[1].y - t.v[0].y);
+    if (a <= 0) return ::testing::AssertionFailure() << "triangle with area*2 = " << a;
+    area2 += a;
+    for (int i = 0; i < 3; ++i) {
+      const auto& p = t.v[i];
+      const auto& q = t.v[(i + 1) % 3];
+      ++directed[{p.x, p.y, q.x, q.y}];
+    }
+  }
+  if (area2 != 2LL * (w - 1) * (h - 1)) return ::testing::AssertionFailure() << "area*2 " << area2;
+  for (const auto& [e, n] : directed) {
+    const auto [ax, ay, bx, by] = e;
+    if (n != 1) return ::testing::AssertionFailure() << "edge used " << n << " times in one direction";
+    const bool boundary = (ax == bx && (ax == 0 || ax == w - 1)) || (ay == by && (ay == 0 || ay == h - 1));
+    const bool twin = directed.count({bx, by, ax, ay}) > 0;
+    if (!boundary && !twin)
+      return ::testing::AssertionFailure() << "interior edge (" << ax << "," << ay << ")-(" << bx << "," << by
+                                           << ") has no twin: a crack or T-junction";
+  }
+  return ::testing::AssertionSuccess();
+}
+
+RoamView viewAt(glm::dvec3 eye, double heading, double pitch, double tol) {
+  RoamView v;
+  v.camera.eye_m = eye;
+  v.camera.heading_deg = heading;
+  v.camera.pitch_deg = pitch;
+  v.camera.fovY_deg = 45;
+  v.camera.aspect = 16.0 / 9.0;
+  v.viewportHeight_px = 720;
+  v.tolerance_px = tol;
+  return v;
+}
+
+std::vector<RoamTriangle> emit(const BlockLod& b) {
+  std::vector<RoamTriangle> out(b.triangleBound());
+  out.resize(b.emitTriangles(out));
+  return out;
+}
+
+}  // namespace
+
+TEST(BlockLod, MixedLevelsTileTheDemWithoutCracks) {
+  const Dem d = fractal(257, 257);
+  BlockLod b(d.z, d.w, d.h, 30.0, {0, 0, 0}, {32});
+  // Looking straight down from high enough to see every block; flat valley floors and rough
+  // mountains give each block a different level.
+  for (auto v : {viewAt({3840, 3840, 60000}, 0, -90, 1.0), viewAt({3840, 3840, 12000}, 0, -90, 0.25),
+                 viewAt({3840, 3840, 12000}, 0, -90, 2.0)}) {
+    const BlockLodStats st = b.update(v);
+    EXPECT_EQ(st.blocksVisible, 64u);
+    const auto tris = emit(b);
+    EXPECT_EQ(tris.size(), st.triangles);
+    EXPECT_TRUE(tilesDem(tris, d.w, d.h));
+  }
+  int lo = 99, hi = -1;
+  for (int y = 0; y < b.blocksY(); ++y)
+    for (int x = 0; x < b.blocksX(); ++x) {
+      lo = std::min(lo, b.level(x, y));
+      hi = std::max(hi, b.level(x, y));
+    }
+  EXPECT_LT(lo, hi) << "the low view must mix levels for the crack test to mean something";
+}
+
+TEST(BlockLod, LevelIsTheCoarsestWithinTolerance) {
+  const Dem d = fractal(129, 129);
+  BlockLod b(d.z, d.w, d.h, 30.0, {0, 0, 0}, {16});
+  const RoamView v = viewAt({-2000, 1900, 1500}, 90, -20, 2.0);
+  const BlockLodStats st = b.update(v);
+  for (int by = 0; by < b.blocksY(); ++by)
+    for (int bx = 0; bx < b.blocksX(); ++bx) {
+      const int k = b.level(bx, by);
+      if (k < 0) continue;
+      // Error non-decreasing with k, and the chosen level is within tolerance unless finest.
+      for (int j = 1; j < b.levels(); ++j) ASSERT_GE(b.levelError_m(bx, by, j), b.levelError_m(bx, by, j - 1));
+      EXPECT_EQ(b.levelError_m(bx, by, 0), 0.0);
+    }
+  EXPECT_LE(st.maxErrorPx, 2.0);
+  EXPECT_GT(st.blocksVisible, 0u);
+}
+
+TEST(BlockLod, FlatTerrainUsesTheCoarsestLevelEverywhere) {
+  Dem d{65, 65, std::vector<float>(65 * 65, 120.0f)};
+  BlockLod b(d.z, d.w, d.h, 10.0, {0, 0, 0}, {16});
+  const BlockLodStats st = b.update(viewAt({320, 320, 20000}, 0, -90, 0.5));
+  EXPECT_EQ(st.blocksVisible, 16u);
+  for (int by = 0; by < b.blocksY(); ++by)
+    for (int bx = 0; bx < b.blocksX(); ++bx)
+      if (b.level(bx, by) >= 0) {
+        EXPECT_EQ(b.level(bx, by), b.levels() - 1);
+      }
+  EXPECT_EQ(st.triangles, 2u * st.blocksVisible);
+  EXPECT_TRUE(tilesDem(emit(b), d.w, d.h));
+}
+
+TEST(BlockLod, CliffBlocksStayFineAndTheRestIsCoarse) {
+  Dem d{129, 129, std::vector<float>(129 * 129, 0.0f)};
+  for (int y = 0; y < 129; ++y)
+    for (int x = 70; x < 129; ++x) d.z[static_cast<size_t>(y) * 129 + x] = 500.0f;  // vertical step at x = 69..70
+  BlockLod b(d.z, d.w, d.h, 10.0, {0, 0, 0}, {16});
+  b.update(viewAt({640, 640, 20000}, 0, -90, 1.0));
+  EXPECT_EQ(b.level(4, 3), 0);                  // the block holding the step (x 64..80)
+  EXPECT_EQ(b.level(0, 0), b.levels() - 1);     // flat
+  EXPECT_EQ(b.level(7, 7), b.levels() - 1);     // flat plateau
+  EXPECT_TRUE(tilesDem(emit(b), d.w, d.h));
+}
+
+TEST(BlockLod, SmallAndOddDemsAndHardCameras) {
+  for (auto [w, h] : {std::pair{2, 2}, std::pair{3, 3}, std::pair{5, 5}, std::pair{17, 17}, std::pair{100, 37}}) {
+    const Dem d = fractal(w, h);
+    BlockLod b(d.z, d.w, d.h, 30.0, {1.0e6, -2.0e6, 0.0}, {8});
+    const glm::dvec3 o{1.0e6, -2.0e6, 0.0};
+    const glm::dvec3 onVertex = b.vertexPosition(1, 1);
+    const glm::dvec3 below = o + glm::dvec3(15, 15, -100);
+    for (const RoamView& v : {viewAt(onVertex, 0, -30, 1.0), viewAt(below, 30, 10, 1.0),
+                              viewAt(o + glm::dvec3(NAN, 0, 0), 0, 0, 1.0), viewAt(o + glm::dvec3(0, 0, 5e4), 0, -90, 0.5)}) {
+      b.update(v);
+      const auto tris = emit(b);
+      // Every block is drawn except those culled; with the camera looking straight down from
+      // high up, or NaN (nothing culled), the mesh covers the whole DEM.
+      if (!std::isfinite(v.camera.eye_m.x) || v.camera.pitch_deg == -90) {
+        EXPECT_TRUE(tilesDem(tris, w, h)) << w << "x" << h;
+      }
+    }
+    // The camera exactly on a vertex is inside that vertex's blocks: they take the finest level.
+    b.update(viewAt(onVertex, 0, -30, 1.0));
+    EXPECT_EQ(b.level(0, 0), 0) << w << "x" << h;
+  }
+}

@@ -1,0 +1,469 @@
+// lod/roam: ROAM with split / merge queues and enhMerge. Crack-freeness (validate) along a
+// flight path in every mode, the error bound, interruption at any point, enhMerge vs single
+// merges after a teleport, and the hard cases (flat, cliff, camera on a vertex / below the
+// surface / NaN, huge coordinates, tiny and non-power-of-two DEMs, triangle cap, tiny pool).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <string>
+#include <tuple>
+#include <vector>
+
+#include "lod/heightfield.h"
+#include "lod/roam.h"
+
+using namespace ig::lod;
+
+namespace {
+
+constexpr RoamMode kModes[] = {RoamMode::EnhMerge, RoamMode::MergeQueue, RoamMode::Rebuild};
+const char* modeName(RoamMode m) {
+  return m == RoamMode::EnhMerge ? "EnhMerge" : m == RoamMode::MergeQueue ? "MergeQueue" : "Rebuild";
+}
+
+std::vector<float> fractal(int w, int h, uint32_t seed = 7, double scale_m = 400.0, double spacing_m = 30.0) {
+  HeightfieldDesc d;
+  d.seed = seed;
+  d.postsX = w;
+  d.postsY = h;
+  d.postSpacing_m = spacing_m;
+  d.heightScale_m = scale_m;
+  std::vector<float> hts(static_cast<size_t>(w) * static_cast<size_t>(h));
+  generateHeightfield(d, hts);
+  return hts;
+}
+
+// Independent pseudo-random heights (no flat patches, so every diamond has an error).
+std::vector<float> noise(int w, int h, uint32_t seed = 1) {
+  std::vector<float> hts(static_cast<size_t>(w) * static_cast<size_t>(h));
+  uint32_t s = seed * 2654435761u + 1u;
+  for (float& v : hts) {
+    s = s * 1664525u + 1013904223u;
+    v = 100.0f + static_cast<float>(s >> 8) / static_cast<float>(1u << 24) * 50.0f;
+  }
+  return hts;
+}
+
+RoamConfig smallConfig(uint64_t maxTriangles = 200000) {
+  RoamConfig c;
+  c.maxTriangles = maxTriangles;
+  return c;
+}
+
+RoamView makeView(const glm::dvec3& eye, double heading_deg, double pitch_deg, double tolerance_px = 2.0) {
+  RoamView v;
+  v.camera.eye_m = eye;
+  v.camera.heading_deg = heading_deg;
+  v.camera.pitch_deg = pitch_deg;
+  v.camera.fovY_deg = 60.0;
+  v.camera.aspect = 16.0 / 9.0;
+  v.camera.near_m = 1.0;
+  v.camera.far_m = 100000.0;
+  v.viewportHeight_px = 1080.0;
+  v.tolerance_px = tolerance_px;
+  return v;
+}
+
+// A flight over a 257 x 257 terrain at 30 m spacing (7.7 km): straight and level, hard turns,
+// a dive, and two teleports.
+std::vector<RoamView> flightPath() {
+  std::vector<RoamView> path;
+  glm::dvec3 eye{1500.0, 800.0, 650.0};
+  double heading = 10.0;
+  for (int i = 0; i < 20; ++i) {  // cruise north-east
+    eye += glm::dvec3(std::sin(heading * 0.0174533), std::cos(heading * 0.0174533), 0.0) * 60.0;
+    path.push_back(makeView(eye, heading, -15.0));
+  }
+  for (int i = 0; i < 8; ++i) {  // hard right turn, 25 degrees a frame
+    heading += 25.0;
+    eye += glm::dvec3(std::sin(heading * 0.0174533), std::cos(heading * 0.0174533), 0.0) * 60.0;
+    path.push_back(makeView(eye, heading, -15.0));
+  }
+  for (int i = 0; i < 6; ++i) {  // dive towards the ground
+    eye.z -= 60.0;
+    path.push_back(makeView(eye, heading, -35.0));
+  }
+  path.push_back(makeView({6500.0, 6500.0, 900.0}, 225.0, -20.0));  // teleport
+  for (int i = 0; i < 5; ++i) path.push_back(makeView({6500.0 - 40.0 * i, 6500.0 - 40.0 * i, 900.0}, 225.0, -20.0));
+  path.push_back(makeView({300.0, 7000.0, 500.0}, 135.0, -10.0));  // teleport
+  path.push_back(makeView({300.0, 7000.0, 500.0}, 315.0, -10.0));  // turn around in one frame
+  return path;
+}
+
+std::vector<std::tuple<int, int, int, int, int, int>> sortedTriangles(const Roam& roam) {
+  std::vector<RoamTriangle> tris(roam.triangleCount());
+  tris.resize(roam.emitTriangles(tris));
+  std::vector<std::tuple<int, int, int, int, int, int>> out;
+  for (const auto& t : tris) out.emplace_back(t.v[0].x, t.v[0].y, t.v[1].x, t.v[1].y, t.v[2].x, t.v[2].y);
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+#define EXPECT_VALID(roam)                  \
+  do {                                      \
+    std::string why_;                       \
+    EXPECT_TRUE((roam).validate(&why_)) << why_; \
+  } while (0)
+
+}  // namespace
+
+TEST(Roam, GridLayoutForAnyDemSize) {
+  struct Case {
+    int w, h, maxLevel, base, px, py;
+  };
+  const Case cases[] = {{2, 2, 0, 2, 2, 2},     {3, 3, 2, 2, 3, 3},     {5, 5, 4, 2, 5, 5},
+                        {17, 17, 8, 2, 17, 17}, {100, 37, 10, 16, 129, 65}, {9, 2, 0, 16, 9, 2}};
+  for (const Case& c : cases) {
+    const auto hts = fractal(c.w, c.h);
+    const Roam roam(hts, c.w, c.h, 30.0, {0, 0, 0}, smallConfig(10000));
+    EXPECT_EQ(roam.maxLevel(), c.maxLevel) << c.w << "x" << c.h;
+    EXPECT_EQ(roam.baseTriangles(), static_cast<size_t>(c.base)) << c.w << "x" << c.h;
+    EXPECT_EQ(roam.gridWidth(), c.px);
+    EXPECT_EQ(roam.gridHeight(), c.py);
+    EXPECT_EQ(roam.triangleCount(), roam.baseTriangles());
+    EXPECT_VALID(roam);
+  }
+}
+
+TEST(Roam, SmallDemsRefineToFullResolutionAndEmitTheDemExactly) {
+  for (const auto& [w, h] : {std::pair{2, 2}, {3, 3}, {5, 5}, {17, 17}, {100, 37}}) {
+    const double sp = 10.0;
+    const auto hts = noise(w, h, 3);
+    Roam roam(hts, w, h, sp, {0, 0, 0}, smallConfig(100000));
+    // Straight down from high above the centre, zero tolerance: every diamond with an error
+    // is split, and a noise field has an error everywhere inside the DEM.
+    RoamView v = makeView({0.5 * (w - 1) * sp, 0.5 * (h - 1) * sp, 5000.0}, 0.0, -90.0, 0.0);
+    for (RoamMode mode : kModes) {
+      const RoamStats st = roam.update(v, mode);
+      EXPECT_TRUE(st.finished);
+      EXPECT_VALID(roam);
+      EXPECT_EQ(roam.maxErrorPx(v), 0.0) << w << "x" << h << " " << modeName(mode);
+      std::vector<RoamTriangle> tris(roam.triangleCount());
+      const size_t n = roam.emitTriangles(tris);
+      // Full resolution inside the DEM: 2 triangles a cell.
+      EXPECT_EQ(n, 2u * static_cast<size_t>(w - 1) * static_cast<size_t>(h - 1)) << w << "x" << h << " " << modeName(mode);
+      // Clamped positions cover exactly the DEM rectangle, counter-clockwise from above.
+      double area = 0.0;
+      for (size_t i = 0; i < n; ++i) {
+        const glm::dvec3 a = roam.vertexPosition(tris[i].v[0].x, tris[i].v[0].y);
+        const glm::dvec3 b = roam.vertexPosition(tris[i].v[1].x, tris[i].v[1].y);
+        const glm::dvec3 c = roam.vertexPosition(tris[i].v[2].x, tris[i].v[2].y);
+        const double cross = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+        EXPECT_GT(cross, 0.0);
+        area += 0.5 * cross;
+      }
+      EXPECT_NEAR(area, (w - 1) * (h - 1) * sp * sp, 1e-6);
+    }
+  }
+}
+
+TEST(Roam, FlightPathStaysCrackFreeWithinToleranceInEveryMode) {
+  const int n = 257;
+  const auto hts = fractal(n, n);
+  for (RoamMode mode : kModes) {
+    Roam roam(hts, n, n, 30.0, {0, 0, 0}, smallConfig());
+    uint64_t maxTris = 0, sumTris = 0, maxOps = 0, sumOps = 0;
+    const auto path = flightPath();
+    for (size_t f = 0; f < path.size(); ++f) {
+      const RoamStats st = roam.update(path[f], mode);
+      ASSERT_TRUE(st.finished);
+      EXPECT_FALSE(st.poolExhausted);
+      EXPECT_FALSE(st.triangleCapped);
+      std::string why;
+      ASSERT_TRUE(roam.validate(&why)) << modeName(mode) << " frame " << f << ": " << why;
+      const double worst = roam.maxErrorPx(path[f]);
+      EXPECT_LE(worst, path[f].tolerance_px) << modeName(mode) << " frame " << f;
+      EXPECT_LE(worst, st.maxErrorPx + 1e-9) << "stats bound below the real maximum";
+      EXPECT_EQ(st.triangles, roam.triangleCount());
+      const uint64_t ops = st.splits + st.merges + st.enhMerges;
+      maxTris = std::max(maxTris, st.triangles);
+      sumTris += st.triangles;
+      maxOps = std::max(maxOps, ops);
+      sumOps += ops;
+    }
+    EXPECT_GT(maxTris, 1000u);  // the view really refines
+    std::printf("[ flight ] %-10s frames %zu  triangles avg %llu max %llu  ops avg %llu max %llu\n", modeName(mode),
+                path.size(), static_cast<unsigned long long>(sumTris / path.size()), static_cast<unsigned long long>(maxTris),
+                static_cast<unsigned long long>(sumOps / path.size()), static_cast<unsigned long long>(maxOps));
+  }
+}
+
+TEST(Roam, AllModesConvergeToTheSameMesh) {
+  // Errors and boxes are nested, so the refined mesh for a view is unique whatever the
+  // history: coherent modes, flown along the path, must match a rebuild exactly.
+  const int n = 129;
+  const auto hts = fractal(n, n, 11);
+  Roam a(hts, n, n, 30.0, {0, 0, 0}, smallConfig());
+  Roam b(hts, n, n, 30.0, {0, 0, 0}, smallConfig());
+  Roam c(hts, n, n, 30.0, {0, 0, 0}, smallConfig());
+  const auto path = flightPath();
+  for (size_t f = 0; f < path.size(); f += 3) {
+    RoamView v = path[f];
+    v.camera.eye_m *= 0.5;  // the path is for a terrain twice as large
+    a.update(v, RoamMode::EnhMerge);
+    b.update(v, RoamMode::MergeQueue);
+    c.update(v, RoamMode::Rebuild);
+    const auto ta = sortedTriangles(a);
+    EXPECT_EQ(ta, sortedTriangles(b)) << "frame " << f;
+    EXPECT_EQ(ta, sortedTriangles(c)) << "frame " << f;
+  }
+}
+
+TEST(Roam, InterruptedAtAnyPointStaysValidAndConverges) {
+  const int n = 65;
+  const auto hts = fractal(n, n, 5);
+  const RoamView views[] = {makeView({600, 450, 500}, 30, -20, 1.0), makeView({1500, 1600, 400}, 200, -25, 1.0),
+                            makeView({150, 1750, 700}, 120, -10, 3.0)};
+  for (RoamMode mode : kModes) {
+    for (uint32_t budget : {1u, 2u, 5u}) {
+      Roam roam(hts, n, n, 30.0, {0, 0, 0}, smallConfig());
+      Roam reference(hts, n, n, 30.0, {0, 0, 0}, smallConfig());
+      for (const RoamView& full : views) {
+        reference.update(full, mode);
+        RoamView v = full;
+        v.maxOperations = budget;
+        bool finished = false;
+        int calls = 0;
+        while (!finished && calls < 100000) {
+          const RoamStats st = roam.update(v, mode);
+          EXPECT_LE(st.splits + st.merges + st.enhMerges, budget);
+          finished = st.finished;
+          ++calls;
+          if (calls % 37 == 1) {
+            std::string why;
+            ASSERT_TRUE(roam.validate(&why)) << modeName(mode) << " budget " << budget << " call " << calls << ": " << why;
+          }
+        }
+        ASSERT_TRUE(finished) << modeName(mode) << " budget " << budget;
+        EXPECT_VALID(roam);
+        EXPECT_GT(calls, 1);
+        EXPECT_EQ(roam.triangleCount(), reference.triangleCount()) << modeName(mode) << " budget " << budget;
+        EXPECT_EQ(sortedTriangles(roam), sortedTriangles(reference));
+      }
+    }
+  }
+}
+
+TEST(Roam, EnhMergeCollapsesATeleportInFewOperations) {
+  const int n = 257;
+  const auto hts = fractal(n, n, 9);
+  const RoamView here = makeView({1000, 1000, 450}, 45, -20, 1.0);
+  struct Teleport {
+    RoamView there;
+    uint32_t minRatio;  // merges (MergeQueue) / enhMerges (EnhMerge), deterministic
+  };
+  const Teleport teleports[] = {
+      {makeView({6500, 6800, 500}, 225, -20, 1.0), 4},   // the other corner, looking back over the map
+      {makeView({7000, 7000, 3000}, 45, -20, 1.0), 1000},  // looking off the map: everything collapses
+  };
+  for (const Teleport& t : teleports) {
+    Roam enh(hts, n, n, 30.0, {0, 0, 0}, smallConfig());
+    Roam mq(hts, n, n, 30.0, {0, 0, 0}, smallConfig());
+    enh.update(here, RoamMode::EnhMerge);
+    mq.update(here, RoamMode::MergeQueue);
+    ASSERT_EQ(enh.triangleCount(), mq.triangleCount());
+    const uint64_t before = enh.triangleCount();
+    const RoamStats se = enh.update(t.there, RoamMode::EnhMerge);
+    const RoamStats sm = mq.update(t.there, RoamMode::MergeQueue);
+    EXPECT_VALID(enh);
+    EXPECT_VALID(mq);
+    EXPECT_EQ(sortedTriangles(enh), sortedTriangles(mq));
+    EXPECT_EQ(se.merges, 0u);
+    EXPECT_EQ(sm.enhMerges, 0u);
+    EXPECT_GT(sm.merges, 1000u);
+    // The same nodes go, and the same splits follow; enhMerge needs far fewer operations.
+    EXPECT_EQ(se.nodesFreed, sm.nodesFreed);
+    EXPECT_EQ(se.splits, sm.splits);
+    EXPECT_GE(sm.merges, t.minRatio * se.enhMerges) << "merges " << sm.merges << " enhMerges " << se.enhMerges;
+    std::printf("[ teleport ] %llu -> %llu triangles: MergeQueue %u merges + %u splits, EnhMerge %u enhMerges + %u splits, "
+                "%u nodes freed\n", static_cast<unsigned long long>(before), static_cast<unsigned long long>(sm.triangles),
+                sm.merges, sm.splits, se.enhMerges, se.splits, se.nodesFreed);
+  }
+}
+
+TEST(Roam, FlatTerrainStaysAtTheBaseTriangles) {
+  const int n = 65;
+  const std::vector<float> hts(static_cast<size_t>(n) * n, 123.0f);
+  for (RoamMode mode : kModes) {
+    Roam roam(hts, n, n, 30.0, {0, 0, 0}, smallConfig());
+    for (double tol : {1e-9, 0.5, 4.0}) {
+      // On the surface, exactly on a vertex, looking along it and straight down.
+      for (const RoamView& v : {makeView(roam.vertexPosition(32, 32), 0, 0, tol), makeView({900, 900, 2000}, 0, -90, tol)}) {
+        const RoamStats st = roam.update(v, mode);
+        EXPECT_TRUE(st.finished);
+        EXPECT_EQ(st.splits, 0u);
+        EXPECT_EQ(roam.triangleCount(), roam.baseTriangles()) << modeName(mode) << " tol " << tol;
+        EXPECT_EQ(st.maxErrorPx, 0.0);
+      }
+    }
+    EXPECT_VALID(roam);
+  }
+}
+
+TEST(Roam, CliffIsRefinedAlongTheCliffOnly) {
+  const int n = 129, cliffX = 64;  // heights 0 west of x = 64, 500 m from x = 64 east
+  std::vector<float> hts(static_cast<size_t>(n) * n);
+  for (int y = 0; y < n; ++y)
+    for (int x = 0; x < n; ++x) hts[static_cast<size_t>(y) * n + x] = x >= cliffX ? 500.0f : 0.0f;
+  for (RoamMode mode : kModes) {
+    Roam roam(hts, n, n, 30.0, {0, 0, 0}, smallConfig());
+    const RoamView v = makeView({1920, 1920, 20000}, 0, -90, 0.5);  // whole map in view
+    const RoamStats st = roam.update(v, mode);
+    EXPECT_TRUE(st.finished);
+    EXPECT_VALID(roam);
+    EXPECT_LE(roam.maxErrorPx(v), 0.5);
+    std::vector<RoamTriangle> tris(roam.triangleCount());
+    tris.resize(roam.emitTriangles(tris));
+    size_t finest = 0, nearCliff = 0;
+    for (const auto& t : tris) {
+      const int minX = std::min({t.v[0].x, t.v[1].x, t.v[2].x}), maxX = std::max({t.v[0].x, t.v[1].x, t.v[2].x});
+      const int minY = std::min({t.v[0].y, t.v[1].y, t.v[2].y}), maxY = std::max({t.v[0].y, t.v[1].y, t.v[2].y});
+      const bool isFinest = (maxX - minX) + (maxY - minY) <= 2;  // legs of one sample
+      finest += isFinest;
+      if (isFinest) {
+        // Finest triangles only where a finest diamond straddles the step.
+        EXPECT_GE(maxX, cliffX - 2);
+        EXPECT_LE(minX, cliffX + 1);
+        nearCliff += (maxX >= cliffX - 1 && minX <= cliffX);
+      }
+    }
+    EXPECT_GT(finest, 100u);             // the whole 128-sample cliff line at full resolution
+    EXPECT_EQ(nearCliff, finest);
+    EXPECT_LT(tris.size(), static_cast<size_t>(2 * 128 * 128) / 10);  // < 10 % of full resolution
+  }
+}
+
+TEST(Roam, CameraOnAVertexAndBelowTheSurface) {
+  const int n = 65;
+  const auto hts = fractal(n, n, 21);
+  for (RoamMode mode : kModes) {
+    Roam roam(hts, n, n, 30.0, {0, 0, 0}, smallConfig());
+    const RoamView onVertex = makeView(roam.vertexPosition(20, 33), 70, -5, 1.0);
+    RoamStats st = roam.update(onVertex, mode);
+    EXPECT_TRUE(st.finished);
+    EXPECT_VALID(roam);
+    EXPECT_LE(roam.maxErrorPx(onVertex), 1.0);  // the eye's surroundings are at the finest level
+    const RoamView below = makeView(roam.vertexPosition(40, 40) - glm::dvec3(0, 0, 300), 10, 30, 1.0);
+    st = roam.update(below, mode);
+    EXPECT_TRUE(st.finished);
+    EXPECT_VALID(roam);
+    EXPECT_LE(roam.maxErrorPx(below), 1.0);
+    EXPECT_TRUE(std::isfinite(st.maxErrorPx));
+  }
+}
+
+TEST(Roam, HugeCoordinatesGiveTheSameTriangulation) {
+  const int n = 129;
+  const auto hts = fractal(n, n, 4);
+  const glm::dvec3 far{1.0e6, 1.0e6, 0.0};
+  for (RoamMode mode : kModes) {
+    Roam near0(hts, n, n, 30.0, {0, 0, 0}, smallConfig());
+    Roam farAway(hts, n, n, 30.0, far, smallConfig());
+    const auto path = flightPath();
+    for (size_t f = 0; f < path.size(); f += 4) {
+      RoamView v = path[f];
+      v.camera.eye_m = glm::floor(v.camera.eye_m * 0.5 * 8.0) / 8.0;  // exact in double at 1e6
+      near0.update(v, mode);
+      v.camera.eye_m += far;
+      farAway.update(v, mode);
+      ASSERT_EQ(sortedTriangles(near0), sortedTriangles(farAway)) << modeName(mode) << " frame " << f;
+    }
+    const glm::dvec3 p = farAway.vertexPosition(10, 20) - far;
+    EXPECT_EQ(p, near0.vertexPosition(10, 20));
+  }
+}
+
+TEST(Roam, NonFiniteCameraRefinesNothingAndDoesNotCrash) {
+  const int n = 65;
+  const auto hts = fractal(n, n, 2);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (RoamMode mode : kModes) {
+    Roam roam(hts, n, n, 30.0, {0, 0, 0}, smallConfig());
+    roam.update(makeView({900, 900, 300}, 20, -20, 1.0), mode);
+    ASSERT_GT(roam.triangleCount(), roam.baseTriangles());
+    RoamView bad = makeView({nan, 900, 300}, 20, -20, 1.0);
+    RoamStats st = roam.update(bad, mode);
+    EXPECT_TRUE(st.finished);
+    EXPECT_VALID(roam);
+    EXPECT_EQ(roam.triangleCount(), roam.baseTriangles()) << modeName(mode);
+    bad = makeView({900, 900, 300}, 20, -20, 1.0);
+    bad.camera.fovY_deg = nan;
+    st = roam.update(bad, mode);
+    EXPECT_VALID(roam);
+    EXPECT_EQ(roam.triangleCount(), roam.baseTriangles());
+    bad.camera.fovY_deg = 60;
+    bad.camera.heading_deg = std::numeric_limits<double>::infinity();
+    roam.update(bad, mode);
+    EXPECT_VALID(roam);
+  }
+}
+
+TEST(Roam, TriangleCapIsRespectedAndLoweringItCoarsens) {
+  const int n = 257;
+  const auto hts = fractal(n, n, 8);
+  for (RoamMode mode : kModes) {
+    Roam roam(hts, n, n, 30.0, {0, 0, 0}, smallConfig());
+    RoamView v = makeView({2000, 2000, 500}, 45, -20, 0.25);
+    v.maxTriangles = 3000;
+    RoamStats st = roam.update(v, mode);
+    EXPECT_TRUE(st.finished);
+    EXPECT_TRUE(st.triangleCapped);
+    EXPECT_LE(st.triangles, 3000u);
+    EXPECT_GT(st.triangles, 2900u);  // the cap is used, not just respected
+    EXPECT_GT(st.maxErrorPx, 0.25);
+    EXPECT_VALID(roam);
+    const auto path = flightPath();
+    for (size_t f = 0; f < path.size(); f += 2) {
+      RoamView pv = path[f];
+      pv.tolerance_px = 0.25;
+      pv.maxTriangles = f < 20 ? 3000 : 1000;  // lowered mid-flight
+      st = roam.update(pv, mode);
+      EXPECT_TRUE(st.finished);
+      EXPECT_LE(st.triangles, pv.maxTriangles) << modeName(mode) << " frame " << f;
+      std::string why;
+      ASSERT_TRUE(roam.validate(&why)) << why;
+    }
+  }
+}
+
+TEST(Roam, PoolExhaustionIsReportedAndTheMeshStaysValid) {
+  const int n = 129;
+  const auto hts = fractal(n, n, 6);
+  for (RoamMode mode : kModes) {
+    RoamConfig cfg;
+    cfg.maxTriangles = 100000;
+    cfg.nodeCapacity = 60;
+    Roam roam(hts, n, n, 30.0, {0, 0, 0}, cfg);
+    EXPECT_EQ(roam.nodeCapacity(), 60u);
+    const auto path = flightPath();
+    for (size_t f = 0; f < path.size(); f += 5) {
+      RoamView v = path[f];
+      v.camera.eye_m *= 0.5;
+      const RoamStats st = roam.update(v, mode);
+      EXPECT_TRUE(st.poolExhausted) << modeName(mode) << " frame " << f;
+      EXPECT_LE(roam.nodeCount(), 60u);
+      std::string why;
+      ASSERT_TRUE(roam.validate(&why)) << why;
+    }
+  }
+}
+
+TEST(Roam, EmitVisibleCullsBehindTheCamera) {
+  const int n = 129;
+  const auto hts = fractal(n, n, 12);
+  Roam roam(hts, n, n, 30.0, {0, 0, 0}, smallConfig());
+  const RoamView v = makeView({1920, 200, 600}, 0, -15, 2.0);  // south edge, looking north
+  roam.update(v, RoamMode::EnhMerge);
+  std::vector<RoamTriangle> all(roam.triangleCount()), vis(roam.triangleCount());
+  const size_t na = roam.emitTriangles(all);
+  const size_t nv = roam.emitVisible(v.camera, vis);
+  EXPECT_GT(nv, 0u);
+  EXPECT_LE(nv, na);
+  RoamView back = v;
+  back.camera.heading_deg = 180;  // looking off the map
+  back.camera.pitch_deg = 10;
+  EXPECT_LT(roam.emitVisible(back.camera, vis), nv / 4);
+}

@@ -1,0 +1,30 @@
+#!/usr/bin/env bash
+# igbench terrain on the real DEM (scripts/fetch-data) prints one JSON object with every field
+# the terrain issue names; ROAM needs fewer triangles than block LOD at equal error (a count,
+# not a time, so it is deterministic).
+set -euo pipefail
+igbench=$1
+src=$2
+cd "$src"
+out=$("$igbench" terrain --frames 24 --width 320 --height 180 --json)
+/usr/bin/python3 - "$out" <<'PY'
+import json, sys
+d = json.loads(sys.argv[1])
+for k in ("dem", "samples", "methods", "sweep", "block_triangles_at_equal_error", "roam_triangles_at_equal_error"):
+    assert k in d, k
+assert d["samples"] == 1201 * 1201, d["samples"]
+for m in ("roam_enhmerge", "roam_merge", "roam_rebuild", "block"):
+    r = d["methods"][m]
+    for f in ("update_ms_p50", "update_ms_p99", "teleport_update_ms", "triangles_p50", "max_error_px", "uploads_p50"):
+        assert f in r, (m, f)
+    assert r["update_ms_p99"] >= r["update_ms_p50"] >= 0, (m, r)
+    assert r["triangles_p50"] > 0, (m, r)
+    assert r["max_error_px"] <= 1.0 + 1e-9, (m, r)
+assert [s["tolerance_px"] for s in d["sweep"]] == [0.5, 1, 2, 4, 8]
+tris = [s["triangles"] for s in d["sweep"]]
+assert tris == sorted(tris, reverse=True), tris  # coarser tolerance, fewer triangles
+for s in d["sweep"]:
+    assert s["render_ms"] > 0 and s["rmse"] >= 0 and s["psnr_db"] > 0, s
+assert 0 < d["roam_triangles_at_equal_error"] < d["block_triangles_at_equal_error"], d
+print("terrain_bench_test: 1 passed, 0 failed")
+PY
