@@ -198,11 +198,7 @@ int runTerrainBench(const TerrainBenchOptions& o) {
     return 2;
   }
   const double loadMs = msSince(tLoad);
-  // Rows are stored north first; the LOD grids use row = y north-up, so flip once.
-  for (int y = 0; y < dem.height / 2; ++y)
-    std::swap_ranges(dem.heights_m.begin() + static_cast<std::ptrdiff_t>(y) * dem.width,
-                     dem.heights_m.begin() + static_cast<std::ptrdiff_t>(y + 1) * dem.width,
-                     dem.heights_m.begin() + static_cast<std::ptrdiff_t>(dem.height - 1 - y) * dem.width);
+  io::flipRows(dem);  // files store north first; the LOD grids want y northwards
   const double spacing = dem.spacing_m > 0 ? dem.spacing_m : 30.0;
   const double aspect = static_cast<double>(o.width_px) / o.height_px;
   const auto path = flightPath(dem, spacing, o.frames, aspect);

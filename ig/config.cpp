@@ -530,11 +530,32 @@ bool parseScene(const std::string& text, const std::string& name, const std::str
   r.get(origin, "lon_deg", cfg.originGeodetic[1], closed(-180.0, 180.0));
   r.get(origin, "height_m", cfg.originGeodetic[2], closed(-1e4, 1e5));
 
-  const Table terrain = r.table(root, "terrain", {"source", "seed", "size_m", "grid_step_m", "height_scale_m",
-                                                  "offset_m", "chunk_quads"});
+  const Table terrain = r.table(root, "terrain", {"source", "lod", "file", "spacing_m", "png_scale_m", "png_offset_m",
+                                                  "tolerance_px", "lod_budget_ms", "seed", "size_m", "grid_step_m",
+                                                  "height_scale_m", "offset_m", "chunk_quads"});
   if (terrain.present()) {
     TerrainLayerConfig& t = cfg.terrain.emplace();
-    r.getEnum(terrain, "source", t.source, {{"procedural", TerrainLayerConfig::Source::Procedural}});
+    r.getEnum(terrain, "source", t.source,
+              {{"procedural", TerrainLayerConfig::Source::Procedural}, {"dem", TerrainLayerConfig::Source::Dem}});
+    r.getEnum(terrain, "lod", t.lod,
+              {{"grid", TerrainLayerConfig::Lod::Grid},
+               {"roam", TerrainLayerConfig::Lod::Roam},
+               {"block", TerrainLayerConfig::Lod::Block}});
+    r.get(terrain, "file", t.file, false);
+    r.get(terrain, "spacing_m", t.demSpacing_m, closed(0.0, 1e5));
+    r.get(terrain, "png_scale_m", t.pngScale_m, Range{0.0, 1e4, true, false});
+    r.get(terrain, "png_offset_m", t.pngOffset_m, closed(-1e5, 1e5));
+    r.get(terrain, "tolerance_px", t.tolerance_px, Range{0.0, 1000.0, true, false});
+    r.get(terrain, "lod_budget_ms", t.lodBudget_ms, closed(0.0, 1000.0));
+    if (r.ok() && t.source == TerrainLayerConfig::Source::Dem) {
+      r.require(terrain, "file", "source = \"dem\" needs the DEM file (.png, .tif, .tiff, .hgt)");
+      if (r.ok() && t.lod == TerrainLayerConfig::Lod::Grid) {
+        const toml::node* node = r.find(terrain, "lod");
+        const std::string message = "lod = \"grid\" draws only the procedural terrain; use \"roam\" or \"block\" for a DEM";
+        if (node) r.fail(*node, terrain.keyOf("lod"), message);
+        else r.fail(terrain.line_, terrain.keyOf("lod"), "", message);
+      }
+    }
     r.get(terrain, "seed", t.seed, IntRange{0, std::numeric_limits<uint32_t>::max()});
     r.get(terrain, "size_m", t.size_m, openClosed(0.0, 1e6));
     r.get(terrain, "grid_step_m", t.gridStep_m, Range{0.0, kInf, true, false});
@@ -571,6 +592,7 @@ bool parseScene(const std::string& text, const std::string& name, const std::str
     error = r.error();
     return false;
   }
+  if (cfg.terrain && !cfg.terrain->file.empty()) cfg.terrain->file = resolvePath(cfg.terrain->file, baseDir);
   if (cfg.forest) cfg.forest->file = resolvePath(cfg.forest->file, baseDir);
   if (cfg.hdlod) cfg.hdlod->file = resolvePath(cfg.hdlod->file, baseDir);
   out = std::move(cfg);

@@ -61,7 +61,14 @@ struct ServiceConfig {
 };
 
 struct TerrainLayerConfig {
-  enum class Source { Procedural } source = Source::Procedural;
+  enum class Source { Procedural, Dem } source = Source::Procedural;
+  enum class Lod { Grid, Roam, Block } lod = Lod::Grid;
+  std::string file;                          // DEM (16-bit PNG, GeoTIFF, .hgt) when source = dem
+  double demSpacing_m = 0.0;                 // sample spacing; 0 = from the file (PNG needs it)
+  double pngScale_m = 1.0;                   // 16-bit PNG: height = offset + scale * value
+  double pngOffset_m = 0.0;
+  double tolerance_px = 1.0;                 // roam / block: screen-space error target
+  double lodBudget_ms = 0.0;                 // roam: CPU time for mesh updates per frame, 0 = unlimited
   uint32_t seed = 1;
   double size_m = 8192.0;                    // square side
   double gridStep_m = 32.0;                  // post spacing

@@ -1,5 +1,6 @@
 #include "ig/service.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -8,7 +9,10 @@
 #include "ig/frame_loop.h"
 #include "ig/snapshot_writer.h"
 #include "ig/systemd.h"
+#include "io/dem.h"
 #include "io/replay.h"
+#include "lod/block_lod.h"
+#include "lod/roam.h"
 #include "lod/geo.h"
 #include "lod/terrain_grid.h"
 #include "lod/view.h"
@@ -48,6 +52,71 @@ struct TerrainLayer {
 
 }  // namespace
 
+// Terrain drawn from a per-frame triangle list: ROAM with enhMerge, or block LOD, over a DEM
+// or the procedural heights. All buffers are sized at start-up.
+struct TerrainMeshLayer {
+  std::vector<float> heights_m;  // row-major, row y grows northwards
+  int width = 0, height = 0;
+  double spacing_m = 1.0;
+  glm::dvec3 origin_m{0.0};      // ENU of sample (0, 0)
+  double heightRange_m = 1.0;
+  std::unique_ptr<lod::Roam> roam;
+  std::unique_ptr<lod::BlockLod> block;
+  std::vector<lod::RoamTriangle> triangles;
+  std::vector<lod::TerrainVertex> vertices;
+  size_t vertexCount = 0;
+  double tolerance_px = 1.0;
+  double budget_ms = 0.0;
+  double nsPerOperation = 2000.0;  // measured, smoothed: turns the time budget into operations
+  uint64_t maxTriangles = 0;
+
+  lod::TerrainVertex vertex(int x, int y) const {
+    x = std::clamp(x, 0, width - 1);
+    y = std::clamp(y, 0, height - 1);
+    auto h = [&](int i, int j) {
+      return static_cast<double>(heights_m[static_cast<size_t>(std::clamp(j, 0, height - 1)) * width +
+                                           std::clamp(i, 0, width - 1)]);
+    };
+    // Normals from the grid (central differences): the same at a vertex whatever triangles
+    // use it, so lighting has no cracks between levels.
+    const glm::dvec3 n = glm::normalize(glm::dvec3(h(x - 1, y) - h(x + 1, y), h(x, y - 1) - h(x, y + 1), 2.0 * spacing_m));
+    lod::TerrainVertex v{};
+    v.position[0] = static_cast<float>(x * spacing_m);
+    v.position[1] = static_cast<float>(y * spacing_m);
+    v.position[2] = static_cast<float>(h(x, y));
+    v.normal[0] = static_cast<float>(n.x);
+    v.normal[1] = static_cast<float>(n.y);
+    v.normal[2] = static_cast<float>(n.z);
+    return v;
+  }
+
+  // lod phase: update the mesh for this view within the time budget, emit what is visible.
+  void select(const lod::Camera& cam, double viewportHeight_px, Clock* clock) {
+    lod::RoamView view;
+    view.camera = cam;
+    view.viewportHeight_px = viewportHeight_px;
+    view.tolerance_px = tolerance_px;
+    view.maxTriangles = maxTriangles;
+    size_t n = 0;
+    if (roam) {
+      if (clock && budget_ms > 0.0)
+        view.maxOperations = static_cast<uint32_t>(std::clamp(budget_ms * 1e6 / nsPerOperation, 64.0, 1e9));
+      const int64_t t0 = clock ? clock->now_ns() : 0;
+      const lod::RoamStats st = roam->update(view, lod::RoamMode::EnhMerge);
+      const uint64_t ops = st.splits + st.merges + st.enhMerges;
+      if (clock && ops >= 16)
+        nsPerOperation = 0.8 * nsPerOperation + 0.2 * static_cast<double>(clock->now_ns() - t0) / static_cast<double>(ops);
+      n = roam->emitVisible(cam, triangles);
+    } else {
+      block->update(view);
+      n = block->emitTriangles(triangles);
+    }
+    vertexCount = 0;
+    for (size_t i = 0; i < n; ++i)
+      for (const auto& v : triangles[i].v) vertices[vertexCount++] = vertex(v.x, v.y);
+  }
+};
+
 lod::TerrainGridDesc terrainGridDesc(const TerrainLayerConfig& t) {
   lod::TerrainGridDesc d;
   const int quads = static_cast<int>(std::llround(t.size_m / t.gridStep_m));
@@ -58,6 +127,60 @@ lod::TerrainGridDesc terrainGridDesc(const TerrainLayerConfig& t) {
   d.offset_m = {t.offset_m[0], t.offset_m[1], t.offset_m[2]};
   d.chunkQuads = t.chunkQuads;
   return d;
+}
+
+static bool createTerrainMesh(const TerrainLayerConfig& t, const ServiceConfig& config,
+                              std::unique_ptr<TerrainMeshLayer>& out, std::string& error) {
+  auto layer = std::make_unique<TerrainMeshLayer>();
+  TerrainMeshLayer& m = *layer;
+  if (t.source == TerrainLayerConfig::Source::Dem) {
+    io::DemLoadOptions o;
+    o.pngScale_m = t.pngScale_m;
+    o.pngOffset_m = t.pngOffset_m;
+    io::Dem dem;
+    if (!io::loadDem(t.file, o, dem, error)) {
+      error = "terrain.file: " + error;
+      return false;
+    }
+    io::flipRows(dem);
+    m.spacing_m = t.demSpacing_m > 0 ? t.demSpacing_m : dem.spacing_m;
+    if (m.spacing_m <= 0) {
+      error = "terrain.file '" + t.file + "': the file gives no sample spacing; set terrain.spacing_m";
+      return false;
+    }
+    m.width = dem.width;
+    m.height = dem.height;
+    m.heights_m = std::move(dem.heights_m);
+  } else {
+    const lod::TerrainGridDesc d = terrainGridDesc(t);
+    m.width = d.heights.postsX;
+    m.height = d.heights.postsY;
+    m.spacing_m = d.heights.postSpacing_m;
+    m.heights_m.resize(static_cast<size_t>(m.width) * static_cast<size_t>(m.height));
+    lod::generateHeightfield(d.heights, m.heights_m);
+  }
+  const auto [lo, hi] = std::minmax_element(m.heights_m.begin(), m.heights_m.end());
+  m.heightRange_m = std::max(1.0, static_cast<double>(*hi - *lo));
+  m.origin_m = {t.offset_m[0], t.offset_m[1], t.offset_m[2]};
+  m.tolerance_px = t.tolerance_px;
+  m.budget_ms = t.lodBudget_ms;
+  m.maxTriangles = static_cast<uint64_t>(std::min<int64_t>(config.budgetTriangles, 1 << 20));
+  size_t capacity = 0;
+  if (t.lod == TerrainLayerConfig::Lod::Roam) {
+    lod::RoamConfig rc;
+    rc.maxTriangles = m.maxTriangles;
+    m.roam = std::make_unique<lod::Roam>(m.heights_m, m.width, m.height, m.spacing_m, m.origin_m, rc);
+    capacity = static_cast<size_t>(m.maxTriangles);
+  } else {
+    m.block = std::make_unique<lod::BlockLod>(m.heights_m, m.width, m.height, m.spacing_m, m.origin_m);
+    // Block LOD has no triangle control: room for every block at its finest level.
+    const auto q = static_cast<size_t>(lod::BlockLodConfig{}.blockQuads);
+    capacity = static_cast<size_t>(m.block->blocksX()) * static_cast<size_t>(m.block->blocksY()) * (2 * q * q + 8);
+  }
+  m.triangles.resize(capacity);
+  m.vertices.resize(capacity * 3);
+  out = std::move(layer);
+  return true;
 }
 
 bool hostStateValid(const io::HostState& s, std::string* why) {
@@ -82,7 +205,8 @@ struct Service::Impl {
   SceneConfig scene;
   std::unique_ptr<render::GlContext> context;
   render::Renderer renderer;
-  std::unique_ptr<TerrainLayer> terrain;
+  std::unique_ptr<TerrainLayer> terrain;          // lod = "grid"
+  std::unique_ptr<TerrainMeshLayer> terrainMesh;  // lod = "roam" | "block"
   std::unique_ptr<io::ReplaySource> replay;
   std::optional<lod::EnuFrame> enu;
   render::Lighting lighting;
@@ -103,8 +227,10 @@ struct Service::Impl {
     return c;
   }
 
-  // lod phase: every layer the scene has selects what to draw.
-  void select(const lod::Camera& cam) {
+  // lod phase: every layer the scene has selects what to draw. `clock` (the frame loop's)
+  // lets layers keep to their time budgets; without it they converge fully.
+  void select(const lod::Camera& cam, Clock* clock) {
+    if (terrainMesh) terrainMesh->select(cam, config.height_px, clock);
     if (terrain) {
       const lod::Frustum fr = lod::makeFrustum(cam);
       terrain->selectedCount =
@@ -116,6 +242,8 @@ struct Service::Impl {
   render::RenderStats submit(const lod::Camera& cam) {
     renderer.beginFrame(cam, lighting);
     if (terrain) renderer.drawTerrain(std::span(terrain->selected.data(), terrain->selectedCount));
+    if (terrainMesh)
+      renderer.drawTerrainMesh(terrainMesh->origin_m, std::span(terrainMesh->vertices.data(), terrainMesh->vertexCount));
     return renderer.endFrame();
   }
 
@@ -165,11 +293,17 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
   if (!m.renderer.init(config.width_px, config.height_px, error)) return nullptr;
   s->info_.context = m.context->description();
 
-  if (scene.terrain) {
+  if (scene.terrain && scene.terrain->lod == TerrainLayerConfig::Lod::Grid) {
     m.terrain = std::make_unique<TerrainLayer>(terrainGridDesc(*scene.terrain));
     if (!m.renderer.addTerrain(m.terrain->grid, error)) return nullptr;
     s->info_.layers.push_back("terrain");
     s->info_.terrainTriangles = m.terrain->grid.totalTriangles();
+  } else if (scene.terrain) {
+    if (!createTerrainMesh(*scene.terrain, config, m.terrainMesh, error)) return nullptr;
+    TerrainMeshLayer& t = *m.terrainMesh;
+    if (!m.renderer.addTerrainMesh(t.vertices.size(), t.heightRange_m, error)) return nullptr;
+    s->info_.layers.push_back(scene.terrain->lod == TerrainLayerConfig::Lod::Roam ? "terrain (roam)" : "terrain (block)");
+    s->info_.terrainTriangles = 2ull * static_cast<uint64_t>(t.width - 1) * static_cast<uint64_t>(t.height - 1);
   }
   if (config.snapshotEvery > 0 || !config.snapshotFrames.empty()) {
     std::error_code ec;
@@ -211,7 +345,7 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
 FrameRecord Service::renderOnce(const io::HostState& host, render::Image* image) {
   Impl& m = *impl_;
   const lod::Camera cam = m.cameraFor(host);
-  m.select(cam);
+  m.select(cam, nullptr);
   const render::RenderStats st = m.submit(cam);
   m.renderer.finish();
   if (image) m.renderer.readPixels(*image);
@@ -276,16 +410,11 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop) {
 
     // lod
     const lod::Camera cam = m.cameraFor(host_);
-    if (m.terrain) {
-      const lod::Frustum fr = lod::makeFrustum(cam);
-      m.terrain->selectedCount = m.terrain->grid.select(fr, cam.eye_m, static_cast<uint64_t>(m.config.budgetTriangles), m.terrain->selected);
-    }
+    m.select(cam, &clock);
     pacer.endPhase(Phase::Lod);
 
     // submit
-    m.renderer.beginFrame(cam, m.lighting);
-    if (m.terrain) m.renderer.drawTerrain(std::span(m.terrain->selected.data(), m.terrain->selectedCount));
-    const render::RenderStats st = m.renderer.endFrame();
+    const render::RenderStats st = m.submit(cam);
     pacer.endPhase(Phase::Submit);
 
     // gpu

@@ -300,6 +300,13 @@ bool fillVoids(std::vector<float>& heights, int width, int height, std::vector<u
   return true;
 }
 
+void flipRows(Dem& dem) {
+  const auto w = static_cast<std::ptrdiff_t>(dem.width);
+  for (int y = 0; y < dem.height / 2; ++y)
+    std::swap_ranges(dem.heights_m.begin() + y * w, dem.heights_m.begin() + (y + 1) * w,
+                     dem.heights_m.begin() + (dem.height - 1 - y) * w);
+}
+
 bool loadDem(const std::string& file, const DemLoadOptions& options, Dem& out, std::string& error) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(file, ec)) {

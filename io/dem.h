@@ -37,6 +37,10 @@ struct Dem {
   float at(int x, int y) const { return heights_m[static_cast<size_t>(y) * static_cast<size_t>(width) + x]; }
 };
 
+// Reverses the row order in place: files store the north row first, the LOD grids want row y
+// to grow northwards (ENU).
+void flipRows(Dem& dem);
+
 // Chooses the reader by extension (.png, .tif/.tiff, .hgt), then by content.
 bool loadDem(const std::string& file, const DemLoadOptions& options, Dem& out, std::string& error);
 

@@ -550,3 +550,63 @@ TEST(ConfigEnums, ToStringRoundTripsThroughTheParser) {
 
 }  // namespace
 }  // namespace ig
+
+namespace ig {
+namespace {
+
+TEST(ConfigTerrainLod, DemRoamAndBlockKeysParse) {
+  SceneConfig cfg;
+  ConfigError error;
+  ASSERT_TRUE(parseSceneConfig("[terrain]\nsource = \"dem\"\nlod = \"roam\"\nfile = \"dem/a.hgt\"\n"
+                               "spacing_m = 30\ntolerance_px = 0.5\nlod_budget_ms = 3\npng_scale_m = 0.1\n",
+                               "scene.toml", "/base", cfg, error))
+      << error.what();
+  ASSERT_TRUE(cfg.terrain);
+  EXPECT_EQ(cfg.terrain->source, TerrainLayerConfig::Source::Dem);
+  EXPECT_EQ(cfg.terrain->lod, TerrainLayerConfig::Lod::Roam);
+  EXPECT_EQ(cfg.terrain->file, "/base/dem/a.hgt");
+  EXPECT_DOUBLE_EQ(cfg.terrain->demSpacing_m, 30.0);
+  EXPECT_DOUBLE_EQ(cfg.terrain->tolerance_px, 0.5);
+  EXPECT_DOUBLE_EQ(cfg.terrain->lodBudget_ms, 3.0);
+  EXPECT_DOUBLE_EQ(cfg.terrain->pngScale_m, 0.1);
+  ASSERT_TRUE(parseSceneConfig("[terrain]\nlod = \"block\"\n", "scene.toml", "/base", cfg, error)) << error.what();
+  EXPECT_EQ(cfg.terrain->lod, TerrainLayerConfig::Lod::Block);
+  EXPECT_EQ(cfg.terrain->source, TerrainLayerConfig::Source::Procedural);
+}
+
+TEST(ConfigTerrainLod, ErrorsNameKeyAndValue) {
+  ConfigError e = sceneError("[terrain]\nsource = \"dem\"\nlod = \"roam\"\n");
+  EXPECT_EQ(e.key, "terrain.file");
+  EXPECT_NE(e.message.find("needs the DEM file"), std::string::npos) << e.what();
+  e = sceneError("[terrain]\nsource = \"dem\"\nfile = \"a.hgt\"\n");
+  EXPECT_EQ(e.key, "terrain.lod");
+  EXPECT_NE(e.message.find("\"roam\" or \"block\""), std::string::npos) << e.what();
+  e = sceneError("[terrain]\nlod = \"vdpm\"\n");
+  EXPECT_EQ(e.key, "terrain.lod");
+  EXPECT_EQ(e.line, 2);
+  EXPECT_EQ(e.value, "\"vdpm\"");
+  e = sceneError("[terrain]\ntolerance_px = 0\n");
+  EXPECT_EQ(e.key, "terrain.tolerance_px");
+  e = sceneError("[terrain]\ntolerance_px = nan\n");
+  EXPECT_EQ(e.key, "terrain.tolerance_px");
+}
+
+}  // namespace
+}  // namespace ig
+
+namespace ig {
+namespace {
+TEST(ConfigShipped, EverySceneInConfigScenesLoads) {
+  int n = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(kSourceDir + "/config/scenes")) {
+    if (entry.path().extension() != ".toml") continue;
+    SceneConfig cfg;
+    ConfigError error;
+    EXPECT_TRUE(loadSceneConfig(entry.path().string(), cfg, error)) << error.what();
+    EXPECT_TRUE(cfg.terrain) << entry.path();
+    ++n;
+  }
+  EXPECT_GE(n, 3);
+}
+}  // namespace
+}  // namespace ig

@@ -172,3 +172,92 @@ TEST(ServiceGL, RunWritesStatsAndSnapshotsWithAFakeClock) {
   EXPECT_EQ(lastHostFrame, 22u);
   std::filesystem::remove_all(dir);
 }
+
+namespace {
+render::Image renderScene(const SceneConfig& scene, const io::HostState& host, FrameRecord* record = nullptr,
+                          ServiceInfo* info = nullptr) {
+  ServiceConfig cfg;
+  SceneConfig unused;
+  test::defaultConfigs(cfg, unused);
+  std::string error;
+  auto service = Service::create(cfg, scene, error);
+  EXPECT_TRUE(service) << error;
+  render::Image image;
+  if (!service) return image;
+  const FrameRecord r = service->renderOnce(host, &image);
+  if (record) *record = r;
+  if (info) *info = service->info();
+  return image;
+}
+}  // namespace
+
+TEST(ServiceGL, RoamAndBlockTerrainRenderCloseToTheFullGrid) {
+  ServiceConfig cfg;
+  SceneConfig grid;
+  test::defaultConfigs(cfg, grid);
+  const io::HostState host = test::defaultHostAt(5.0);
+  FrameRecord full, roamRec, blockRec;
+  const render::Image reference = renderScene(grid, host, &full);
+  SceneConfig roam = grid, block = grid;
+  roam.terrain->lod = TerrainLayerConfig::Lod::Roam;
+  roam.terrain->tolerance_px = 1.0;
+  block.terrain->lod = TerrainLayerConfig::Lod::Block;
+  ServiceInfo info;
+  const render::Image a = renderScene(roam, host, &roamRec, &info);
+  EXPECT_EQ(info.passes, 1u);
+  EXPECT_EQ(info.layers.at(0), "terrain (roam)");
+  const render::Image b = renderScene(block, host, &blockRec);
+  // Same picture within a few 8-bit levels at 1 px tolerance (320x180 here)...
+  EXPECT_LT(render::rmse(a, reference), 4.0);
+  EXPECT_LT(render::rmse(b, reference), 4.0);
+  // ...with far fewer triangles than the full grid, and ROAM fewer than block LOD.
+  EXPECT_GT(roamRec.triangles, 0u);
+  EXPECT_LT(roamRec.triangles * 3, full.triangles);
+  EXPECT_LT(roamRec.triangles, blockRec.triangles);
+}
+
+TEST(ServiceGL, DemTerrainFromAFileAndItsErrors) {
+  const auto dir = std::filesystem::temp_directory_path() / ("igd_dem_gltest_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  // A 65 x 65 DEM: a wavy north-south ridge.
+  std::vector<uint16_t> v(65 * 65);
+  for (int y = 0; y < 65; ++y)
+    for (int x = 0; x < 65; ++x)
+      v[static_cast<size_t>(y) * 65 + x] =
+          static_cast<uint16_t>(600.0 - 15.0 * std::abs(x - 32) + 150.0 * std::sin(x / 4.0) * std::cos(y / 6.0));
+  {
+    // As an SRTM .hgt file (big-endian int16, square); the readers have their own tests.
+    std::vector<uint8_t> b(65 * 65 * 2);
+    for (size_t i = 0; i < v.size(); ++i) {
+      b[2 * i] = static_cast<uint8_t>(v[i] >> 8);
+      b[2 * i + 1] = static_cast<uint8_t>(v[i] & 0xFF);
+    }
+    std::ofstream((dir / "ridge.hgt").string(), std::ios::binary).write(reinterpret_cast<const char*>(b.data()), 65 * 65 * 2);
+  }
+  ServiceConfig cfg;
+  SceneConfig scene;
+  test::defaultConfigs(cfg, scene);
+  scene.terrain->source = TerrainLayerConfig::Source::Dem;
+  scene.terrain->lod = TerrainLayerConfig::Lod::Roam;
+  scene.terrain->file = (dir / "ridge.hgt").string();
+  scene.terrain->demSpacing_m = 50.0;
+  scene.terrain->offset_m = {-1600, -1600, 0};
+  io::HostState h = test::defaultHostAt(0.0);
+  h.eyeEnu_m = {0, -3000, 1500};
+  h.heading_deg = 0;
+  h.pitch_deg = -20;
+  h.roll_deg = 0;
+  FrameRecord r;
+  const render::Image image = renderScene(scene, h, &r);
+  EXPECT_GT(r.triangles, 8u);
+  size_t ground = 0;
+  for (size_t i = 0; i < image.rgba.size(); i += 4) ground += image.rgba[i] != image.rgba[0];
+  EXPECT_GT(ground, image.rgba.size() / 4 / 10) << "the ridge must cover part of the view";
+
+  scene.terrain->file = (dir / "missing.hgt").string();
+  std::string error;
+  EXPECT_FALSE(Service::create(cfg, scene, error));
+  EXPECT_NE(error.find("terrain.file"), std::string::npos) << error;
+  EXPECT_NE(error.find("missing.hgt"), std::string::npos) << error;
+  std::filesystem::remove_all(dir);
+}
