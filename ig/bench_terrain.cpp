@@ -96,9 +96,11 @@ lod::RoamView viewFor(const lod::Camera& cam, int height_px, double tolerance_px
   return v;
 }
 
-MethodResult flyRoam(const io::Dem& dem, double spacing_m, const std::vector<PathFrame>& path, lod::RoamMode mode,
-                     const char* name, int height_px, double tolerance_px) {
-  lod::Roam roam(dem.heights_m, dem.width, dem.height, spacing_m, {0, 0, 0});
+// Flies the path with one method. `update(view)` runs the method's LOD step (timed) and
+// returns {triangles, maxErrorPx}; `emit(out)` writes its mesh for the upload count.
+template <class Update, class Emit>
+MethodResult fly(const char* name, const std::vector<PathFrame>& path, int height_px, double tolerance_px,
+                 Update update, Emit emit) {
   std::vector<double> ms, tris, uploads;
   std::vector<lod::RoamTriangle> out;
   std::vector<uint64_t> prev, cur;
@@ -106,14 +108,13 @@ MethodResult flyRoam(const io::Dem& dem, double spacing_m, const std::vector<Pat
   r.name = name;
   for (const PathFrame& f : path) {
     const auto t0 = BenchClock::now();
-    const lod::RoamStats st = roam.update(viewFor(f.camera, height_px, tolerance_px), mode);
+    const auto [triangles, maxErrorPx] = update(viewFor(f.camera, height_px, tolerance_px));
     const double t = msSince(t0);
     ms.push_back(t);
     if (f.teleport) r.teleport = t;
-    tris.push_back(static_cast<double>(st.triangles));
-    r.maxErrorPx = std::max(r.maxErrorPx, st.maxErrorPx);
-    out.resize(roam.triangleCount());
-    out.resize(roam.emitTriangles(out));
+    tris.push_back(static_cast<double>(triangles));
+    r.maxErrorPx = std::max(r.maxErrorPx, maxErrorPx);
+    emit(out);
     cur.clear();
     for (const auto& tri : out) cur.push_back(triangleKey(tri));
     uploads.push_back(static_cast<double>(changedTriangles(prev, cur)));
@@ -123,54 +124,41 @@ MethodResult flyRoam(const io::Dem& dem, double spacing_m, const std::vector<Pat
   r.trianglesP50 = static_cast<uint64_t>(percentile(tris, 50));
   r.uploadsP50 = static_cast<uint64_t>(percentile(uploads, 50));
   return r;
+}
+
+struct UpdateResult {
+  uint64_t triangles;
+  double maxErrorPx;
+};
+
+MethodResult flyRoam(const io::Dem& dem, double spacing_m, const std::vector<PathFrame>& path, lod::RoamMode mode,
+                     const char* name, int height_px, double tolerance_px) {
+  lod::Roam roam(dem.heights_m, dem.width, dem.height, spacing_m, {0, 0, 0});
+  return fly(
+      name, path, height_px, tolerance_px,
+      [&](const lod::RoamView& v) {
+        const lod::RoamStats st = roam.update(v, mode);
+        return UpdateResult{st.triangles, st.maxErrorPx};
+      },
+      [&](std::vector<lod::RoamTriangle>& out) {
+        out.resize(roam.triangleCount());
+        out.resize(roam.emitTriangles(out));
+      });
 }
 
 MethodResult flyBlock(const io::Dem& dem, double spacing_m, const std::vector<PathFrame>& path, int height_px,
                       double tolerance_px) {
   lod::BlockLod block(dem.heights_m, dem.width, dem.height, spacing_m, {0, 0, 0});
-  std::vector<double> ms, tris, uploads;
-  std::vector<lod::RoamTriangle> out;
-  std::vector<uint64_t> prev, cur;
-  MethodResult r;
-  r.name = "block";
-  for (const PathFrame& f : path) {
-    const auto t0 = BenchClock::now();
-    const lod::BlockLodStats st = block.update(viewFor(f.camera, height_px, tolerance_px));
-    const double t = msSince(t0);
-    ms.push_back(t);
-    if (f.teleport) r.teleport = t;
-    tris.push_back(static_cast<double>(st.triangles));
-    r.maxErrorPx = std::max(r.maxErrorPx, st.maxErrorPx);
-    out.resize(block.triangleBound());
-    out.resize(block.emitTriangles(out));
-    cur.clear();
-    for (const auto& tri : out) cur.push_back(triangleKey(tri));
-    uploads.push_back(static_cast<double>(changedTriangles(prev, cur)));
-  }
-  r.updateP50 = percentile(ms, 50);
-  r.updateP99 = percentile(ms, 99);
-  r.trianglesP50 = static_cast<uint64_t>(percentile(tris, 50));
-  r.uploadsP50 = static_cast<uint64_t>(percentile(uploads, 50));
-  return r;
-}
-
-// Vertex normal from the DEM (central differences): depends only on the grid vertex, so
-// lighting has no cracks between triangles of different levels.
-lod::TerrainVertex meshVertex(const io::Dem& dem, double spacing_m, int x, int y) {
-  x = std::clamp(x, 0, dem.width - 1);
-  y = std::clamp(y, 0, dem.height - 1);
-  auto h = [&](int i, int j) {
-    return static_cast<double>(dem.at(std::clamp(i, 0, dem.width - 1), std::clamp(j, 0, dem.height - 1)));
-  };
-  const glm::dvec3 n = glm::normalize(glm::dvec3(h(x - 1, y) - h(x + 1, y), h(x, y - 1) - h(x, y + 1), 2.0 * spacing_m));
-  lod::TerrainVertex v{};
-  v.position[0] = static_cast<float>(x * spacing_m);
-  v.position[1] = static_cast<float>(y * spacing_m);
-  v.position[2] = static_cast<float>(h(x, y));
-  v.normal[0] = static_cast<float>(n.x);
-  v.normal[1] = static_cast<float>(n.y);
-  v.normal[2] = static_cast<float>(n.z);
-  return v;
+  return fly(
+      "block", path, height_px, tolerance_px,
+      [&](const lod::RoamView& v) {
+        const lod::BlockLodStats st = block.update(v);
+        return UpdateResult{st.triangles, st.maxErrorPx};
+      },
+      [&](std::vector<lod::RoamTriangle>& out) {
+        out.resize(block.triangleBound());
+        out.resize(block.emitTriangles(out));
+      });
 }
 
 struct SweepRow {
@@ -233,7 +221,7 @@ int runTerrainBench(const TerrainBenchOptions& o) {
   auto renderMesh = [&](std::span<const lod::RoamTriangle> list, render::Image& out) {
     vertices.clear();
     for (const auto& t : list)
-      for (const auto& v : t.v) vertices.push_back(meshVertex(dem, spacing, v.x, v.y));
+      for (const auto& v : t.v) vertices.push_back(lod::heightFieldVertex(dem.heights_m, dem.width, dem.height, spacing, v.x, v.y));
     // Median of 5 draws (upload + draw + glFinish): one frame alone is too noisy here.
     std::vector<double> times;
     for (int i = 0; i < 5; ++i) {

@@ -70,26 +70,6 @@ struct TerrainMeshLayer {
   double nsPerOperation = 2000.0;  // measured, smoothed: turns the time budget into operations
   uint64_t maxTriangles = 0;
 
-  lod::TerrainVertex vertex(int x, int y) const {
-    x = std::clamp(x, 0, width - 1);
-    y = std::clamp(y, 0, height - 1);
-    auto h = [&](int i, int j) {
-      return static_cast<double>(heights_m[static_cast<size_t>(std::clamp(j, 0, height - 1)) * width +
-                                           std::clamp(i, 0, width - 1)]);
-    };
-    // Normals from the grid (central differences): the same at a vertex whatever triangles
-    // use it, so lighting has no cracks between levels.
-    const glm::dvec3 n = glm::normalize(glm::dvec3(h(x - 1, y) - h(x + 1, y), h(x, y - 1) - h(x, y + 1), 2.0 * spacing_m));
-    lod::TerrainVertex v{};
-    v.position[0] = static_cast<float>(x * spacing_m);
-    v.position[1] = static_cast<float>(y * spacing_m);
-    v.position[2] = static_cast<float>(h(x, y));
-    v.normal[0] = static_cast<float>(n.x);
-    v.normal[1] = static_cast<float>(n.y);
-    v.normal[2] = static_cast<float>(n.z);
-    return v;
-  }
-
   // lod phase: update the mesh for this view within the time budget, emit what is visible.
   void select(const lod::Camera& cam, double viewportHeight_px, Clock* clock) {
     lod::RoamView view;
@@ -113,7 +93,8 @@ struct TerrainMeshLayer {
     }
     vertexCount = 0;
     for (size_t i = 0; i < n; ++i)
-      for (const auto& v : triangles[i].v) vertices[vertexCount++] = vertex(v.x, v.y);
+      for (const auto& v : triangles[i].v)
+        vertices[vertexCount++] = lod::heightFieldVertex(heights_m, width, height, spacing_m, v.x, v.y);
   }
 };
 

@@ -8,6 +8,25 @@
 
 namespace ig::lod {
 
+TerrainVertex heightFieldVertex(std::span<const float> heights_m, int width, int height, double spacing_m, int x, int y) {
+  auto h = [&](int i, int j) {
+    i = std::clamp(i, 0, width - 1);
+    j = std::clamp(j, 0, height - 1);
+    return static_cast<double>(heights_m[static_cast<size_t>(j) * static_cast<size_t>(width) + static_cast<size_t>(i)]);
+  };
+  x = std::clamp(x, 0, width - 1);
+  y = std::clamp(y, 0, height - 1);
+  const glm::dvec3 n = glm::normalize(glm::dvec3(h(x - 1, y) - h(x + 1, y), h(x, y - 1) - h(x, y + 1), 2.0 * spacing_m));
+  TerrainVertex v{};
+  v.position[0] = static_cast<float>(x * spacing_m);
+  v.position[1] = static_cast<float>(y * spacing_m);
+  v.position[2] = static_cast<float>(h(x, y));
+  v.normal[0] = static_cast<float>(n.x);
+  v.normal[1] = static_cast<float>(n.y);
+  v.normal[2] = static_cast<float>(n.z);
+  return v;
+}
+
 TerrainGrid::TerrainGrid(const TerrainGridDesc& desc) : desc_(desc) {
   const HeightfieldDesc& hf = desc.heights;
   assert(desc.chunkQuads >= 1 && "TerrainGrid: chunkQuads must be >= 1");

@@ -30,6 +30,11 @@ struct TerrainVertex {
   float normal[3];
 };
 
+// Vertex of height-field sample (x, y) (clamped into the field), positioned relative to sample
+// (0, 0), with the normal from central differences. The normal depends only on the sample,
+// so triangles of different sizes that share a vertex light it the same (no lighting cracks).
+TerrainVertex heightFieldVertex(std::span<const float> heights_m, int width, int height, double spacing_m, int x, int y);
+
 struct TerrainChunk {
   glm::dvec3 origin_m;   // ENU position of the chunk's SW corner at height 0
   Aabb bounds;           // ENU, double
