@@ -145,7 +145,9 @@ static bool createTerrainMesh(const TerrainLayerConfig& t, const ServiceConfig& 
   m.origin_m = {t.offset_m[0], t.offset_m[1], t.offset_m[2]};
   m.tolerance_px = t.tolerance_px;
   m.budget_ms = t.lodBudget_ms;
-  m.maxTriangles = static_cast<uint64_t>(std::min<int64_t>(config.budgetTriangles, 1 << 20));
+  // Never more than the full-resolution mesh: the node pool and buffers are sized from this.
+  const uint64_t fullResolution = 2ull * static_cast<uint64_t>(m.width - 1) * static_cast<uint64_t>(m.height - 1);
+  m.maxTriangles = std::min({static_cast<uint64_t>(config.budgetTriangles), uint64_t{1} << 20, fullResolution});
   size_t capacity = 0;
   if (t.lod == TerrainLayerConfig::Lod::Roam) {
     lod::RoamConfig rc;
