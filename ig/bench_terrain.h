@@ -10,6 +10,7 @@ namespace ig {
 
 struct TerrainBenchOptions {
   std::string demFile = "data/N57E011.hgt";  // scripts/fetch-data fetches it
+  int syntheticSamples = 0;                  // > 0: a procedural N x N field (30 m) instead of the file
   int frames = 240;                          // flight path length (60 Hz path time)
   int width_px = 1280, height_px = 720;
   bool render = true;                        // the sweep's render_ms / rmse / psnr (needs GL)

@@ -103,6 +103,9 @@ int main(int argc, char** argv) {
       "frame)}, block_triangles_at_equal_error, roam_triangles_at_equal_error, sweep [{tolerance_px,\n"
       "triangles, update_ms, render_ms, rmse, psnr_db}]. Run scripts/fetch-data first.");
   terrain->add_option("--dem", terrainOptions.demFile, "DEM file (.hgt, .tif, 16-bit .png)")->capture_default_str();
+  terrain->add_option("--synthetic", terrainOptions.syntheticSamples,
+                      "Use a procedural N x N mountainous field (30 m spacing) instead of --dem, e.g. 4097")
+      ->check(CLI::Range(2, 16385));
   terrain->add_option("--frames", terrainOptions.frames, "Flight path frames")->capture_default_str()->check(CLI::Range(12, 100000));
   terrain->add_option("--width", terrainOptions.width_px, "Viewport width in pixels")->capture_default_str();
   terrain->add_option("--height", terrainOptions.height_px, "Viewport height in pixels")->capture_default_str();
