@@ -15,6 +15,7 @@
 #include "lod/roam.h"
 #include "lod/geo.h"
 #include "lod/terrain_grid.h"
+#include "lod/triangle_slots.h"
 #include "lod/view.h"
 #include "render/context.h"
 #include "render/renderer.h"
@@ -62,9 +63,11 @@ struct TerrainMeshLayer {
   double heightRange_m = 1.0;
   std::unique_ptr<lod::Roam> roam;
   std::unique_ptr<lod::BlockLod> block;
-  std::vector<lod::RoamTriangle> triangles;
-  std::vector<lod::TerrainVertex> vertices;
-  size_t vertexCount = 0;
+  std::vector<lod::RoamTriangle> triangles;   // this frame's mesh
+  std::unique_ptr<lod::TriangleSlots> slots;  // which buffer slot each triangle occupies
+  std::vector<uint32_t> addedTriangles, addedSlots, freedSlots;
+  std::span<lod::TerrainVertex> gpu;          // the renderer's mapped vertex buffer
+  uint64_t uploadedTriangles = 0;             // written into `gpu` this frame
   double tolerance_px = 1.0;
   double budget_ms = 0.0;
   double nsPerOperation = 2000.0;  // measured, smoothed: turns the time budget into operations
@@ -91,11 +94,20 @@ struct TerrainMeshLayer {
       block->update(view);
       n = block->emitTriangles(triangles);
     }
-    vertexCount = 0;
-    for (size_t i = 0; i < n; ++i)
-      for (const auto& v : triangles[i].v)
-        vertices[vertexCount++] = lod::heightFieldVertex(heights_m, width, height, spacing_m, v.x, v.y);
+    // Write only what changed: freed slots become degenerate, new triangles take slots. The
+    // GPU is idle here (the previous frame ended with glFinish).
+    const lod::TriangleSlots::Changes c =
+        slots->update(std::span(triangles.data(), n), addedTriangles, addedSlots, freedSlots);
+    for (size_t i = 0; i < c.freed; ++i)
+      for (size_t k = 0; k < 3; ++k) gpu[freedSlots[i] * 3 + k] = lod::TerrainVertex{};
+    for (size_t i = 0; i < c.added; ++i) {
+      const lod::RoamTriangle& t = triangles[addedTriangles[i]];
+      for (size_t k = 0; k < 3; ++k)
+        gpu[addedSlots[i] * 3 + k] = lod::heightFieldVertex(heights_m, width, height, spacing_m, t.v[k].x, t.v[k].y);
+    }
+    uploadedTriangles = c.added + c.freed;
   }
+  size_t vertexCount() const { return static_cast<size_t>(slots->highWater()) * 3; }
 };
 
 lod::TerrainGridDesc terrainGridDesc(const TerrainLayerConfig& t) {
@@ -161,7 +173,10 @@ static bool createTerrainMesh(const TerrainLayerConfig& t, const ServiceConfig& 
     capacity = static_cast<size_t>(m.block->blocksX()) * static_cast<size_t>(m.block->blocksY()) * (2 * q * q + 8);
   }
   m.triangles.resize(capacity);
-  m.vertices.resize(capacity * 3);
+  m.slots = std::make_unique<lod::TriangleSlots>(capacity);
+  m.addedTriangles.resize(capacity);
+  m.addedSlots.resize(capacity);
+  m.freedSlots.resize(capacity);
   out = std::move(layer);
   return true;
 }
@@ -226,7 +241,7 @@ struct Service::Impl {
     renderer.beginFrame(cam, lighting);
     if (terrain) renderer.drawTerrain(std::span(terrain->selected.data(), terrain->selectedCount));
     if (terrainMesh)
-      renderer.drawTerrainMesh(terrainMesh->origin_m, std::span(terrainMesh->vertices.data(), terrainMesh->vertexCount));
+      renderer.drawTerrainMesh(terrainMesh->origin_m, terrainMesh->vertexCount());
     return renderer.endFrame();
   }
 
@@ -284,7 +299,8 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
   } else if (scene.terrain) {
     if (!createTerrainMesh(*scene.terrain, config, m.terrainMesh, error)) return nullptr;
     TerrainMeshLayer& t = *m.terrainMesh;
-    if (!m.renderer.addTerrainMesh(t.vertices.size(), t.heightRange_m, error)) return nullptr;
+    if (!m.renderer.addTerrainMesh(t.triangles.size() * 3, t.heightRange_m, error)) return nullptr;
+    t.gpu = m.renderer.terrainMeshVertices();
     s->info_.layers.push_back(scene.terrain->lod == TerrainLayerConfig::Lod::Roam ? "terrain (roam)" : "terrain (block)");
     s->info_.terrainTriangles = 2ull * static_cast<uint64_t>(t.width - 1) * static_cast<uint64_t>(t.height - 1);
   }
@@ -422,6 +438,7 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop) {
 
     // report
     FrameRecord r = Impl::record(st, host_);
+    r.uploads = m.terrainMesh ? m.terrainMesh->uploadedTriangles : 0;
     r.timing = pacer.endFrame();
     r.period_ms = pacer.period_s() * 1e3;
     stats.write(r);

@@ -19,6 +19,7 @@ struct FrameRecord {
   uint64_t triangles = 0;
   uint32_t drawCalls = 0;
   uint32_t passes = 0;          // render passes this frame (one per layer the scene has)
+  uint64_t uploads = 0;         // triangles written to GPU buffers this frame (changed geometry)
   uint64_t hostFrame = 0;
   double simTime_s = 0.0;
   double eyeHeight_m = 0.0;     // height above the ENU origin

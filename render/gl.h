@@ -71,7 +71,8 @@ using PFNIGDRAWARRAYSPROC = void(APIENTRYP)(GLenum mode, GLint first, GLsizei co
   X(PFNGLBLITNAMEDFRAMEBUFFERPROC, BlitNamedFramebuffer)                                              \
   X(PFNGLDRAWELEMENTSBASEVERTEXPROC, DrawElementsBaseVertex)                                          \
   X(PFNIGDRAWARRAYSPROC, DrawArrays)                                                                    \
-  X(PFNGLNAMEDBUFFERSUBDATAPROC, NamedBufferSubData)
+  X(PFNGLNAMEDBUFFERSUBDATAPROC, NamedBufferSubData)                                                  \
+  X(PFNGLMAPNAMEDBUFFERRANGEPROC, MapNamedBufferRange)
 
 struct GlApi {
 #define IG_GL_DECLARE(type, name) type name = nullptr;

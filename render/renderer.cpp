@@ -132,12 +132,22 @@ class TerrainPass {
     gl.CreateBuffers(1, &id);
     dynamicBuffer_ = GlBuffer::wrap(id);
     const auto bytes = static_cast<GLsizeiptr>(capacityVertices * sizeof(lod::TerrainVertex));
-    gl.NamedBufferStorage(id, bytes, nullptr, GL_DYNAMIC_STORAGE_BIT);
+    // Persistently mapped and coherent: the CPU writes changed triangles straight into the
+    // buffer. Safe without fences because every frame ends with glFinish.
+    const GLbitfield flags = GL_MAP_WRITE_BIT | GL_MAP_PERSISTENT_BIT | GL_MAP_COHERENT_BIT;
+    gl.NamedBufferStorage(id, bytes, nullptr, flags);
+    void* mapped = gl.MapNamedBufferRange(id, 0, bytes, flags);
+    if (!mapped) {
+      error = "terrain mesh: cannot map a " + std::to_string(bytes) + "-byte vertex buffer persistently";
+      return false;
+    }
+    mapped_ = std::span(static_cast<lod::TerrainVertex*>(mapped), capacityVertices);
     bytes_ += static_cast<uint64_t>(bytes);
-    dynamicCapacity_ = capacityVertices;
     dynamicArray_ = makeVertexArray(id);
     return true;
   }
+
+  std::span<lod::TerrainVertex> mapped() const { return mapped_; }
 
   void draw(const lod::Camera& camera, const Lighting& lighting, std::span<const uint32_t> chunkIndices,
             RenderStats& stats) {
@@ -155,13 +165,11 @@ class TerrainPass {
     gl.BindVertexArray(0);
   }
 
-  // Uploads `vertices` (a triangle list, at most the capacity) and draws it. Returns the
-  // bytes uploaded.
-  uint64_t drawDynamic(const lod::Camera& camera, const Lighting& lighting, const glm::dvec3& origin_m,
-                       std::span<const lod::TerrainVertex> vertices, RenderStats& stats) {
-    const size_t n = std::min(vertices.size(), dynamicCapacity_) / 3 * 3;
-    if (n == 0) return 0;
-    gl.NamedBufferSubData(dynamicBuffer_.id(), 0, static_cast<GLsizeiptr>(n * sizeof(lod::TerrainVertex)), vertices.data());
+  // Draws the first `count` vertices of the mapped buffer as a triangle list.
+  void drawDynamic(const lod::Camera& camera, const Lighting& lighting, const glm::dvec3& origin_m, size_t count,
+                   RenderStats& stats) {
+    const size_t n = std::min(count, mapped_.size()) / 3 * 3;
+    if (n == 0) return;
     const GLuint p = begin(camera, lighting);
     setOrigin(p, origin_m, camera);
     gl.BindVertexArray(dynamicArray_.id());
@@ -169,7 +177,6 @@ class TerrainPass {
     gl.BindVertexArray(0);
     stats.triangles += n / 3;
     ++stats.drawCalls;
-    return n * sizeof(lod::TerrainVertex);
   }
 
   uint64_t bytes() const { return bytes_; }
@@ -221,7 +228,7 @@ class TerrainPass {
   GlProgram program_;
   GlBuffer vertexBuffer_, indexBuffer_, dynamicBuffer_;
   GlVertexArray vertexArray_, dynamicArray_;
-  size_t dynamicCapacity_ = 0;
+  std::span<lod::TerrainVertex> mapped_;
   std::vector<lod::TerrainChunk> chunks_;
   uint64_t bytes_ = 0;
   float heightScale_ = 1.0f;
@@ -284,8 +291,19 @@ bool Renderer::addTerrainMesh(size_t capacityVertices, double heightScale_m, std
   return true;
 }
 
-uint64_t Renderer::drawTerrainMesh(const glm::dvec3& origin_m, std::span<const lod::TerrainVertex> vertices) {
-  return terrainMesh_ ? terrainMesh_->drawDynamic(camera_, lighting_, origin_m, vertices, stats_) : 0;
+std::span<lod::TerrainVertex> Renderer::terrainMeshVertices() const {
+  return terrainMesh_ ? terrainMesh_->mapped() : std::span<lod::TerrainVertex>{};
+}
+
+void Renderer::drawTerrainMesh(const glm::dvec3& origin_m, size_t vertexCount) {
+  if (terrainMesh_) terrainMesh_->drawDynamic(camera_, lighting_, origin_m, vertexCount, stats_);
+}
+
+void Renderer::drawTerrainMesh(const glm::dvec3& origin_m, std::span<const lod::TerrainVertex> vertices) {
+  const auto dst = terrainMeshVertices();
+  const size_t n = std::min(vertices.size(), dst.size());
+  std::copy_n(vertices.begin(), n, dst.begin());
+  drawTerrainMesh(origin_m, n);
 }
 
 void Renderer::beginFrame(const lod::Camera& camera, const Lighting& lighting) {

@@ -47,15 +47,20 @@ class Renderer {
   bool addTerrain(const lod::TerrainGrid& grid, std::string& error);
   bool hasTerrain() const { return terrain_ != nullptr; }
   // Creates the pass for a terrain triangle list that changes every frame (ROAM, block LOD),
-  // with a vertex buffer of `capacityVertices` allocated once.
+  // with a vertex buffer of `capacityVertices` allocated once and mapped persistently.
   bool addTerrainMesh(size_t capacityVertices, double heightScale_m, std::string& error);
+  // The mapped vertex buffer of the terrain mesh (empty without one): write only what changed
+  // (lod/triangle_slots.h), between frames (every frame ends with glFinish).
+  std::span<lod::TerrainVertex> terrainMeshVertices() const;
 
   // One frame: begin (clear), draw the selected items of each pass, end.
   void beginFrame(const lod::Camera& camera, const Lighting& lighting);
   void drawTerrain(std::span<const uint32_t> chunkIndices);
-  // Uploads and draws a triangle list (3 vertices a triangle, positions relative to
-  // `origin_m`). Returns the bytes uploaded.
-  uint64_t drawTerrainMesh(const glm::dvec3& origin_m, std::span<const lod::TerrainVertex> vertices);
+  // Draws the first `vertexCount` vertices of the mapped buffer (3 a triangle, positions
+  // relative to `origin_m`; degenerate triangles mark free slots).
+  void drawTerrainMesh(const glm::dvec3& origin_m, size_t vertexCount);
+  // Convenience: copies a whole triangle list into the mapped buffer, then draws it.
+  void drawTerrainMesh(const glm::dvec3& origin_m, std::span<const lod::TerrainVertex> vertices);
   RenderStats endFrame();
   // Blocks until the GPU has finished the frame (timing with a monotonic clock: timer
   // queries are not trustworthy on llvmpipe).

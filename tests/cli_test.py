@@ -31,7 +31,7 @@ XVFB_START = 10   # Xvfb until its socket appears
 STATS_COLUMNS = [
     "frame", "t_ms", "period_ms", "interval_ms", "lateness_ms",
     "input_ms", "lod_ms", "submit_ms", "gpu_finish_ms", "present_ms",
-    "work_ms", "overrun", "missed_slots", "triangles", "draw_calls", "passes",
+    "work_ms", "overrun", "missed_slots", "triangles", "draw_calls", "passes", "uploads",
     "host_frame", "sim_time_s", "eye_up_m",
 ]
 

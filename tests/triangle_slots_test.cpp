@@ -1,0 +1,108 @@
+// Stable triangle slots: a simulated vertex buffer that applies only the reported changes
+// always holds exactly the current triangles (plus degenerate free slots), and the changes
+// are proportional to what changed.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <optional>
+#include <random>
+#include <set>
+#include <vector>
+
+#include "lod/triangle_slots.h"
+
+using namespace ig::lod;
+
+namespace {
+
+RoamTriangle tri(int i) { return RoamTriangle{{{i, 0}, {i + 1, 0}, {i, 1}}}; }
+
+using Tri = std::array<std::pair<int, int>, 3>;
+Tri canon(const RoamTriangle& t) {
+  Tri r{{{t.v[0].x, t.v[0].y}, {t.v[1].x, t.v[1].y}, {t.v[2].x, t.v[2].y}}};
+  std::sort(r.begin(), r.end());
+  return r;
+}
+
+struct Buffer {
+  std::vector<std::optional<Tri>> slots;
+  explicit Buffer(size_t n) : slots(n) {}
+  void apply(const TriangleSlots::Changes& c, std::span<const RoamTriangle> tris, const std::vector<uint32_t>& addedT,
+             const std::vector<uint32_t>& addedS, const std::vector<uint32_t>& freed) {
+    for (size_t i = 0; i < c.freed; ++i) slots[freed[i]].reset();  // degenerate
+    for (size_t i = 0; i < c.added; ++i) slots[addedS[i]] = canon(tris[addedT[i]]);
+  }
+  std::multiset<Tri> contents(uint32_t highWater) const {
+    std::multiset<Tri> m;
+    for (uint32_t s = 0; s < highWater; ++s)
+      if (slots[s]) m.insert(*slots[s]);
+    return m;
+  }
+};
+
+}  // namespace
+
+TEST(TriangleSlots, BufferAlwaysHoldsExactlyTheCurrentMesh) {
+  constexpr size_t kCap = 500;
+  TriangleSlots slots(kCap);
+  Buffer buffer(kCap);
+  std::vector<uint32_t> addedT(kCap), addedS(kCap), freed(kCap);
+  std::mt19937 rng(42);
+  std::set<int> current;
+  for (int frame = 0; frame < 300; ++frame) {
+    // Change a few triangles per frame, and everything now and then (a teleport).
+    if (frame % 50 == 49) current.clear();
+    for (int k = 0; k < 10; ++k) {
+      const int id = static_cast<int>(rng() % 1000);
+      if (current.count(id)) current.erase(id);
+      else if (current.size() < 400) current.insert(id);
+    }
+    std::vector<RoamTriangle> tris;
+    for (int id : current) tris.push_back(tri(id));
+    std::shuffle(tris.begin(), tris.end(), rng);  // emit order must not matter
+    const auto c = slots.update(tris, addedT, addedS, freed);
+    ASSERT_FALSE(c.overflow);
+    buffer.apply(c, tris, addedT, addedS, freed);
+    std::multiset<Tri> want;
+    for (const auto& t : tris) want.insert(canon(t));
+    ASSERT_EQ(buffer.contents(slots.highWater()), want) << "frame " << frame;
+    ASSERT_EQ(slots.live(), tris.size());
+    ASSERT_LE(slots.highWater(), 410u);  // slots are reused, not leaked
+  }
+}
+
+TEST(TriangleSlots, UnchangedMeshUploadsNothingAndOneChangeUploadsOne) {
+  TriangleSlots slots(64);
+  std::vector<uint32_t> a(64), s(64), f(64);
+  std::vector<RoamTriangle> tris;
+  for (int i = 0; i < 50; ++i) tris.push_back(tri(i));
+  auto c = slots.update(tris, a, s, f);
+  EXPECT_EQ(c.added, 50u);
+  EXPECT_EQ(c.freed, 0u);
+  c = slots.update(tris, a, s, f);
+  EXPECT_EQ(c.added, 0u);
+  EXPECT_EQ(c.freed, 0u);
+  // The same triangle listed from another vertex is the same triangle.
+  std::rotate(tris[7].v, tris[7].v + 1, tris[7].v + 3);
+  tris[3] = tri(100);
+  c = slots.update(tris, a, s, f);
+  EXPECT_EQ(c.added, 1u);
+  EXPECT_EQ(c.freed, 1u);
+  EXPECT_EQ(s[0], f[0]) << "the freed slot is reused in the same frame";
+}
+
+TEST(TriangleSlots, OverflowAndDuplicatesAreHandled) {
+  TriangleSlots slots(4);
+  std::vector<uint32_t> a(4), s(4), f(4);
+  std::vector<RoamTriangle> tris{tri(0), tri(0), tri(1)};
+  auto c = slots.update(tris, a, s, f);
+  EXPECT_FALSE(c.overflow);
+  EXPECT_EQ(c.added, 2u);  // the duplicate gets no second slot
+  EXPECT_EQ(slots.live(), 2u);
+  tris = {tri(0), tri(1), tri(2), tri(3), tri(4), tri(5)};
+  c = slots.update(tris, a, s, f);
+  EXPECT_TRUE(c.overflow);
+  EXPECT_EQ(slots.live(), 4u);
+  EXPECT_EQ(slots.highWater(), 4u);
+}
