@@ -261,3 +261,49 @@ TEST(ServiceGL, DemTerrainFromAFileAndItsErrors) {
   EXPECT_NE(error.find("missing.hgt"), std::string::npos) << error;
   std::filesystem::remove_all(dir);
 }
+
+TEST(ServiceGL, RoamWritesOnlyChangedTrianglesToTheGpu) {
+  const auto dir = std::filesystem::temp_directory_path() / ("igd_uploads_gltest_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  ServiceConfig cfg;
+  SceneConfig scene;
+  test::defaultConfigs(cfg, scene);
+  scene.terrain->lod = TerrainLayerConfig::Lod::Roam;
+  cfg.host = HostSource::Replay;
+  cfg.replayFile = test::kSource + "/config/recordings/default.rec";
+  cfg.frames = 30;
+  cfg.statsFile = (dir / "stats.csv").string();
+  std::string error;
+  auto service = Service::create(cfg, scene, error);
+  ASSERT_TRUE(service) << error;
+  FakeClock clock;
+  std::atomic<bool> stop{false};
+  ASSERT_EQ(service->run(clock, stop), 0);
+  std::ifstream in(dir / "stats.csv");
+  std::string line;
+  std::getline(in, line);
+  std::vector<std::string> header;
+  for (size_t a = 0, b; a <= line.size(); a = b + 1) {
+    b = std::min(line.find(',', a), line.size());
+    header.push_back(line.substr(a, b - a));
+  }
+  const auto col = [&](const char* name) {
+    return static_cast<size_t>(std::find(header.begin(), header.end(), name) - header.begin());
+  };
+  const size_t tri = col("triangles"), up = col("uploads");
+  ASSERT_LT(up, header.size());
+  std::vector<std::pair<double, double>> rows;  // triangles, uploads
+  while (std::getline(in, line)) {
+    std::vector<std::string> f;
+    for (size_t a = 0, b; a <= line.size(); a = b + 1) {
+      b = std::min(line.find(',', a), line.size());
+      f.push_back(line.substr(a, b - a));
+    }
+    rows.emplace_back(std::stod(f[tri]), std::stod(f[up]));
+  }
+  ASSERT_EQ(rows.size(), 30u);
+  // The first frame writes the mesh; once the camera flies smoothly, a few per cent per frame.
+  EXPECT_GT(rows[0].second, rows[0].first / 2);
+  for (size_t i = 10; i < rows.size(); ++i) EXPECT_LT(rows[i].second, 0.1 * rows[i].first) << "frame " << i;
+  std::filesystem::remove_all(dir);
+}
