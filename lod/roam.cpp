@@ -211,6 +211,28 @@ void Roam::computeBounds() {
   }
 }
 
+bool Roam::splitEnds(int x, int y, RoamVertex& a, RoamVertex& b) const {
+  if (x < 0 || y < 0 || x >= px_ || y >= py_) return false;
+  const int bits = x | y;
+  if (bits == 0) return false;
+  const int h = bits & -bits;  // largest power of two dividing both
+  if (h >= rootSide_) return false;  // a base-square corner
+  const bool xOdd = (x / h) % 2 == 1, yOdd = (y / h) % 2 == 1;
+  if (xOdd && yOdd) {  // square diamond, half side h (same rule as computeBounds)
+    const int s = 2 * h;
+    const bool even = (((x - h) / s) + ((y - h) / s)) % 2 == 0;
+    a = {x - h, even ? y - h : y + h};
+    b = {x + h, even ? y + h : y - h};
+  } else if (xOdd) {  // axis diamond with a horizontal hypotenuse
+    a = {x - h, y};
+    b = {x + h, y};
+  } else {  // vertical hypotenuse
+    a = {x, y - h};
+    b = {x, y + h};
+  }
+  return true;
+}
+
 void Roam::resetToBase() {
   const uint32_t rootPairs = static_cast<uint32_t>(rootsX_ * rootsY_);
   highPairs_ = rootPairs;

@@ -130,6 +130,11 @@ class Roam {
   // counters right. Allocates. Returns false and writes the first problem to *why.
   bool validate(std::string* why) const;
 
+  // The hypotenuse ends of the diamond whose split creates grid vertex (x, y): the vertex
+  // first appears at their midpoint height, which geomorphing starts from. False for
+  // base-square corners (never created by a split) and vertices off the padded grid.
+  bool splitEnds(int x, int y, RoamVertex& a, RoamVertex& b) const;
+
   int maxLevel() const { return maxLevel_; }
   int gridWidth() const { return px_; }   // padded grid vertices per row
   int gridHeight() const { return py_; }

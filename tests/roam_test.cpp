@@ -467,3 +467,60 @@ TEST(Roam, EmitVisibleCullsBehindTheCamera) {
   back.camera.pitch_deg = 10;
   EXPECT_LT(roam.emitVisible(back.camera, vis), nv / 4);
 }
+
+// splitEnds() names the hypotenuse of the diamond that creates a vertex: checked against the
+// real split of every internal node (the apex of each child is the midpoint of the parent's
+// hypotenuse) by refining a small DEM to full resolution and looking at the emitted mesh:
+// every vertex that is not a base corner is the midpoint of its ends, and in the refined
+// mesh one end is the far end of one of the vertex's legs.
+TEST(Roam, SplitEndsAreTheHypotenuseOfTheSplitThatCreatesAVertex) {
+  const int n = 33;
+  std::vector<float> z(static_cast<size_t>(n) * n);
+  for (int y = 0; y < n; ++y)
+    for (int x = 0; x < n; ++x) z[static_cast<size_t>(y) * n + x] = static_cast<float>((x * 7 + y * 13) % 17);
+  Roam roam(z, n, n, 10.0, {0, 0, 0});
+  RoamVertex a, b;
+  EXPECT_FALSE(roam.splitEnds(0, 0, a, b));
+  EXPECT_FALSE(roam.splitEnds(32, 32, a, b));
+  ASSERT_TRUE(roam.splitEnds(16, 16, a, b));  // the root square's centre: its base diagonal
+  EXPECT_EQ(std::abs(a.x - b.x), 32);
+  EXPECT_EQ(std::abs(a.y - b.y), 32);
+  for (int y = 0; y < n; ++y)
+    for (int x = 0; x < n; ++x) {
+      if (!roam.splitEnds(x, y, a, b)) continue;
+      EXPECT_EQ(a.x + b.x, 2 * x);
+      EXPECT_EQ(a.y + b.y, 2 * y);
+    }
+  // In any mesh, a leaf's hypotenuse is the diagonal of the diamond whose split would create
+  // its midpoint: splitEnds(midpoint) must name exactly that edge. Check meshes of several
+  // refinement levels so diamonds of every size and both diagonal directions occur.
+  size_t checked = 0;
+  for (double tol : {8.0, 2.0, 0.5, 0.1}) {
+    RoamView v;
+    v.camera.eye_m = {40, 60, 30};
+    v.camera.heading_deg = 45;
+    v.camera.pitch_deg = -30;
+    v.tolerance_px = tol;
+    v.viewportHeight_px = 1000;
+    roam.update(v, RoamMode::Rebuild);
+    std::vector<RoamTriangle> tris(roam.triangleCount());
+    tris.resize(roam.emitTriangles(tris));
+    for (const auto& t : tris) {
+      for (int k = 0; k < 3; ++k) {
+        const RoamVertex& p = t.v[k];
+        const RoamVertex& q = t.v[(k + 1) % 3];
+        const RoamVertex& r = t.v[(k + 2) % 3];
+        if ((q.x - p.x) * (r.x - p.x) + (q.y - p.y) * (r.y - p.y) != 0) continue;  // p: the right angle
+        if ((q.x + r.x) % 2 != 0 || (q.y + r.y) % 2 != 0) continue;  // finest level: no grid midpoint
+        const int mx = (q.x + r.x) / 2, my = (q.y + r.y) / 2;
+        ASSERT_TRUE(roam.splitEnds(mx, my, a, b)) << mx << "," << my;
+        const bool match = (a.x == q.x && a.y == q.y && b.x == r.x && b.y == r.y) ||
+                           (a.x == r.x && a.y == r.y && b.x == q.x && b.y == q.y);
+        EXPECT_TRUE(match) << "midpoint (" << mx << "," << my << ") of (" << q.x << "," << q.y << ")-(" << r.x << ","
+                           << r.y << ") but splitEnds gives (" << a.x << "," << a.y << ")-(" << b.x << "," << b.y << ")";
+        ++checked;
+      }
+    }
+  }
+  EXPECT_GT(checked, 100u);
+}
