@@ -69,6 +69,7 @@ struct TerrainLayerConfig {
   double pngOffset_m = 0.0;
   double tolerance_px = 1.0;                 // roam / block: screen-space error target
   double lodBudget_ms = 0.0;                 // roam: CPU time for mesh updates per frame, 0 = unlimited
+  double morph_s = 0.0;                      // roam: geomorph time of new vertices, 0 = off
   uint32_t seed = 1;
   double size_m = 8192.0;                    // square side
   double gridStep_m = 32.0;                  // post spacing

@@ -15,6 +15,7 @@
 #include "lod/roam.h"
 #include "lod/geo.h"
 #include "lod/terrain_grid.h"
+#include "lod/geomorph.h"
 #include "lod/triangle_slots.h"
 #include "lod/view.h"
 #include "render/context.h"
@@ -65,6 +66,8 @@ struct TerrainMeshLayer {
   std::unique_ptr<lod::BlockLod> block;
   std::vector<lod::RoamTriangle> triangles;   // this frame's mesh
   std::unique_ptr<lod::TriangleSlots> slots;  // which buffer slot each triangle occupies
+  std::vector<lod::RoamTriangle> slotTriangle;  // the triangle in each slot (x = kFreeSlot: none)
+  std::unique_ptr<lod::Geomorph> morph;       // roam with morph_s > 0
   std::vector<uint32_t> addedTriangles, addedSlots, freedSlots;
   std::span<lod::TerrainVertex> gpu;          // the renderer's mapped vertex buffer
   uint64_t uploadedTriangles = 0;             // written into `gpu` this frame
@@ -73,8 +76,26 @@ struct TerrainMeshLayer {
   double nsPerOperation = 2000.0;  // measured, smoothed: turns the time budget into operations
   uint64_t maxTriangles = 0;
 
+  static constexpr int32_t kFreeSlot = INT32_MIN;
+
+  float sampleHeight(int x, int y) const {
+    x = std::clamp(x, 0, width - 1);
+    y = std::clamp(y, 0, height - 1);
+    return heights_m[static_cast<size_t>(y) * static_cast<size_t>(width) + static_cast<size_t>(x)];
+  }
+
+  void writeTriangle(uint32_t slot, const lod::RoamTriangle& t, double now_s) {
+    for (size_t k = 0; k < 3; ++k) {
+      lod::TerrainVertex v = lod::heightFieldVertex(heights_m, width, height, spacing_m, t.v[k].x, t.v[k].y);
+      if (morph) v.position[2] = morph->height(t.v[k].x, t.v[k].y, v.position[2], now_s);
+      gpu[slot * 3 + k] = v;
+    }
+  }
+
   // lod phase: update the mesh for this view within the time budget, emit what is visible.
-  void select(const lod::Camera& cam, double viewportHeight_px, Clock* clock) {
+  // now_s is the frame's simulation-loop time for geomorphing; NaN = no morphing (one-off
+  // frames converge to the true surface).
+  void select(const lod::Camera& cam, double viewportHeight_px, Clock* clock, double now_s) {
     lod::RoamView view;
     view.camera = cam;
     view.viewportHeight_px = viewportHeight_px;
@@ -89,6 +110,13 @@ struct TerrainMeshLayer {
       const uint64_t ops = st.splits + st.merges + st.enhMerges;
       if (clock && ops >= 16)
         nsPerOperation = 0.8 * nsPerOperation + 0.2 * static_cast<double>(clock->now_ns() - t0) / static_cast<double>(ops);
+      if (morph && std::isfinite(now_s)) {
+        for (const lod::RoamVertex& v : roam->createdVertices()) {
+          lod::RoamVertex a, b;
+          if (roam->splitEnds(v.x, v.y, a, b))
+            morph->start(v.x, v.y, 0.5f * (sampleHeight(a.x, a.y) + sampleHeight(b.x, b.y)), now_s);
+        }
+      }
       n = roam->emitVisible(cam, triangles);
     } else {
       block->update(view);
@@ -98,14 +126,30 @@ struct TerrainMeshLayer {
     // GPU is idle here (the previous frame ended with glFinish).
     const lod::TriangleSlots::Changes c =
         slots->update(std::span(triangles.data(), n), addedTriangles, addedSlots, freedSlots);
-    for (size_t i = 0; i < c.freed; ++i)
+    for (size_t i = 0; i < c.freed; ++i) {
       for (size_t k = 0; k < 3; ++k) gpu[freedSlots[i] * 3 + k] = lod::TerrainVertex{};
+      slotTriangle[freedSlots[i]].v[0].x = kFreeSlot;
+    }
+    const double t = morph && std::isfinite(now_s) ? now_s : 1e300;  // 1e300: every morph finished
     for (size_t i = 0; i < c.added; ++i) {
-      const lod::RoamTriangle& t = triangles[addedTriangles[i]];
-      for (size_t k = 0; k < 3; ++k)
-        gpu[addedSlots[i] * 3 + k] = lod::heightFieldVertex(heights_m, width, height, spacing_m, t.v[k].x, t.v[k].y);
+      slotTriangle[addedSlots[i]] = triangles[addedTriangles[i]];
+      writeTriangle(addedSlots[i], triangles[addedTriangles[i]], t);
     }
     uploadedTriangles = c.added + c.freed;
+    // Geomorph: rewrite the triangles that touch a vertex still on its way to its height, once
+    // more after it arrives (expire() runs after this pass).
+    if (morph && morph->size() > 0) {
+      for (uint32_t s = 0; s < slots->highWater(); ++s) {
+        const lod::RoamTriangle& tri = slotTriangle[s];
+        if (tri.v[0].x == kFreeSlot) continue;
+        if (morph->contains(tri.v[0].x, tri.v[0].y) || morph->contains(tri.v[1].x, tri.v[1].y) ||
+            morph->contains(tri.v[2].x, tri.v[2].y)) {
+          writeTriangle(s, tri, t);
+          ++uploadedTriangles;
+        }
+      }
+      morph->expire(t);
+    }
   }
   size_t vertexCount() const { return static_cast<size_t>(slots->highWater()) * 3; }
 };
@@ -174,6 +218,8 @@ static bool createTerrainMesh(const TerrainLayerConfig& t, const ServiceConfig& 
   }
   m.triangles.resize(capacity);
   m.slots = std::make_unique<lod::TriangleSlots>(capacity);
+  m.slotTriangle.assign(capacity, lod::RoamTriangle{{{TerrainMeshLayer::kFreeSlot, 0}, {0, 0}, {0, 0}}});
+  if (t.morph_s > 0.0 && m.roam) m.morph = std::make_unique<lod::Geomorph>(16384, t.morph_s);
   m.addedTriangles.resize(capacity);
   m.addedSlots.resize(capacity);
   m.freedSlots.resize(capacity);
@@ -227,8 +273,8 @@ struct Service::Impl {
 
   // lod phase: every layer the scene has selects what to draw. `clock` (the frame loop's)
   // lets layers keep to their time budgets; without it they converge fully.
-  void select(const lod::Camera& cam, Clock* clock) {
-    if (terrainMesh) terrainMesh->select(cam, config.height_px, clock);
+  void select(const lod::Camera& cam, Clock* clock, double now_s) {
+    if (terrainMesh) terrainMesh->select(cam, config.height_px, clock, now_s);
     if (terrain) {
       const lod::Frustum fr = lod::makeFrustum(cam);
       terrain->selectedCount =
@@ -344,7 +390,7 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
 FrameRecord Service::renderOnce(const io::HostState& host, render::Image* image) {
   Impl& m = *impl_;
   const lod::Camera cam = m.cameraFor(host);
-  m.select(cam, nullptr);
+  m.select(cam, nullptr, std::nan(""));
   const render::RenderStats st = m.submit(cam);
   m.renderer.finish();
   if (image) m.renderer.readPixels(*image);
@@ -409,7 +455,7 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop) {
 
     // lod
     const lod::Camera cam = m.cameraFor(host_);
-    m.select(cam, &clock);
+    m.select(cam, &clock, pacer.slotTime_s(slot));
     pacer.endPhase(Phase::Lod);
 
     // submit

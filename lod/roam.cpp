@@ -314,6 +314,7 @@ void Roam::splitNode(uint32_t n) {
   const uint32_t c0 = 2 * allocPair(), c1 = c0 + 1;
   Node& nd = nodes_[n];
   const int mx = (nd.lx + nd.rx) / 2, my = (nd.ly + nd.ry) / 2;
+  if (createdCount_ < created_.size()) created_[createdCount_++] = RoamVertex{mx, my};
   Node& a = nodes_[c0];
   Node& b = nodes_[c1];
   a.ax = mx, a.ay = my, a.lx = nd.ax, a.ly = nd.ay, a.rx = nd.lx, a.ry = nd.ly;
@@ -694,6 +695,7 @@ RoamStats Roam::update(const RoamView& view, RoamMode mode) {
   assert(view.viewportHeight_px > 0.0 && "Roam::update: viewportHeight_px must be > 0");
   assert(view.tolerance_px >= 0.0 && "Roam::update: tolerance_px must be >= 0");
   stats_ = RoamStats{};
+  createdCount_ = 0;
   vs_ = makeViewState(view);
   opsLeft_ = view.maxOperations != 0 ? view.maxOperations : std::numeric_limits<uint64_t>::max();
   maxSmallPx_ = 0.0;

@@ -130,6 +130,11 @@ class Roam {
   // counters right. Allocates. Returns false and writes the first problem to *why.
   bool validate(std::string* why) const;
 
+  // Vertices created by splits during the last update() (a diamond split lists its vertex
+  // once per half; at most kCreatedCapacity, the rest are not listed). For geomorphing.
+  static constexpr size_t kCreatedCapacity = 1u << 16;
+  std::span<const RoamVertex> createdVertices() const { return {created_.data(), createdCount_}; }
+
   // The hypotenuse ends of the diamond whose split creates grid vertex (x, y): the vertex
   // first appears at their midpoint height, which geomorphing starts from. False for
   // base-square corners (never created by a split) and vertices off the padded grid.
@@ -232,6 +237,8 @@ class Roam {
   size_t liveNodes_ = 0;
   uint64_t triangles_ = 0;
   std::vector<QueueEntry> splitQ_, mergeQ_;
+  std::vector<RoamVertex> created_ = std::vector<RoamVertex>(kCreatedCapacity);
+  size_t createdCount_ = 0;
   bool splitHeap_ = true, mergeHeap_ = true;  // false while filled unordered (heapified lazily)
   bool mergesCollected_ = false;              // mergeQ_ holds every mergeable diamond
   std::vector<uint32_t> chain_;  // forced-split chain (at most maxLevel + 1 nodes)

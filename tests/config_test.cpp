@@ -558,7 +558,7 @@ TEST(ConfigTerrainLod, DemRoamAndBlockKeysParse) {
   SceneConfig cfg;
   ConfigError error;
   ASSERT_TRUE(parseSceneConfig("[terrain]\nsource = \"dem\"\nlod = \"roam\"\nfile = \"dem/a.hgt\"\n"
-                               "spacing_m = 30\ntolerance_px = 0.5\nlod_budget_ms = 3\npng_scale_m = 0.1\n",
+                               "spacing_m = 30\ntolerance_px = 0.5\nlod_budget_ms = 3\npng_scale_m = 0.1\nmorph_s = 0.4\n",
                                "scene.toml", "/base", cfg, error))
       << error.what();
   ASSERT_TRUE(cfg.terrain);
@@ -569,6 +569,7 @@ TEST(ConfigTerrainLod, DemRoamAndBlockKeysParse) {
   EXPECT_DOUBLE_EQ(cfg.terrain->tolerance_px, 0.5);
   EXPECT_DOUBLE_EQ(cfg.terrain->lodBudget_ms, 3.0);
   EXPECT_DOUBLE_EQ(cfg.terrain->pngScale_m, 0.1);
+  EXPECT_DOUBLE_EQ(cfg.terrain->morph_s, 0.4);
   ASSERT_TRUE(parseSceneConfig("[terrain]\nlod = \"block\"\n", "scene.toml", "/base", cfg, error)) << error.what();
   EXPECT_EQ(cfg.terrain->lod, TerrainLayerConfig::Lod::Block);
   EXPECT_EQ(cfg.terrain->source, TerrainLayerConfig::Source::Procedural);
@@ -587,6 +588,8 @@ TEST(ConfigTerrainLod, ErrorsNameKeyAndValue) {
   EXPECT_EQ(e.value, "\"vdpm\"");
   e = sceneError("[terrain]\ntolerance_px = 0\n");
   EXPECT_EQ(e.key, "terrain.tolerance_px");
+  e = sceneError("[terrain]\nmorph_s = -1\n");
+  EXPECT_EQ(e.key, "terrain.morph_s");
   e = sceneError("[terrain]\ntolerance_px = nan\n");
   EXPECT_EQ(e.key, "terrain.tolerance_px");
 }
