@@ -732,18 +732,22 @@ RoamStats Roam::update(const RoamView& view, RoamMode mode) {
 
 // ---- output ------------------------------------------------------------------------------
 
+bool Roam::emittableLeaf(const Node& nd, ClampedCorners& c) const {
+  if (nd.free || nd.children != kNone) return false;
+  c = {std::min(nd.ax, width_ - 1), std::min(nd.ay, height_ - 1), std::min(nd.lx, width_ - 1),
+       std::min(nd.ly, height_ - 1), std::min(nd.rx, width_ - 1), std::min(nd.ry, height_ - 1)};
+  // Zero area once clamped onto the DEM: nothing to draw.
+  return static_cast<int64_t>(c.rx - c.ax) * (c.ly - c.ay) - static_cast<int64_t>(c.ry - c.ay) * (c.lx - c.ax) != 0;
+}
+
 size_t Roam::emitTriangles(std::span<RoamTriangle> out) const {
   assert(out.size() >= triangleCount() && "Roam::emitTriangles: out smaller than triangleCount()");
   size_t count = 0;
   const uint32_t end = 2 * highPairs_;
   for (uint32_t n = 0; n < end; ++n) {
     const Node& nd = nodes_[n];
-    if (nd.free || nd.children != kNone) continue;
-    // Zero area once clamped onto the DEM: skip.
-    const int ax = std::min(nd.ax, width_ - 1), ay = std::min(nd.ay, height_ - 1);
-    const int lx = std::min(nd.lx, width_ - 1), ly = std::min(nd.ly, height_ - 1);
-    const int rx = std::min(nd.rx, width_ - 1), ry = std::min(nd.ry, height_ - 1);
-    if (static_cast<int64_t>(rx - ax) * (ly - ay) - static_cast<int64_t>(ry - ay) * (lx - ax) == 0) continue;
+    ClampedCorners c;
+    if (!emittableLeaf(nd, c)) continue;
     out[count++] = RoamTriangle{{{nd.ax, nd.ay}, {nd.rx, nd.ry}, {nd.lx, nd.ly}}};
   }
   return count;
@@ -757,11 +761,9 @@ size_t Roam::emitVisible(const Camera& camera, std::span<RoamTriangle> out) cons
   const uint32_t end = 2 * highPairs_;
   for (uint32_t n = 0; n < end; ++n) {
     const Node& nd = nodes_[n];
-    if (nd.free || nd.children != kNone) continue;
-    const int ax = std::min(nd.ax, width_ - 1), ay = std::min(nd.ay, height_ - 1);
-    const int lx = std::min(nd.lx, width_ - 1), ly = std::min(nd.ly, height_ - 1);
-    const int rx = std::min(nd.rx, width_ - 1), ry = std::min(nd.ry, height_ - 1);
-    if (static_cast<int64_t>(rx - ax) * (ly - ay) - static_cast<int64_t>(ry - ay) * (lx - ax) == 0) continue;
+    ClampedCorners c;
+    if (!emittableLeaf(nd, c)) continue;
+    const auto [ax, ay, lx, ly, rx, ry] = c;
     Aabb box;
     box.min = glm::dvec3(std::min({ax, lx, rx}) * spacing_m_, std::min({ay, ly, ry}) * spacing_m_,
                          static_cast<double>(std::min({heightAt(ax, ay), heightAt(lx, ly), heightAt(rx, ry)})));

@@ -182,6 +182,11 @@ class Roam {
   };
   enum class SplitResult { Done, Capped, PoolFull, Budget };
 
+  // Output: a live leaf with non-zero area once its corners are clamped onto the DEM.
+  struct ClampedCorners {
+    int ax, ay, lx, ly, rx, ry;
+  };
+  bool emittableLeaf(const Node& nd, ClampedCorners& c) const;
   // Set-up.
   float heightAt(int x, int y) const;
   Bound diamondBound(const Node& n) const;
