@@ -74,6 +74,9 @@ int main(int argc, char** argv) {
   std::fprintf(stderr, "igd: %s\nigd: scene '%s': layers:%s; %u pass(es), %.1f MiB GPU buffers, %u thread(s)\n",
                info.context.c_str(), scene.name.c_str(), layers.empty() ? " (none)" : layers.c_str(), info.passes,
                static_cast<double>(info.gpuBufferBytes) / (1024.0 * 1024.0), info.threads);
+  if (!info.terrainSource.empty())
+    std::fprintf(stderr, "igd: terrain: %s, built in %.0f ms (load, LOD precomputation, upload)\n",
+                 info.terrainSource.c_str(), info.terrainBuild_ms);
   std::fprintf(stderr, "igd: %dx%d at %.2f Hz%s, %s\n", config.width_px, config.height_px, config.rate_hz,
                config.freeRun ? " (free-run)" : "",
                config.frames > 0 ? (std::to_string(config.frames) + " frames").c_str() : "until SIGTERM");

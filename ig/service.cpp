@@ -1,6 +1,7 @@
 #include "ig/service.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -337,6 +338,7 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
   if (!m.renderer.init(config.width_px, config.height_px, error)) return nullptr;
   s->info_.context = m.context->description();
 
+  const auto terrainStart = std::chrono::steady_clock::now();
   if (scene.terrain && scene.terrain->lod == TerrainLayerConfig::Lod::Grid) {
     m.terrain = std::make_unique<TerrainLayer>(terrainGridDesc(*scene.terrain));
     if (!m.renderer.addTerrain(m.terrain->grid, error)) return nullptr;
@@ -349,6 +351,15 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
     t.gpu = m.renderer.terrainMeshVertices();
     s->info_.layers.push_back(scene.terrain->lod == TerrainLayerConfig::Lod::Roam ? "terrain (roam)" : "terrain (block)");
     s->info_.terrainTriangles = 2ull * static_cast<uint64_t>(t.width - 1) * static_cast<uint64_t>(t.height - 1);
+  }
+  if (scene.terrain) {
+    s->info_.terrainBuild_ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - terrainStart).count();
+    const int w = m.terrainMesh ? m.terrainMesh->width : m.terrain->grid.desc().heights.postsX;
+    const int h = m.terrainMesh ? m.terrainMesh->height : m.terrain->grid.desc().heights.postsY;
+    s->info_.terrainSource = (scene.terrain->source == TerrainLayerConfig::Source::Dem ? scene.terrain->file
+                                                                                        : std::string("procedural")) +
+                             " " + std::to_string(w) + "x" + std::to_string(h);
   }
   if (config.snapshotEvery > 0 || !config.snapshotFrames.empty()) {
     std::error_code ec;
@@ -410,9 +421,9 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop) {
     char runInfo[512];
     std::snprintf(runInfo, sizeof runInfo,
                   "\"rate_hz\":%.3f,\"width_px\":%d,\"height_px\":%d,\"layers\":[%s],\"passes\":%u,"
-                  "\"gpu_buffer_bytes\":%llu,\"threads\":%u",
+                  "\"gpu_buffer_bytes\":%llu,\"threads\":%u,\"terrain_build_ms\":%.1f",
                   cfg.rate_hz, cfg.width_px, cfg.height_px, layers.c_str(), info_.passes,
-                  static_cast<unsigned long long>(info_.gpuBufferBytes), info_.threads);
+                  static_cast<unsigned long long>(info_.gpuBufferBytes), info_.threads, info_.terrainBuild_ms);
     if (!stats.open(cfg.statsFile, cfg.statsFormat, runInfo, error)) {
       std::fprintf(stderr, "igd: %s\n", error.c_str());
       return 1;

@@ -34,6 +34,8 @@ struct ServiceInfo {
   uint64_t gpuBufferBytes = 0;       // bytes of GPU buffers uploaded for layers
   uint32_t threads = 1;              // threads the service runs (1 = render thread only)
   uint64_t terrainTriangles = 0;     // triangles in the whole terrain (0 = no terrain)
+  std::string terrainSource;         // "procedural 257x257" or the DEM file with its size
+  double terrainBuild_ms = 0.0;      // start-up time: load + LOD precomputation + upload
 };
 
 // The terrain grid a scene's [terrain] table describes.
