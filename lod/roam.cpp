@@ -512,40 +512,38 @@ void Roam::pushParentMerges(uint32_t n) {
   }
 }
 
-bool Roam::topSplit(QueueEntry* e) {
-  if (!splitHeap_) {
-    std::make_heap(splitQ_.begin(), splitQ_.end(), SplitLess{});
-    splitHeap_ = true;
+namespace {
+// The top of a lazily heapified queue, popping stale entries (freed or changed nodes) on the way.
+template <class Entry, class Compare, class Valid>
+bool topValid(std::vector<Entry>& q, bool& heapified, Compare cmp, Valid valid, Entry* e) {
+  if (!heapified) {
+    std::make_heap(q.begin(), q.end(), cmp);
+    heapified = true;
   }
-  while (!splitQ_.empty()) {
-    const QueueEntry& t = splitQ_.front();
-    const Node& nd = nodes_[t.node];
-    if (!nd.free && nd.gen == t.gen && nd.children == kNone) {
-      *e = t;
+  while (!q.empty()) {
+    if (valid(q.front())) {
+      *e = q.front();
       return true;
     }
-    std::pop_heap(splitQ_.begin(), splitQ_.end(), SplitLess{});
-    splitQ_.pop_back();
+    std::pop_heap(q.begin(), q.end(), cmp);
+    q.pop_back();
   }
   return false;
 }
+}  // namespace
+
+bool Roam::topSplit(QueueEntry* e) {
+  return topValid(splitQ_, splitHeap_, SplitLess{}, [&](const QueueEntry& t) {
+    const Node& nd = nodes_[t.node];
+    return !nd.free && nd.gen == t.gen && nd.children == kNone;
+  }, e);
+}
 
 bool Roam::topMerge(QueueEntry* e) {
-  if (!mergeHeap_) {
-    std::make_heap(mergeQ_.begin(), mergeQ_.end(), MergeGreater{});
-    mergeHeap_ = true;
-  }
-  while (!mergeQ_.empty()) {
-    const QueueEntry& t = mergeQ_.front();
+  return topValid(mergeQ_, mergeHeap_, MergeGreater{}, [&](const QueueEntry& t) {
     const Node& nd = nodes_[t.node];
-    if (!nd.free && nd.gen == t.gen && mergeable(t.node)) {
-      *e = t;
-      return true;
-    }
-    std::pop_heap(mergeQ_.begin(), mergeQ_.end(), MergeGreater{});
-    mergeQ_.pop_back();
-  }
-  return false;
+    return !nd.free && nd.gen == t.gen && mergeable(t.node);
+  }, e);
 }
 
 void Roam::compactSplit() {
