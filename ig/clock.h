@@ -2,6 +2,7 @@
 // the monotonic clock, tests use FakeClock and step it.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 
 namespace ig {
@@ -21,20 +22,21 @@ class MonotonicClock final : public Clock {
   void sleepUntil_ns(int64_t deadline_ns) override;
 };
 
-// Test clock: time moves only when told to. Sleeping jumps to the deadline.
+// Test clock: time moves only when told to. Sleeping jumps to the deadline. Safe to read from
+// other threads (a host link stamping samples) while the test advances it.
 class FakeClock final : public Clock {
  public:
   explicit FakeClock(int64_t start_ns = 1'000'000'000) : now_(start_ns) {}
-  int64_t now_ns() const override { return now_; }
+  int64_t now_ns() const override { return now_.load(); }
   void sleepUntil_ns(int64_t deadline_ns) override {
     ++sleeps_;
-    if (deadline_ns > now_) now_ = deadline_ns;
+    if (deadline_ns > now_.load()) now_.store(deadline_ns);
   }
   void advance_ns(int64_t d) { now_ += d; }
   int64_t sleeps() const { return sleeps_; }
 
  private:
-  int64_t now_;
+  std::atomic<int64_t> now_;
   int64_t sleeps_ = 0;
 };
 

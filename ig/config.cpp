@@ -43,6 +43,10 @@ const char* toString(HostSource source) {
   switch (source) {
     case HostSource::None: return "none";
     case HostSource::Replay: return "replay";
+    case HostSource::Cigi: return "cigi";
+    case HostSource::Can: return "can";
+    case HostSource::ModbusTcp: return "modbus-tcp";
+    case HostSource::ModbusRtu: return "modbus-rtu";
   }
   return "?";
 }
@@ -472,10 +476,21 @@ bool parseService(const std::string& text, const std::string& name, const std::s
   r.get(stats, "file", cfg.statsFile);
   r.getEnum(stats, "format", cfg.statsFormat, {{"csv", StatsFormat::Csv}, {"jsonl", StatsFormat::JsonLines}});
 
-  const Table host = r.table(root, "host", {"source", "replay_file", "replay_loop"});
-  r.getEnum(host, "source", cfg.host, {{"none", HostSource::None}, {"replay", HostSource::Replay}});
+  const Table host = r.table(root, "host", {"source", "replay_file", "replay_loop", "link_timeout_s",
+                                            "record_file", "cigi", "can", "modbus"});
+  r.getEnum(host, "source", cfg.host,
+            {{"none", HostSource::None}, {"replay", HostSource::Replay}, {"cigi", HostSource::Cigi},
+             {"can", HostSource::Can}, {"modbus-tcp", HostSource::ModbusTcp}, {"modbus-rtu", HostSource::ModbusRtu}});
   r.get(host, "replay_file", cfg.replayFile, false);
   r.get(host, "replay_loop", cfg.replayLoop);
+  r.get(host, "link_timeout_s", cfg.linkTimeout_s, closed(0.01, 3600.0));
+  r.get(host, "record_file", cfg.recordFile);
+  if (!cfg.recordFile.empty() && (cfg.host == HostSource::None || cfg.host == HostSource::Replay)) {
+    if (const toml::node* node = r.find(host, "record_file"))
+      r.fail(*node, "host.record_file",
+             cat("only live host links are recorded (host.source = \"", toString(cfg.host),
+                 "\"; use cigi, can, modbus-tcp or modbus-rtu, or remove record_file)"));
+  }
   if (cfg.host == HostSource::Replay) {
     r.require(host, "replay_file", "host.source = \"replay\" needs the recording to play (or set source = \"none\")");
   }
@@ -495,7 +510,7 @@ bool parseService(const std::string& text, const std::string& name, const std::s
     error = r.error();
     return false;
   }
-  for (std::string* path : {&cfg.snapshotDir, &cfg.statsFile, &cfg.replayFile, &cfg.sceneFile}) {
+  for (std::string* path : {&cfg.snapshotDir, &cfg.statsFile, &cfg.replayFile, &cfg.sceneFile, &cfg.recordFile}) {
     *path = resolvePath(*path, baseDir);
   }
   out = std::move(cfg);

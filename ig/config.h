@@ -13,7 +13,7 @@ namespace ig {
 
 enum class OutputMode { Headless, Window, OSMesa };
 enum class StatsFormat { Csv, JsonLines };
-enum class HostSource { None, Replay };
+enum class HostSource { None, Replay, Cigi, Can, ModbusTcp, ModbusRtu };
 
 const char* toString(OutputMode mode);
 const char* toString(StatsFormat format);
@@ -51,6 +51,8 @@ struct ServiceConfig {
   HostSource host = HostSource::Replay;
   std::string replayFile;                    // timestamped text recording (io/replay.h)
   bool replayLoop = false;                   // restart the recording at its end
+  double linkTimeout_s = 1.0;                // host lost after this long without valid input
+  std::string recordFile;                    // "" = no recording; else accepted host samples go here
   // [scene]
   std::string sceneFile;
   // [budget]

@@ -12,6 +12,8 @@
 #include "ig/systemd.h"
 #include "io/dem.h"
 #include "io/replay.h"
+#include "ig/host_input.h"
+#include "ig/host_links.h"
 #include "lod/block_lod.h"
 #include "lod/roam.h"
 #include "lod/geo.h"
@@ -253,6 +255,8 @@ struct Service::Impl {
   std::unique_ptr<TerrainLayer> terrain;          // lod = "grid"
   std::unique_ptr<TerrainMeshLayer> terrainMesh;  // lod = "roam" | "block"
   std::unique_ptr<io::ReplaySource> replay;
+  MonotonicClock startClock;                 // stamps host samples until run() hands over its clock
+  std::unique_ptr<HostInput> hostInput;      // live link and recorder; only for link sources
   std::optional<lod::EnuFrame> enu;
   render::Lighting lighting;
   SummaryCollector summary{1};
@@ -299,7 +303,10 @@ struct Service::Impl {
     r.passes = st.passes;
     r.hostFrame = host.hostFrame;
     r.simTime_s = host.simTime_s;
+    r.eyeEast_m = host.eyeEnu_m.x;
+    r.eyeNorth_m = host.eyeEnu_m.y;
     r.eyeHeight_m = host.eyeEnu_m.z;
+    r.heading_deg = host.heading_deg;
     return r;
   }
 };
@@ -307,7 +314,8 @@ struct Service::Impl {
 Service::Service() : impl_(std::make_unique<Impl>()) {}
 Service::~Service() = default;
 
-std::unique_ptr<Service> Service::create(const ServiceConfig& config, const SceneConfig& scene, std::string& error) {
+std::unique_ptr<Service> Service::create(const ServiceConfig& config, const SceneConfig& scene, std::string& error,
+                                         std::unique_ptr<io::HostLink> link) {
   std::unique_ptr<Service> s(new Service());
   Impl& m = *s->impl_;
   m.config = config;
@@ -371,10 +379,20 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
     m.snapshots = std::make_unique<SnapshotWriter>(3, config.width_px, config.height_px);
     ++s->info_.threads;
   }
+  const lod::Geodetic origin{scene.originGeodetic[0], scene.originGeodetic[1], scene.originGeodetic[2]};
+  if (!link && isLinkSource(config.host)) {
+    link = makeHostLink(config, origin, error);
+    if (!link) return nullptr;
+  }
+  if (link || !config.recordFile.empty()) {
+    m.hostInput = std::make_unique<HostInput>(s->mailbox_, m.startClock);
+    if (!m.hostInput->start(std::move(link), config.recordFile, config.linkTimeout_s, error)) return nullptr;
+    s->info_.threads += m.hostInput->threads();
+  }
   s->info_.passes = m.renderer.passCount();
   s->info_.gpuBufferBytes = m.renderer.bufferBytes();
 
-  m.enu.emplace(lod::Geodetic{scene.originGeodetic[0], scene.originGeodetic[1], scene.originGeodetic[2]});
+  m.enu.emplace(origin);
   const double az = scene.sun.azimuth_deg * kDeg, el = scene.sun.elevation_deg * kDeg;
   m.lighting.sunDirection = {std::sin(az) * std::cos(el), std::cos(az) * std::cos(el), std::sin(el)};
   m.lighting.sunColor = {scene.sun.color[0], scene.sun.color[1], scene.sun.color[2]};
@@ -431,10 +449,17 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop) {
   }
 
   SystemdNotifier notifier(cfg.watchdogInterval_s);
-  FramePacer pacer(clock, cfg.rate_hz, cfg.freeRun, cfg.budgetFrame_ms);
+  io::HostLink* link = m.hostInput ? m.hostInput->link() : nullptr;
+  // Synchronous host (CIGI sync mode): the host's messages pace the frames; the configured
+  // rate is the fallback when the host is silent (wait at most one period per frame).
+  const bool hostPaced = link != nullptr && link->synchronous();
+  FramePacer pacer(clock, cfg.rate_hz, cfg.freeRun || hostPaced, cfg.budgetFrame_ms);
+  const int64_t loopStart_ns = clock.now_ns();
+  if (m.hostInput) m.hostInput->setTimeBase(clock, loopStart_ns);
   notifier.ready("rendering at " + std::to_string(cfg.rate_hz) + " Hz");
   std::string why;
   bool hostWasBad = false;
+  bool prevOverrun = false;
   char snapshotPath[4096];
 
   while (!stop.load(std::memory_order_relaxed)) {
@@ -444,6 +469,7 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop) {
 
     // input
     if (m.replay) m.replay->advanceTo(pacer.slotTime_s(slot), mailbox_);
+    if (hostPaced) mailbox_.waitNewer(mailboxSequence_, std::chrono::nanoseconds(pacer.period_ns()));
     io::HostState incoming;
     if (mailbox_.readIfNewer(incoming, mailboxSequence_)) {
       if (hostStateValid(incoming, &why)) {
@@ -461,6 +487,16 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop) {
           std::fprintf(stderr, "igd: host sample rejected (%s); keeping the last good eyepoint\n", why.c_str());
         hostWasBad = true;
       }
+    }
+    const bool lost = m.hostInput && m.hostInput->updateLost();
+    if (link) {
+      io::FrameStart fs;
+      fs.igFrame = static_cast<uint32_t>(slot);
+      fs.lastHostFrame = static_cast<uint32_t>(host_.hostFrame);
+      fs.time_s = static_cast<double>(clock.now_ns() - loopStart_ns) * 1e-9;
+      fs.hostLost = lost;
+      fs.overrun = prevOverrun;
+      link->frameStarted(fs);
     }
     pacer.endPhase(Phase::Input);
 
@@ -496,13 +532,23 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop) {
     // report
     FrameRecord r = Impl::record(st, host_);
     r.uploads = m.terrainMesh ? m.terrainMesh->uploadedTriangles : 0;
+    r.hostLost = lost;
     r.timing = pacer.endFrame();
+    prevOverrun = r.timing.overrun;
     r.period_ms = pacer.period_s() * 1e3;
     stats.write(r);
     m.summary.add(r);
     notifier.watchdog(clock.now_ns());
   }
   notifier.stopping();
+  if (m.hostInput) {
+    m.hostInput->stop();
+    const std::string line = m.hostInput->countersLine();
+    if (!line.empty()) std::fprintf(stderr, "%s\n", line.c_str());
+    if (HostRecorder* rec = m.hostInput->recorder())
+      std::fprintf(stderr, "igd: recorded %llu host samples to %s\n", static_cast<unsigned long long>(rec->written()),
+                   rec->file().c_str());
+  }
   if (m.snapshots) {
     m.snapshots->flush();
     if (m.snapshots->failed() > 0 || m.snapshots->dropped() > 0)
@@ -520,6 +566,9 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop) {
   }
   return 0;
 }
+
+const io::HostLink* Service::hostLink() const { return impl_->hostInput ? impl_->hostInput->link() : nullptr; }
+bool Service::hostLost() const { return impl_->hostInput && impl_->hostInput->lost(); }
 
 RunSummary Service::summary() const { return impl_->summary.summarize(impl_->overruns, impl_->missed); }
 

@@ -21,6 +21,7 @@
 #include "ig/config.h"
 #include "ig/stats.h"
 #include "io/host_state.h"
+#include "io/link.h"
 #include "io/mailbox.h"
 #include "lod/terrain_grid.h"
 #include "render/image.h"
@@ -48,7 +49,11 @@ class Service {
  public:
   // Validates data files, creates the GL context and every layer the scene names. Returns
   // nullptr and an error naming the input on failure.
-  static std::unique_ptr<Service> create(const ServiceConfig& config, const SceneConfig& scene, std::string& error);
+  // A live host link ([host] source = cigi, can, modbus-*) is started here, so a port in use
+  // or a missing device stops the service before it reports ready. `link` (tests) replaces
+  // the one the config names.
+  static std::unique_ptr<Service> create(const ServiceConfig& config, const SceneConfig& scene, std::string& error,
+                                         std::unique_ptr<io::HostLink> link = nullptr);
   ~Service();
 
   // Runs the fixed-rate loop until `config.frames` frames, a window close, or `stop`.
@@ -63,6 +68,9 @@ class Service {
   RunSummary summary() const;
   io::LatestValueMailbox<io::HostState>& mailbox() { return mailbox_; }
   uint64_t hostRejected() const { return hostRejected_; }
+  // The live host link, or nullptr (replay, none).
+  const io::HostLink* hostLink() const;
+  bool hostLost() const;
   const io::HostState& currentHost() const { return host_; }
 
  private:

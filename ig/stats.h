@@ -22,7 +22,11 @@ struct FrameRecord {
   uint64_t uploads = 0;         // triangles written to GPU buffers this frame (changed geometry)
   uint64_t hostFrame = 0;
   double simTime_s = 0.0;
+  double eyeEast_m = 0.0;       // eyepoint in the scene's local ENU frame
+  double eyeNorth_m = 0.0;
   double eyeHeight_m = 0.0;     // height above the ENU origin
+  double heading_deg = 0.0;
+  bool hostLost = false;        // no valid host input for longer than [host] link_timeout_s
 };
 
 class StatsWriter {

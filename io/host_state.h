@@ -21,6 +21,10 @@ struct HostState {
   double fovY_deg = 45.0;            // vertical field of view
   double near_m = 0.1;               // near clip plane
   double far_m = 100000.0;           // far clip plane
+  // Date and time for the sun (CIGI Celestial Sphere Control). Negative time / zero date = not
+  // given by the host: the scene's own sun applies.
+  double timeOfDay_h = -1.0;         // UTC hours, 0 <= h < 24
+  int32_t dateYmd = 0;               // UTC date as YYYYMMDD, e.g. 20260621
 };
 
 }  // namespace ig::io

@@ -12,11 +12,14 @@ namespace ig::io {
 namespace {
 
 constexpr std::string_view kMagic = "igd-recording";
-constexpr int kVersion = 1;
+// Version 1 has the first 12 fields; version 2 (written now) adds the date and time of day.
+constexpr int kVersion = 2;
 constexpr const char* kFieldNames[] = {"t_s",         "host_frame", "sim_time_s", "east_m",
                                        "north_m",     "up_m",       "heading_deg", "pitch_deg",
-                                       "roll_deg",    "fovy_deg",   "near_m",     "far_m"};
+                                       "roll_deg",    "fovy_deg",   "near_m",     "far_m",
+                                       "tod_h",       "date_ymd"};
 constexpr size_t kFieldCount = std::size(kFieldNames);
+constexpr size_t kFieldCountV1 = 12;
 // Timestamps are written to 0.1 ms: a sample within that of the replay time is due.
 constexpr double kTimeTolerance_s = 1e-4;
 
@@ -38,6 +41,7 @@ bool parseRecording(std::string_view text, const std::string& name, Recording& o
   Recording rec;
   int lineNo = 0;
   bool sawHeader = false;
+  size_t fields = kFieldCount;
   auto fail = [&](const std::string& msg) {
     error = name + ":" + std::to_string(lineNo) + ": " + msg;
     return false;
@@ -61,16 +65,17 @@ bool parseRecording(std::string_view text, const std::string& name, Recording& o
     }
     if (!sawHeader) {
       double version = 0;
-      if (count != 2 || tokens[0] != kMagic || !parseDouble(tokens[1], version) || version != kVersion)
-        return fail("expected header 'igd-recording 1', got '" + std::string(raw) + "'");
+      if (count != 2 || tokens[0] != kMagic || !parseDouble(tokens[1], version) || (version != 1 && version != 2))
+        return fail("expected header 'igd-recording 2' (or 1), got '" + std::string(raw) + "'");
+      fields = version == 1 ? kFieldCountV1 : kFieldCount;
       sawHeader = true;
       continue;
     }
-    if (count != kFieldCount || !line.empty())
-      return fail("expected " + std::to_string(kFieldCount) + " fields, got " +
+    if (count != fields || !line.empty())
+      return fail("expected " + std::to_string(fields) + " fields, got " +
                   (line.empty() ? std::to_string(count) : std::string("more")));
-    double v[kFieldCount];
-    for (size_t i = 0; i < kFieldCount; ++i) {
+    double v[kFieldCount] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, -1.0, 0};
+    for (size_t i = 0; i < fields; ++i) {
       if (!parseDouble(tokens[i], v[i]) || !std::isfinite(v[i]))
         return fail(std::string(kFieldNames[i]) + " = '" + std::string(tokens[i]) + "': not a finite number");
     }
@@ -87,6 +92,12 @@ bool parseRecording(std::string_view text, const std::string& name, Recording& o
     s.state.fovY_deg = v[9];
     s.state.near_m = v[10];
     s.state.far_m = v[11];
+    s.state.timeOfDay_h = v[12];
+    if (v[13] < 0 || v[13] > 99991231 || v[13] != std::floor(v[13]))
+      return fail("date_ymd = '" + std::string(tokens[13]) + "': not a date YYYYMMDD (0 = none)");
+    s.state.dateYmd = static_cast<int32_t>(v[13]);
+    if (s.state.timeOfDay_h >= 24.0)
+      return fail("tod_h = '" + std::string(tokens[12]) + "': must be < 24 (negative = none)");
     if (s.t_s < 0 || (!rec.samples.empty() && s.t_s < rec.samples.back().t_s))
       return fail("t_s = '" + std::string(tokens[0]) + "': must be >= 0 and non-decreasing");
     if (!(s.state.fovY_deg > 0 && s.state.fovY_deg < 180))
@@ -96,7 +107,7 @@ bool parseRecording(std::string_view text, const std::string& name, Recording& o
                   "': need 0 < near_m < far_m");
     rec.samples.push_back(s);
   }
-  if (!sawHeader) return fail("empty recording: expected header 'igd-recording 1'");
+  if (!sawHeader) return fail("empty recording: expected header 'igd-recording 2'");
   if (rec.samples.empty()) return fail("recording has no samples");
   out = std::move(rec);
   return true;
@@ -113,18 +124,27 @@ bool loadRecording(const std::string& file, Recording& out, std::string& error) 
   return parseRecording(ss.str(), file, out, error);
 }
 
-std::string formatRecording(const Recording& recording) {
+std::string recordingHeader() {
   std::string s = std::string(kMagic) + " " + std::to_string(kVersion) + "\n#";
   for (const char* n : kFieldNames) s += std::string(" ") + n;
-  s += "\n";
-  char buf[320];
-  for (const auto& h : recording.samples) {
-    const HostState& st = h.state;
-    std::snprintf(buf, sizeof buf, "%.4f %llu %.4f %.3f %.3f %.3f %.3f %.3f %.3f %.3f %.3f %.1f\n", h.t_s,
-                  static_cast<unsigned long long>(st.hostFrame), st.simTime_s, st.eyeEnu_m.x, st.eyeEnu_m.y,
-                  st.eyeEnu_m.z, st.heading_deg, st.pitch_deg, st.roll_deg, st.fovY_deg, st.near_m, st.far_m);
-    s += buf;
-  }
+  return s + "\n";
+}
+
+std::string formatSample(const HostSample& h) {
+  // Micrometres and micro-degrees: a recorded live run replays within float precision of what
+  // was rendered live.
+  const HostState& st = h.state;
+  char buf[400];
+  std::snprintf(buf, sizeof buf, "%.6f %llu %.6f %.6f %.6f %.6f %.6f %.6f %.6f %.6f %.6f %.3f %.6f %d\n", h.t_s,
+                static_cast<unsigned long long>(st.hostFrame), st.simTime_s, st.eyeEnu_m.x, st.eyeEnu_m.y,
+                st.eyeEnu_m.z, st.heading_deg, st.pitch_deg, st.roll_deg, st.fovY_deg, st.near_m, st.far_m,
+                st.timeOfDay_h < 0 ? -1.0 : st.timeOfDay_h, static_cast<int>(st.dateYmd));
+  return buf;
+}
+
+std::string formatRecording(const Recording& recording) {
+  std::string s = recordingHeader();
+  for (const auto& h : recording.samples) s += formatSample(h);
   return s;
 }
 

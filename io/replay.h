@@ -2,12 +2,14 @@
 // `igtool make-recording`) and replayed into the frame loop for tests and hardware-in-the-loop
 // runs. Text so a person can read and edit it; '#' starts a comment.
 //
-//   igd-recording 1
-//   # t_s host_frame sim_time_s east_m north_m up_m heading_deg pitch_deg roll_deg fovy_deg near_m far_m
-//   0.000 0 0.000 -1200.0 -1800.0 450.0 35.0 -4.0 0.0 45.0 0.1 100000
+//   igd-recording 2
+//   # t_s host_frame sim_time_s east_m north_m up_m heading_deg pitch_deg roll_deg fovy_deg near_m far_m tod_h date_ymd
+//   0.000 0 0.000 -1200.0 -1800.0 450.0 35.0 -4.0 0.0 45.0 0.1 100000 -1 0
 //
 // t_s is the replay clock (seconds from the start of the replay, non-decreasing); the sample
-// with the largest t_s <= now is the current one.
+// with the largest t_s <= now is the current one. tod_h (UTC hours, negative = not given) and
+// date_ymd (YYYYMMDD, 0 = not given) drive the sun when the host sent them. Version 1 files
+// (the first 12 fields only) are still read.
 #pragma once
 
 #include <string>
@@ -34,6 +36,9 @@ struct Recording {
 bool parseRecording(std::string_view text, const std::string& name, Recording& out, std::string& error);
 bool loadRecording(const std::string& file, Recording& out, std::string& error);
 std::string formatRecording(const Recording& recording);
+// The header lines and one sample line of the current version (the live recorder appends).
+std::string recordingHeader();
+std::string formatSample(const HostSample& sample);
 bool saveRecording(const std::string& file, const Recording& recording, std::string& error);
 
 // The sample current at replay time t_s: the last one with t <= t_s (the first one before it).

@@ -4,7 +4,10 @@
 
 #include <gtest/gtest.h>
 
+#include <fstream>
+#include <map>
 #include <string>
+#include <vector>
 
 #include "ig/app_common.h"
 #include "ig/service.h"
@@ -32,6 +35,30 @@ inline io::HostState defaultHostAt(double t_s) {
   std::string error;
   EXPECT_TRUE(io::loadRecording(kSource + "/config/recordings/default.rec", rec, error)) << error;
   return io::sampleAt(rec, t_s).state;
+}
+
+// The rows of a stats CSV file as column name -> value.
+inline std::vector<std::map<std::string, std::string>> readStatsCsv(const std::string& file) {
+  std::vector<std::map<std::string, std::string>> rows;
+  std::ifstream in(file);
+  std::string line;
+  const auto split = [](const std::string& l) {
+    std::vector<std::string> f;
+    for (size_t a = 0, b; a <= l.size(); a = b + 1) {
+      b = std::min(l.find(',', a), l.size());
+      f.push_back(l.substr(a, b - a));
+    }
+    return f;
+  };
+  if (!std::getline(in, line)) return rows;
+  const std::vector<std::string> header = split(line);
+  while (std::getline(in, line)) {
+    const std::vector<std::string> f = split(line);
+    std::map<std::string, std::string> row;
+    for (size_t i = 0; i < header.size() && i < f.size(); ++i) row[header[i]] = f[i];
+    rows.push_back(std::move(row));
+  }
+  return rows;
 }
 
 }  // namespace ig::test

@@ -40,7 +40,7 @@ TEST(Replay, ParsesFieldsWithUnits) {
 }
 
 TEST(Replay, ErrorsNameFileLineFieldAndValue) {
-  EXPECT_EQ(parseError("bogus 1\n"), "rec.txt:1: expected header 'igd-recording 1', got 'bogus 1'");
+  EXPECT_EQ(parseError("bogus 1\n"), "rec.txt:1: expected header 'igd-recording 2' (or 1), got 'bogus 1'");
   EXPECT_EQ(parseError("igd-recording 1\n0 0 0 1 2 3 4 5 6 45 0.1\n"), "rec.txt:2: expected 12 fields, got 11");
   EXPECT_EQ(parseError("igd-recording 1\n0 0 0 1 nan 3 4 5 6 45 0.1 1000\n"),
             "rec.txt:2: north_m = 'nan': not a finite number");
@@ -53,7 +53,7 @@ TEST(Replay, ErrorsNameFileLineFieldAndValue) {
   EXPECT_EQ(parseError("igd-recording 1\n0 1.5 0 1 2 3 4 5 6 45 0.1 1000\n"),
             "rec.txt:2: host_frame = '1.5': not a non-negative integer");
   EXPECT_EQ(parseError("igd-recording 1\n"), "rec.txt:1: recording has no samples");
-  EXPECT_EQ(parseError(""), "rec.txt:0: empty recording: expected header 'igd-recording 1'");
+  EXPECT_EQ(parseError(""), "rec.txt:0: empty recording: expected header 'igd-recording 2'");
 }
 
 TEST(Replay, TruncatedAtEveryLengthFailsCleanlyOrParsesAPrefix) {
@@ -129,4 +129,46 @@ TEST(Replay, LoopingRestartsAtTheBeginning) {
   EXPECT_TRUE(src.advanceTo(1.6, box));  // 0.6 into the second loop
   ASSERT_TRUE(box.readIfNewer(out, seq));
   EXPECT_EQ(out.hostFrame, 1u);
+}
+
+TEST(Replay, Version2CarriesTimeOfDayAndDate) {
+  Recording r;
+  std::string e;
+  ASSERT_TRUE(parseRecording("igd-recording 2\n0 7 1.5 1 2 3 4 5 6 45 0.1 1000 13.25 20260621\n"
+                             "0.1 8 1.6 1 2 3 4 5 6 45 0.1 1000 -1 0\n",
+                             "rec.txt", r, e))
+      << e;
+  ASSERT_EQ(r.samples.size(), 2u);
+  EXPECT_DOUBLE_EQ(r.samples[0].state.timeOfDay_h, 13.25);
+  EXPECT_EQ(r.samples[0].state.dateYmd, 20260621);
+  EXPECT_LT(r.samples[1].state.timeOfDay_h, 0.0);
+  // Version 1 files leave the sun to the scene.
+  ASSERT_TRUE(parseRecording(kGood, "rec.txt", r, e)) << e;
+  EXPECT_LT(r.samples[0].state.timeOfDay_h, 0.0);
+  EXPECT_EQ(r.samples[0].state.dateYmd, 0);
+  EXPECT_EQ(parseError("igd-recording 2\n0 0 0 1 2 3 4 5 6 45 0.1 1000\n"), "rec.txt:2: expected 14 fields, got 12");
+  EXPECT_EQ(parseError("igd-recording 2\n0 0 0 1 2 3 4 5 6 45 0.1 1000 24 0\n"),
+            "rec.txt:2: tod_h = '24': must be < 24 (negative = none)");
+  EXPECT_EQ(parseError("igd-recording 2\n0 0 0 1 2 3 4 5 6 45 0.1 1000 1 2026.5\n"),
+            "rec.txt:2: date_ymd = '2026.5': not a date YYYYMMDD (0 = none)");
+}
+
+TEST(Replay, SampleLinesRoundTripToAMicrometre) {
+  HostSample h;
+  h.t_s = 12.3456789;
+  h.state.hostFrame = 42;
+  h.state.eyeEnu_m = {1234567.1234567, -7654321.7654321, 10000.000001};
+  h.state.heading_deg = 359.999999;
+  h.state.timeOfDay_h = 6.5;
+  h.state.dateYmd = 20261123;
+  Recording r;
+  std::string e;
+  ASSERT_TRUE(parseRecording(recordingHeader() + formatSample(h), "rec.txt", r, e)) << e;
+  const HostState& s = r.samples.at(0).state;
+  EXPECT_NEAR(s.eyeEnu_m.x, h.state.eyeEnu_m.x, 1e-6);
+  EXPECT_NEAR(s.eyeEnu_m.y, h.state.eyeEnu_m.y, 1e-6);
+  EXPECT_NEAR(s.eyeEnu_m.z, h.state.eyeEnu_m.z, 1e-6);
+  EXPECT_NEAR(s.heading_deg, h.state.heading_deg, 1e-6);
+  EXPECT_EQ(s.dateYmd, 20261123);
+  EXPECT_EQ(s.hostFrame, 42u);
 }

@@ -1,0 +1,87 @@
+// Host links: how a host simulator's packets become HostState samples for the frame loop.
+//
+// Each link (CIGI over UDP, SocketCAN, Modbus TCP/RTU) is a thin transport around a pure
+// decoder. The link owns one receive thread, started only when the [host] source names it (a
+// service without a host link runs no link thread). It assembles the fields it receives into a
+// complete HostState and hands it to the HostSink, which publishes it to the frame loop's
+// latest-value mailbox and, when configured, appends it to a recording.
+//
+// Bad input never stops a link: a packet that cannot be decoded counts as `malformed`; a
+// decoded field that is NaN or out of range is dropped on its own (the field keeps its last
+// good value) and counts as `outOfRange`; the rest of the packet still applies.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <string>
+#include <string_view>
+
+#include "io/host_state.h"
+
+namespace ig::io {
+
+// Counters per link. Written by the link's thread, read by the service for logs, status and
+// the Start of Frame; monotonic for the life of the link.
+struct LinkCounters {
+  std::atomic<uint64_t> received{0};    // datagrams / CAN frames / Modbus requests read from the transport
+  std::atomic<uint64_t> accepted{0};    // messages decoded and applied (possibly with some fields rejected)
+  std::atomic<uint64_t> malformed{0};   // messages that could not be decoded (size, header, magic, sequence)
+  std::atomic<uint64_t> outOfRange{0};  // fields rejected one by one: NaN, infinite or outside their range
+  std::atomic<uint64_t> late{0};        // messages older than one already applied (timestamp or counter went back)
+  std::atomic<uint64_t> dropped{0};     // complete samples overwritten before the frame loop read them, or lost sets
+};
+
+struct LinkCountersSnapshot {
+  uint64_t received = 0, accepted = 0, malformed = 0, outOfRange = 0, late = 0, dropped = 0;
+};
+
+inline LinkCountersSnapshot snapshot(const LinkCounters& c) {
+  LinkCountersSnapshot s;
+  s.received = c.received.load(std::memory_order_relaxed);
+  s.accepted = c.accepted.load(std::memory_order_relaxed);
+  s.malformed = c.malformed.load(std::memory_order_relaxed);
+  s.outOfRange = c.outOfRange.load(std::memory_order_relaxed);
+  s.late = c.late.load(std::memory_order_relaxed);
+  s.dropped = c.dropped.load(std::memory_order_relaxed);
+  return s;
+}
+
+// Where a link delivers complete host samples. Called from the link's thread; must be cheap
+// and thread-safe (the service's sink copies into the mailbox and the recorder's queue).
+class HostSink {
+ public:
+  virtual ~HostSink() = default;
+  virtual void publish(const HostState& state) = 0;
+};
+
+// What the frame loop tells a link at the start of every frame (CIGI answers with a Start of
+// Frame packet; other links may ignore it).
+struct FrameStart {
+  uint32_t igFrame = 0;        // IG frame number, counts up from 0
+  uint32_t lastHostFrame = 0;  // host frame number of the sample this frame renders
+  double time_s = 0.0;         // IG time: seconds since the frame loop started (monotonic)
+  bool hostLost = false;       // no valid host input for longer than [host] link_timeout_s
+  bool overrun = false;        // the previous frame overran its budget
+};
+
+class HostLink {
+ public:
+  virtual ~HostLink() = default;
+  virtual std::string_view name() const = 0;
+  // Opens the transport and starts the receive thread. On failure returns false and sets
+  // `error` naming the address/device and the reason; nothing is left running.
+  virtual bool start(HostSink& sink, std::string& error) = 0;
+  // Stops and joins the receive thread; closes the transport. Idempotent.
+  virtual void stop() = 0;
+  // Called by the frame loop once per frame, after input was read. Must not block.
+  virtual void frameStarted(const FrameStart& /*frame*/) {}
+  // true: the host drives the frame rate (CIGI synchronous mode): the frame loop waits for a
+  // new host sample before each frame, up to one frame period.
+  virtual bool synchronous() const { return false; }
+  const LinkCounters& counters() const { return counters_; }
+
+ protected:
+  LinkCounters counters_;
+};
+
+}  // namespace ig::io
