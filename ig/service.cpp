@@ -12,6 +12,7 @@
 #include "ig/systemd.h"
 #include "io/dem.h"
 #include "io/replay.h"
+#include "lod/sun.h"
 #include "ig/host_input.h"
 #include "ig/host_links.h"
 #include "lod/block_lod.h"
@@ -287,9 +288,25 @@ struct Service::Impl {
     }
   }
 
+  // The scene's fixed sun, or the sun for the host's date and time of day at the eyepoint
+  // (no date: the March equinox). Night dims sun, ambient light and sky together.
+  render::Lighting lightingFor(const io::HostState& h) const {
+    if (h.timeOfDay_h < 0.0) return lighting;
+    const lod::Geodetic g = enu->toGeodetic(h.eyeEnu_m);
+    const lod::SunPosition sun = lod::sunPosition(h.dateYmd != 0 ? h.dateYmd : 20260320, h.timeOfDay_h, g.lat_deg, g.lon_deg);
+    const double az = sun.azimuth_deg * kDeg, el = sun.elevation_deg * kDeg;
+    const double day = lod::sunlightFraction(sun.elevation_deg);
+    render::Lighting l = lighting;
+    l.sunDirection = {std::sin(az) * std::cos(el), std::cos(az) * std::cos(el), std::sin(el)};
+    l.sunColor = lighting.sunColor * day;
+    l.ambient = lighting.ambient * (0.15 + 0.85 * day);
+    l.fogColor = lighting.fogColor * (0.08 + 0.92 * day);
+    return l;
+  }
+
   // submit phase: the selections become GL work.
-  render::RenderStats submit(const lod::Camera& cam) {
-    renderer.beginFrame(cam, lighting);
+  render::RenderStats submit(const lod::Camera& cam, const io::HostState& host) {
+    renderer.beginFrame(cam, lightingFor(host));
     if (terrain) renderer.drawTerrain(std::span(terrain->selected.data(), terrain->selectedCount));
     if (terrainMesh)
       renderer.drawTerrainMesh(terrainMesh->origin_m, terrainMesh->vertexCount());
@@ -420,7 +437,7 @@ FrameRecord Service::renderOnce(const io::HostState& host, render::Image* image)
   Impl& m = *impl_;
   const lod::Camera cam = m.cameraFor(host);
   m.select(cam, nullptr, std::nan(""));
-  const render::RenderStats st = m.submit(cam);
+  const render::RenderStats st = m.submit(cam, host);
   m.renderer.finish();
   if (image) m.renderer.readPixels(*image);
   return Impl::record(st, host);
@@ -506,7 +523,7 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop) {
     pacer.endPhase(Phase::Lod);
 
     // submit
-    const render::RenderStats st = m.submit(cam);
+    const render::RenderStats st = m.submit(cam, host_);
     pacer.endPhase(Phase::Submit);
 
     // gpu

@@ -265,3 +265,32 @@ TEST(HostInputGL, RecordFileThatCannotBeWrittenIsNamed) {
   EXPECT_FALSE(Service::create(cfg, scene, error, std::move(link)));
   EXPECT_NE(error.find("host.record_file '/nonexistent-dir/x.rec': cannot write"), std::string::npos) << error;
 }
+
+TEST(HostInputGL, HostTimeOfDayDrivesTheSun) {
+  ServiceConfig cfg;
+  SceneConfig scene;
+  test::defaultConfigs(cfg, scene);
+  std::string error;
+  auto service = Service::create(cfg, scene, error);
+  ASSERT_TRUE(service) << error;
+  const auto meanLuma = [&](double tod_h, int32_t date) {
+    io::HostState h = test::defaultHostAt(5.0);
+    h.timeOfDay_h = tod_h;
+    h.dateYmd = date;
+    render::Image img;
+    service->renderOnce(h, &img);
+    double sum = 0;
+    for (size_t i = 0; i < img.rgba.size(); i += 4) sum += img.rgba[i] + img.rgba[i + 1] + img.rgba[i + 2];
+    return sum / static_cast<double>(img.rgba.size() / 4 * 3);
+  };
+  // The default scene sits at 46.5 N, 7.9 E (UTC+0:32 solar): noon is bright, midnight dark,
+  // and no time of day keeps the scene's own sun.
+  const double noon = meanLuma(11.5, 20260621), midnight = meanLuma(23.5, 20260621);
+  const double sceneSun = meanLuma(-1.0, 0);
+  EXPECT_GT(noon, 4.0 * midnight) << noon << " vs " << midnight;
+  EXPECT_GT(noon, 60.0);
+  EXPECT_LT(midnight, 30.0);
+  EXPECT_GT(sceneSun, 60.0);
+  // Winter noon is lower in the sky than summer noon: less light on the ground.
+  EXPECT_LT(meanLuma(11.5, 20261221), noon);
+}

@@ -8,6 +8,7 @@
 
 #include "lod/geo.h"
 #include "lod/heightfield.h"
+#include "lod/sun.h"
 #include "lod/terrain_grid.h"
 #include "lod/view.h"
 
@@ -187,4 +188,77 @@ TEST(TerrainGrid, SelectionIsFrustumCulled) {
   EXPECT_EQ(g.select(makeFrustum(c), c.eye_m, 0, out), 0u);
   c.heading_deg = 180;  // looking away from the terrain
   EXPECT_EQ(g.select(makeFrustum(c), c.eye_m, UINT64_MAX, out), 0u);
+}
+
+// Frames of reference for host links: a scene origin at a pole, across the antimeridian, and
+// an eyepoint 10 km up all convert geodetic -> ENU -> geodetic without loss.
+TEST(Geo, EnuAtThePolesAcrossTheAntimeridianAndAt10km) {
+  struct Case {
+    Geodetic origin, point;
+  };
+  const Case cases[] = {
+      {{90, 0, 0}, {89.99, 0, 0}},          // north pole origin, 1.1 km along lon 0
+      {{90, 0, 0}, {89.99, 90, 100}},       // ... and along lon 90
+      {{-90, 0, 0}, {-89.95, -135, 2000}},  // south pole
+      {{0, 180, 0}, {0.01, -179.99, 0}},    // across the antimeridian, ~1.1 km east, north
+      {{52, -179.995, 0}, {52, 179.995, 0}},  // 690 m west across it
+      {{46.5, 7.9, 500}, {46.5, 7.9, 10500}},  // straight up 10 km
+      {{46.5, 7.9, 500}, {46.6, 8.0, 10000}},  // 10 km altitude, 13 km away
+  };
+  for (const Case& c : cases) {
+    const EnuFrame f(c.origin);
+    const glm::dvec3 enu = f.fromGeodetic(c.point);
+    // The straight-line (ECEF) distance is preserved by the rotation.
+    const double ecefDistance = glm::length(geodeticToEcef(c.point) - geodeticToEcef(c.origin));
+    EXPECT_NEAR(glm::length(enu), ecefDistance, 1e-6) << c.origin.lat_deg << "," << c.origin.lon_deg;
+    const Geodetic back = f.toGeodetic(enu);
+    EXPECT_NEAR(back.lat_deg, c.point.lat_deg, 1e-9);
+    EXPECT_NEAR(back.height_m, c.point.height_m, 1e-5);
+    if (std::abs(c.point.lat_deg) < 90) {
+      EXPECT_NEAR(std::remainder(back.lon_deg - c.point.lon_deg, 360.0), 0.0, 1e-9);
+    }
+  }
+  // Across the antimeridian east stays continuous: 0.01 deg of longitude at the equator is
+  // 1113.2 m east, not 40,000 km west.
+  const glm::dvec3 e = EnuFrame({0, 180, 0}).fromGeodetic({0, -179.99, 0});
+  EXPECT_NEAR(e.x, 1113.19, 0.01);
+  const glm::dvec3 w = EnuFrame({52, -179.995, 0}).fromGeodetic({52, 179.995, 0});
+  // The parallel at 52 deg has radius N cos(lat) = 3,934.9 km: 0.01 deg is 686.78 m.
+  EXPECT_NEAR(w.x, -686.78, 0.01);
+  EXPECT_NEAR(w.y, 0.0, 0.1);
+  // 10 km straight up is +z only.
+  const glm::dvec3 up = EnuFrame({46.5, 7.9, 500}).fromGeodetic({46.5, 7.9, 10500});
+  EXPECT_NEAR(up.z, 10000.0, 1e-6);
+  EXPECT_NEAR(up.x, 0.0, 1e-6);
+  EXPECT_NEAR(up.y, 0.0, 1e-6);
+  // At the north pole the frame is still orthonormal: two points on the same parallel, 90
+  // degrees of longitude apart, are sqrt(2) times their horizontal distance from the pole apart.
+  const EnuFrame pole({90, 0, 0});
+  const glm::dvec3 a = pole.fromGeodetic({89.99, 0, 0}), b = pole.fromGeodetic({89.99, 90, 0});
+  EXPECT_NEAR(a.z, b.z, 1e-9);
+  EXPECT_NEAR(glm::length(a - b), std::sqrt(2.0) * std::hypot(a.x, a.y), 1e-6);
+}
+
+TEST(Sun, ElevationAtNoonMidnightAndEquinoxSunrise) {
+  // Equinox 2026-03-20, equator, solar noon (~12:07 UTC at lon 0): nearly overhead.
+  EXPECT_GT(sunPosition(20260320, 12.12, 0.0, 0.0).elevation_deg, 89.0);
+  // Summer solstice at 52 N, lon 0, 12:02 UTC: 90 - 52 + 23.44 = 61.4 degrees, due south.
+  const SunPosition june = sunPosition(20260621, 12.03, 52.0, 0.0);
+  EXPECT_NEAR(june.elevation_deg, 61.44, 0.3);
+  EXPECT_NEAR(june.azimuth_deg, 180.0, 2.0);
+  // Winter solstice: 90 - 52 - 23.44 = 14.6 degrees.
+  EXPECT_NEAR(sunPosition(20261221, 11.97, 52.0, 0.0).elevation_deg, 14.56, 0.3);
+  // Midnight is night; sunrise at the equinox on the equator is due east.
+  EXPECT_LT(sunPosition(20260621, 0.0, 52.0, 0.0).elevation_deg, -10.0);
+  const SunPosition morning = sunPosition(20260320, 6.5, 0.0, 0.0);
+  EXPECT_NEAR(morning.azimuth_deg, 90.0, 1.0);
+  EXPECT_GT(morning.elevation_deg, 0.0);
+  EXPECT_LT(morning.elevation_deg, 10.0);
+  // Longitude shifts local noon: 90 E has its noon six hours earlier.
+  EXPECT_NEAR(sunPosition(20260621, 6.03, 52.0, 90.0).elevation_deg, 61.44, 0.3);
+  // Daylight fades smoothly through twilight.
+  EXPECT_EQ(sunlightFraction(-10.0), 0.0);
+  EXPECT_EQ(sunlightFraction(30.0), 1.0);
+  EXPECT_GT(sunlightFraction(0.0), 0.2);
+  EXPECT_LT(sunlightFraction(0.0), 0.8);
 }
