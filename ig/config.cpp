@@ -495,6 +495,38 @@ bool parseService(const std::string& text, const std::string& name, const std::s
     r.require(host, "replay_file", "host.source = \"replay\" needs the recording to play (or set source = \"none\")");
   }
 
+  const Table cigi = r.table(host, "cigi", {"bind_address", "port", "host_address", "host_port", "sync",
+                                            "entity_id", "view_id", "database"});
+  r.get(cigi, "bind_address", cfg.cigi.bind_address, false);
+  r.get(cigi, "port", cfg.cigi.port, IntRange{1, 65535});
+  r.get(cigi, "host_address", cfg.cigi.host_address);
+  r.get(cigi, "host_port", cfg.cigi.host_port, IntRange{1, 65535});
+  r.get(cigi, "sync", cfg.cigi.sync);
+  r.get(cigi, "entity_id", cfg.cigi.entity_id, IntRange{0, 65535});
+  r.get(cigi, "view_id", cfg.cigi.view_id, IntRange{0, 65535});
+  r.get(cigi, "database", cfg.cigi.database, IntRange{-1, 127});
+
+  const Table can = r.table(host, "can", {"interface", "base_id", "stale_ms"});
+  r.get(can, "interface", cfg.can.interface, false);
+  r.get(can, "base_id", cfg.can.baseId, IntRange{0, 0x7FB});
+  r.get(can, "stale_ms", cfg.can.stale_ms, IntRange{1, 60000});
+
+  const Table modbus = r.table(host, "modbus", {"tcp_address", "tcp_port", "unit_id", "serial_device", "baud",
+                                                "parity", "data_bits", "stop_bits", "word_order"});
+  r.get(modbus, "tcp_address", cfg.modbus.tcpAddress, false);
+  r.get(modbus, "tcp_port", cfg.modbus.tcpPort, IntRange{1, 65535});
+  r.get(modbus, "unit_id", cfg.modbus.unitId, IntRange{1, 247});
+  r.get(modbus, "serial_device", cfg.modbus.serialDevice, false);
+  r.get(modbus, "baud", cfg.modbus.baud, IntRange{1200, 1000000});
+  r.getEnum(modbus, "parity", cfg.modbus.parity, {{"N", 'N'}, {"E", 'E'}, {"O", 'O'}});
+  r.get(modbus, "data_bits", cfg.modbus.dataBits, IntRange{7, 8});
+  r.get(modbus, "stop_bits", cfg.modbus.stopBits, IntRange{1, 2});
+  r.getEnum(modbus, "word_order", cfg.modbus.wordOrder,
+            {{"low_first", io::modbus::WordOrder::LowFirst}, {"high_first", io::modbus::WordOrder::HighFirst}});
+  if (cfg.host == HostSource::ModbusRtu) {
+    r.require(modbus, "serial_device", "host.source = \"modbus-rtu\" needs the serial line (e.g. \"/dev/ttyUSB0\")");
+  }
+
   const Table scene = r.table(root, "scene", {"file"});
   r.get(scene, "file", cfg.sceneFile, false);
   r.require(scene, "file", "path of the scene file ([scene] file = \"scenes/default.toml\")");

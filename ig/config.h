@@ -9,6 +9,10 @@
 #include <string>
 #include <vector>
 
+#include "io/can_map.h"
+#include "io/cigi_link.h"
+#include "io/modbus_link.h"
+
 namespace ig {
 
 enum class OutputMode { Headless, Window, OSMesa };
@@ -53,6 +57,9 @@ struct ServiceConfig {
   bool replayLoop = false;                   // restart the recording at its end
   double linkTimeout_s = 1.0;                // host lost after this long without valid input
   std::string recordFile;                    // "" = no recording; else accepted host samples go here
+  io::CigiLinkConfig cigi;                   // [host.cigi]   when source = "cigi"
+  io::CanLinkConfig can;                     // [host.can]    when source = "can"
+  io::ModbusLinkConfig modbus;               // [host.modbus] when source = "modbus-tcp" / "modbus-rtu"
   // [scene]
   std::string sceneFile;
   // [budget]

@@ -35,6 +35,13 @@ class FramePacer {
   // budget_ms > 0: a frame whose work exceeds it is an overrun; 0: the frame period.
   FramePacer(Clock& clock, double rate_hz, bool freeRun, double budget_ms = 0.0);
 
+  // Fixes the loop start (slot 0) at `t0_ns` instead of the first beginFrame's time, so other
+  // clocks of the frame loop (host sample stamps) share its time base. Before the first frame.
+  void startAt(int64_t t0_ns) {
+    started_ = true;
+    t0_ns_ = t0_ns;
+    prevStart_ns_ = t0_ns;
+  }
   // Sleeps until the next slot and starts the frame; returns its slot number.
   int64_t beginFrame();
   // Ends the phase that began at the previous mark (frame start or previous endPhase).

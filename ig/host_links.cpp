@@ -1,5 +1,15 @@
 #include "ig/host_links.h"
 
+#if IG_LINK_CIGI
+#include "io/cigi_link.h"
+#endif
+#if IG_LINK_CAN
+#include "io/can_link.h"
+#endif
+#if IG_LINK_MODBUS
+#include "io/modbus_link.h"
+#endif
+
 namespace ig {
 
 bool isLinkSource(HostSource source) {
@@ -14,9 +24,32 @@ bool isLinkSource(HostSource source) {
   return false;
 }
 
-std::unique_ptr<io::HostLink> makeHostLink(const ServiceConfig& config, const lod::Geodetic& /*origin*/,
+std::unique_ptr<io::HostLink> makeHostLink(const ServiceConfig& config, const lod::Geodetic& origin,
                                            std::string& error) {
-  error = std::string("host.source = \"") + toString(config.host) + "\": this link is not built yet";
+  [[maybe_unused]] const auto& o = origin;
+  switch (config.host) {
+#if IG_LINK_CIGI
+    case HostSource::Cigi:
+      if (!io::validateCigiLinkConfig(config.cigi, error)) return nullptr;
+      return io::makeCigiLink(config.cigi, o);
+#endif
+#if IG_LINK_CAN
+    case HostSource::Can:
+      if (!io::validateCanLinkConfig(config.can, error)) return nullptr;
+      return io::makeCanLink(config.can, o);
+#endif
+#if IG_LINK_MODBUS
+    case HostSource::ModbusTcp:
+      if (!io::validateModbusLinkConfig(config.modbus, io::ModbusTransport::Tcp, error)) return nullptr;
+      return io::makeModbusTcpLink(config.modbus, o);
+    case HostSource::ModbusRtu:
+      if (!io::validateModbusLinkConfig(config.modbus, io::ModbusTransport::Rtu, error)) return nullptr;
+      return io::makeModbusRtuLink(config.modbus, o);
+#endif
+    default: break;
+  }
+  error = std::string("host.source = \"") + toString(config.host) +
+          "\": this build has no such host link (configure with -DIG_HOST_LINKS=\"cigi;can;modbus\")";
   return nullptr;
 }
 

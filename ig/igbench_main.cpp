@@ -6,6 +6,7 @@
 #include <cstdio>
 
 #include "ig/app_common.h"
+#include "ig/bench_latency.h"
 #include "ig/bench_terrain.h"
 #include "ig/clock.h"
 #include "ig/service.h"
@@ -111,7 +112,34 @@ int main(int argc, char** argv) {
   terrain->add_option("--height", terrainOptions.height_px, "Viewport height in pixels")->capture_default_str();
   terrain->add_flag("--no-render", noRender, "Skip the sweep's rendering (render_ms, rmse, psnr_db = 0)");
   terrain->add_flag("--json", terrainOptions.json, "Print one JSON object instead of the human summary");
+  ig::LatencyBenchOptions latencyOptions;
+  CLI::App* latency = app.add_subcommand(
+      "latency",
+      "Host-to-screen latency over a real CIGI link on loopback: a host thread sends IG Control +\n"
+      "Entity Control at --host-rate while igd renders the configured scene headless at its frame\n"
+      "rate; each host frame's send time is compared with the end of the first frame that used it.\n"
+      "Then the CIGI decode rate on one core, and a flood run: a loopback sender pushes\n"
+      "--flood-rate packets/s for --flood-seconds while igd renders, counting overruns.\n"
+      "JSON fields: suite, renderer, width_px, height_px, rate_hz, period_ms, host_rate_hz, samples,\n"
+      "latency_ms_p50, latency_ms_p99, latency_ms_max, render_ms_p50, render_ms_p99,\n"
+      "latency_goal_ms (period + render p99), latency_run_overruns, host_messages_received,\n"
+      "host_messages_accepted, decode_msgs_per_s, decode_msgs_per_s_swapped, flood_rate_pps,\n"
+      "flood_seconds, flood_frames, flood_overruns, flood_frame_ms_p99, flood_packets_sent,\n"
+      "flood_packets_received, flood_packets_accepted.");
+  latency->add_option("-c,--config", latencyOptions.configFile, "Service config (TOML)")->capture_default_str();
+  latency->add_option("--host-rate", latencyOptions.hostRate_hz, "Host messages per second in the latency run")
+      ->capture_default_str()->check(CLI::Range(1.0, 1000.0));
+  latency->add_option("--seconds", latencyOptions.seconds, "Length of the latency run")
+      ->capture_default_str()->check(CLI::Range(1.0, 3600.0));
+  latency->add_option("--flood-rate", latencyOptions.floodRate_pps, "Packets per second in the flood run")
+      ->capture_default_str()->check(CLI::Range(1.0, 1e7));
+  latency->add_option("--flood-seconds", latencyOptions.floodSeconds, "Length of the flood run")
+      ->capture_default_str()->check(CLI::Range(1.0, 3600.0));
+  latency->add_option("--width", latencyOptions.width_px, "Frame width in pixels (default: the config's)");
+  latency->add_option("--height", latencyOptions.height_px, "Frame height in pixels (default: the config's)");
+  latency->add_flag("--json", latencyOptions.json, "Print one JSON object instead of the human summary");
   if (const auto rc = ig::parseCommandLine(app, argc, argv)) return *rc;
+  if (latency->parsed()) return ig::runLatencyBench(latencyOptions);
   if (terrain->parsed()) {
     terrainOptions.render = !noRender;
     return ig::runTerrainBench(terrainOptions);

@@ -10,10 +10,62 @@
 #include "ig/app_common.h"
 #include "ig/service.h"
 #include "io/dem.h"
+#if IG_LINK_CIGI
+#include "io/pcap.h"
+#endif
+#if IG_LINK_CAN
+#include "io/can_map.h"
+#endif
 #include "io/replay.h"
 #include "render/image.h"
 
 namespace {
+
+// igtool convert: a capture of real host traffic -> a recording igd replays.
+int convertCommand(const std::string& configFile, const std::string& format, const std::string& in,
+                   const std::string& out, int port, int64_t staleMs) {
+  ig::ServiceConfig config;
+  ig::SceneConfig scene;
+  std::string error;
+  if (!ig::loadConfigs(configFile, {}, config, scene, error)) {
+    std::fprintf(stderr, "igtool convert: %s\n", error.c_str());
+    return 2;
+  }
+  const ig::lod::Geodetic origin{scene.originGeodetic[0], scene.originGeodetic[1], scene.originGeodetic[2]};
+  ig::io::Recording rec;
+  bool ok = false;
+  if (format == "pcap") {
+#if IG_LINK_CIGI
+    ig::io::CigiAssemblerConfig cigi;
+    cigi.entityId = static_cast<uint16_t>(config.cigi.entity_id);
+    cigi.viewId = static_cast<uint16_t>(config.cigi.view_id);
+    cigi.database = config.cigi.database;
+    ok = ig::io::cigiPcapToRecording(in, static_cast<uint16_t>(port > 0 ? port : config.cigi.port), origin, rec,
+                                     error, cigi);
+#else
+    error = "this build has no CIGI link";
+#endif
+  } else {
+#if IG_LINK_CAN
+    ig::io::CanLinkConfig can = config.can;
+    if (staleMs > 0) can.stale_ms = staleMs;
+    ok = ig::io::candumpToRecording(in, can, origin, rec, error);
+#else
+    error = "this build has no CAN link";
+#endif
+  }
+  if (!ok) {
+    std::fprintf(stderr, "igtool convert: %s\n", error.c_str());
+    return 2;
+  }
+  if (!ig::io::saveRecording(out, rec, error)) {
+    std::fprintf(stderr, "igtool convert: %s\n", error.c_str());
+    return 1;
+  }
+  std::printf("igtool convert: %s -> %s: %zu samples over %.3f s\n", in.c_str(), out.c_str(), rec.samples.size(),
+              rec.duration_s());
+  return 0;
+}
 
 int renderCommand(const std::string& configFile, const ig::Overrides& o, double time_s, const std::string& out) {
   ig::ServiceConfig config;
@@ -127,7 +179,27 @@ int main(int argc, char** argv) {
   demInfo->add_flag("--reject-voids", demReject, "Reject a DEM with voids instead of filling them");
   demInfo->add_option("--max-void-fraction", demOptions.maxVoidFraction, "Reject above this share of voids")
       ->capture_default_str();
+  std::string convFormat, convIn, convOut, convConfig = "config/igd.toml";
+  int convPort = 0;
+  int64_t convStaleMs = 0;
+  CLI::App* convert = app.add_subcommand(
+      "convert", "Turn a capture of real host traffic into a recording igd can replay ([host] source =\n"
+                 "\"replay\"): a pcap of CIGI over UDP (tcpdump/tshark/dumpcap; Ethernet, Linux cooked, raw IP\n"
+                 "or loopback captures) or a candump log (candump -l) of the CAN frame map. The messages go\n"
+                 "through the same decoder as the live link, with the [host.cigi] / [host.can] settings and\n"
+                 "the scene origin of --config; sample times are capture times from the first sample.");
+  convert->add_option("format", convFormat, "pcap | candump")->required()->check(CLI::IsMember({"pcap", "candump"}));
+  convert->add_option("input", convIn, "Capture file")->required();
+  convert->add_option("-o,--out", convOut, "Recording to write")->required();
+  convert->add_option("-c,--config", convConfig, "Service config giving the link settings and scene origin")
+      ->capture_default_str();
+  convert->add_option("--port", convPort, "pcap: UDP destination port of the host messages (default: host.cigi.port)")
+      ->check(CLI::Range(1, 65535));
+  convert->add_option("--stale-ms", convStaleMs,
+                      "candump: drop a frame set not complete within this many ms (default: host.can.stale_ms)")
+      ->check(CLI::Range(int64_t{1}, int64_t{60000}));
   if (const auto rc = ig::parseCommandLine(app, argc, argv)) return *rc;
+  if (convert->parsed()) return convertCommand(convConfig, convFormat, convIn, convOut, convPort, convStaleMs);
 
   if (demInfo->parsed()) {
     if (demReject) demOptions.voids = ig::io::DemVoids::Reject;

@@ -262,6 +262,7 @@ struct Service::Impl {
   render::Lighting lighting;
   SummaryCollector summary{1};
   int64_t overruns = 0, missed = 0;
+  int64_t loopStart_ns = 0;
   std::unique_ptr<SnapshotWriter> snapshots;  // only when the config asks for snapshots
 
   lod::Camera cameraFor(const io::HostState& h) const {
@@ -472,6 +473,8 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop) {
   const bool hostPaced = link != nullptr && link->synchronous();
   FramePacer pacer(clock, cfg.rate_hz, cfg.freeRun || hostPaced, cfg.budgetFrame_ms);
   const int64_t loopStart_ns = clock.now_ns();
+  m.loopStart_ns = loopStart_ns;
+  pacer.startAt(loopStart_ns);
   if (m.hostInput) m.hostInput->setTimeBase(clock, loopStart_ns);
   notifier.ready("rendering at " + std::to_string(cfg.rate_hz) + " Hz");
   std::string why;
@@ -585,6 +588,7 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop) {
 }
 
 const io::HostLink* Service::hostLink() const { return impl_->hostInput ? impl_->hostInput->link() : nullptr; }
+int64_t Service::loopStart_ns() const { return impl_->loopStart_ns; }
 bool Service::hostLost() const { return impl_->hostInput && impl_->hostInput->lost(); }
 
 RunSummary Service::summary() const { return impl_->summary.summarize(impl_->overruns, impl_->missed); }

@@ -70,6 +70,8 @@ class Service {
   uint64_t hostRejected() const { return hostRejected_; }
   // The live host link, or nullptr (replay, none).
   const io::HostLink* hostLink() const;
+  // Clock time (of the clock given to run) at which the last run's frame loop started.
+  int64_t loopStart_ns() const;
   bool hostLost() const;
   const io::HostState& currentHost() const { return host_; }
 

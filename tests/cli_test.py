@@ -492,6 +492,54 @@ class Tools(Tmp):
                  "--width", "64", "--height", "36"], timeout=RUN, cwd=self.tmp)
         self.assertExit(p, 0)
 
+    def test_igtool_convert_pcap_and_candump(self):
+        # A classic pcap (raw IPv4, link type 101) of three CIGI host messages to port 8004,
+        # written here byte by byte with the independent encoder of tests/cigi_sender.py.
+        sys.path.insert(0, os.path.join(SRC, "tests"))
+        import cigi_sender as cs
+        import struct
+        records = []
+        for i, (t, lat) in enumerate([(100.0, 46.5), (100.5, 46.501), (101.0, 46.502)]):
+            payload = cs.ig_control(">", 10 + i) + cs.entity_control(">", 0, 0.0, -5.0, 90.0, lat, 7.9, 1500.0)
+            udp = struct.pack(">HHHH", 40000, 8004, 8 + len(payload), 0) + payload
+            ip = struct.pack(">BBHHHBBH4s4s", 0x45, 0, 20 + len(udp), 0, 0, 64, 17, 0, bytes([127, 0, 0, 1]),
+                             bytes([127, 0, 0, 1])) + udp
+            records.append(struct.pack("<IIII", int(t), int((t % 1) * 1e6), len(ip), len(ip)) + ip)
+        pcap = os.path.join(self.tmp, "host.pcap")
+        with open(pcap, "wb") as f:
+            f.write(struct.pack("<IHHiIII", 0xa1b2c3d4, 2, 4, 0, 0, 65535, 101) + b"".join(records))
+        out = os.path.join(self.tmp, "cigi.rec")
+        p = run([IGTOOL, "convert", "pcap", pcap, "-o", out, "--config", service_config_copy(self.tmp)], cwd=self.tmp)
+        self.assertExit(p, 0)
+        self.assertIn("3 samples over 1.000 s", p.stdout)
+        with open(out, encoding="utf-8") as f:
+            samples = [l.split() for l in f.read().splitlines()[2:]]
+        self.assertEqual([s[1] for s in samples], ["10", "11", "12"])
+        self.assertEqual([float(s[0]) for s in samples], [0.0, 0.5, 1.0])
+        # 0.001 degree of latitude is 111 m north at 46.5 N.
+        self.assertAlmostEqual(float(samples[1][4]) - float(samples[0][4]), 111.2, delta=0.3)
+        self.assertAlmostEqual(float(samples[0][6]), 90.0, delta=0.1)  # heading
+        # The candump log written by the real candump inside user-mode-linux (tests/uml/).
+        out = os.path.join(self.tmp, "can.rec")
+        p = run([IGTOOL, "convert", "candump", os.path.join(SRC, "tests", "uml", "candump_sample.log"), "-o", out,
+                 "--stale-ms", "1000", "--config", service_config_copy(self.tmp)], cwd=self.tmp)
+        self.assertExit(p, 0)
+        self.assertRegex(p.stdout, r"[1-9][0-9]* samples over")
+        # igd replays both.
+        for rec in (out, os.path.join(self.tmp, "cigi.rec")):
+            p = run([IGD, "--config", service_config_copy(self.tmp), "--replay", rec, "--frames", "3", "--free-run",
+                     "--width", "64", "--height", "36"], timeout=RUN, cwd=self.tmp)
+            self.assertExit(p, 0)
+        # Bad inputs are named.
+        p = run([IGTOOL, "convert", "pcap", os.path.join(SRC, "README.md"), "-o", out,
+                 "--config", service_config_copy(self.tmp)], cwd=self.tmp)
+        self.assertExit(p, 2)
+        self.assertIn("README.md: not a pcap file", p.stderr)
+        p = run([IGTOOL, "convert", "candump", os.path.join(SRC, "README.md"), "-o", out,
+                 "--config", service_config_copy(self.tmp)], cwd=self.tmp)
+        self.assertExit(p, 2)
+        self.assertIn("README.md:1: expected", p.stderr)
+
     def render(self, name, time_s="1"):
         out = os.path.join(self.tmp, name)
         p = run([IGTOOL, "render", "--config", service_config_copy(self.tmp), "--width", "64", "--height", "36",

@@ -613,3 +613,79 @@ TEST(ConfigShipped, EverySceneInConfigScenesLoads) {
 }
 }  // namespace
 }  // namespace ig
+
+namespace ig {
+namespace {
+TEST(ConfigHostLinks, LinkTablesAreReadIntoTheLinkConfigs) {
+  ServiceConfig cfg;
+  ConfigError error;
+  ASSERT_TRUE(parseServiceConfig(
+      "[host]\nsource = \"cigi\"\nlink_timeout_s = 0.25\nrecord_file = \"rec/live.rec\"\n"
+      "[host.cigi]\nbind_address = \"127.0.0.1\"\nport = 9004\nhost_address = \"10.0.0.2\"\nhost_port = 9005\n"
+      "sync = true\nentity_id = 7\nview_id = 2\ndatabase = 3\n"
+      "[host.can]\ninterface = \"can1\"\nbase_id = 0x200\nstale_ms = 50\n"
+      "[host.modbus]\ntcp_address = \"0.0.0.0\"\ntcp_port = 5020\nunit_id = 9\nserial_device = \"/dev/ttyS1\"\n"
+      "baud = 19200\nparity = \"E\"\ndata_bits = 7\nstop_bits = 2\nword_order = \"high_first\"\n"
+      "[scene]\nfile = \"s.toml\"\n",
+      "svc.toml", "/base", cfg, error))
+      << error.what();
+  EXPECT_EQ(cfg.host, HostSource::Cigi);
+  EXPECT_DOUBLE_EQ(cfg.linkTimeout_s, 0.25);
+  EXPECT_EQ(cfg.recordFile, "/base/rec/live.rec");
+  EXPECT_EQ(cfg.cigi.bind_address, "127.0.0.1");
+  EXPECT_EQ(cfg.cigi.port, 9004);
+  EXPECT_EQ(cfg.cigi.host_address, "10.0.0.2");
+  EXPECT_EQ(cfg.cigi.host_port, 9005);
+  EXPECT_TRUE(cfg.cigi.sync);
+  EXPECT_EQ(cfg.cigi.entity_id, 7);
+  EXPECT_EQ(cfg.cigi.view_id, 2);
+  EXPECT_EQ(cfg.cigi.database, 3);
+  EXPECT_EQ(cfg.can.interface, "can1");
+  EXPECT_EQ(cfg.can.baseId, 0x200u);
+  EXPECT_EQ(cfg.can.stale_ms, 50);
+  EXPECT_EQ(cfg.modbus.tcpAddress, "0.0.0.0");
+  EXPECT_EQ(cfg.modbus.tcpPort, 5020);
+  EXPECT_EQ(cfg.modbus.unitId, 9);
+  EXPECT_EQ(cfg.modbus.serialDevice, "/dev/ttyS1");
+  EXPECT_EQ(cfg.modbus.baud, 19200);
+  EXPECT_EQ(cfg.modbus.parity, 'E');
+  EXPECT_EQ(cfg.modbus.dataBits, 7);
+  EXPECT_EQ(cfg.modbus.stopBits, 2);
+  EXPECT_EQ(cfg.modbus.wordOrder, io::modbus::WordOrder::HighFirst);
+  for (const char* source : {"can", "modbus-tcp", "modbus-rtu", "none", "replay"}) {
+    ServiceConfig c;
+    const std::string extra = std::string(source) == "replay" ? "replay_file = \"r.rec\"\n" : "";
+    ASSERT_TRUE(parseServiceConfig(std::string("[host]\nsource = \"") + source + "\"\n" + extra +
+                                       "[host.modbus]\nserial_device = \"/dev/ttyS0\"\n[scene]\nfile = \"s.toml\"\n",
+                                   "svc.toml", "/base", c, error))
+        << error.what();
+    EXPECT_STREQ(toString(c.host), source);
+  }
+}
+
+TEST(ConfigHostLinks, BadLinkValuesAreNamed) {
+  ConfigError e = serviceError("[host]\nsource = \"cigi\"\n[host.cigi]\nport = 70000\n[scene]\nfile = \"s\"\n");
+  EXPECT_EQ(e.key, "host.cigi.port");
+  EXPECT_EQ(e.value, "70000");
+  EXPECT_EQ(e.line, 4);
+  e = serviceError("[host]\nsource = \"can\"\n[host.can]\nbase_id = 0x7FC\n[scene]\nfile = \"s\"\n");
+  EXPECT_EQ(e.key, "host.can.base_id");
+  EXPECT_EQ(e.value, "0x7FC");
+  e = serviceError("[host]\nsource = \"modbus-tcp\"\n[host.modbus]\nword_order = \"middle\"\n[scene]\nfile = \"s\"\n");
+  EXPECT_EQ(e.key, "host.modbus.word_order");
+  EXPECT_NE(e.message.find("\"low_first\", \"high_first\""), std::string::npos) << e.message;
+  e = serviceError("[host]\nsource = \"modbus-rtu\"\n[scene]\nfile = \"s\"\n");
+  EXPECT_EQ(e.key, "host.modbus.serial_device");
+  EXPECT_NE(e.message.find("modbus-rtu"), std::string::npos) << e.message;
+  e = serviceError("[host]\nsource = \"replay\"\nreplay_file = \"a.rec\"\nrecord_file = \"b.rec\"\n[scene]\nfile = \"s\"\n");
+  EXPECT_EQ(e.key, "host.record_file");
+  EXPECT_NE(e.message.find("only live host links are recorded"), std::string::npos) << e.message;
+  e = serviceError("[host]\nsource = \"cigi\"\nlink_timeout_s = 0\n[scene]\nfile = \"s\"\n");
+  EXPECT_EQ(e.key, "host.link_timeout_s");
+  e = serviceError("[host]\nsource = \"udp\"\n[scene]\nfile = \"s\"\n");
+  EXPECT_NE(e.message.find("\"cigi\", \"can\", \"modbus-tcp\", \"modbus-rtu\""), std::string::npos) << e.message;
+  e = serviceError("[host]\nsource = \"cigi\"\n[host.cigi]\nprot = 1\n[scene]\nfile = \"s\"\n");
+  EXPECT_EQ(e.key, "host.cigi.prot");
+}
+}  // namespace
+}  // namespace ig

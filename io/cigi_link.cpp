@@ -1,0 +1,430 @@
+// CIGI 3.3 host link: the message assembler (pure) and the UDP transport.
+#include "io/cigi_link.h"
+
+#include <arpa/inet.h>
+#include <netdb.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <bit>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+
+#include <glm/geometric.hpp>
+#include <glm/matrix.hpp>
+
+namespace ig::io {
+namespace {
+
+constexpr double kDeg = 3.14159265358979323846 / 180.0;
+constexpr size_t kRxBytes = 65536;
+constexpr int kPollTimeout_ms = 50;
+constexpr int kMaxDatagramsPerWake = 256;  // then check the stop flag again
+
+glm::dmat3 rotZ(double a) {
+  const double c = std::cos(a), s = std::sin(a);
+  return glm::dmat3(glm::dvec3(c, s, 0), glm::dvec3(-s, c, 0), glm::dvec3(0, 0, 1));
+}
+glm::dmat3 rotY(double a) {
+  const double c = std::cos(a), s = std::sin(a);
+  return glm::dmat3(glm::dvec3(c, 0, -s), glm::dvec3(0, 1, 0), glm::dvec3(s, 0, c));
+}
+glm::dmat3 rotX(double a) {
+  const double c = std::cos(a), s = std::sin(a);
+  return glm::dmat3(glm::dvec3(1, 0, 0), glm::dvec3(0, c, s), glm::dvec3(0, -s, c));
+}
+// Columns: body x (forward), y (right), z (down) in NED, for the 3-2-1 (yaw, pitch, roll) sequence.
+glm::dmat3 bodyToNed(double yaw_deg, double pitch_deg, double roll_deg) {
+  return rotZ(yaw_deg * kDeg) * rotY(pitch_deg * kDeg) * rotX(roll_deg * kDeg);
+}
+// Columns: north, east, down at (lat, lon) in ECEF.
+glm::dmat3 nedToEcef(double lat_deg, double lon_deg) {
+  const double sf = std::sin(lat_deg * kDeg), cf = std::cos(lat_deg * kDeg);
+  const double sl = std::sin(lon_deg * kDeg), cl = std::cos(lon_deg * kDeg);
+  return glm::dmat3(glm::dvec3(-sf * cl, -sf * sl, cf), glm::dvec3(-sl, cl, 0), glm::dvec3(-cf * cl, -cf * sl, -sf));
+}
+
+std::string errnoText(int e) { return std::strerror(e); }
+
+// Resolves an IPv4 address or host name (start-up only; may block on DNS).
+bool resolveIpv4(const std::string& host, in_addr& out) {
+  if (inet_pton(AF_INET, host.c_str(), &out) == 1) return true;
+  addrinfo hints{};
+  hints.ai_family = AF_INET;
+  hints.ai_socktype = SOCK_DGRAM;
+  addrinfo* res = nullptr;
+  if (getaddrinfo(host.c_str(), nullptr, &hints, &res) != 0 || !res) return false;
+  out = reinterpret_cast<const sockaddr_in*>(res->ai_addr)->sin_addr;
+  freeaddrinfo(res);
+  return true;
+}
+
+uint64_t packAddress(const sockaddr_in& a) {
+  return (static_cast<uint64_t>(ntohl(a.sin_addr.s_addr)) << 16) | ntohs(a.sin_port) | (1ull << 48);
+}
+sockaddr_in unpackAddress(uint64_t v) {
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(static_cast<uint32_t>((v >> 16) & 0xffffffffu));
+  a.sin_port = htons(static_cast<uint16_t>(v & 0xffffu));
+  return a;
+}
+
+}  // namespace
+
+bool validateCigiLinkConfig(const CigiLinkConfig& c, std::string& error) {
+  auto fail = [&](const char* key, const std::string& value, const char* why) {
+    error = std::string("host.cigi.") + key + " = " + value + ": " + why;
+    return false;
+  };
+  in_addr a{};
+  if (inet_pton(AF_INET, c.bind_address.c_str(), &a) != 1)
+    return fail("bind_address", "'" + c.bind_address + "'", "not an IPv4 address (e.g. \"0.0.0.0\")");
+  if (c.port < 0 || c.port > 65535) return fail("port", std::to_string(c.port), "must be 1..65535");
+  if (c.host_port < 0 || c.host_port > 65535) return fail("host_port", std::to_string(c.host_port), "must be 1..65535 (0: reply to the source port)");
+  if (!c.host_address.empty() && !resolveIpv4(c.host_address, a))
+    return fail("host_address", "'" + c.host_address + "'", "not an IPv4 address or known host name");
+  if (!c.host_address.empty() && c.host_port == 0)
+    return fail("host_port", "0", "a fixed host_address needs a port (1..65535)");
+  if (c.entity_id < 0 || c.entity_id > 65535) return fail("entity_id", std::to_string(c.entity_id), "must be 0..65535");
+  if (c.view_id < 0 || c.view_id > 65535) return fail("view_id", std::to_string(c.view_id), "must be 0..65535");
+  if (c.database < -1 || c.database > 127) return fail("database", std::to_string(c.database), "must be -1 (any) or 0..127");
+  return true;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Assembler
+
+EyePose cigiEyePose(const lod::Geodetic& entity, double yaw_deg, double pitch_deg, double roll_deg,
+                    const glm::dvec3& offsetBody_m, double viewYaw_deg, double viewPitch_deg, double viewRoll_deg) {
+  const glm::dmat3 ned = nedToEcef(entity.lat_deg, entity.lon_deg);
+  const glm::dmat3 body = ned * bodyToNed(yaw_deg, pitch_deg, roll_deg);
+  // The common case, a view looking straight along the entity's nose, skips the second rotation.
+  const bool viewRotated = viewYaw_deg != 0.0 || viewPitch_deg != 0.0 || viewRoll_deg != 0.0;
+  const glm::dmat3 view = viewRotated ? body * bodyToNed(viewYaw_deg, viewPitch_deg, viewRoll_deg) : body;
+  EyePose p;
+  p.ecef_m = lod::geodeticToEcef(entity) + body * offsetBody_m;
+  p.forwardEcef = view[0];
+  p.rightEcef = view[1];
+  p.downEcef = view[2];
+  return p;
+}
+
+CigiAssembler::CigiAssembler(const CigiAssemblerConfig& config, const lod::Geodetic& origin)
+    : config_(config), enu_(origin) {
+  const glm::dmat3 ned = nedToEcef(origin.lat_deg, origin.lon_deg);
+  // Rows east, north, up (glm is column-major: build columns, then transpose).
+  ecefToEnu_ = glm::transpose(glm::dmat3(ned[1], ned[0], -ned[2]));
+  near_m_ = state_.near_m;
+  far_m_ = state_.far_m;
+  top_deg_ = 0.5 * state_.fovY_deg;
+  bottom_deg_ = -0.5 * state_.fovY_deg;
+  if (config_.database > 0) database_ = static_cast<int8_t>(config_.database);
+}
+
+bool CigiAssembler::isLate(const cigi::IgControl& ig) {
+  if (!started_) return false;
+  const int32_t frameStep = static_cast<int32_t>(ig.hostFrame - lastFrame_);
+  bool late = frameStep < 0;
+  if (frameStep == 0 && ig.timestampValid && haveTimestamp_)
+    late = static_cast<int32_t>(ig.timestamp_10us - lastTimestamp_) < 0;
+  if (!late) {
+    lateInARow_ = 0;
+    return false;
+  }
+  const bool bigJump = frameStep < 0 && static_cast<uint32_t>(-static_cast<int64_t>(frameStep)) >= kRestartFrameGap;
+  if (bigJump || ++lateInARow_ >= kRestartAfterLate) {
+    started_ = false;  // host restart: the sequence starts over with this message
+    haveTimestamp_ = false;
+    lateInARow_ = 0;
+    return false;
+  }
+  return true;
+}
+
+CigiAssembler::Result CigiAssembler::apply(std::span<const std::byte> datagram, LinkCounters& counters) {
+  cigi::HostMessageFilter filter;
+  filter.entityId = config_.entityId;
+  filter.viewId = config_.viewId;
+  if (cigi::decodeHostMessage(datagram, msg_, filter) != cigi::CigiStatus::ok) {
+    counters.malformed.fetch_add(1, std::memory_order_relaxed);
+    return Result::malformed;
+  }
+  const cigi::IgControl& ig = msg_.igControl;
+  if (isLate(ig)) {
+    counters.late.fetch_add(1, std::memory_order_relaxed);
+    return Result::late;
+  }
+  // Frame and time, unwrapped across the 32-bit wrap.
+  if (!started_) {
+    frame64_ = ig.hostFrame;
+    started_ = true;
+  } else {
+    frame64_ += static_cast<uint32_t>(ig.hostFrame - lastFrame_);
+  }
+  lastFrame_ = ig.hostFrame;
+  if (ig.timestampValid) {
+    if (!haveTimestamp_) {
+      timestamp64_ = ig.timestamp_10us;
+      haveTimestamp_ = true;
+    } else {
+      timestamp64_ += static_cast<int32_t>(ig.timestamp_10us - lastTimestamp_);
+    }
+    lastTimestamp_ = ig.timestamp_10us;
+    state_.simTime_s = static_cast<double>(timestamp64_) * 1e-5;
+  }
+  state_.hostFrame = frame64_;
+  hostMode_ = ig.igMode;
+  if (ig.databaseNumber != 0) {
+    if (config_.database >= 0 && ig.databaseNumber != config_.database) {
+      counters.outOfRange.fetch_add(1, std::memory_order_relaxed);  // igd has only its own database
+    } else if (config_.database < 0 && ig.databaseNumber > 0) {
+      database_ = ig.databaseNumber;
+    }
+  }
+
+  for (size_t i = 0; i < msg_.entityCount; ++i) applyEntity(msg_.entities[i], counters);
+  for (size_t i = 0; i < msg_.viewControlCount; ++i) applyView(msg_.viewControls[i], counters);
+  for (size_t i = 0; i < msg_.viewDefinitionCount; ++i) applyViewDefinition(msg_.viewDefinitions[i], counters);
+  if (msg_.hasCelestial) applyCelestial(msg_.celestial, counters);
+
+  counters.accepted.fetch_add(1, std::memory_order_relaxed);
+  if (!hasPosition()) return Result::accepted;
+  computeEye();
+  return Result::published;
+}
+
+void CigiAssembler::applyEntity(const cigi::EntityControl& e, LinkCounters& counters) {
+  if (e.attached) {  // an ownship attached to a parent entity is not supported
+    counters.outOfRange.fetch_add(1, std::memory_order_relaxed);
+    return;
+  }
+  const uint32_t bad = cigi::validateEntity(e);
+  counters.outOfRange.fetch_add(static_cast<uint64_t>(std::popcount(bad)), std::memory_order_relaxed);
+  if (!(bad & cigi::kEntityRoll)) roll_deg_ = static_cast<double>(e.roll_deg);
+  if (!(bad & cigi::kEntityPitch)) pitch_deg_ = static_cast<double>(e.pitch_deg);
+  if (!(bad & cigi::kEntityYaw)) yaw_deg_ = static_cast<double>(e.yaw_deg);
+  if (!(bad & cigi::kEntityLat)) lat_deg_ = e.lat_deg, hasLat_ = true;
+  if (!(bad & cigi::kEntityLon)) lon_deg_ = e.lon_deg, hasLon_ = true;
+  if (!(bad & cigi::kEntityAlt)) alt_m_ = e.alt_m, hasAlt_ = true;
+}
+
+void CigiAssembler::applyView(const cigi::ViewControl& v, LinkCounters& counters) {
+  if (v.entityId != config_.entityId) {  // igd's view follows the ownship only
+    counters.outOfRange.fetch_add(1, std::memory_order_relaxed);
+    return;
+  }
+  const uint32_t bad = cigi::validateViewControl(v);
+  counters.outOfRange.fetch_add(static_cast<uint64_t>(std::popcount(bad)), std::memory_order_relaxed);
+  auto ok = [&](uint8_t enable, uint32_t field) { return (v.enable & enable) && !(bad & field); };
+  if (ok(cigi::ViewControl::kX, cigi::kViewX)) viewOffset_m_[0] = static_cast<double>(v.x_m);
+  if (ok(cigi::ViewControl::kY, cigi::kViewY)) viewOffset_m_[1] = static_cast<double>(v.y_m);
+  if (ok(cigi::ViewControl::kZ, cigi::kViewZ)) viewOffset_m_[2] = static_cast<double>(v.z_m);
+  if (ok(cigi::ViewControl::kRoll, cigi::kViewRoll)) viewRoll_deg_ = static_cast<double>(v.roll_deg);
+  if (ok(cigi::ViewControl::kPitch, cigi::kViewPitch)) viewPitch_deg_ = static_cast<double>(v.pitch_deg);
+  if (ok(cigi::ViewControl::kYaw, cigi::kViewYaw)) viewYaw_deg_ = static_cast<double>(v.yaw_deg);
+}
+
+void CigiAssembler::applyViewDefinition(const cigi::ViewDefinition& d, LinkCounters& counters) {
+  const uint32_t bad = cigi::validateViewDefinition(d);
+  // Pairs, with the current value standing in for a disabled or rejected field.
+  const bool nearOk = (d.enable & cigi::ViewDefinition::kNear) && !(bad & cigi::kViewNear);
+  const bool farOk = (d.enable & cigi::ViewDefinition::kFar) && !(bad & cigi::kViewFar);
+  const double near_m = nearOk ? static_cast<double>(d.near_m) : near_m_, far_m = farOk ? static_cast<double>(d.far_m) : far_m_;
+  int pairsRejected = 0;  // a rejected pair counts once
+  if ((nearOk || farOk) && !(near_m < far_m)) {
+    ++pairsRejected;
+  } else {
+    near_m_ = near_m;
+    far_m_ = far_m;
+  }
+  const bool topOk = (d.enable & cigi::ViewDefinition::kTop) && !(bad & cigi::kViewTop);
+  const bool bottomOk = (d.enable & cigi::ViewDefinition::kBottom) && !(bad & cigi::kViewBottom);
+  const double top = topOk ? static_cast<double>(d.top_deg) : top_deg_, bottom = bottomOk ? static_cast<double>(d.bottom_deg) : bottom_deg_;
+  if ((topOk || bottomOk) && !(top - bottom > 0.0 && top - bottom < 180.0)) {
+    ++pairsRejected;
+  } else {
+    top_deg_ = top;
+    bottom_deg_ = bottom;
+  }
+  // Left and right are validated but not used: the output's aspect ratio sets the width.
+  counters.outOfRange.fetch_add(static_cast<uint64_t>(std::popcount(bad) + pairsRejected), std::memory_order_relaxed);
+}
+
+void CigiAssembler::applyCelestial(const cigi::CelestialSphereControl& c, LinkCounters& counters) {
+  if (!c.dateTimeValid) return;  // hour, minute and date are not meant to apply
+  const uint32_t bad = cigi::validateCelestial(c) & (cigi::kCelestialTime | cigi::kCelestialDate);
+  counters.outOfRange.fetch_add(static_cast<uint64_t>(std::popcount(bad)), std::memory_order_relaxed);
+  if (!(bad & cigi::kCelestialTime)) state_.timeOfDay_h = c.hour + c.minute / 60.0;
+  if (!(bad & cigi::kCelestialDate)) state_.dateYmd = cigi::dateToYmd(c.date_mmddyyyy);
+}
+
+void CigiAssembler::computeEye() {
+  const EyePose pose = cigiEyePose({lat_deg_, lon_deg_, alt_m_}, yaw_deg_, pitch_deg_, roll_deg_,
+                                   {viewOffset_m_[0], viewOffset_m_[1], viewOffset_m_[2]}, viewYaw_deg_,
+                                   viewPitch_deg_, viewRoll_deg_);
+  state_.eyeEnu_m = enu_.toEnu(pose.ecef_m);
+  // Without an eye offset the eye is the entity itself: no ECEF -> geodetic iteration needed.
+  const bool offset = viewOffset_m_[0] != 0.0 || viewOffset_m_[1] != 0.0 || viewOffset_m_[2] != 0.0;
+  const lod::Geodetic g = offset ? lod::ecefToGeodetic(pose.ecef_m) : lod::Geodetic{lat_deg_, lon_deg_, alt_m_};
+  state_.lat_deg = g.lat_deg;
+  state_.lon_deg = g.lon_deg;
+  state_.height_m = g.height_m;
+  // Attitude in the scene's ENU axes (lod::viewRotation's convention).
+  const glm::dvec3 f = ecefToEnu_ * pose.forwardEcef, r = ecefToEnu_ * pose.rightEcef;
+  const double pitch = std::asin(std::clamp(f.z, -1.0, 1.0));
+  double heading = std::atan2(f.x, f.y);
+  if (std::hypot(f.x, f.y) < 1e-9) heading = std::atan2(-r.y, r.x);  // straight up/down: from the right axis
+  const glm::dvec3 right0{std::cos(heading), -std::sin(heading), 0.0};
+  const glm::dvec3 up0 = glm::cross(right0, f);
+  const double roll = std::atan2(-glm::dot(r, up0), glm::dot(r, right0));
+  double heading_deg = heading / kDeg;
+  if (heading_deg < 0.0) heading_deg += 360.0;
+  if (heading_deg >= 360.0) heading_deg -= 360.0;
+  state_.heading_deg = heading_deg;
+  state_.pitch_deg = pitch / kDeg;
+  state_.roll_deg = roll / kDeg;
+  state_.fovY_deg = top_deg_ - bottom_deg_;
+  state_.near_m = near_m_;
+  state_.far_m = far_m_;
+}
+
+// ---------------------------------------------------------------------------------------------
+// UDP transport
+
+CigiLink::CigiLink(const CigiLinkConfig& config, const lod::Geodetic& origin)
+    : config_(config),
+      assembler_(std::make_unique<CigiAssembler>(
+          CigiAssemblerConfig{static_cast<uint16_t>(config.entity_id), static_cast<uint16_t>(config.view_id),
+                              config.database},
+          origin)) {}
+
+CigiLink::~CigiLink() { stop(); }
+
+bool CigiLink::start(HostSink& sink, std::string& error) {
+  if (fd_ >= 0) {
+    error = "cigi link already started";
+    return false;
+  }
+  if (!validateCigiLinkConfig(config_, error)) return false;
+  in_addr bindAddr{};
+  inet_pton(AF_INET, config_.bind_address.c_str(), &bindAddr);
+  const std::string where = config_.bind_address + ":" + std::to_string(config_.port);
+  if (!config_.host_address.empty()) {
+    sockaddr_in h{};
+    h.sin_family = AF_INET;
+    resolveIpv4(config_.host_address, h.sin_addr);
+    h.sin_port = htons(static_cast<uint16_t>(config_.host_port));
+    fixedReply_ = packAddress(h);
+    reply_.store(fixedReply_);
+  }
+  const int fd = socket(AF_INET, SOCK_DGRAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
+  if (fd < 0) {
+    error = "cannot open a UDP socket for " + where + ": " + errnoText(errno);
+    return false;
+  }
+  const int rcvbuf = 4 << 20;  // absorbs bursts while the thread is descheduled
+  setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &rcvbuf, sizeof rcvbuf);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr = bindAddr;
+  a.sin_port = htons(static_cast<uint16_t>(config_.port));
+  if (bind(fd, reinterpret_cast<const sockaddr*>(&a), sizeof a) != 0) {
+    error = "cannot bind " + where + ": " + errnoText(errno);
+    close(fd);
+    return false;
+  }
+  socklen_t len = sizeof a;
+  getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len);
+  localPort_ = ntohs(a.sin_port);
+  rx_ = std::make_unique<std::byte[]>(kRxBytes);
+  fd_ = fd;
+  sink_ = &sink;
+  database_.store(assembler_->database());
+  stopping_.store(false);
+  thread_ = std::thread([this] { run(); });
+  return true;
+}
+
+void CigiLink::stop() {
+  stopping_.store(true);
+  if (thread_.joinable()) thread_.join();
+  if (fd_ >= 0) {
+    close(fd_);
+    fd_ = -1;
+  }
+}
+
+void CigiLink::run() {
+  while (!stopping_.load(std::memory_order_relaxed)) {
+    pollfd p{fd_, POLLIN, 0};
+    if (poll(&p, 1, kPollTimeout_ms) <= 0) continue;
+    for (int i = 0; i < kMaxDatagramsPerWake; ++i) {
+      sockaddr_in src{};
+      socklen_t len = sizeof src;
+      const ssize_t n = recvfrom(fd_, rx_.get(), kRxBytes, MSG_DONTWAIT | MSG_TRUNC, reinterpret_cast<sockaddr*>(&src), &len);
+      if (n < 0) break;  // EAGAIN: drained (other errors: try again after the next poll)
+      counters_.received.fetch_add(1, std::memory_order_relaxed);
+      if (static_cast<size_t>(n) > kRxBytes) {  // cannot happen with IPv4 UDP; be safe
+        counters_.malformed.fetch_add(1, std::memory_order_relaxed);
+        continue;
+      }
+      const auto result = assembler_->apply(std::span<const std::byte>(rx_.get(), static_cast<size_t>(n)), counters_);
+      if (result == CigiAssembler::Result::malformed || result == CigiAssembler::Result::late) continue;
+      if (fixedReply_ == 0) {
+        if (config_.host_port != 0) src.sin_port = htons(static_cast<uint16_t>(config_.host_port));
+        reply_.store(packAddress(src), std::memory_order_relaxed);
+      }
+      lastHostFrame_.store(assembler_->lastHostFrame(), std::memory_order_relaxed);
+      hostMode_.store(static_cast<int>(assembler_->hostIgMode()), std::memory_order_relaxed);
+      database_.store(assembler_->database(), std::memory_order_relaxed);
+      if (result == CigiAssembler::Result::published) {
+        sink_->publish(assembler_->state());
+        publishedSinceFrame_.fetch_add(1, std::memory_order_relaxed);
+      }
+    }
+  }
+}
+
+void CigiLink::frameStarted(const FrameStart& frame) {
+  // Samples published since the previous frame, beyond the one this frame renders, were
+  // overwritten in the mailbox unseen.
+  const uint32_t published = publishedSinceFrame_.exchange(0, std::memory_order_relaxed);
+  if (published > 1) counters_.dropped.fetch_add(published - 1, std::memory_order_relaxed);
+
+  const uint64_t reply = reply_.load(std::memory_order_relaxed);
+  if (fd_ < 0 || reply == 0) return;  // nowhere to send yet
+  cigi::StartOfFrame sof;
+  sof.databaseNumber = static_cast<int8_t>(database_.load(std::memory_order_relaxed));
+  sof.igStatus = frame.hostLost ? kStatusHostLost : frame.overrun ? kStatusOverrun : kStatusNormal;
+  sof.igMode = frame.hostLost ? cigi::IgMode::standby : cigi::IgMode::operate;
+  sof.timestampValid = true;
+  sof.igFrame = frame.igFrame;
+  const double ticks = std::max(0.0, frame.time_s) * 1e5;
+  sof.timestamp_10us = static_cast<uint32_t>(static_cast<uint64_t>(std::fmod(ticks, 4294967296.0)));
+  sof.lastHostFrame = lastHostFrame_.load(std::memory_order_relaxed);
+  std::byte buf[cigi::kStartOfFrameSize];
+  const size_t n = cigi::encode(sof, cigi::nativeByteOrder(), buf);
+  const sockaddr_in to = unpackAddress(reply);
+  if (sendto(fd_, buf, n, MSG_DONTWAIT | MSG_NOSIGNAL, reinterpret_cast<const sockaddr*>(&to), sizeof to) ==
+      static_cast<ssize_t>(n)) {
+    sofSent_.fetch_add(1, std::memory_order_relaxed);
+  } else {
+    sendErrors_.fetch_add(1, std::memory_order_relaxed);
+  }
+}
+
+std::unique_ptr<CigiLink> makeCigiLink(const CigiLinkConfig& config, const lod::Geodetic& origin) {
+  return std::make_unique<CigiLink>(config, origin);
+}
+
+int cigiHostIgMode(const HostLink& link) {
+  const auto* cigiLink = dynamic_cast<const CigiLink*>(&link);
+  return cigiLink ? cigiLink->hostIgMode() : -1;
+}
+
+}  // namespace ig::io

@@ -1,0 +1,354 @@
+#include "io/modbus_link.h"
+
+#include <arpa/inet.h>
+#include <modbus.h>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
+#include <poll.h>
+#include <pthread.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <array>
+#include <atomic>
+#include <cerrno>
+#include <cstring>
+#include <ctime>
+#include <optional>
+#include <thread>
+
+namespace ig::io {
+namespace {
+
+constexpr int kPollTimeout_ms = 100;       // how often the receive thread checks for stop()
+constexpr uint32_t kByteTimeout_us = 250000;  // a master silent this long mid-frame: frame dropped
+constexpr uint32_t kResponseTimeout_us = 100000;  // libmodbus waits this for a reply it must skip (RTU)
+constexpr int kBauds[] = {1200,   2400,   4800,   9600,   19200,  38400,  57600,
+                          115200, 230400, 460800, 500000, 576000, 921600, 1000000};
+
+std::string quoted(std::string_view s) {
+  std::string r(1, '"');
+  r.append(s).push_back('"');
+  return r;
+}
+
+void pauseBriefly() {
+  timespec ts{0, kPollTimeout_ms * 1000000L};
+  nanosleep(&ts, nullptr);
+}
+
+}  // namespace
+
+bool parseModbusParity(std::string_view text, char& out) {
+  if (text == "N" || text == "E" || text == "O") {
+    out = text[0];
+    return true;
+  }
+  return false;
+}
+
+bool validateModbusLinkConfig(const ModbusLinkConfig& c, ModbusTransport transport, std::string& error) {
+  auto fail = [&](const std::string& key, const std::string& value, const std::string& why) {
+    error = "host.modbus." + key + " = " + value + ": " + why;
+    return false;
+  };
+  if (c.unitId < 1 || c.unitId > 247) return fail("unit_id", std::to_string(c.unitId), "must be 1..247");
+  if (c.wordOrder != modbus::WordOrder::LowFirst && c.wordOrder != modbus::WordOrder::HighFirst) {
+    return fail("word_order", std::to_string(static_cast<int>(c.wordOrder)), "must be \"low_first\" or \"high_first\"");
+  }
+  if (transport == ModbusTransport::Tcp) {
+    in_addr addr{};
+    if (inet_pton(AF_INET, c.tcpAddress.c_str(), &addr) != 1) {
+      return fail("tcp_address", quoted(c.tcpAddress), "not an IPv4 address (e.g. \"127.0.0.1\" or \"0.0.0.0\")");
+    }
+    if (c.tcpPort < 0 || c.tcpPort > 65535) return fail("tcp_port", std::to_string(c.tcpPort), "must be 0..65535");
+    return true;
+  }
+  if (c.serialDevice.empty()) {
+    return fail("serial_device", "\"\"", "modbus-rtu needs the serial device (e.g. \"/dev/ttyUSB0\")");
+  }
+  bool knownBaud = false;
+  for (int b : kBauds) knownBaud = knownBaud || b == c.baud;
+  if (!knownBaud) {
+    return fail("baud", std::to_string(c.baud),
+                "must be one of 1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200, 230400, 460800, "
+                "500000, 576000, 921600, 1000000");
+  }
+  if (c.parity != 'N' && c.parity != 'E' && c.parity != 'O') {
+    return fail("parity", quoted(std::string(1, c.parity)), "must be \"N\", \"E\" or \"O\"");
+  }
+  if (c.dataBits != 7 && c.dataBits != 8) return fail("data_bits", std::to_string(c.dataBits), "must be 7 or 8");
+  if (c.stopBits != 1 && c.stopBits != 2) return fail("stop_bits", std::to_string(c.stopBits), "must be 1 or 2");
+  return true;
+}
+
+struct ModbusLink::Impl {
+  Impl(const ModbusLinkConfig& c, ModbusTransport t, const lod::Geodetic& origin, LinkCounters& k)
+      : config(c), transport(t), enu(origin), counters(k), map(c.wordOrder) {
+    clients.fill(-1);
+  }
+
+  ModbusLinkConfig config;
+  ModbusTransport transport;
+  lod::EnuFrame enu;
+  LinkCounters& counters;
+  modbus::HostRegisterMap map;
+
+  modbus_t* ctx = nullptr;
+  modbus_mapping_t* mapping = nullptr;
+  int listenFd = -1;
+  std::array<int, kMaxTcpClients> clients{};
+  HostSink* sink = nullptr;
+  std::thread thread;
+  std::atomic<bool> stopping{false};
+  std::atomic<uint16_t> port{0};
+  // Written by the frame loop (frameStarted), read by the receive thread.
+  std::atomic<uint32_t> igFrame{0}, lastHostFrame{0};
+  std::atomic<bool> hostLost{false};
+  uint8_t query[MODBUS_TCP_MAX_ADU_LENGTH] = {};
+
+  std::span<uint16_t, modbus::kHoldingCount> holding() {
+    return std::span<uint16_t, modbus::kHoldingCount>(mapping->tab_registers, modbus::kHoldingCount);
+  }
+  std::span<uint16_t, modbus::kInputCount> input() {
+    return std::span<uint16_t, modbus::kInputCount>(mapping->tab_input_registers, modbus::kInputCount);
+  }
+
+  bool open(std::string& error);
+  void close();
+  void runTcp();
+  void runRtu();
+  bool serveOne();  // false: close this TCP connection
+  void refreshStatus();
+};
+
+bool ModbusLink::Impl::open(std::string& error) {
+  mapping = modbus_mapping_new_start_address(0, 0, 0, 0, 0, modbus::kHoldingCount, 0, modbus::kInputCount);
+  if (mapping == nullptr) {
+    error = std::string("modbus: cannot allocate the register map: ") + std::strerror(errno);
+    return false;
+  }
+  modbus::encodeHostRegisters(map.state(), map.appliedCommit(), config.wordOrder, holding());
+  refreshStatus();
+
+  if (transport == ModbusTransport::Tcp) {
+    const std::string where = config.tcpAddress + ":" + std::to_string(config.tcpPort);
+    ctx = modbus_new_tcp(config.tcpAddress.c_str(), config.tcpPort);
+    if (ctx == nullptr) {
+      error = "cannot listen on " + where + ": " + modbus_strerror(errno);
+      return false;
+    }
+    listenFd = modbus_tcp_listen(ctx, kMaxTcpClients);
+    if (listenFd < 0) {
+      error = "cannot listen on " + where + ": " + std::strerror(errno);
+      return false;
+    }
+    sockaddr_in bound{};
+    socklen_t len = sizeof bound;
+    if (getsockname(listenFd, reinterpret_cast<sockaddr*>(&bound), &len) == 0) port = ntohs(bound.sin_port);
+  } else {
+    const std::string where = "serial device " + config.serialDevice;
+    ctx = modbus_new_rtu(config.serialDevice.c_str(), config.baud, config.parity, config.dataBits, config.stopBits);
+    if (ctx == nullptr) {
+      error = "cannot open " + where + ": " + modbus_strerror(errno);
+      return false;
+    }
+    if (modbus_set_slave(ctx, config.unitId) != 0 || modbus_connect(ctx) != 0) {
+      error = "cannot open " + where + ": " + std::strerror(errno);
+      return false;
+    }
+    modbus_set_error_recovery(ctx, MODBUS_ERROR_RECOVERY_PROTOCOL);
+  }
+  modbus_set_byte_timeout(ctx, 0, kByteTimeout_us);
+  modbus_set_response_timeout(ctx, 0, kResponseTimeout_us);
+  modbus_set_indication_timeout(ctx, 0, kPollTimeout_ms * 1000);
+  return true;
+}
+
+void ModbusLink::Impl::close() {
+  for (int& fd : clients) {
+    if (fd >= 0) ::close(fd);
+    fd = -1;
+  }
+  if (listenFd >= 0) ::close(listenFd);
+  listenFd = -1;
+  if (ctx != nullptr) {
+    if (transport == ModbusTransport::Rtu) {
+      modbus_close(ctx);  // restores the serial settings and closes the device
+    } else {
+      modbus_set_socket(ctx, -1);  // its socket was a client's, closed above
+    }
+    modbus_free(ctx);
+    ctx = nullptr;
+  }
+  if (mapping != nullptr) modbus_mapping_free(mapping);
+  mapping = nullptr;
+  port = 0;
+}
+
+void ModbusLink::Impl::refreshStatus() {
+  modbus::IgStatus st;
+  st.igFrame = igFrame.load(std::memory_order_relaxed);
+  st.lastHostFrame = lastHostFrame.load(std::memory_order_relaxed);
+  st.hostLost = hostLost.load(std::memory_order_relaxed);
+  st.appliedCommit = map.appliedCommit();
+  st.rejectedFields = map.lastRejectedMask();
+  st.counters = snapshot(counters);
+  modbus::encodeStatusRegisters(st, config.wordOrder, input());
+}
+
+bool ModbusLink::Impl::serveOne() {
+  const bool rtu = transport == ModbusTransport::Rtu;
+  const int length = modbus_receive(ctx, query);
+  if (length == 0) return true;  // RTU: a request for another slave (or its reply), ignored
+  if (length < 0) {
+    if (!rtu && errno == ECONNRESET) return false;  // the master closed the connection
+    counters.malformed.fetch_add(1, std::memory_order_relaxed);
+    if (rtu) modbus_flush(ctx);  // resynchronise on the next frame
+    return rtu;                  // TCP: the stream is out of step, close it
+  }
+  counters.received.fetch_add(1, std::memory_order_relaxed);
+  const int header = modbus_get_header_length(ctx);
+  const int pduLength = length - header - (rtu ? 2 : 0);
+  const std::span<const uint8_t> pdu(query + header, pduLength > 0 ? static_cast<size_t>(pduLength) : 0u);
+  const modbus::RequestCheck check = modbus::checkRequest(pdu);
+  const bool broadcast = rtu && query[0] == MODBUS_BROADCAST_ADDRESS;
+
+  if (check.exception != modbus::Exception::None) {
+    counters.malformed.fetch_add(1, std::memory_order_relaxed);
+    // Discard the rest of a frame whose length libmodbus could not know before answering:
+    // the master sends its next request only after the answer.
+    if (check.flush) modbus_flush(ctx);
+    int sent = 0;
+    if (!broadcast) sent = modbus_reply_exception(ctx, query, static_cast<unsigned>(check.exception));
+    return rtu || sent >= 0;
+  }
+  if (check.readsStatus) refreshStatus();
+  const int sent = modbus_reply(ctx, query, length, mapping);
+  if (check.writeCount > 0) {
+    const modbus::WriteOutcome out = map.afterWrite(holding(), check.writeStart, check.writeCount);
+    if (out.rejects.count > 0) counters.outOfRange.fetch_add(out.rejects.count, std::memory_order_relaxed);
+    if (out.repeated) counters.late.fetch_add(1, std::memory_order_relaxed);
+    if (out.committed) {
+      HostState s = map.state();
+      const lod::Geodetic g = enu.toGeodetic(s.eyeEnu_m);
+      s.lat_deg = g.lat_deg;
+      s.lon_deg = g.lon_deg;
+      s.height_m = g.height_m;
+      counters.accepted.fetch_add(1, std::memory_order_relaxed);
+      sink->publish(s);
+    }
+  }
+  return rtu || sent >= 0;
+}
+
+void ModbusLink::Impl::runTcp() {
+  std::array<pollfd, kMaxTcpClients + 1> fds{};
+  std::array<int, kMaxTcpClients + 1> slotOf{};  // fds[i] is clients[slotOf[i]] (i >= 1)
+  while (!stopping.load(std::memory_order_relaxed)) {
+    nfds_t n = 0;
+    fds[n++] = pollfd{listenFd, POLLIN, 0};
+    for (int i = 0; i < kMaxTcpClients; ++i) {
+      if (clients[i] < 0) continue;
+      slotOf[n] = i;
+      fds[n++] = pollfd{clients[i], POLLIN, 0};
+    }
+    if (poll(fds.data(), n, kPollTimeout_ms) <= 0) continue;
+    for (nfds_t k = 1; k < n; ++k) {
+      if ((fds[k].revents & (POLLIN | POLLHUP | POLLERR | POLLNVAL)) == 0) continue;
+      int& fd = clients[slotOf[k]];
+      modbus_set_socket(ctx, fd);
+      if ((fds[k].revents & POLLNVAL) != 0 || !serveOne()) {
+        ::close(fd);
+        fd = -1;
+      }
+      modbus_set_socket(ctx, -1);
+    }
+    if ((fds[0].revents & POLLIN) != 0) {
+      const int s = accept4(listenFd, nullptr, nullptr, SOCK_CLOEXEC);
+      if (s < 0) continue;
+      int* slot = nullptr;
+      for (int& fd : clients) {
+        if (fd < 0) {
+          slot = &fd;
+          break;
+        }
+      }
+      if (slot == nullptr) {
+        ::close(s);  // kMaxTcpClients masters already connected
+        continue;
+      }
+      const int one = 1;
+      setsockopt(s, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+      *slot = s;
+    }
+  }
+}
+
+void ModbusLink::Impl::runRtu() {
+  const int fd = modbus_get_socket(ctx);
+  while (!stopping.load(std::memory_order_relaxed)) {
+    pollfd p{fd, POLLIN, 0};
+    if (poll(&p, 1, kPollTimeout_ms) <= 0) continue;
+    if ((p.revents & POLLIN) != 0) {
+      serveOne();
+    } else {
+      pauseBriefly();  // hang-up on the line (a pty whose other side is closed): don't spin
+    }
+  }
+}
+
+ModbusLink::ModbusLink(const ModbusLinkConfig& config, ModbusTransport transport, const lod::Geodetic& origin)
+    : impl_(std::make_unique<Impl>(config, transport, origin, counters_)) {}
+
+ModbusLink::~ModbusLink() { stop(); }
+
+std::string_view ModbusLink::name() const {
+  return impl_->transport == ModbusTransport::Tcp ? "modbus-tcp" : "modbus-rtu";
+}
+
+bool ModbusLink::start(HostSink& sink, std::string& error) {
+  stop();
+  Impl& m = *impl_;
+  if (!validateModbusLinkConfig(m.config, m.transport, error)) return false;
+  if (!m.open(error)) {
+    m.close();
+    return false;
+  }
+  m.sink = &sink;
+  m.stopping = false;
+  m.thread = std::thread([&m] {
+    pthread_setname_np(pthread_self(), "ig-modbus");
+    if (m.transport == ModbusTransport::Tcp) {
+      m.runTcp();
+    } else {
+      m.runRtu();
+    }
+  });
+  return true;
+}
+
+void ModbusLink::stop() {
+  Impl& m = *impl_;
+  m.stopping = true;
+  if (m.thread.joinable()) m.thread.join();
+  m.close();
+}
+
+void ModbusLink::frameStarted(const FrameStart& frame) {
+  impl_->igFrame.store(frame.igFrame, std::memory_order_relaxed);
+  impl_->lastHostFrame.store(frame.lastHostFrame, std::memory_order_relaxed);
+  impl_->hostLost.store(frame.hostLost, std::memory_order_relaxed);
+}
+
+uint16_t ModbusLink::boundPort() const { return impl_->port.load(); }
+
+std::unique_ptr<HostLink> makeModbusTcpLink(const ModbusLinkConfig& config, const lod::Geodetic& origin) {
+  return std::make_unique<ModbusLink>(config, ModbusTransport::Tcp, origin);
+}
+
+std::unique_ptr<HostLink> makeModbusRtuLink(const ModbusLinkConfig& config, const lod::Geodetic& origin) {
+  return std::make_unique<ModbusLink>(config, ModbusTransport::Rtu, origin);
+}
+
+}  // namespace ig::io

@@ -1,0 +1,422 @@
+// Modbus register map codec: hand-made register arrays in both word orders, field-by-field
+// rejection (NaN, infinities, ranges, near < far), the commit rule (nothing applies until
+// COMMIT changes; a half-written set is never published; a repeated COMMIT is late), the
+// status block, and request checks at every truncation.
+#include <gtest/gtest.h>
+
+#include <bit>
+#include <cmath>
+#include <limits>
+#include <vector>
+
+#include "io/modbus_map.h"
+
+using namespace ig::io;
+using namespace ig::io::modbus;
+
+namespace {
+
+constexpr uint16_t kNaNHigh = 0x7FC0, kNaNLow = 0x0000;  // quiet NaN 0x7FC00000
+
+// Puts a float at `address` by hand: the 32-bit pattern split into words, in the given order.
+void putFloat(HoldingBlock& b, uint16_t address, float v, WordOrder order) {
+  const uint32_t bits = std::bit_cast<uint32_t>(v);
+  const auto high = static_cast<uint16_t>(bits >> 16), low = static_cast<uint16_t>(bits & 0xFFFF);
+  b[address] = order == WordOrder::LowFirst ? low : high;
+  b[address + 1] = order == WordOrder::LowFirst ? high : low;
+}
+
+// A full set written by hand, as a host would.
+HoldingBlock makeSet(WordOrder order, uint32_t commit) {
+  HoldingBlock b{};
+  const float values[] = {1250.5f, -830.25f, 455.0f, 135.0f, -9.5f, 12.0f, 60.0f, 0.5f, 20000.0f,
+                          3600.25f, 4242.0f, 13.5f};
+  for (int i = 0; i < 12; ++i) putFloat(b, static_cast<uint16_t>(2 * i), values[i], order);
+  const auto high = static_cast<uint16_t>(commit >> 16), low = static_cast<uint16_t>(commit & 0xFFFF);
+  b[24] = order == WordOrder::LowFirst ? low : high;
+  b[25] = order == WordOrder::LowFirst ? high : low;
+  return b;
+}
+
+void expectSet(const HostState& s) {
+  EXPECT_DOUBLE_EQ(s.eyeEnu_m.x, 1250.5);
+  EXPECT_DOUBLE_EQ(s.eyeEnu_m.y, -830.25);
+  EXPECT_DOUBLE_EQ(s.eyeEnu_m.z, 455.0);
+  EXPECT_DOUBLE_EQ(s.heading_deg, 135.0);
+  EXPECT_DOUBLE_EQ(s.pitch_deg, -9.5);
+  EXPECT_DOUBLE_EQ(s.roll_deg, 12.0);
+  EXPECT_DOUBLE_EQ(s.fovY_deg, 60.0);
+  EXPECT_DOUBLE_EQ(s.near_m, 0.5);
+  EXPECT_DOUBLE_EQ(s.far_m, 20000.0);
+  EXPECT_DOUBLE_EQ(s.simTime_s, 3600.25);
+  EXPECT_EQ(s.hostFrame, 4242u);
+  EXPECT_DOUBLE_EQ(s.timeOfDay_h, 13.5);
+}
+
+class ModbusMapOrders : public ::testing::TestWithParam<WordOrder> {};
+
+}  // namespace
+
+TEST(ModbusMap, WordOrderByHand) {
+  // 1.0f = 0x3F800000; 0x12345678 as uint32.
+  std::array<uint16_t, 4> r{};
+  writeF32(r, 0, 1.0f, WordOrder::LowFirst);
+  writeU32(r, 2, 0x12345678u, WordOrder::LowFirst);
+  EXPECT_EQ(r, (std::array<uint16_t, 4>{0x0000, 0x3F80, 0x5678, 0x1234}));
+  writeF32(r, 0, 1.0f, WordOrder::HighFirst);
+  writeU32(r, 2, 0x12345678u, WordOrder::HighFirst);
+  EXPECT_EQ(r, (std::array<uint16_t, 4>{0x3F80, 0x0000, 0x1234, 0x5678}));
+  EXPECT_EQ(readF32(r, 0, WordOrder::HighFirst), 1.0f);
+  EXPECT_EQ(readU32(r, 2, WordOrder::HighFirst), 0x12345678u);
+  EXPECT_EQ(readU32(r, 2, WordOrder::LowFirst), 0x56781234u);
+
+  WordOrder o{};
+  EXPECT_TRUE(parseWordOrder("low_first", o));
+  EXPECT_EQ(o, WordOrder::LowFirst);
+  EXPECT_TRUE(parseWordOrder("high_first", o));
+  EXPECT_EQ(o, WordOrder::HighFirst);
+  EXPECT_FALSE(parseWordOrder("big", o));
+  EXPECT_FALSE(parseWordOrder("", o));
+}
+
+TEST(ModbusMap, AddressesAreFixed) {
+  // The documented map (docs/modbus.md): integrators hard-code these.
+  EXPECT_EQ(slotAddress(Slot::East), 0);
+  EXPECT_EQ(slotAddress(Slot::Heading), 6);
+  EXPECT_EQ(slotAddress(Slot::FovY), 12);
+  EXPECT_EQ(slotAddress(Slot::SimTime), 18);
+  EXPECT_EQ(slotAddress(Slot::HostFrame), 20);
+  EXPECT_EQ(slotAddress(Slot::TimeOfDay), 22);
+  EXPECT_EQ(kCommitAddress, 24);
+  EXPECT_EQ(kHoldingCount, 26);
+  EXPECT_EQ(kInputCount, 24);
+  EXPECT_EQ(slotName(Slot::TimeOfDay), "time_of_day_h");
+}
+
+TEST_P(ModbusMapOrders, DecodesHandMadeSet) {
+  const WordOrder order = GetParam();
+  const HoldingBlock b = makeSet(order, 1);
+  HostState s;
+  const FieldRejects r = decodeHostRegisters(b, order, s);
+  EXPECT_EQ(r.count, 0u);
+  EXPECT_EQ(r.mask, 0u);
+  expectSet(s);
+}
+
+TEST_P(ModbusMapOrders, WrongWordOrderIsRejectedNotMisapplied) {
+  // A block written low-first read as high-first (or the reverse) gives garbage floats; the ones
+  // that land outside their ranges are rejected rather than rendered.
+  const WordOrder order = GetParam();
+  const WordOrder other = order == WordOrder::LowFirst ? WordOrder::HighFirst : WordOrder::LowFirst;
+  const HoldingBlock b = makeSet(order, 1);
+  HostState s;
+  const FieldRejects r = decodeHostRegisters(b, other, s);
+  EXPECT_GT(r.count, 0u);
+}
+
+TEST_P(ModbusMapOrders, EncodeDecodeRoundTrip) {
+  const WordOrder order = GetParam();
+  HostState in;
+  in.eyeEnu_m = {-1234.5, 987.25, 1500.0};
+  in.heading_deg = 270.0;
+  in.pitch_deg = 5.0;
+  in.roll_deg = -30.0;
+  in.fovY_deg = 40.0;
+  in.near_m = 1.0;
+  in.far_m = 50000.0;
+  in.simTime_s = 12.5;
+  in.hostFrame = 77;
+  in.timeOfDay_h = -1.0;
+  HoldingBlock b{};
+  encodeHostRegisters(in, 0xCAFEBABE, order, b);
+  EXPECT_EQ(readU32(b, kCommitAddress, order), 0xCAFEBABEu);
+  HostState out;
+  out.timeOfDay_h = 12.0;
+  EXPECT_EQ(decodeHostRegisters(b, order, out).count, 0u);
+  EXPECT_EQ(out.eyeEnu_m, in.eyeEnu_m);
+  EXPECT_EQ(out.heading_deg, in.heading_deg);
+  EXPECT_EQ(out.roll_deg, in.roll_deg);
+  EXPECT_EQ(out.far_m, in.far_m);
+  EXPECT_EQ(out.hostFrame, 77u);
+  EXPECT_EQ(out.timeOfDay_h, -1.0);
+  // The defaults encode to a block that decodes cleanly (the registers at start-up).
+  encodeHostRegisters(HostState{}, 0, order, b);
+  HostState d;
+  EXPECT_EQ(decodeHostRegisters(b, order, d).count, 0u);
+  EXPECT_FLOAT_EQ(static_cast<float>(d.near_m), 0.1f);
+  EXPECT_EQ(d.timeOfDay_h, -1.0);
+}
+
+TEST_P(ModbusMapOrders, NaNRejectedFieldByField) {
+  const WordOrder order = GetParam();
+  HostState good;
+  decodeHostRegisters(makeSet(order, 1), order, good);
+  for (int slot = 0; slot < 12; ++slot) {
+    HoldingBlock b = makeSet(order, 2);
+    // A different good value everywhere, then NaN in one slot.
+    putFloat(b, 0, 10.0f, order);
+    b[2 * slot] = order == WordOrder::LowFirst ? kNaNLow : kNaNHigh;
+    b[2 * slot + 1] = order == WordOrder::LowFirst ? kNaNHigh : kNaNLow;
+    HostState s = good;
+    const FieldRejects r = decodeHostRegisters(b, order, s);
+    EXPECT_EQ(r.count, 1u) << slotName(static_cast<Slot>(slot));
+    EXPECT_EQ(r.mask, 1u << slot) << slotName(static_cast<Slot>(slot));
+    // The rejected field keeps its last good value; the others apply.
+    if (slot == 0) {
+      EXPECT_EQ(s.eyeEnu_m.x, good.eyeEnu_m.x);
+    } else {
+      EXPECT_EQ(s.eyeEnu_m.x, 10.0);
+    }
+    if (slot == static_cast<int>(Slot::Pitch)) {
+      EXPECT_EQ(s.pitch_deg, good.pitch_deg);
+    }
+    if (slot == static_cast<int>(Slot::HostFrame)) {
+      EXPECT_EQ(s.hostFrame, good.hostFrame);
+    }
+  }
+}
+
+TEST(ModbusMap, RangesPerField) {
+  const WordOrder o = WordOrder::LowFirst;
+  struct Case {
+    Slot slot;
+    float value;
+    bool ok;
+  };
+  const float inf = std::numeric_limits<float>::infinity();
+  const Case cases[] = {
+      {Slot::East, 1e6f, true},        {Slot::East, 1.1e6f, false},   {Slot::North, -inf, false},
+      {Slot::Up, -1e6f, true},         {Slot::Heading, 360.0f, true}, {Slot::Heading, -360.5f, false},
+      {Slot::Pitch, 90.0f, true},      {Slot::Pitch, 90.5f, false},   {Slot::Roll, -180.0f, true},
+      {Slot::Roll, 181.0f, false},     {Slot::FovY, 0.0f, false},     {Slot::FovY, 180.0f, false},
+      {Slot::FovY, 179.0f, true},      {Slot::Near, 0.0f, false},     {Slot::Near, -1.0f, false},
+      {Slot::Far, 1.1e7f, false},      {Slot::SimTime, -0.5f, false}, {Slot::SimTime, 1e9f, true},
+      {Slot::SimTime, inf, false},     {Slot::HostFrame, 12.5f, false}, {Slot::HostFrame, -1.0f, false},
+      {Slot::HostFrame, 16777216.0f, true}, {Slot::HostFrame, 16777218.0f, false},
+      {Slot::TimeOfDay, 23.99f, true}, {Slot::TimeOfDay, 24.0f, false}, {Slot::TimeOfDay, -inf, false},
+  };
+  for (const Case& c : cases) {
+    HoldingBlock b = makeSet(o, 1);
+    putFloat(b, slotAddress(c.slot), c.value, o);
+    HostState s;
+    const FieldRejects r = decodeHostRegisters(b, o, s);
+    EXPECT_EQ(r.count, c.ok ? 0u : 1u) << slotName(c.slot) << " = " << c.value;
+    EXPECT_EQ(r.mask, c.ok ? 0u : 1u << static_cast<int>(c.slot)) << slotName(c.slot) << " = " << c.value;
+  }
+  // A negative time of day means "not given".
+  HoldingBlock b = makeSet(o, 1);
+  putFloat(b, slotAddress(Slot::TimeOfDay), -5.0f, o);
+  HostState s;
+  s.timeOfDay_h = 10.0;
+  EXPECT_EQ(decodeHostRegisters(b, o, s).count, 0u);
+  EXPECT_EQ(s.timeOfDay_h, -1.0);
+  // The largest host frame float32 holds exactly.
+  putFloat(b, slotAddress(Slot::HostFrame), 16777216.0f, o);
+  decodeHostRegisters(b, o, s);
+  EXPECT_EQ(s.hostFrame, 16777216u);
+}
+
+TEST(ModbusMap, ClipPlanesMustStayOrdered) {
+  const WordOrder o = WordOrder::HighFirst;
+  HostState last;
+  last.near_m = 1.0;
+  last.far_m = 1000.0;
+  // near >= far in the same set: both rejected, both keep their last good values.
+  HoldingBlock b = makeSet(o, 1);
+  putFloat(b, slotAddress(Slot::Near), 500.0f, o);
+  putFloat(b, slotAddress(Slot::Far), 400.0f, o);
+  HostState s = last;
+  FieldRejects r = decodeHostRegisters(b, o, s);
+  EXPECT_EQ(r.count, 2u);
+  EXPECT_EQ(r.mask, (1u << static_cast<int>(Slot::Near)) | (1u << static_cast<int>(Slot::Far)));
+  EXPECT_EQ(s.near_m, 1.0);
+  EXPECT_EQ(s.far_m, 1000.0);
+  // far rejected (NaN) and the new near beyond the last good far: near rejected too.
+  putFloat(b, slotAddress(Slot::Near), 2000.0f, o);
+  putFloat(b, slotAddress(Slot::Far), std::numeric_limits<float>::quiet_NaN(), o);
+  s = last;
+  r = decodeHostRegisters(b, o, s);
+  EXPECT_EQ(r.count, 2u);
+  // far rejected and near still below the last good far: near applies.
+  putFloat(b, slotAddress(Slot::Near), 5.0f, o);
+  s = last;
+  r = decodeHostRegisters(b, o, s);
+  EXPECT_EQ(r.count, 1u);
+  EXPECT_EQ(s.near_m, 5.0);
+  EXPECT_EQ(s.far_m, 1000.0);
+}
+
+TEST_P(ModbusMapOrders, CommitAppliesTheWholeSetAtOnce) {
+  const WordOrder order = GetParam();
+  HostRegisterMap map(order);
+  HoldingBlock regs{};
+  encodeHostRegisters(HostState{}, 0, order, regs);
+  const HoldingBlock set = makeSet(order, 1);
+
+  // The host writes the first half of the set: nothing applies.
+  std::copy(set.begin(), set.begin() + 12, regs.begin());
+  WriteOutcome w = map.afterWrite(regs, 0, 12);
+  EXPECT_FALSE(w.committed);
+  EXPECT_EQ(map.state().eyeEnu_m.x, 0.0);
+  // The second half, still without COMMIT: nothing applies.
+  std::copy(set.begin() + 12, set.begin() + 24, regs.begin() + 12);
+  w = map.afterWrite(regs, 12, 12);
+  EXPECT_FALSE(w.committed);
+  EXPECT_EQ(map.state().hostFrame, 0u);
+  // COMMIT (one register of it, as FC6 would): the whole set applies.
+  regs[24] = set[24];
+  regs[25] = set[25];
+  w = map.afterWrite(regs, order == WordOrder::LowFirst ? 24 : 25, 1);
+  EXPECT_TRUE(w.committed);
+  EXPECT_EQ(w.rejects.count, 0u);
+  expectSet(map.state());
+  EXPECT_EQ(map.appliedCommit(), 1u);
+
+  // A new half set and the same COMMIT value again: a repeat, nothing applies (late).
+  putFloat(regs, 0, -1.0f, order);
+  w = map.afterWrite(regs, 0, 26);
+  EXPECT_FALSE(w.committed);
+  EXPECT_TRUE(w.repeated);
+  EXPECT_EQ(map.state().eyeEnu_m.x, 1250.5);
+  // A new COMMIT value applies what the registers hold now.
+  writeU32(regs, kCommitAddress, 2, order);
+  w = map.afterWrite(regs, 24, 2);
+  EXPECT_TRUE(w.committed);
+  EXPECT_EQ(map.state().eyeEnu_m.x, -1.0);
+  // Any change counts, even backwards (a host restarting its counter).
+  writeU32(regs, kCommitAddress, 1, order);
+  EXPECT_TRUE(map.afterWrite(regs, 20, 6).committed);
+  // A write that ends just before COMMIT never commits, whatever COMMIT holds.
+  writeU32(regs, kCommitAddress, 99, order);
+  EXPECT_FALSE(map.afterWrite(regs, 0, 24).committed);
+  EXPECT_FALSE(map.afterWrite(regs, 23, 1).committed);
+  EXPECT_FALSE(map.afterWrite(regs, 0, 0).committed);
+}
+
+TEST(ModbusMap, CommitWithBadFieldsAppliesTheRest) {
+  const WordOrder o = WordOrder::LowFirst;
+  HostRegisterMap map(o);
+  HoldingBlock regs = makeSet(o, 1);
+  ASSERT_TRUE(map.afterWrite(regs, 0, 26).committed);
+  putFloat(regs, slotAddress(Slot::Pitch), std::numeric_limits<float>::quiet_NaN(), o);
+  putFloat(regs, slotAddress(Slot::FovY), 200.0f, o);
+  putFloat(regs, slotAddress(Slot::Heading), 10.0f, o);
+  writeU32(regs, kCommitAddress, 2, o);
+  const WriteOutcome w = map.afterWrite(regs, 0, 26);
+  EXPECT_TRUE(w.committed);
+  EXPECT_EQ(w.rejects.count, 2u);
+  EXPECT_EQ(map.lastRejectedMask(), (1u << static_cast<int>(Slot::Pitch)) | (1u << static_cast<int>(Slot::FovY)));
+  EXPECT_EQ(map.state().pitch_deg, -9.5);  // last good
+  EXPECT_EQ(map.state().fovY_deg, 60.0);   // last good
+  EXPECT_EQ(map.state().heading_deg, 10.0);
+}
+
+TEST_P(ModbusMapOrders, StatusBlockLayout) {
+  const WordOrder order = GetParam();
+  IgStatus st;
+  st.igFrame = 0x00010002;
+  st.lastHostFrame = 4242;
+  st.hostLost = true;
+  st.appliedCommit = 0x40A00000;  // 5.0f as written by mbpoll -t 4:float
+  st.rejectedFields = 0x110;
+  st.counters.received = 10;
+  st.counters.accepted = 4;
+  st.counters.malformed = 3;
+  st.counters.outOfRange = 2;
+  st.counters.late = 1;
+  st.counters.dropped = 0;
+  InputBlock in{};
+  encodeStatusRegisters(st, order, in);
+  const bool lowFirst = order == WordOrder::LowFirst;
+  EXPECT_EQ(in[0], lowFirst ? 0x0002 : 0x0001);
+  EXPECT_EQ(in[1], lowFirst ? 0x0001 : 0x0002);
+  EXPECT_EQ(in[lowFirst ? 2 : 3], 4242);
+  EXPECT_EQ(in[lowFirst ? 4 : 5], 1);  // host_lost
+  EXPECT_EQ(in[lowFirst ? 10 : 11], 10);  // received
+  EXPECT_EQ(in[lowFirst ? 22 : 23], kMapVersion);
+  const IgStatus back = decodeStatusRegisters(in, order);
+  EXPECT_EQ(back.igFrame, st.igFrame);
+  EXPECT_EQ(back.appliedCommit, st.appliedCommit);
+  EXPECT_EQ(back.rejectedFields, st.rejectedFields);
+  EXPECT_TRUE(back.hostLost);
+  EXPECT_EQ(back.counters.malformed, 3u);
+  EXPECT_EQ(back.counters.late, 1u);
+  EXPECT_EQ(back.mapVersion, kMapVersion);
+}
+
+INSTANTIATE_TEST_SUITE_P(Both, ModbusMapOrders, ::testing::Values(WordOrder::LowFirst, WordOrder::HighFirst),
+                         [](const auto& p) { return std::string(toString(p.param)); });
+
+TEST(ModbusRequest, ChecksAgainstTheMap) {
+  using V = std::vector<uint8_t>;
+  auto check = [](const V& pdu) { return checkRequest(pdu); };
+  // FC16: 13 floats + COMMIT from 0.
+  V fc16 = {0x10, 0x00, 0x00, 0x00, 26, 52};
+  fc16.resize(fc16.size() + 52, 0);
+  RequestCheck c = check(fc16);
+  EXPECT_EQ(c.exception, Exception::None);
+  EXPECT_EQ(c.writeStart, 0);
+  EXPECT_EQ(c.writeCount, 26);
+  // FC16 one register past the map: illegal data address, no write.
+  V past = {0x10, 0x00, 0x01, 0x00, 26, 52};
+  past.resize(past.size() + 52, 0);
+  c = check(past);
+  EXPECT_EQ(c.exception, Exception::IllegalDataAddress);
+  EXPECT_EQ(c.writeCount, 0);
+  EXPECT_FALSE(c.flush);
+  // FC16 byte count disagreeing with the count: illegal data value, flush.
+  V bad = {0x10, 0x00, 0x00, 0x00, 2, 2, 0, 0};
+  c = check(bad);
+  EXPECT_EQ(c.exception, Exception::IllegalDataValue);
+  EXPECT_TRUE(c.flush);
+  // FC6 to the commit's high register and past the end.
+  EXPECT_EQ(check({0x06, 0x00, 25, 0x00, 0x01}).writeStart, 25);
+  EXPECT_EQ(check({0x06, 0x00, 26, 0x00, 0x01}).exception, Exception::IllegalDataAddress);
+  // FC3 / FC4 limits.
+  EXPECT_EQ(check({0x03, 0x00, 0x00, 0x00, 26}).exception, Exception::None);
+  EXPECT_EQ(check({0x03, 0x00, 0x00, 0x00, 27}).exception, Exception::IllegalDataAddress);
+  EXPECT_EQ(check({0x03, 0x00, 0x00, 0x00, 0}).exception, Exception::IllegalDataValue);
+  EXPECT_TRUE(check({0x04, 0x00, 0x00, 0x00, 24}).readsStatus);
+  EXPECT_EQ(check({0x04, 0x00, 0x16, 0x00, 3}).exception, Exception::IllegalDataAddress);
+  EXPECT_EQ(check({0x04, 0xFF, 0xFF, 0x00, 1}).exception, Exception::IllegalDataAddress);
+  // No coils or discrete inputs.
+  EXPECT_EQ(check({0x01, 0x00, 0x00, 0x00, 1}).exception, Exception::IllegalDataAddress);
+  EXPECT_EQ(check({0x02, 0x00, 0x00, 0x00, 1}).exception, Exception::IllegalDataAddress);
+  EXPECT_EQ(check({0x05, 0x00, 0x00, 0xFF, 0x00}).exception, Exception::IllegalDataAddress);
+  EXPECT_EQ(check({0x0F, 0x00, 0x00, 0x00, 8, 1, 0xFF}).exception, Exception::IllegalDataAddress);
+  // FC22 mask write and FC23 write-and-read.
+  EXPECT_EQ(check({0x16, 0x00, 24, 0xFF, 0xFF, 0x00, 0x01}).writeStart, 24);
+  c = check({0x17, 0x00, 0x00, 0x00, 2, 0x00, 24, 0x00, 2, 4, 0, 0, 0, 7});
+  EXPECT_EQ(c.exception, Exception::None);
+  EXPECT_EQ(c.writeStart, 24);
+  EXPECT_EQ(c.writeCount, 2);
+  EXPECT_EQ(check({0x17, 0x00, 0x00, 0x00, 2, 0x00, 25, 0x00, 2, 4, 0, 0, 0, 7}).exception,
+            Exception::IllegalDataAddress);
+  // Report slave id passes; unknown functions are illegal and flush.
+  EXPECT_EQ(check({0x11}).exception, Exception::None);
+  c = check({0x07});
+  EXPECT_EQ(c.exception, Exception::IllegalFunction);
+  EXPECT_TRUE(c.flush);
+  EXPECT_EQ(check({0x2B, 0x0E, 0x01, 0x00}).exception, Exception::IllegalFunction);
+}
+
+TEST(ModbusRequest, EveryTruncationIsRejected) {
+  using V = std::vector<uint8_t>;
+  std::vector<V> whole = {
+      {0x03, 0x00, 0x00, 0x00, 0x02},
+      {0x04, 0x00, 0x00, 0x00, 0x02},
+      {0x06, 0x00, 0x18, 0x00, 0x01},
+      {0x10, 0x00, 0x18, 0x00, 0x02, 0x04, 0x00, 0x01, 0x00, 0x00},
+      {0x16, 0x00, 0x18, 0xFF, 0xFF, 0x00, 0x01},
+      {0x17, 0x00, 0x00, 0x00, 0x02, 0x00, 0x18, 0x00, 0x02, 0x04, 0x00, 0x01, 0x00, 0x00},
+  };
+  for (const V& pdu : whole) {
+    EXPECT_EQ(checkRequest(pdu).exception, Exception::None) << int(pdu[0]);
+    for (size_t n = 0; n < pdu.size(); ++n) {
+      const RequestCheck c = checkRequest(std::span<const uint8_t>(pdu.data(), n));
+      EXPECT_TRUE(c.truncated) << "function " << int(pdu[0]) << " cut at " << n;
+      EXPECT_NE(c.exception, Exception::None);
+      EXPECT_EQ(c.writeCount, 0);
+    }
+  }
+}
