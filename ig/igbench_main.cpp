@@ -6,6 +6,8 @@
 #include <cstdio>
 
 #include "ig/app_common.h"
+#include "ig/bench_cells.h"
+#include "ig/bench_hdlod.h"
 #include "ig/bench_latency.h"
 #include "ig/bench_terrain.h"
 #include "ig/clock.h"
@@ -99,9 +101,11 @@ int main(int argc, char** argv) {
       "LOD, at 1 px tolerance on a real DEM, along a flight path that flies, turns hard (90 deg/s)\n"
       "and teleports; then a tolerance sweep (0.5, 1, 2, 4, 8 px) rendered headless against a\n"
       "full-resolution reference render of the same view. JSON fields: dem, samples, methods\n"
-      "{roam_enhmerge, roam_merge, roam_rebuild, block: update_ms_p50, update_ms_p99,\n"
-      "teleport_update_ms, triangles_p50, max_error_px, uploads_p50 (triangles new since the last\n"
-      "frame)}, block_triangles_at_equal_error, roam_triangles_at_equal_error, sweep [{tolerance_px,\n"
+      "{roam_enhmerge, roam_merge, roam_rebuild, block, roam_deferred (enhMerge with deferred\n"
+      "priority recomputation, refining the surroundings regardless of view direction):\n"
+      "update_ms_p50, update_ms_p99, teleport_update_ms, triangles_p50 (the whole mesh),\n"
+      "visible_triangles_p50 (in the view frustum), max_error_px, uploads_p50 (triangles new since\n"
+      "the last frame)}, block_triangles_at_equal_error, roam_triangles_at_equal_error, sweep [{tolerance_px,\n"
       "triangles, update_ms, render_ms, rmse, psnr_db}]. Run scripts/fetch-data first.");
   terrain->add_option("--dem", terrainOptions.demFile, "DEM file (.hgt, .tif, 16-bit .png)")->capture_default_str();
   terrain->add_option("--synthetic", terrainOptions.syntheticSamples,
@@ -124,7 +128,7 @@ int main(int argc, char** argv) {
       "latency_ms_p50, latency_ms_p99, latency_ms_max, render_ms_p50, render_ms_p99,\n"
       "latency_goal_ms (period + render p99), latency_run_overruns, host_messages_received,\n"
       "host_messages_accepted, decode_msgs_per_s, decode_msgs_per_s_swapped, flood_rate_pps,\n"
-      "flood_seconds, flood_frames, flood_overruns, flood_frame_ms_p99, flood_packets_sent,\n"
+      "flood_seconds, flood_rate_achieved_pps, flood_frames, flood_overruns, flood_frame_ms_p99, flood_packets_sent,\n"
       "flood_packets_received, flood_packets_accepted.");
   latency->add_option("-c,--config", latencyOptions.configFile, "Service config (TOML)")->capture_default_str();
   latency->add_option("--host-rate", latencyOptions.hostRate_hz, "Host messages per second in the latency run")
@@ -138,7 +142,61 @@ int main(int argc, char** argv) {
   latency->add_option("--width", latencyOptions.width_px, "Frame width in pixels (default: the config's)");
   latency->add_option("--height", latencyOptions.height_px, "Frame height in pixels (default: the config's)");
   latency->add_flag("--json", latencyOptions.json, "Print one JSON object instead of the human summary");
+  ig::HdlodBenchOptions hdlodOptions;
+  CLI::App* hdlod = app.add_subcommand(
+      "hdlod",
+      "HDLOD (paper 000) on the synthetic construction site (columns, beams, slabs, facade panels\n"
+      "installed floor by floor, scaffolding up and down, vehicles on paths): builds the 4D cluster\n"
+      "tree, then for each time (start, 1/3, 2/3, end) and screen size of the scene (1/1, 1/4, 1/16)\n"
+      "selects with HDLOD at --tolerance and without it: triangles, draws and median selection time;\n"
+      "then an r sweep. Selection only: frame_ms and psnr_db come with the HDLOD render pass.\n"
+      "JSON fields: objects, static, pseudo_dynamic, dynamic, empty, triangles, scene_s, build_s,\n"
+      "clusters, merged_clusters, levels, merged_triangles, cases [{time, screen, hdlod{triangles,\n"
+      "draws, select_ms}, full{...}}], sweep [{r_px, triangles, draws, select_ms}], select_ms_max,\n"
+      "triangle_ratio_1_16_min.");
+  hdlod->add_option("--scale", hdlodOptions.scale, "Site scale: 1 = the paper's ~56k objects / ~4 M triangles")
+      ->capture_default_str()->check(CLI::PositiveNumber);
+  hdlod->add_option("--seed", hdlodOptions.seed, "Site generator seed")->capture_default_str();
+  hdlod->add_option("--width", hdlodOptions.width_px, "Viewport width in pixels")->capture_default_str()
+      ->check(CLI::Range(16, 16384));
+  hdlod->add_option("--height", hdlodOptions.height_px, "Viewport height in pixels")->capture_default_str()
+      ->check(CLI::Range(16, 16384));
+  hdlod->add_option("--fov", hdlodOptions.fovY_deg, "Vertical field of view in degrees")->capture_default_str()
+      ->check(CLI::Range(1.0, 179.0));
+  hdlod->add_option("--tolerance", hdlodOptions.tolerance_px, "Screen-space tolerance r in pixels for the cases")
+      ->capture_default_str()->check(CLI::Range(0.0, 1000.0));
+  hdlod->add_option("--repeats", hdlodOptions.repeats, "Selections per case (the median is reported)")
+      ->capture_default_str()->check(CLI::Range(1, 10000));
+  hdlod->add_flag("--json", hdlodOptions.json, "Print one JSON object instead of the human summary");
+  ig::CellsBenchOptions cellsOptions;
+  CLI::App* cells = app.add_subcommand(
+      "cells",
+      "Hierarchical cells (paper 003) on a procedural scene of voxelized spheres: builds the cell\n"
+      "tree, then flies a camera path with a teleport selecting the best cut under a voxel budget and\n"
+      "a byte budget W per frame (requested cells arrive --latency frames later, simulated), then a\n"
+      "voxel-budget sweep. Selection only: splat rendering, psnr_db and streaming through nginx come\n"
+      "later. Exit 1 if any frame went over a budget. JSON fields: cells, levels, dimension (per\n"
+      "voxel level), select_ms_p50, select_ms_p99, voxels_drawn_p50, voxel_budget,\n"
+      "budget_exceeded_frames, bytes_per_frame_max, w_bytes, sweep [{voxel_budget, min_quality_px,\n"
+      "select_ms}] and more (see docs/cells.md).");
+  cells->add_option("--spheres", cellsOptions.spheres, "Procedural spheres in the 1024 m scene")
+      ->capture_default_str()->check(CLI::Range(1, 1000000));
+  cells->add_option("--levels", cellsOptions.cellLevels, "Cell levels L")->capture_default_str()->check(CLI::Range(1, 16));
+  cells->add_option("--voxel-depth", cellsOptions.cellVoxelDepth, "Voxel octree depth inside a cell")
+      ->capture_default_str()->check(CLI::Range(0, 8));
+  cells->add_option("--frames", cellsOptions.frames, "Camera path frames (60 Hz, teleport at 2/3)")
+      ->capture_default_str()->check(CLI::Range(3, 1000000));
+  cells->add_option("--height", cellsOptions.height_px, "Viewport height in pixels")->capture_default_str()
+      ->check(CLI::Range(16, 16384));
+  cells->add_option("--voxel-budget", cellsOptions.voxelBudget, "Voxels drawn per frame")->capture_default_str();
+  cells->add_option("--w-bytes", cellsOptions.wBytes, "Bytes requested per frame (W)")->capture_default_str();
+  cells->add_option("--latency", cellsOptions.latencyFrames, "Frames until a requested cell arrives")
+      ->capture_default_str()->check(CLI::Range(0, 100000));
+  cells->add_option("--seed", cellsOptions.seed, "Scene seed")->capture_default_str();
+  cells->add_flag("--json", cellsOptions.json, "Print one JSON object instead of the human summary");
   if (const auto rc = ig::parseCommandLine(app, argc, argv)) return *rc;
+  if (cells->parsed()) return ig::runCellsBench(cellsOptions);
+  if (hdlod->parsed()) return ig::runHdlodBench(hdlodOptions);
   if (latency->parsed()) return ig::runLatencyBench(latencyOptions);
   if (terrain->parsed()) {
     terrainOptions.render = !noRender;

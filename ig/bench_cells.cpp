@@ -1,0 +1,243 @@
+#include "ig/bench_cells.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "ig/stats.h"
+#include "lod/cells.h"
+#include "lod/cells_select.h"
+#include "lod/cells_voxel.h"
+
+namespace ig {
+namespace {
+
+using BenchClock = std::chrono::steady_clock;
+double msSince(BenchClock::time_point t0) { return std::chrono::duration<double, std::milli>(BenchClock::now() - t0).count(); }
+
+constexpr double kSceneEdge_m = 1024.0;
+
+// Spheres of radius 8 - 60 m scattered through the cube, each with its own colour.
+lod::VoxelMesh sphereScene(int count, uint32_t seed) {
+  lod::VoxelMesh mesh;
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int i = 0; i < count; ++i) {
+    const double r = 8.0 + 52.0 * u(rng) * u(rng);
+    const glm::dvec3 c(r + (kSceneEdge_m - 2 * r) * u(rng), r + (kSceneEdge_m - 2 * r) * u(rng),
+                       r + (kSceneEdge_m - 2 * r) * u(rng));
+    const int segments = std::clamp(static_cast<int>(r * 1.5), 16, 96);
+    mesh.positions_m.reserve(mesh.positions_m.size() + static_cast<size_t>(segments * segments));
+    lod::appendSphere(mesh, c, r, segments, 0xFF000000u | (rng() & 0xFFFFFFu));
+  }
+  return mesh;
+}
+
+// A slow fly-through of the cube, a turn, a teleport to the far corner at 2/3, on.
+lod::Camera pathCamera(int i, int frames) {
+  lod::Camera cam;
+  cam.fovY_deg = 60.0;
+  cam.aspect = 16.0 / 9.0;
+  cam.near_m = 0.5;
+  cam.far_m = 5000.0;
+  const double t = i / 60.0;
+  if (i < 2 * frames / 3) {
+    cam.eye_m = {200.0 + 40.0 * t, 150.0 + 25.0 * t, 400.0 + 5.0 * std::sin(t)};
+    cam.heading_deg = 30.0 + 20.0 * std::sin(0.3 * t);
+    cam.pitch_deg = -5.0;
+  } else {
+    const double s = t - 2.0 * frames / 3 / 60.0;
+    cam.eye_m = {900.0 - 30.0 * s, 950.0 - 20.0 * s, 700.0};
+    cam.heading_deg = 225.0;
+    cam.pitch_deg = -15.0;
+  }
+  return cam;
+}
+
+struct SweepPoint {
+  uint64_t budget = 0;
+  double minQualityP50_px = 0.0, minQualityMax_px = 0.0, selectP50_ms = 0.0, selectP99_ms = 0.0;
+  uint64_t voxelsP50 = 0, cutCellsP50 = 0;
+};
+
+}  // namespace
+
+int runCellsBench(const CellsBenchOptions& o) {
+  if (o.spheres < 1 || o.cellLevels < 1 || o.cellLevels > lod::kMaxCellLevels || o.cellVoxelDepth < 0 ||
+      o.cellLevels - 1 + o.cellVoxelDepth > lod::kMaxVoxelLevels || o.frames < 3 || o.height_px < 1 ||
+      o.latencyFrames < 0) {
+    std::fprintf(stderr,
+                 "igbench cells: bad options (spheres = %d, levels = %d, voxel depth = %d, frames = %d, height = %d, "
+                 "latency = %d): levels - 1 + voxel depth must be <= %d\n",
+                 o.spheres, o.cellLevels, o.cellVoxelDepth, o.frames, o.height_px, o.latencyFrames,
+                 lod::kMaxVoxelLevels);
+    return 2;
+  }
+  // Build the HC.
+  const auto tBuild = BenchClock::now();
+  const lod::VoxelMesh mesh = sphereScene(o.spheres, o.seed);
+  lod::VoxelizeConfig vc;
+  vc.levels = o.cellLevels - 1 + o.cellVoxelDepth;
+  vc.boxMin_m = glm::dvec3(0.0);
+  vc.boxEdge_m = kSceneEdge_m;
+  lod::VoxelPyramid pyramid;
+  std::string error;
+  if (!lod::voxelize(mesh, vc, pyramid, error)) {
+    std::fprintf(stderr, "igbench cells: %s\n", error.c_str());
+    return 1;
+  }
+  lod::CellTree tree;
+  lod::CellBuildConfig bc;
+  bc.cellLevels = o.cellLevels;
+  bc.cellVoxelDepth = o.cellVoxelDepth;
+  if (!lod::buildCellTree(pyramid, bc, tree, error)) {
+    std::fprintf(stderr, "igbench cells: %s\n", error.c_str());
+    return 1;
+  }
+  const double buildMs = msSince(tBuild);
+  std::vector<double> dimension;
+  for (int l = 0; l < pyramid.levels(); ++l) dimension.push_back(pyramid.dimension(l));
+  std::vector<size_t> voxelsPerLevel;
+  for (int l = 0; l <= pyramid.levels(); ++l) voxelsPerLevel.push_back(pyramid.count(l));
+  uint32_t largestCell = 0;
+  for (uint32_t c = 0; c < tree.size(); ++c) largestCell = std::max(largestCell, tree.bytes(c));
+  pyramid = {};
+
+  std::vector<lod::CellDraw> draw(tree.size());
+  std::vector<uint32_t> requests(tree.size());
+
+  // The path, streaming: nothing resident at the start, requests arrive latencyFrames later.
+  std::vector<lod::Residency> residency(tree.size(), lod::Residency::Absent);
+  std::vector<int> arrival(tree.size(), 0);
+  std::vector<uint32_t> inFlight;
+  inFlight.reserve(tree.size());
+  lod::CellSelector selector(tree);
+  lod::CellView view;
+  view.viewportHeight_px = o.height_px;
+  view.minVoxel_px = 1.0;
+  view.voxelBudget = o.voxelBudget;
+  view.byteBudget = o.wBytes;
+  std::vector<double> selectMs, voxelsDrawn, quality, cutCells;
+  uint64_t bytesMax = 0, bytesTotal = 0;
+  int exceeded = 0, teleportFrame = 2 * o.frames / 3, fullQualityFrame = -1;
+  double teleportMs = 0.0;
+  uint32_t unfetchable = 0;
+  for (int i = 0; i < o.frames; ++i) {
+    // Deliver what has arrived.
+    size_t keep = 0;
+    for (uint32_t c : inFlight) {
+      if (arrival[c] <= i) residency[c] = lod::Residency::Resident;
+      else inFlight[keep++] = c;
+    }
+    inFlight.resize(keep);
+    view.camera = pathCamera(i, o.frames);
+    view.camera.aspect = 16.0 / 9.0;
+    const auto t0 = BenchClock::now();
+    const lod::CellSelectStats s = selector.select(view, residency, draw, requests);
+    const double ms = msSince(t0);
+    selectMs.push_back(ms);
+    if (i == teleportFrame) teleportMs = ms;
+    voxelsDrawn.push_back(static_cast<double>(s.drawnVoxels));
+    quality.push_back(static_cast<double>(s.maxVoxel_px));
+    cutCells.push_back(s.cutCells);
+    if (s.drawnVoxels > o.voxelBudget || s.requestedBytes > o.wBytes || !s.valid) ++exceeded;
+    bytesMax = std::max(bytesMax, s.requestedBytes);
+    bytesTotal += s.requestedBytes;
+    unfetchable = std::max(unfetchable, s.unfetchable);
+    for (uint32_t k = 0; k < s.requestedCells; ++k) {
+      residency[requests[k]] = lod::Residency::InFlight;
+      arrival[requests[k]] = i + o.latencyFrames;
+      inFlight.push_back(requests[k]);
+    }
+    if (i >= teleportFrame && fullQualityFrame < 0 && s.requestedCells == 0 && s.blockedSplits == 0 &&
+        inFlight.empty())
+      fullQualityFrame = i;
+  }
+
+  // Sweep over voxel budgets, everything resident, over every 4th frame of the path.
+  std::vector<SweepPoint> sweep;
+  for (double f : {0.0625, 0.125, 0.25, 0.5, 1.0, 2.0, 4.0}) {
+    SweepPoint p;
+    p.budget = static_cast<uint64_t>(f * static_cast<double>(o.voxelBudget));
+    lod::CellSelector sel(tree);
+    lod::CellView v = view;
+    v.voxelBudget = p.budget;
+    v.byteBudget = o.wBytes;
+    std::vector<double> q, ms, vox, cut;
+    for (int i = 0; i < o.frames; i += 4) {
+      v.camera = pathCamera(i, o.frames);
+      const auto t0 = BenchClock::now();
+      const lod::CellSelectStats s = sel.select(v, {}, draw, requests);
+      const double dt = msSince(t0);
+      if (i == 0 || i == ((teleportFrame + 3) / 4) * 4) continue;  // from the root / the teleport: not steady
+      ms.push_back(dt);
+      q.push_back(static_cast<double>(s.maxVoxel_px));
+      vox.push_back(static_cast<double>(s.drawnVoxels));
+      cut.push_back(s.cutCells);
+    }
+    p.cutCellsP50 = static_cast<uint64_t>(percentile(cut, 50));
+    p.minQualityP50_px = percentile(q, 50);
+    p.minQualityMax_px = *std::max_element(q.begin(), q.end());
+    p.selectP50_ms = percentile(ms, 50);
+    p.selectP99_ms = percentile(ms, 99);
+    p.voxelsP50 = static_cast<uint64_t>(percentile(vox, 50));
+    sweep.push_back(p);
+  }
+
+  const double secondsToFull = fullQualityFrame < 0 ? -1.0 : (fullQualityFrame - teleportFrame) / 60.0;
+  if (o.json) {
+    std::printf("{\"suite\":\"cells\",\"spheres\":%d,\"cells\":%u,\"levels\":%d,\"cell_voxel_depth\":%d,"
+                "\"build_ms\":%.0f,\"total_bytes\":%llu,\"largest_cell_bytes\":%u,\"voxels_per_level\":[",
+                o.spheres, tree.size(), tree.levels(), o.cellVoxelDepth, buildMs,
+                static_cast<unsigned long long>(tree.totalBytes()), largestCell);
+    for (size_t l = 0; l < voxelsPerLevel.size(); ++l) std::printf("%s%zu", l ? "," : "", voxelsPerLevel[l]);
+    std::printf("],\"dimension\":[");
+    for (size_t l = 0; l < dimension.size(); ++l) std::printf("%s%.4f", l ? "," : "", dimension[l]);
+    std::printf("],\"frames\":%d,\"latency_frames\":%d,\"select_ms_p50\":%.4f,\"select_ms_p99\":%.4f,"
+                "\"select_ms_max\":%.4f,\"teleport_select_ms\":%.4f,\"voxels_drawn_p50\":%.0f,\"voxel_budget\":%llu,"
+                "\"budget_exceeded_frames\":%d,\"bytes_per_frame_max\":%llu,\"w_bytes\":%llu,\"bytes_total\":%llu,"
+                "\"unfetchable_cells\":%u,\"frames_to_settle_after_teleport\":%d,\"seconds_to_settle_after_teleport\":%.3f,"
+                "\"max_voxel_px_p50\":%.3f,\"cut_cells_p50\":%.0f,\"sweep\":[",
+                o.frames, o.latencyFrames, percentile(selectMs, 50), percentile(selectMs, 99),
+                *std::max_element(selectMs.begin(), selectMs.end()), teleportMs, percentile(voxelsDrawn, 50),
+                static_cast<unsigned long long>(o.voxelBudget), exceeded, static_cast<unsigned long long>(bytesMax),
+                static_cast<unsigned long long>(o.wBytes), static_cast<unsigned long long>(bytesTotal), unfetchable,
+                fullQualityFrame < 0 ? -1 : fullQualityFrame - teleportFrame, secondsToFull, percentile(quality, 50),
+                percentile(cutCells, 50));
+    for (size_t k = 0; k < sweep.size(); ++k) {
+      const SweepPoint& p = sweep[k];
+      std::printf("%s{\"voxel_budget\":%llu,\"voxels_drawn_p50\":%llu,\"min_quality_px\":%.3f,\"min_quality_px_max\":%.3f,"
+                  "\"cut_cells_p50\":%llu,\"select_ms\":%.4f,\"select_ms_p99\":%.4f}",
+                  k ? "," : "", static_cast<unsigned long long>(p.budget), static_cast<unsigned long long>(p.voxelsP50),
+                  p.minQualityP50_px, p.minQualityMax_px, static_cast<unsigned long long>(p.cutCellsP50), p.selectP50_ms,
+                  p.selectP99_ms);
+    }
+    std::printf("],\"rendering\":\"none (no splat renderer yet: no psnr_db)\"}\n");
+  } else {
+    std::printf("cells suite: %d spheres -> %u cells, %d levels (voxels of %.2f m), built in %.0f ms, %.1f MB\n",
+                o.spheres, tree.size(), tree.levels(), tree.voxelEdge_m(tree.levels() - 1), buildMs,
+                static_cast<double>(tree.totalBytes()) / 1e6);
+    std::printf("  dimension per level:");
+    for (double d : dimension) std::printf(" %.3f", d);
+    std::printf("\n  path (%d frames, teleport at %d, streaming W = %llu B/frame, latency %d frames):\n", o.frames,
+                teleportFrame, static_cast<unsigned long long>(o.wBytes), o.latencyFrames);
+    std::printf("    select p50 %.3f ms, p99 %.3f ms, teleport %.3f ms; voxels drawn p50 %.0f of %llu; over budget: %d "
+                "frames; bytes/frame max %llu; settled %.2f s after the teleport\n",
+                percentile(selectMs, 50), percentile(selectMs, 99), teleportMs, percentile(voxelsDrawn, 50),
+                static_cast<unsigned long long>(o.voxelBudget), exceeded, static_cast<unsigned long long>(bytesMax),
+                secondsToFull);
+    std::printf("  sweep (all resident): budget, voxels p50, largest voxel px p50 / max, cut cells p50, select ms p50 / p99\n");
+    for (const SweepPoint& p : sweep)
+      std::printf("    %9llu %9llu %8.2f %8.2f %8llu %8.3f %8.3f\n", static_cast<unsigned long long>(p.budget),
+                  static_cast<unsigned long long>(p.voxelsP50), p.minQualityP50_px, p.minQualityMax_px,
+                  static_cast<unsigned long long>(p.cutCellsP50), p.selectP50_ms, p.selectP99_ms);
+    std::printf("  (no rendering yet: no PSNR)\n");
+  }
+  return exceeded == 0 ? 0 : 1;
+}
+
+}  // namespace ig

@@ -1,0 +1,28 @@
+// igbench cells: hierarchical cells (paper 003) on a synthetic scene of many voxelized spheres
+// (~1 M cells by default). Reports the HC (cells, levels, box-counting dimension per voxel
+// level), the selection along a camera path with a teleport while cells stream in under a byte
+// budget per frame (select time p50 / p99, drawn voxels, frames over a budget, bytes per frame),
+// and a sweep over voxel budgets with everything resident (the largest on-screen voxel, select
+// time). No rendering yet: no PSNR, no streaming through a server (see docs/cells.md).
+#pragma once
+
+#include <cstdint>
+
+namespace ig {
+
+struct CellsBenchOptions {
+  int spheres = 1100;           // procedural spheres in a 1024 m cube
+  int cellLevels = 9;           // L: cell levels (the finest cells are 1024 / 2^(L-1) m)
+  int cellVoxelDepth = 3;       // d: voxel octree depth inside a cell (voxels of 1024 / 2^(L-1+d) m)
+  int frames = 600;             // camera path length (60 Hz), a teleport at 2/3
+  int height_px = 1080;         // viewport height (fovY 60 deg, 16:9)
+  uint64_t voxelBudget = 2000000;  // voxels drawn per frame
+  uint64_t wBytes = 1 << 20;       // W: bytes requested per frame
+  int latencyFrames = 3;        // a requested cell arrives this many frames later
+  uint32_t seed = 1;
+  bool json = false;
+};
+
+int runCellsBench(const CellsBenchOptions& options);
+
+}  // namespace ig

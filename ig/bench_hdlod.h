@@ -1,0 +1,26 @@
+// igbench hdlod: paper 000's Table 2 protocol on the synthetic construction site
+// (lod/hdlod_site.h), selection only (no rendering yet: frame_ms and psnr_db come with the
+// render slice). Builds the site and its HDLOD tree, then for each time (start, 1/3, 2/3, end
+// of the schedule) and screen size of the scene (1/1, 1/4, 1/16 of the screen area) selects with
+// HDLOD at r_px and without it (every present object in the frustum): triangles, draws and the
+// median selection time. Then sweeps r (at 1/3 of the schedule, the paper's worst case, scene
+// filling the screen).
+#pragma once
+
+#include <cstdint>
+
+namespace ig {
+
+struct HdlodBenchOptions {
+  double scale = 0.1;       // site scale: 1 = the paper's ~56k objects / ~4 M triangles
+  uint32_t seed = 1;        // site generator seed
+  int width_px = 1920, height_px = 1080;
+  double fovY_deg = 45.0;
+  double tolerance_px = 1.0;  // r for the cases
+  int repeats = 31;         // selections per case (the median is reported)
+  bool json = false;
+};
+
+int runHdlodBench(const HdlodBenchOptions& options);
+
+}  // namespace ig

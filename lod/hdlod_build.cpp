@@ -1,0 +1,841 @@
+// HDLOD cluster-tree generation: paper 000, appendix 2 (see hdlod_build.h for the definitions).
+#include "lod/hdlod_build.h"
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <limits>
+#include <numeric>
+
+#include <glm/geometric.hpp>
+
+namespace ig::lod::hdlod {
+namespace {
+
+constexpr uint32_t kNone = ~0u;
+constexpr double kMinWeight_m = 1e-6;
+
+double diagonal(const Aabb& b) { return glm::length(b.max - b.min); }
+Aabb unite(const Aabb& a, const Aabb& b) { return Aabb{glm::min(a.min, b.min), glm::max(a.max, b.max)}; }
+glm::dvec3 centre(const Aabb& b) { return (b.min + b.max) * 0.5; }
+
+// ---------------------------------------------------------------- step functions
+
+struct Step {
+  std::span<const double> times, values;
+  size_t segmentAt(double t) const {
+    const auto it = std::upper_bound(times.begin(), times.end(), t);
+    return it == times.begin() ? 0 : static_cast<size_t>(it - times.begin()) - 1;
+  }
+};
+
+struct Event {
+  double t;
+  double weight;
+  int count;
+};
+
+// f(t) = sum of present weights / total over the leaf step functions (value 1 = present); with
+// `any`, f = 1 while any leaf is present. Exactly 0 when none is and 1 when all are.
+void presenceOf(const HdlodTree& tree, std::span<const uint32_t> leaves, std::span<const double> weights, bool any,
+                std::vector<double>& times, std::vector<double>& values, std::vector<Event>& events) {
+  events.clear();
+  double total = 0.0;
+  for (size_t i = 0; i < leaves.size(); ++i) {
+    const Cluster& c = tree.clusters[leaves[i]];
+    total += weights[i];
+    double prev = 0.0;
+    for (uint32_t k = 0; k < c.stepCount; ++k) {
+      const double v = tree.stepValues[c.stepBegin + k];
+      if (v != prev) events.push_back({tree.stepTimes[c.stepBegin + k], v > prev ? weights[i] : -weights[i], v > prev ? 1 : -1});
+      prev = v;
+    }
+  }
+  std::sort(events.begin(), events.end(), [](const Event& a, const Event& b) { return a.t < b.t; });
+  times.clear();
+  values.clear();
+  const int n = static_cast<int>(leaves.size());
+  double w = 0.0;
+  int count = 0;
+  size_t e = 0;
+  auto value = [&] {
+    if (count <= 0) return 0.0;
+    if (any || count >= n) return 1.0;
+    return std::clamp(w / total, 0.0, 1.0);
+  };
+  // Segment starting at 0 includes every event at 0.
+  while (e < events.size() && events[e].t <= 0.0) {
+    w += events[e].weight;
+    count += events[e].count;
+    ++e;
+  }
+  times.push_back(0.0);
+  values.push_back(value());
+  while (e < events.size()) {
+    const double t = events[e].t;
+    while (e < events.size() && events[e].t == t) {
+      w += events[e].weight;
+      count += events[e].count;
+      ++e;
+    }
+    const double v = value();
+    if (v != values.back()) {
+      times.push_back(t);
+      values.push_back(v);
+    }
+  }
+}
+
+// Leaf presence v_s as a step function (same rules as isPresent()).
+void leafPresence(const Object& o, double T, std::vector<double>& times, std::vector<double>& values) {
+  times.assign(1, 0.0);
+  values.assign(1, 0.0);
+  for (const Interval& iv : o.visible) {
+    if (iv.appear_s >= T || iv.disappear_s <= 0.0) continue;
+    const double a = std::max(iv.appear_s, 0.0);
+    if (a <= 0.0) {
+      values[0] = 1.0;
+    } else {
+      times.push_back(a);
+      values.push_back(1.0);
+    }
+    if (iv.disappear_s < T) {
+      times.push_back(iv.disappear_s);
+      values.push_back(0.0);
+    }
+  }
+}
+
+// Integral of a step function over [0, x] given its prefix integrals.
+double integralTo(const Step& f, std::span<const double> prefix, double x) {
+  const size_t i = f.segmentAt(x);
+  return prefix[i] + f.values[i] * (x - f.times[i]);
+}
+
+// ---------------------------------------------------------------- Hilbert curve
+
+// 3D Hilbert index of integer coordinates with `bits` bits each (Skilling's transform).
+uint64_t hilbertKey(uint32_t x, uint32_t y, uint32_t z, int bits) {
+  uint32_t X[3] = {x, y, z};
+  const uint32_t M = 1u << (bits - 1);
+  for (uint32_t Q = M; Q > 1; Q >>= 1) {
+    const uint32_t P = Q - 1;
+    for (int i = 0; i < 3; ++i) {
+      if (X[i] & Q) {
+        X[0] ^= P;
+      } else {
+        const uint32_t t = (X[0] ^ X[i]) & P;
+        X[0] ^= t;
+        X[i] ^= t;
+      }
+    }
+  }
+  for (int i = 1; i < 3; ++i) X[i] ^= X[i - 1];
+  uint32_t t = 0;
+  for (uint32_t Q = M; Q > 1; Q >>= 1) {
+    if (X[2] & Q) t ^= Q - 1;
+  }
+  for (auto& v : X) v ^= t;
+  uint64_t key = 0;
+  for (int b = bits - 1; b >= 0; --b) {
+    for (int i = 0; i < 3; ++i) key = (key << 1) | ((X[i] >> b) & 1u);
+  }
+  return key;
+}
+
+// ---------------------------------------------------------------- point-triangle distance
+
+glm::vec3 closestOnSegment(const glm::vec3& p, const glm::vec3& a, const glm::vec3& b) {
+  const glm::vec3 ab = b - a;
+  const float len2 = glm::dot(ab, ab);
+  if (!(len2 > 0.0f)) return a;
+  const float u = std::clamp(glm::dot(p - a, ab) / len2, 0.0f, 1.0f);
+  return a + ab * u;
+}
+
+float distance2(const glm::vec3& a, const glm::vec3& b) {
+  const glm::vec3 d = a - b;
+  return glm::dot(d, d);
+}
+
+// Squared distance from p to triangle abc (Ericson, Real-Time Collision Detection 5.1.5);
+// zero-area triangles fall back to their edges.
+float pointTriangleDistance2(const glm::vec3& p, const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) {
+  const glm::vec3 ab = b - a, ac = c - a, ap = p - a;
+  const glm::vec3 n = glm::cross(ab, ac);
+  const float nn = glm::dot(n, n);
+  const float scale = std::max(glm::dot(ab, ab), glm::dot(ac, ac));
+  if (!(nn > 1e-12f * scale * scale)) {
+    return std::min({distance2(p, closestOnSegment(p, a, b)), distance2(p, closestOnSegment(p, b, c)),
+                     distance2(p, closestOnSegment(p, c, a))});
+  }
+  const float d1 = glm::dot(ab, ap), d2 = glm::dot(ac, ap);
+  if (d1 <= 0.0f && d2 <= 0.0f) return distance2(p, a);
+  const glm::vec3 bp = p - b;
+  const float d3 = glm::dot(ab, bp), d4 = glm::dot(ac, bp);
+  if (d3 >= 0.0f && d4 <= d3) return distance2(p, b);
+  const float vc = d1 * d4 - d3 * d2;
+  if (vc <= 0.0f && d1 >= 0.0f && d3 <= 0.0f) return distance2(p, a + ab * (d1 / (d1 - d3)));
+  const glm::vec3 cp = p - c;
+  const float d5 = glm::dot(ab, cp), d6 = glm::dot(ac, cp);
+  if (d6 >= 0.0f && d5 <= d6) return distance2(p, c);
+  const float vb = d5 * d2 - d1 * d6;
+  if (vb <= 0.0f && d2 >= 0.0f && d6 <= 0.0f) return distance2(p, a + ac * (d2 / (d2 - d6)));
+  const float va = d3 * d6 - d5 * d4;
+  if (va <= 0.0f && (d4 - d3) >= 0.0f && (d5 - d6) >= 0.0f) {
+    return distance2(p, b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6))));
+  }
+  const float denom = 1.0f / (va + vb + vc);
+  const float v = vb * denom, w = vc * denom;
+  return distance2(p, a + ab * v + ac * w);
+}
+
+// A BVH over triangles for nearest-distance queries with an early exit.
+class TriangleBvh {
+ public:
+  TriangleBvh(std::span<const glm::vec3> positions, std::span<const uint32_t> indices)
+      : positions_(positions), indices_(indices) {
+    const uint32_t n = static_cast<uint32_t>(indices.size() / 3);
+    order_.resize(n);
+    std::iota(order_.begin(), order_.end(), 0u);
+    centroids_.resize(n);
+    for (uint32_t i = 0; i < n; ++i) {
+      centroids_[i] = (vertex(i, 0) + vertex(i, 1) + vertex(i, 2)) / 3.0f;
+    }
+    if (n > 0) {
+      nodes_.reserve(2 * static_cast<size_t>(n) / kLeafSize + 2);
+      build(0, n);
+    }
+  }
+
+  // Smallest distance from p to a triangle; returns as soon as a distance <= enough is found.
+  float nearest(const glm::vec3& p, float enough) const {
+    if (nodes_.empty()) return std::numeric_limits<float>::infinity();
+    float best2 = std::numeric_limits<float>::infinity();
+    const float enough2 = enough * enough;
+    uint32_t stack[64];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+      const Node& node = nodes_[stack[--top]];
+      if (boxDistance2(node, p) >= best2) continue;
+      if (node.count > 0) {
+        for (uint32_t i = node.first; i < node.first + node.count; ++i) {
+          const uint32_t t = order_[i];
+          best2 = std::min(best2, pointTriangleDistance2(p, vertex(t, 0), vertex(t, 1), vertex(t, 2)));
+        }
+        if (best2 <= enough2) break;
+        continue;
+      }
+      const uint32_t l = node.first, r = node.first + 1;
+      const float dl = boxDistance2(nodes_[l], p), dr = boxDistance2(nodes_[r], p);
+      // Push the farther child first so the nearer is visited next.
+      if (dl < dr) {
+        stack[top++] = r;
+        stack[top++] = l;
+      } else {
+        stack[top++] = l;
+        stack[top++] = r;
+      }
+    }
+    return std::sqrt(best2);
+  }
+
+ private:
+  static constexpr uint32_t kLeafSize = 4;
+  struct Node {
+    glm::vec3 lo, hi;
+    uint32_t first = 0;  // leaf: first in order_; inner: left child (right = first + 1)
+    uint32_t count = 0;  // leaf: triangles; inner: 0
+  };
+
+  glm::vec3 vertex(uint32_t t, int k) const { return positions_[indices_[3 * t + static_cast<uint32_t>(k)]]; }
+
+  static float boxDistance2(const Node& n, const glm::vec3& p) {
+    const glm::vec3 d = glm::max(glm::max(n.lo - p, p - n.hi), glm::vec3(0.0f));
+    return glm::dot(d, d);
+  }
+
+  // Iterative top-down build (median split on the longest centroid axis).
+  void build(uint32_t first, uint32_t count) {
+    struct Task {
+      uint32_t node, first, count;
+    };
+    std::vector<Task> tasks;
+    nodes_.push_back({});
+    tasks.push_back({0, first, count});
+    while (!tasks.empty()) {
+      const Task task = tasks.back();
+      tasks.pop_back();
+      glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
+      glm::vec3 clo = lo, chi = hi;
+      for (uint32_t i = task.first; i < task.first + task.count; ++i) {
+        const uint32_t t = order_[i];
+        for (int k = 0; k < 3; ++k) {
+          lo = glm::min(lo, vertex(t, k));
+          hi = glm::max(hi, vertex(t, k));
+        }
+        clo = glm::min(clo, centroids_[t]);
+        chi = glm::max(chi, centroids_[t]);
+      }
+      nodes_[task.node].lo = lo;
+      nodes_[task.node].hi = hi;
+      if (task.count <= kLeafSize) {
+        nodes_[task.node].first = task.first;
+        nodes_[task.node].count = task.count;
+        continue;
+      }
+      const glm::vec3 ext = chi - clo;
+      const int axis = ext.x >= ext.y && ext.x >= ext.z ? 0 : (ext.y >= ext.z ? 1 : 2);
+      const uint32_t half = task.count / 2;
+      auto begin = order_.begin() + task.first;
+      std::nth_element(begin, begin + half, begin + task.count, [&](uint32_t a, uint32_t b) {
+        return centroids_[a][axis] < centroids_[b][axis] || (centroids_[a][axis] == centroids_[b][axis] && a < b);
+      });
+      const uint32_t left = static_cast<uint32_t>(nodes_.size());
+      nodes_.push_back({});
+      nodes_.push_back({});
+      nodes_[task.node].first = left;
+      nodes_[task.node].count = 0;
+      tasks.push_back({left, task.first, half});
+      tasks.push_back({left + 1, task.first + half, task.count - half});
+    }
+  }
+
+  std::span<const glm::vec3> positions_;
+  std::span<const uint32_t> indices_;
+  std::vector<uint32_t> order_;
+  std::vector<glm::vec3> centroids_;
+  std::vector<Node> nodes_;
+};
+
+// ---------------------------------------------------------------- vertex clustering
+
+// Vertex clustering: vertices collapse to the mean of their cell of a grid of `cell_m` anchored
+// at `anchor` (the tree's box corner: the result does not change when the scene is moved). `indices` keeps the triangles with three distinct cells (the
+// first of duplicates, input order); `collapsed` gets the triangles that became segments or
+// points (deduplicated), the simplicial complex of Rossignac-Borrel that the error is measured
+// against. Deterministic.
+struct Clustered {
+  std::vector<glm::vec3> positions;  // one per occupied cell
+  std::vector<uint32_t> indices, collapsed;
+};
+
+Clustered clusterVertices(const glm::dvec3& origin, const glm::dvec3& anchor, double cell_m,
+                          std::span<const glm::vec3> positions, std::span<const uint32_t> indices) {
+  Clustered r;
+  const size_t nv = positions.size();
+  if (nv == 0 || !(cell_m > 0.0)) return r;
+  std::vector<glm::i64vec3> cellOf(nv);
+  glm::i64vec3 lo(0), hi(0);
+  double cell = cell_m;
+  for (int attempt = 0;; ++attempt) {
+    lo = glm::i64vec3(std::numeric_limits<int64_t>::max());
+    hi = glm::i64vec3(std::numeric_limits<int64_t>::min());
+    for (size_t i = 0; i < nv; ++i) {
+      const glm::dvec3 w = (origin - anchor) + glm::dvec3(positions[i]);
+      cellOf[i] = glm::i64vec3(static_cast<int64_t>(std::floor(w.x / cell)), static_cast<int64_t>(std::floor(w.y / cell)),
+                               static_cast<int64_t>(std::floor(w.z / cell)));
+      lo = glm::min(lo, cellOf[i]);
+      hi = glm::max(hi, cellOf[i]);
+    }
+    const glm::dvec3 range = glm::dvec3(hi - lo) + 1.0;
+    if (range.x * range.y * range.z < 4.0e18 || attempt > 60) break;
+    cell *= 2.0;
+  }
+  const uint64_t rx = static_cast<uint64_t>(hi.x - lo.x + 1), ry = static_cast<uint64_t>(hi.y - lo.y + 1);
+  std::vector<std::pair<uint64_t, uint32_t>> keyed(nv);
+  for (size_t i = 0; i < nv; ++i) {
+    const glm::i64vec3 c = cellOf[i] - lo;
+    keyed[i] = {static_cast<uint64_t>(c.x) + rx * (static_cast<uint64_t>(c.y) + ry * static_cast<uint64_t>(c.z)),
+                static_cast<uint32_t>(i)};
+  }
+  std::sort(keyed.begin(), keyed.end());
+  std::vector<uint32_t> remap(nv);
+  for (size_t i = 0; i < nv;) {
+    size_t j = i;
+    glm::dvec3 sum(0.0);
+    while (j < nv && keyed[j].first == keyed[i].first) {
+      sum += glm::dvec3(positions[keyed[j].second]);
+      remap[keyed[j].second] = static_cast<uint32_t>(r.positions.size());
+      ++j;
+    }
+    r.positions.push_back(glm::vec3(sum / static_cast<double>(j - i)));
+    i = j;
+  }
+  struct Tri {
+    uint32_t sorted[3];
+    uint32_t original;  // position in the input: keeps the first occurrence and the order
+  };
+  std::vector<Tri> tris;
+  const size_t nt = indices.size() / 3;
+  tris.reserve(nt);
+  for (size_t t = 0; t < nt; ++t) {
+    uint32_t s[3] = {remap[indices[3 * t]], remap[indices[3 * t + 1]], remap[indices[3 * t + 2]]};
+    std::sort(s, s + 3);
+    tris.push_back({{s[0], s[1], s[2]}, static_cast<uint32_t>(t)});
+  }
+  std::sort(tris.begin(), tris.end(), [](const Tri& x, const Tri& y) {
+    if (x.sorted[0] != y.sorted[0]) return x.sorted[0] < y.sorted[0];
+    if (x.sorted[1] != y.sorted[1]) return x.sorted[1] < y.sorted[1];
+    if (x.sorted[2] != y.sorted[2]) return x.sorted[2] < y.sorted[2];
+    return x.original < y.original;
+  });
+  std::vector<uint32_t> keep;
+  for (size_t i = 0; i < tris.size(); ++i) {
+    const uint32_t* s = tris[i].sorted;
+    if (i > 0 && std::equal(s, s + 3, tris[i - 1].sorted)) continue;
+    if (s[0] == s[1] || s[1] == s[2]) {
+      r.collapsed.insert(r.collapsed.end(), {s[0], s[1], s[2]});
+    } else {
+      keep.push_back(tris[i].original);
+    }
+  }
+  std::sort(keep.begin(), keep.end());
+  r.indices.reserve(keep.size() * 3);
+  for (uint32_t t : keep) {
+    for (int k = 0; k < 3; ++k) r.indices.push_back(remap[indices[3 * t + static_cast<uint32_t>(k)]]);
+  }
+  return r;
+}
+
+// The mesh of `indices` with only the vertices they use.
+void compactMesh(std::span<const glm::vec3> positions, std::span<const uint32_t> indices, ClusterMesh& mesh) {
+  std::vector<uint32_t> used(positions.size(), kNone);
+  mesh.positions.clear();
+  mesh.indices.assign(indices.begin(), indices.end());
+  for (uint32_t& i : mesh.indices) {
+    if (used[i] == kNone) {
+      used[i] = static_cast<uint32_t>(mesh.positions.size());
+      mesh.positions.push_back(positions[i]);
+    }
+    i = used[i];
+  }
+}
+
+// ---------------------------------------------------------------- the builder
+
+class Builder {
+ public:
+  Builder(const Scene& scene, const BuildConfig& config) : scene_(scene), config_(config) {
+    tree_.duration_s = scene.duration_s;
+  }
+
+  HdlodTree run() {
+    const double T = scene_.duration_s;
+    tree_.objectCluster.assign(scene_.objects.size(), kNone);
+    std::vector<uint32_t> active, dynamic;
+    std::vector<double> times, values;
+    for (uint32_t i = 0; i < scene_.objects.size(); ++i) {
+      const Object& o = scene_.objects[i];
+      const Model& m = scene_.models[o.model];
+      const ObjectClass cls = classify(o, T);
+      if (m.triangleCount() == 0) {
+        ++tree_.stats.emptyObjects;
+        continue;
+      }
+      Cluster c;
+      c.object = i;
+      c.mesh = o.model;
+      c.triangles = static_cast<uint32_t>(m.triangleCount());
+      glm::dmat4 matrix(1.0);
+      if (cls == ObjectClass::Dynamic) {
+        ++tree_.stats.dynamicObjects;
+        c.kind = ClusterKind::Dynamic;
+        c.box = sweptBox(o, m);
+      } else {
+        ++(cls == ObjectClass::Static ? tree_.stats.staticObjects : tree_.stats.pseudoDynamicObjects);
+        c.kind = ClusterKind::Object;
+        matrix = objectMatrix(o, 0.0, T);
+        c.box = transformBox(m.box, matrix);
+      }
+      c.size_m = diagonal(c.box);
+      leafPresence(o, T, times, values);
+      const uint32_t id = addCluster(c, times, values, matrix);
+      tree_.objectCluster[i] = id;
+      tree_.stats.leafTriangles += c.triangles;
+      (c.kind == ClusterKind::Dynamic ? dynamic : active).push_back(id);
+    }
+    weight_.resize(tree_.clusters.size());
+    for (size_t i = 0; i < tree_.clusters.size(); ++i) weight_[i] = std::max(tree_.clusters[i].size_m, kMinWeight_m);
+    leaves_.resize(tree_.clusters.size());
+    for (uint32_t id : active) leaves_[id] = {id};
+
+    // The paper's three trees: static, pseudo-dynamic, dynamic.
+    std::vector<uint32_t> statics, pseudo, tops;
+    for (uint32_t id : active) {
+      (classify(scene_.objects[tree_.clusters[id].object], T) == ObjectClass::Static ? statics : pseudo).push_back(id);
+    }
+    if (!statics.empty()) tops.push_back(clusterStatic(std::move(statics)));
+    if (!pseudo.empty()) tops.push_back(clusterStatic(std::move(pseudo)));
+    if (!dynamic.empty()) tops.push_back(groupDynamic(std::move(dynamic)));
+    if (!tops.empty()) tree_.root = addGroup(tops, /*level=*/static_cast<uint16_t>(tree_.stats.levels + 1));
+    return std::move(tree_);
+  }
+
+ private:
+  uint32_t addCluster(Cluster c, std::span<const double> times, std::span<const double> values, const glm::dmat4& matrix) {
+    c.stepBegin = static_cast<uint32_t>(tree_.stepTimes.size());
+    c.stepCount = static_cast<uint32_t>(times.size());
+    tree_.stepTimes.insert(tree_.stepTimes.end(), times.begin(), times.end());
+    tree_.stepValues.insert(tree_.stepValues.end(), values.begin(), values.end());
+    tree_.clusters.push_back(c);
+    tree_.leafMatrix.push_back(matrix);
+    return static_cast<uint32_t>(tree_.clusters.size() - 1);
+  }
+
+  Step stepOf(uint32_t id) const {
+    const Cluster& c = tree_.clusters[id];
+    return {{tree_.stepTimes.data() + c.stepBegin, c.stepCount}, {tree_.stepValues.data() + c.stepBegin, c.stepCount}};
+  }
+
+  // A group (dynamic group or virtual root): f = 1 while any member is present.
+  uint32_t addGroup(std::span<const uint32_t> members, uint16_t level) {
+    Cluster g;
+    g.kind = ClusterKind::Group;
+    g.level = level;
+    g.box = tree_.clusters[members[0]].box;
+    for (uint32_t m : members) g.box = unite(g.box, tree_.clusters[m].box);
+    g.size_m = diagonal(g.box);
+    g.firstChild = static_cast<uint32_t>(tree_.children.size());
+    g.childCount = static_cast<uint32_t>(members.size());
+    tree_.children.insert(tree_.children.end(), members.begin(), members.end());
+    std::vector<double> ones(members.size(), 1.0);
+    presenceOf(tree_, members, ones, /*any=*/true, times_, values_, events_);
+    return addCluster(g, times_, values_, glm::dmat4(1.0));
+  }
+
+  uint32_t groupDynamic(std::vector<uint32_t> level) {
+    auto firstAppear = [&](uint32_t id) {
+      const Step s = stepOf(id);
+      for (size_t k = 0; k < s.values.size(); ++k) {
+        if (s.values[k] > 0.0) return s.times[k];
+      }
+      return std::numeric_limits<double>::infinity();
+    };
+    std::stable_sort(level.begin(), level.end(), [&](uint32_t a, uint32_t b) { return firstAppear(a) < firstAppear(b); });
+    const size_t g = static_cast<size_t>(std::max(2, config_.dynamicGroupSize));
+    uint16_t depth = 1;
+    while (level.size() > 1) {
+      std::vector<uint32_t> next;
+      for (size_t i = 0; i < level.size(); i += g) {
+        const size_t n = std::min(g, level.size() - i);
+        next.push_back(addGroup({level.data() + i, n}, depth));
+      }
+      level = std::move(next);
+      ++depth;
+    }
+    if (tree_.clusters[level[0]].kind == ClusterKind::Dynamic) return addGroup({level.data(), 1}, 1);
+    return level[0];
+  }
+
+  // Appends a cluster's geometry relative to `origin`.
+  void appendGeometry(uint32_t id, const glm::dvec3& origin, std::vector<glm::vec3>& positions,
+                      std::vector<uint32_t>& indices) const {
+    const Cluster& c = tree_.clusters[id];
+    const uint32_t base = static_cast<uint32_t>(positions.size());
+    if (c.kind == ClusterKind::Object) {
+      const Model& m = scene_.models[c.mesh];
+      const glm::dmat4& M = tree_.leafMatrix[id];
+      for (const glm::vec3& p : m.positions) positions.push_back(glm::vec3(glm::dvec3(M * glm::dvec4(glm::dvec3(p), 1.0)) - origin));
+      for (uint32_t i : m.indices) indices.push_back(base + i);
+    } else {
+      const ClusterMesh& mesh = tree_.meshes[c.mesh];
+      const glm::dvec3 shift = mesh.origin_m - origin;
+      for (const glm::vec3& p : mesh.positions) positions.push_back(glm::vec3(glm::dvec3(p) + shift));
+      for (uint32_t i : mesh.indices) indices.push_back(base + i);
+    }
+  }
+
+  uint32_t makeParent(std::span<const uint32_t> kids, uint16_t level, double eps_l) {
+    Cluster p;
+    p.kind = ClusterKind::Merged;
+    p.level = level;
+    p.box = tree_.clusters[kids[0]].box;
+    double childEps = 0.0;
+    for (uint32_t k : kids) {
+      p.box = unite(p.box, tree_.clusters[k].box);
+      childEps = std::max(childEps, tree_.clusters[k].eps_m);
+    }
+    p.size_m = diagonal(p.box);
+    ClusterMesh mesh;
+    mesh.origin_m = centre(p.box);
+    childPositions_.clear();
+    childIndices_.clear();
+    for (uint32_t k : kids) appendGeometry(k, mesh.origin_m, childPositions_, childIndices_);
+    Clustered simple = clusterVertices(mesh.origin_m, anchor_, eps_l, childPositions_, childIndices_);
+
+    // Samples: every child vertex and triangle centroid, evenly strided down to the cap.
+    samples_.clear();
+    const size_t nt = childIndices_.size() / 3, total = childPositions_.size() + nt;
+    const size_t cap = static_cast<size_t>(std::max(1, config_.maxHausdorffSamples));
+    const size_t stride = std::max<size_t>(1, (total + cap - 1) / cap);
+    for (size_t i = 0; i < total; i += stride) {
+      if (i < childPositions_.size()) {
+        samples_.push_back(childPositions_[i]);
+      } else {
+        const size_t t = i - childPositions_.size();
+        samples_.push_back((childPositions_[childIndices_[3 * t]] + childPositions_[childIndices_[3 * t + 1]] +
+                            childPositions_[childIndices_[3 * t + 2]]) / 3.0f);
+      }
+    }
+    tree_.stats.hausdorffSamples += samples_.size();
+    // The distance is measured to the simplified complex: the kept triangles plus, unless
+    // strictHausdorff, the segments and points that collapsed triangles became.
+    if (!config_.strictHausdorff) simple.indices.insert(simple.indices.end(), simple.collapsed.begin(), simple.collapsed.end());
+    double d = simple.indices.empty() ? 0.5 * p.size_m : sampledHausdorff(samples_, simple.positions, simple.indices);
+    if (!std::isfinite(d)) d = 0.5 * p.size_m;
+    if (!config_.strictHausdorff) simple.indices.resize(simple.indices.size() - simple.collapsed.size());
+    compactMesh(simple.positions, simple.indices, mesh);
+    p.eps_m = d + childEps;
+    p.triangles = static_cast<uint32_t>(mesh.indices.size() / 3);
+    tree_.stats.mergedTriangles += p.triangles;
+    p.mesh = static_cast<uint32_t>(tree_.meshes.size());
+    tree_.meshes.push_back(std::move(mesh));
+
+    // Leaves, f_c, gamma_c.
+    std::vector<uint32_t> leaves;
+    for (uint32_t k : kids) leaves.insert(leaves.end(), leaves_[k].begin(), leaves_[k].end());
+    weights_.clear();
+    for (uint32_t l : leaves) weights_.push_back(weight_[l]);
+    presenceOf(tree_, leaves, weights_, /*any=*/false, times_, values_, events_);
+    p.gamma = temporalError(leaves);
+
+    p.firstChild = static_cast<uint32_t>(tree_.children.size());
+    p.childCount = static_cast<uint32_t>(kids.size());
+    tree_.children.insert(tree_.children.end(), kids.begin(), kids.end());
+    glm::dmat4 translate(1.0);
+    translate[3] = glm::dvec4(tree_.meshes.back().origin_m, 1.0);
+    const uint32_t id = addCluster(p, times_, values_, translate);
+    weight_.push_back(std::max(p.size_m, kMinWeight_m));
+    leaves_.push_back(std::move(leaves));
+    for (uint32_t k : kids) std::vector<uint32_t>().swap(leaves_[k]);
+    ++tree_.stats.mergedClusters;
+    return id;
+  }
+
+  // gamma_c = max over leaves of mean |f_c - v_s|, with the f_c in times_ / values_:
+  // integral |f - v| = integral f + integral over {v = 1} of (1 - 2 f).
+  double temporalError(std::span<const uint32_t> leaves) {
+    const double T = scene_.duration_s;
+    const Step f{times_, values_};
+    prefix_.assign(times_.size() + 1, 0.0);
+    for (size_t i = 0; i < times_.size(); ++i) {
+      const double end = i + 1 < times_.size() ? times_[i + 1] : T;
+      prefix_[i + 1] = prefix_[i] + values_[i] * (end - times_[i]);
+    }
+    const double totalF = prefix_[times_.size()];
+    double worst = 0.0;
+    for (uint32_t l : leaves) {
+      const Step v = stepOf(l);
+      double onF = 0.0, onLength = 0.0;
+      for (size_t k = 0; k < v.times.size(); ++k) {
+        if (v.values[k] <= 0.0) continue;
+        const double a = v.times[k], b = k + 1 < v.times.size() ? v.times[k + 1] : T;
+        onF += integralTo(f, prefix_, b) - integralTo(f, prefix_, a);
+        onLength += b - a;
+      }
+      worst = std::max(worst, (totalF + onLength - 2.0 * onF) / T);
+    }
+    return std::clamp(worst, 0.0, 1.0);
+  }
+
+  // Appendix 2 over the static + pseudo-dynamic leaves; returns the root.
+  uint32_t clusterStatic(std::vector<uint32_t> active) {
+    Aabb scene = tree_.clusters[active[0]].box;
+    std::vector<double> diags;
+    for (uint32_t id : active) {
+      scene = unite(scene, tree_.clusters[id].box);
+      diags.push_back(tree_.clusters[id].size_m);
+    }
+    const double W = std::max(diagonal(scene) * (1.0 + 1e-9), 1e-6);
+    anchor_ = scene.min;
+    int L = config_.levels;
+    if (L <= 0) {
+      std::nth_element(diags.begin(), diags.begin() + static_cast<long>(diags.size() / 2), diags.end());
+      const double median = std::max(diags[diags.size() / 2], W * 1e-6);
+      L = 1 + static_cast<int>(std::ceil(std::log2(std::max(1.0, W / (2.0 * median)))));
+    }
+    L = std::clamp(L, 1, 40);
+    const int maxChildren = std::max(2, config_.maxChildren);
+    int l = 0;
+    while (active.size() > 1) {
+      ++l;
+      const int lc = std::min(l, L);
+      const double w = W * std::exp2(lc - L), eps = w * config_.epsPerSize, gamma = std::exp2(lc - L);
+      const size_t before = active.size();
+      active = clusterLevel(active, scene, static_cast<uint16_t>(l), w, eps, gamma, maxChildren);
+      if (active.size() == before && l >= L) {
+        // Cannot happen with the frozen thresholds (everything qualifies); kept as a guard.
+        active = {makeParent(active, static_cast<uint16_t>(l + 1), eps)};
+      }
+    }
+    tree_.stats.levels = std::max(tree_.stats.levels, static_cast<uint32_t>(l));
+    return active[0];
+  }
+
+  std::vector<uint32_t> clusterLevel(const std::vector<uint32_t>& active, const Aabb& scene, uint16_t level, double w,
+                                     double eps, double gamma, int maxChildren) {
+    const size_t n = active.size();
+    // Hilbert order of the centres (16 bits per axis over the scene box).
+    const glm::dvec3 ext = glm::max(scene.max - scene.min, glm::dvec3(1e-9));
+    std::vector<std::pair<uint64_t, uint32_t>> order(n);
+    for (size_t i = 0; i < n; ++i) {
+      const glm::dvec3 u = glm::clamp((centre(tree_.clusters[active[i]].box) - scene.min) / ext, 0.0, 1.0) * 65535.0;
+      order[i] = {hilbertKey(static_cast<uint32_t>(u.x), static_cast<uint32_t>(u.y), static_cast<uint32_t>(u.z), 16),
+                  static_cast<uint32_t>(i)};
+    }
+    std::sort(order.begin(), order.end());
+
+    // Uniform grid of cell w over the centres; each cell a range of `items` with a live count.
+    auto cellCoord = [&](const glm::dvec3& c) {
+      const glm::dvec3 g = glm::clamp(glm::floor((c - scene.min) / w), 0.0, 1048575.0);
+      return glm::u64vec3(g);
+    };
+    auto cellKey = [](const glm::u64vec3& g) { return g.x | (g.y << 21) | (g.z << 42); };
+    std::vector<std::pair<uint64_t, uint32_t>> items(n);
+    for (size_t i = 0; i < n; ++i) items[i] = {cellKey(cellCoord(centre(tree_.clusters[active[i]].box))), static_cast<uint32_t>(i)};
+    std::sort(items.begin(), items.end());
+    std::vector<uint64_t> cellKeys;
+    std::vector<uint32_t> cellStart, cellLive, slot(n), cellOfItem(n);
+    for (size_t i = 0; i < n; ++i) {
+      if (i == 0 || items[i].first != items[i - 1].first) {
+        cellKeys.push_back(items[i].first);
+        cellStart.push_back(static_cast<uint32_t>(i));
+        cellLive.push_back(0);
+      }
+      ++cellLive.back();
+      slot[items[i].second] = static_cast<uint32_t>(i);
+      cellOfItem[items[i].second] = static_cast<uint32_t>(cellKeys.size() - 1);
+    }
+    auto removeItem = [&](uint32_t i) {
+      const uint32_t cell = cellOfItem[i];
+      const uint32_t last = cellStart[cell] + cellLive[cell] - 1;
+      const uint32_t s = slot[i];
+      const uint32_t moved = items[last].second;
+      std::swap(items[s], items[last]);
+      slot[moved] = s;
+      slot[i] = last;
+      --cellLive[cell];
+    };
+
+    std::vector<uint8_t> done(n, 0);
+    std::vector<uint32_t> next;
+    std::vector<std::pair<double, uint32_t>> candidates;
+    std::vector<uint32_t> kids;
+    const size_t perCell = static_cast<size_t>(std::max(1, config_.candidatesPerCell));
+    for (const auto& [key, rep] : order) {
+      (void)key;
+      if (done[rep]) continue;
+      done[rep] = 1;
+      removeItem(rep);
+      const Cluster& rc = tree_.clusters[active[rep]];
+      const glm::dvec3 rcen = centre(rc.box);
+      const glm::i64vec3 g(cellCoord(rcen));
+      candidates.clear();
+      for (int dz = -1; dz <= 1; ++dz) {
+        for (int dy = -1; dy <= 1; ++dy) {
+          for (int dx = -1; dx <= 1; ++dx) {
+            const glm::i64vec3 q = g + glm::i64vec3(dx, dy, dz);
+            if (q.x < 0 || q.y < 0 || q.z < 0) continue;
+            const uint64_t k = cellKey(glm::u64vec3(q));
+            const auto it = std::lower_bound(cellKeys.begin(), cellKeys.end(), k);
+            if (it == cellKeys.end() || *it != k) continue;
+            const size_t cell = static_cast<size_t>(it - cellKeys.begin());
+            const size_t m = std::min<size_t>(cellLive[cell], perCell);
+            for (size_t j = 0; j < m; ++j) {
+              const uint32_t i = items[cellStart[cell] + j].second;
+              const double d = glm::length(centre(tree_.clusters[active[i]].box) - rcen);
+              if (d <= w) candidates.emplace_back(d, i);
+            }
+          }
+        }
+      }
+      std::sort(candidates.begin(), candidates.end());
+      kids.assign(1, active[rep]);
+      Aabb unionBox = rc.box;
+      const Step rs = stepOf(active[rep]);
+      for (const auto& [d, i] : candidates) {
+        (void)d;
+        if (static_cast<int>(kids.size()) >= maxChildren) break;
+        const Aabb u = unite(unionBox, tree_.clusters[active[i]].box);
+        if (diagonal(u) > w) continue;
+        const Step cs = stepOf(active[i]);
+        if (stepDistance(rs.times, rs.values, cs.times, cs.values, scene_.duration_s) > gamma) continue;
+        unionBox = u;
+        kids.push_back(active[i]);
+        done[i] = 1;
+        removeItem(i);
+      }
+      if (kids.size() == 1) {
+        next.push_back(active[rep]);
+      } else {
+        next.push_back(makeParent(kids, level, eps));
+      }
+    }
+    return next;
+  }
+
+  const Scene& scene_;
+  const BuildConfig& config_;
+  HdlodTree tree_;
+  glm::dvec3 anchor_{0.0};                     // vertex-clustering grid corner of the tree being built
+  std::vector<double> weight_;                 // per cluster (w_s for leaves)
+  std::vector<std::vector<uint32_t>> leaves_;  // per active cluster: its leaf clusters
+  std::vector<double> times_, values_, weights_, prefix_;
+  std::vector<Event> events_;
+  std::vector<glm::vec3> childPositions_, samples_;
+  std::vector<uint32_t> childIndices_;
+};
+
+}  // namespace
+
+double clusterPresence(const HdlodTree& tree, const Cluster& c, double t_s) {
+  if (c.stepCount == 0) return 0.0;
+  const double t = clampTime(t_s, tree.duration_s);
+  const double* times = tree.stepTimes.data() + c.stepBegin;
+  const double* end = times + c.stepCount;
+  const double* it = std::upper_bound(times, end, t);
+  const size_t i = it == times ? 0 : static_cast<size_t>(it - times) - 1;
+  return tree.stepValues[c.stepBegin + i];
+}
+
+double clusterDelta(const HdlodTree& tree, const Cluster& c, double t_s) {
+  const double f = clusterPresence(tree, c, t_s);
+  return c.eps_m + c.size_m * (1.0 - std::abs(2.0 * f - 1.0));
+}
+
+double stepDistance(std::span<const double> timesA, std::span<const double> valuesA, std::span<const double> timesB,
+                    std::span<const double> valuesB, double duration_s) {
+  if (timesA.empty() || timesB.empty() || !(duration_s > 0.0)) return 0.0;
+  size_t i = 0, j = 0;
+  double t = 0.0, sum = 0.0;
+  while (t < duration_s) {
+    const double nextA = i + 1 < timesA.size() ? timesA[i + 1] : duration_s;
+    const double nextB = j + 1 < timesB.size() ? timesB[j + 1] : duration_s;
+    const double end = std::min({nextA, nextB, duration_s});
+    sum += std::abs(valuesA[i] - valuesB[j]) * (end - t);
+    t = end;
+    if (nextA <= t && i + 1 < timesA.size()) ++i;
+    if (nextB <= t && j + 1 < timesB.size()) ++j;
+    if (end >= duration_s) break;
+  }
+  return sum / duration_s;
+}
+
+double sampledHausdorff(std::span<const glm::vec3> samples, std::span<const glm::vec3> positions,
+                        std::span<const uint32_t> indices) {
+  if (samples.empty()) return 0.0;
+  if (indices.size() < 3) return std::numeric_limits<double>::infinity();
+  const TriangleBvh bvh(positions, indices);
+  float worst = 0.0f;
+  for (const glm::vec3& s : samples) worst = std::max(worst, bvh.nearest(s, worst));
+  return static_cast<double>(worst);
+}
+
+HdlodTree buildHdlod(const Scene& scene, const BuildConfig& config) {
+  assert(validateScene(scene).empty());
+  return Builder(scene, config).run();
+}
+
+}  // namespace ig::lod::hdlod

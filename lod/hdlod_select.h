@@ -1,0 +1,79 @@
+// HDLOD, part 3: per-frame selection, paper 000 appendix 1 (DISPLAY_CLUSTER), no GL.
+//
+// From the root, for camera v, time t (clamped to [0, T]) and tolerance r (radians):
+//
+//   f_c(t) == 0                          -> skip the subtree (nothing of it is present)
+//   box outside the view frustum         -> skip the subtree (dynamic leaves: the model box
+//                                           moved to p_s(t); others: b_c)
+//   leaf (an object)                     -> draw it (its error is 0: nothing finer exists)
+//   group (virtual root, dynamic group)  -> recurse
+//   delta_c(t) < r * distance(eye, b_c)  -> good enough: draw g_c if f_c(t) >= 0.5, else skip
+//                                           the whole subtree (most of it is absent)
+//   otherwise                            -> recurse into the children
+//
+// delta_c(t) / distance is the angle the error subtends, so r is in radians;
+// toleranceFromPixels() converts a screen-space tolerance in pixels. The test is written as
+// delta < r * distance, so a camera inside (or on) a box, distance 0, is never "good enough":
+// the traversal refines down to the objects. r = 0 selects exactly the present objects in the
+// frustum (the same set as selectAll()).
+//
+// Output: (cluster, model matrix) draws into the caller's span, in traversal order; the count is
+// returned. A draw of an Object or Dynamic cluster draws the scene model `cluster.mesh` with the
+// matrix; a Merged cluster draws HdlodTree::meshes[cluster.mesh] with translate(origin). When
+// the span is full, further draws are counted in stats but not written (size it with
+// drawBound()). No allocation, no clock; recursion depth = tree depth.
+//
+// Bad input: a non-finite camera, time or tolerance, a field of view outside (0, 180) degrees, a
+// non-positive aspect, or not 0 < near < far selects nothing and sets stats.rejected. A negative
+// r is treated as 0.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+
+#include <glm/mat4x4.hpp>
+
+#include "lod/hdlod_build.h"
+#include "lod/hdlod_scene.h"
+#include "lod/view.h"
+
+namespace ig::lod::hdlod {
+
+struct Draw {
+  uint32_t cluster = 0;
+  glm::dmat4 model{1.0};  // world matrix (double; the renderer makes it camera-relative)
+};
+
+struct SelectView {
+  Camera camera;
+  double time_s = 0.0;
+  double tolerance_rad = 0.0;  // r
+};
+
+struct SelectStats {
+  uint32_t visited = 0;   // clusters whose f_c(t) was evaluated
+  uint32_t absent = 0;    // skipped: f_c(t) == 0
+  uint32_t culled = 0;    // skipped: outside the frustum
+  uint32_t halfSkipped = 0;  // good enough but f_c(t) < 0.5
+  uint32_t draws = 0;     // selected (also those that did not fit into the span)
+  uint64_t triangles = 0; // of the selected draws
+  bool overflow = false;  // more draws than the span holds
+  bool rejected = false;  // bad input, nothing selected
+};
+
+// Screen-space tolerance -> angle: r_px pixels of a viewport `viewportHeight_px` high with a
+// vertical field of view fovY_deg (small-angle, at the centre of the screen).
+double toleranceFromPixels(double r_px, double fovY_deg, double viewportHeight_px);
+
+// The most draws any selection can produce (leaves + merged clusters).
+size_t drawBound(const HdlodTree& tree);
+
+size_t selectHdlod(const HdlodTree& tree, const Scene& scene, const SelectView& view, std::span<Draw> out,
+                   SelectStats* stats = nullptr);
+
+// The baseline without HDLOD: every present object whose box is in the frustum (r is ignored).
+size_t selectAll(const HdlodTree& tree, const Scene& scene, const SelectView& view, std::span<Draw> out,
+                 SelectStats* stats = nullptr);
+
+}  // namespace ig::lod::hdlod

@@ -1,0 +1,672 @@
+// lod/cells_select: the budgeted realization of hierarchical cells.
+//  - optimality: on random trees of up to 4 levels and random views (partly outside the frustum,
+//    camera inside, pre-selection on and off) the greedy's largest on-screen voxel equals the
+//    brute-force minimum over every realization of the pre-selected tree within the voxel budget,
+//    from scratch and incrementally along a camera path;
+//  - validity: every root-to-leaf path crosses exactly one realization cell;
+//  - budgets: drawn voxels <= voxel budget, requested bytes <= W, only resident cells drawn, only
+//    absent cells requested, while streaming with residency, evictions and an operation cap;
+//  - quality never gets worse while the viewer stands still and cells stream in, and reaches the
+//    all-resident optimum;
+//  - pre-selection, empty cells, camera inside the root box, NaN view, huge coordinates, root not
+//    yet resident, cells larger than W, no allocation in select().
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <atomic>
+#include <bit>
+#include <cmath>
+#include <cstdlib>
+#include <limits>
+#include <new>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "lod/cells.h"
+#include "lod/cells_select.h"
+
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
+#endif
+// Counts heap allocations while armed (no allocation in select()).
+static std::atomic<bool> gCountAllocs{false};
+static std::atomic<long> gAllocs{0};
+void* operator new(std::size_t n) {
+  if (gCountAllocs.load()) ++gAllocs;
+  if (void* p = std::malloc(n ? n : 1)) return p;
+  throw std::bad_alloc();
+}
+void* operator new[](std::size_t n) {
+  if (gCountAllocs.load()) ++gAllocs;
+  if (void* p = std::malloc(n ? n : 1)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete[](void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
+
+using namespace ig::lod;
+
+namespace {
+
+struct TreeSpec {
+  int levels = 4;
+  int minChildren = 1;
+  int maxChildren = 4;
+  double leafEarly = 0.1;  // chance that a cell above the last level has no children
+  double empty = 0.1;      // chance that a leaf is empty
+  glm::dvec3 rootMin_m{0.0};
+  double rootEdge_m = 8.0;
+  int voxelDepth = 2;
+};
+
+CellTree randomTree(std::mt19937& rng, const TreeSpec& s) {
+  std::vector<CellDesc> cells = {{kNoCell, 0, 0, 0}};
+  std::vector<int> level = {0};
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (size_t i = 0; i < cells.size(); ++i) {
+    if (level[i] + 1 >= s.levels || (i > 0 && u(rng) < s.leafEarly)) continue;
+    const int k = s.minChildren + static_cast<int>(rng() % static_cast<uint32_t>(s.maxChildren - s.minChildren + 1));
+    uint32_t mask = 0;
+    while (std::popcount(mask) < k) mask |= 1u << (rng() % 8);
+    for (uint8_t o = 0; o < 8; ++o) {
+      if (!(mask & (1u << o))) continue;
+      cells.push_back({static_cast<uint32_t>(i), o, 0, 0});
+      level.push_back(level[i] + 1);
+    }
+  }
+  // Voxels bottom-up: leaves random (some empty), a parent between 1 and its children's sum.
+  std::vector<uint64_t> childSum(cells.size(), 0);
+  std::vector<bool> hasChild(cells.size(), false);
+  for (size_t i = cells.size(); i-- > 0;) {
+    if (!hasChild[i]) {
+      cells[i].voxels = u(rng) < s.empty ? 0 : 1 + static_cast<uint32_t>(rng() % 60);
+    } else if (childSum[i] == 0) {
+      cells[i].voxels = 0;
+    } else {
+      const uint64_t lo = std::max<uint64_t>(1, childSum[i] / 6);
+      cells[i].voxels = static_cast<uint32_t>(lo + rng() % (childSum[i] - lo + 1));
+    }
+    cells[i].bytes = 16 + 3 * cells[i].voxels + static_cast<uint32_t>(rng() % 40);
+    if (i > 0) {
+      childSum[cells[i].parent] += cells[i].voxels;
+      hasChild[cells[i].parent] = true;
+    }
+  }
+  CellTree t;
+  std::string err;
+  CellTreeInfo info;
+  info.rootMin_m = s.rootMin_m;
+  info.rootEdge_m = s.rootEdge_m;
+  info.cellVoxelDepth = s.voxelDepth;
+  EXPECT_TRUE(t.build(info, cells, err)) << err;
+  return t;
+}
+
+CellView randomView(std::mt19937& rng, const CellTree& t) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  CellView v;
+  const double e = t.info().rootEdge_m;
+  const double spread = u(rng) < 0.3 ? 0.5 : 2.0;  // sometimes inside or next to the root box
+  v.camera.eye_m = t.info().rootMin_m + e * glm::dvec3(0.5 + spread * (u(rng) - 0.5), 0.5 + spread * (u(rng) - 0.5),
+                                                       0.5 + spread * (u(rng) - 0.5));
+  v.camera.heading_deg = 360.0 * u(rng);
+  v.camera.pitch_deg = -80.0 + 160.0 * u(rng);
+  v.camera.roll_deg = -30.0 + 60.0 * u(rng);
+  v.camera.fovY_deg = 20.0 + 70.0 * u(rng);
+  v.camera.aspect = 0.8 + u(rng);
+  v.camera.near_m = 0.01 * e;
+  v.camera.far_m = u(rng) < 0.2 ? 1.5 * e : 100.0 * e;
+  v.viewportHeight_px = 30.0 + 1500.0 * u(rng);
+  const double alphas[] = {0.0, 0.5, 1.0, 4.0, 20.0};
+  v.minVoxel_px = alphas[rng() % 5];
+  uint64_t total = 0;
+  for (uint32_t c = 0; c < t.size(); ++c)
+    if (t.childCount(c) == 0) total += t.voxels(c);
+  // Mostly between the root alone and every leaf, sometimes below the root (infeasible unless a
+  // cover of partly visible cells is cheaper).
+  const double root = t.voxels(0);
+  v.voxelBudget = static_cast<uint64_t>(u(rng) < 0.1 ? u(rng) * root : root + u(rng) * 1.1 * (static_cast<double>(total) - root));
+  v.byteBudget = 1u << 30;
+  return v;
+}
+
+// Brute force: every realization of the pre-selected subtree of c as (largest e, cost).
+struct Cut {
+  float maxE;
+  uint64_t cost;
+};
+std::vector<Cut> allCuts(const CellTree& t, const CellView& v, uint32_t c) {
+  const CellEval ev = evaluateCell(t, c, v);
+  std::vector<Cut> out = {{ev.live ? ev.voxel_px : 0.0f, ev.live ? t.voxels(c) : 0}};
+  if (!ev.live || t.childCount(c) == 0 || !(ev.voxel_px > static_cast<float>(v.minVoxel_px))) return out;
+  std::vector<Cut> combos = {{0.0f, 0}};
+  for (uint32_t i = 0; i < t.childCount(c); ++i) {
+    const std::vector<Cut> sub = allCuts(t, v, t.firstChild(c) + i);
+    std::vector<Cut> next;
+    next.reserve(combos.size() * sub.size());
+    for (const Cut& a : combos)
+      for (const Cut& b : sub) next.push_back({std::max(a.maxE, b.maxE), a.cost + b.cost});
+    combos.swap(next);
+  }
+  out.insert(out.end(), combos.begin(), combos.end());
+  return out;
+}
+
+size_t countCuts(const CellTree& t, uint32_t c) {  // upper bound without pre-selection
+  if (t.childCount(c) == 0) return 1;
+  double prod = 1.0;
+  for (uint32_t i = 0; i < t.childCount(c); ++i) prod *= static_cast<double>(countCuts(t, t.firstChild(c) + i));
+  return static_cast<size_t>(std::min(prod + 1.0, 1e12));
+}
+
+// Every root-to-leaf path crosses exactly one realization cell.
+void expectValidRealization(const CellTree& t, const CellSelector& sel) {
+  std::vector<uint32_t> cut(t.size() + 1);
+  const size_t n = sel.realization(cut);
+  ASSERT_LE(n, t.size());
+  std::vector<int> in(t.size(), 0);
+  for (size_t i = 0; i < n; ++i) {
+    ASSERT_LT(cut[i], t.size());
+    ++in[cut[i]];
+  }
+  for (uint32_t c = 0; c < t.size(); ++c) {
+    ASSERT_LE(in[c], 1) << "cell " << c << " twice";
+    if (t.childCount(c) != 0) continue;
+    int crossings = 0;
+    for (uint32_t a = c; a != kNoCell; a = t.parent(a)) crossings += in[a];
+    ASSERT_EQ(crossings, 1) << "path to leaf " << c;
+  }
+}
+
+struct Frame {
+  std::vector<CellDraw> draw;
+  std::vector<uint32_t> requests;
+  CellSelectStats stats;
+};
+Frame runSelect(CellSelector& sel, const CellTree& t, const CellView& v, std::span<const Residency> res = {}) {
+  Frame f;
+  f.draw.resize(t.size());
+  f.requests.resize(t.size());
+  f.stats = sel.select(v, res, f.draw, f.requests);
+  f.draw.resize(f.stats.drawnCells);
+  f.requests.resize(f.stats.requestedCells);
+  return f;
+}
+
+void expectOptimal(const CellTree& t, const CellView& v, const CellSelectStats& s, const std::string& what) {
+  const std::vector<Cut> cuts = allCuts(t, v, 0);
+  bool feasible = false;
+  float best = std::numeric_limits<float>::infinity();
+  for (const Cut& c : cuts)
+    if (c.cost <= v.voxelBudget) {
+      feasible = true;
+      best = std::min(best, c.maxE);
+    }
+  ASSERT_TRUE(s.valid) << what;
+  ASSERT_EQ(s.feasible, feasible) << what;
+  if (feasible) {
+    EXPECT_EQ(s.maxVoxel_px, best) << what << " (" << cuts.size() << " realizations)";
+  }
+  EXPECT_LE(s.drawnVoxels, v.voxelBudget) << what;
+}
+
+TEST(CellSelect, GreedyEqualsBruteForceOnRandomTrees) {
+  std::mt19937 rng(2024);
+  int compared = 0, bigCases = 0, refinedCases = 0, refinedPastMax = 0;
+  for (int trial = 0; trial < 1000; ++trial) {
+    TreeSpec spec;
+    spec.levels = 2 + trial % 3;  // 2..4 levels
+    spec.maxChildren = spec.levels == 4 ? 4 : 8;
+    spec.leafEarly = 0.03;
+    spec.minChildren = 2;
+    const CellTree t = randomTree(rng, spec);
+    ASSERT_LE(countCuts(t, 0), 2000000u);
+    for (int k = 0; k < 4; ++k) {
+      CellView v = randomView(rng, t);
+      if (k == 0) v.minVoxel_px = 0.0;
+      CellSelector fresh(t);
+      const Frame f = runSelect(fresh, t, v);
+      expectOptimal(t, v, f.stats, "trial " + std::to_string(trial) + " view " + std::to_string(k));
+      if (allCuts(t, v, 0).size() > 100) ++bigCases;
+      if (f.stats.splits >= 3) ++refinedCases;
+      for (const CellDraw& d : f.draw)
+        if (d.cell != 0 && evaluateCell(t, t.parent(d.cell), v).voxel_px < f.stats.maxVoxel_px) {
+          ++refinedPastMax;
+          break;
+        }
+      expectValidRealization(t, fresh);
+      uint64_t vox = 0;
+      for (const CellDraw& d : f.draw) vox += t.voxels(d.cell);
+      EXPECT_EQ(vox, f.stats.drawnVoxels);
+      ++compared;
+    }
+  }
+  EXPECT_EQ(compared, 4000);
+  // The cases are not trivial: many realizations, partly visible cells, binding budgets.
+  EXPECT_GT(bigCases, 100);      // > 100 realizations after pre-selection and culling
+  EXPECT_GT(refinedCases, 750);  // at least 3 splits
+  // Cells drawn below a parent whose voxel is already smaller than the realization's largest:
+  // cheaper covers of cells cut by the frustum, or budget left once the largest voxel is a leaf.
+  EXPECT_GT(refinedPastMax, 250);
+}
+
+TEST(CellSelect, IncrementalEqualsBruteForceAlongAPath) {
+  std::mt19937 rng(77);
+  for (int trial = 0; trial < 60; ++trial) {
+    TreeSpec spec;
+    spec.levels = 4;
+    spec.maxChildren = 4;
+    const CellTree t = randomTree(rng, spec);
+    CellSelector sel(t);
+    CellView v = randomView(rng, t);
+    for (int frame = 0; frame < 25; ++frame) {
+      // Mostly small moves, sometimes a jump, budget and pre-selection changes.
+      if (frame % 8 == 7) {
+        v = randomView(rng, t);
+      } else {
+        v.camera.eye_m += glm::dvec3(0.3, -0.2, 0.1) * (static_cast<double>(rng() % 5) - 2.0);
+        v.camera.heading_deg += 7.0;
+        v.voxelBudget = v.voxelBudget * (90 + rng() % 21) / 100;
+      }
+      const Frame f = runSelect(sel, t, v);
+      const std::string what = "trial " + std::to_string(trial) + " frame " + std::to_string(frame);
+      expectOptimal(t, v, f.stats, what);
+      expectValidRealization(t, sel);
+      CellSelector fresh(t);
+      EXPECT_EQ(runSelect(fresh, t, v).stats.maxVoxel_px, f.stats.maxVoxel_px) << what;
+    }
+  }
+}
+
+TEST(CellSelect, PreSelectionDropsCellsFinerThanThePixel) {
+  std::mt19937 rng(5);
+  TreeSpec spec;
+  spec.levels = 7;
+  spec.maxChildren = 3;
+  spec.leafEarly = 0.0;
+  spec.empty = 0.0;
+  const CellTree t = randomTree(rng, spec);
+  CellView v;
+  v.camera.eye_m = {4.0, -30.0, 4.0};  // looking north at the root box from 30 m
+  v.camera.fovY_deg = 60.0;
+  v.viewportHeight_px = 400.0;
+  v.voxelBudget = std::numeric_limits<uint64_t>::max();
+  v.minVoxel_px = 1.0;
+  CellSelector sel(t);
+  const Frame f = runSelect(sel, t, v);
+  ASSERT_GT(f.draw.size(), 1u);
+  for (const CellDraw& d : f.draw) {
+    // Never finer than needed: the parent's voxels were still larger than a pixel ...
+    EXPECT_GT(evaluateCell(t, t.parent(d.cell), v).voxel_px, 1.0f) << d.cell;
+    // ... and refined as far as useful: sub-pixel or a leaf.
+    EXPECT_TRUE(d.voxel_px <= 1.0f || t.childCount(d.cell) == 0) << d.cell;
+  }
+  // Without pre-selection the unlimited budget draws the leaves.
+  v.minVoxel_px = 0.0;
+  CellSelector all(t);
+  const Frame g = runSelect(all, t, v);
+  for (const CellDraw& d : g.draw) EXPECT_EQ(t.childCount(d.cell), 0u);
+  EXPECT_GT(g.stats.drawnVoxels, f.stats.drawnVoxels);
+  // Moving away merges what became sub-pixel.
+  v.minVoxel_px = 1.0;
+  v.camera.eye_m.y = -300.0;
+  const Frame far = runSelect(sel, t, v);
+  EXPECT_LT(far.stats.drawnVoxels, f.stats.drawnVoxels);
+  EXPECT_GT(far.stats.merges + 0u, 0u);
+  for (const CellDraw& d : far.draw) EXPECT_GT(evaluateCell(t, t.parent(d.cell), v).voxel_px, 1.0f);
+  expectValidRealization(t, sel);
+}
+
+TEST(CellSelect, InvisibleCellsStayAtMinimumQuality) {
+  std::mt19937 rng(9);
+  TreeSpec spec;
+  spec.levels = 5;
+  spec.maxChildren = 8;
+  spec.leafEarly = 0.0;
+  spec.empty = 0.0;
+  const CellTree t = randomTree(rng, spec);
+  CellView v;
+  v.camera.eye_m = {4.0, -10.0, 4.0};
+  v.camera.heading_deg = 180.0;  // looking away from the box
+  v.minVoxel_px = 0.0;
+  v.voxelBudget = std::numeric_limits<uint64_t>::max();
+  CellSelector sel(t);
+  Frame f = runSelect(sel, t, v);
+  EXPECT_EQ(f.draw.size(), 0u);
+  EXPECT_EQ(f.stats.drawnVoxels, 0u);
+  EXPECT_EQ(f.stats.splits, 0u);
+  expectValidRealization(t, sel);
+  // Turn towards it: refined to leaves. Turn away again: merged back to the root.
+  v.camera.heading_deg = 0.0;
+  f = runSelect(sel, t, v);
+  EXPECT_GT(f.stats.splits, 0u);
+  v.camera.heading_deg = 180.0;
+  f = runSelect(sel, t, v);
+  std::vector<uint32_t> cut(t.size());
+  EXPECT_EQ(sel.realization(cut), 1u);
+  EXPECT_EQ(cut[0], 0u);
+}
+
+TEST(CellSelect, EmptyCellsAreNeverDrawnOrRefined) {
+  // Root with an empty half: octants 0..3 hold voxels, 4..7 are empty subtrees.
+  std::vector<CellDesc> cells = {{kNoCell, 0, 40, 100}};
+  for (uint8_t o = 0; o < 8; ++o) cells.push_back({0, o, o < 4 ? 10u : 0u, 16});
+  for (uint32_t p = 1; p <= 8; ++p)
+    for (uint8_t o = 0; o < 8; ++o) cells.push_back({p, o, p <= 4 ? 3u : 0u, 16});
+  CellTree t;
+  std::string err;
+  CellTreeInfo info;
+  info.rootEdge_m = 8.0;
+  ASSERT_TRUE(t.build(info, cells, err)) << err;
+  CellView v;
+  v.camera.eye_m = {4.0, 4.0, 6.0};  // inside the empty upper half, looking down
+  v.camera.pitch_deg = -89.0;
+  v.minVoxel_px = 0.0;
+  v.voxelBudget = 1000;
+  CellSelector sel(t);
+  const Frame f = runSelect(sel, t, v);
+  ASSERT_TRUE(f.stats.feasible);
+  for (const CellDraw& d : f.draw) EXPECT_FALSE(t.isEmpty(d.cell));
+  EXPECT_GT(f.draw.size(), 0u);
+  expectValidRealization(t, sel);
+  expectOptimal(t, v, f.stats, "empty half");
+  // An all-empty tree draws nothing and stays at the root.
+  std::vector<CellDesc> none = {{kNoCell, 0, 0, 16}, {0, 0, 0, 16}, {0, 5, 0, 16}};
+  CellTree e;
+  ASSERT_TRUE(e.build(info, none, err)) << err;
+  CellSelector se(e);
+  const Frame g = runSelect(se, e, v);
+  EXPECT_TRUE(g.stats.valid);
+  EXPECT_EQ(g.draw.size(), 0u);
+  EXPECT_EQ(g.stats.splits, 0u);
+}
+
+TEST(CellSelect, CameraInsideTheRootBoxRefinesAroundTheEye) {
+  std::mt19937 rng(13);
+  TreeSpec spec;
+  spec.levels = 5;
+  spec.maxChildren = 8;
+  spec.leafEarly = 0.0;
+  spec.empty = 0.0;
+  const CellTree t = randomTree(rng, spec);
+  // The eye at the centre of some finest cell, looking along +y.
+  const uint32_t leaf = t.levelBegin(4) + (t.levelBegin(5) - t.levelBegin(4)) / 2;
+  const Aabb b = t.box(leaf);
+  CellView v;
+  v.camera.eye_m = 0.5 * (b.min + b.max);
+  v.minVoxel_px = 1.0;
+  v.voxelBudget = 400;
+  CellSelector sel(t);
+  const Frame f = runSelect(sel, t, v);
+  ASSERT_TRUE(f.stats.feasible);
+  EXPECT_TRUE(std::any_of(f.draw.begin(), f.draw.end(), [&](const CellDraw& d) { return d.cell == leaf; }))
+      << "the cell around the eye is drawn at the finest level";
+  expectValidRealization(t, sel);
+  EXPECT_LE(f.stats.drawnVoxels, 400u);
+}
+
+TEST(CellSelect, NanAndBadViewsChangeNothing) {
+  std::mt19937 rng(21);
+  TreeSpec spec;
+  spec.levels = 4;
+  const CellTree t = randomTree(rng, spec);
+  CellView v = randomView(rng, t);
+  v.voxelBudget = 1000;
+  v.camera.eye_m = {4.0, -6.0, 4.0};
+  v.camera.heading_deg = 0.0;
+  v.camera.pitch_deg = 0.0;
+  v.camera.far_m = 1000.0;
+  CellSelector sel(t);
+  const Frame a = runSelect(sel, t, v);
+  for (int bad = 0; bad < 7; ++bad) {
+    CellView b = v;
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    switch (bad) {
+      case 0: b.camera.eye_m.x = nan; break;
+      case 1: b.camera.heading_deg = nan; break;
+      case 2: b.camera.fovY_deg = 0.0; break;
+      case 3: b.camera.near_m = 0.0; break;
+      case 4: b.camera.far_m = b.camera.near_m; break;
+      case 5: b.viewportHeight_px = nan; break;
+      case 6: b.minVoxel_px = -1.0; break;
+    }
+    const Frame f = runSelect(sel, t, b);
+    EXPECT_FALSE(f.stats.valid) << bad;
+    EXPECT_EQ(f.draw.size(), 0u) << bad;
+  }
+  // Residency of the wrong size is refused too.
+  std::vector<Residency> shortRes(t.size() - 1, Residency::Resident);
+  EXPECT_FALSE(runSelect(sel, t, v, shortRes).stats.valid);
+  const Frame again = runSelect(sel, t, v);
+  ASSERT_EQ(again.draw.size(), a.draw.size());
+  for (size_t i = 0; i < a.draw.size(); ++i) EXPECT_EQ(again.draw[i].cell, a.draw[i].cell);
+  EXPECT_EQ(again.stats.splits + again.stats.merges, 0u);
+}
+
+TEST(CellSelect, HugeCoordinatesSelectTheSameCells) {
+  std::mt19937 rngA(31), rngB(31);
+  TreeSpec spec;
+  spec.levels = 5;
+  spec.maxChildren = 5;
+  const CellTree a = randomTree(rngA, spec);
+  spec.rootMin_m = {6.4e6, -3.3e6, 1.0e7};
+  const CellTree b = randomTree(rngB, spec);
+  std::mt19937 rv(4);
+  for (int k = 0; k < 20; ++k) {
+    CellView va = randomView(rv, a);
+    CellView vb = va;
+    vb.camera.eye_m += spec.rootMin_m;
+    CellSelector sa(a), sb(b);
+    const Frame fa = runSelect(sa, a, va), fb = runSelect(sb, b, vb);
+    ASSERT_EQ(fa.draw.size(), fb.draw.size()) << k;
+    for (size_t i = 0; i < fa.draw.size(); ++i) {
+      EXPECT_EQ(fa.draw[i].cell, fb.draw[i].cell);
+      EXPECT_NEAR(fa.draw[i].voxel_px, fb.draw[i].voxel_px, 1e-4f * fa.draw[i].voxel_px);
+    }
+    expectOptimal(b, vb, fb.stats, "huge " + std::to_string(k));
+  }
+}
+
+// Streams cells into a residency table: requested cells arrive `latency` frames later.
+struct Streamer {
+  std::vector<Residency> res;
+  std::vector<int> arrival;
+  int latency = 1;
+  explicit Streamer(size_t n) : res(n, Residency::Absent), arrival(n, -1) {}
+  void request(std::span<const uint32_t> cells, int frame) {
+    for (uint32_t c : cells) {
+      EXPECT_EQ(res[c], Residency::Absent) << "cell " << c << " requested twice";
+      res[c] = Residency::InFlight;
+      arrival[c] = frame + latency;
+    }
+  }
+  size_t inFlight() const { return static_cast<size_t>(std::count(res.begin(), res.end(), Residency::InFlight)); }
+  void deliver(int frame) {
+    for (size_t c = 0; c < res.size(); ++c)
+      if (res[c] == Residency::InFlight && arrival[c] <= frame) res[c] = Residency::Resident;
+  }
+};
+
+void expectFrameWithinBudgets(const CellTree& t, const CellView& v, const Frame& f, const Streamer& s) {
+  EXPECT_TRUE(f.stats.valid);
+  EXPECT_LE(f.stats.drawnVoxels, v.voxelBudget);
+  EXPECT_LE(f.stats.drawnVoxels + f.stats.reservedVoxels, v.voxelBudget);
+  EXPECT_LE(f.stats.requestedBytes, v.byteBudget);
+  uint64_t bytes = 0;
+  for (uint32_t c : f.requests) {
+    bytes += t.bytes(c);
+    EXPECT_EQ(s.res[c], Residency::Absent) << "requested a cell that is resident or in flight";
+  }
+  EXPECT_EQ(bytes, f.stats.requestedBytes);
+  for (const CellDraw& d : f.draw) EXPECT_EQ(s.res[d.cell], Residency::Resident) << "drew a missing cell";
+}
+
+TEST(CellSelect, StreamingKeepsBudgetsAndQualityNeverDropsWhileStill) {
+  std::mt19937 rng(41);
+  int settled = 0;
+  for (int trial = 0; trial < 12; ++trial) {
+    TreeSpec spec;
+    spec.levels = 6;
+    spec.maxChildren = 6;
+    spec.leafEarly = 0.05;
+    const CellTree t = randomTree(rng, spec);
+    CellView v = randomView(rng, t);
+    v.camera.eye_m = {4.0 + trial % 3, -5.0, 3.0};
+    v.camera.heading_deg = 0.0;
+    v.camera.pitch_deg = 10.0;
+    v.camera.far_m = 1000.0;
+    v.minVoxel_px = 0.5;
+    v.voxelBudget = t.voxels(0) * static_cast<uint64_t>(trial) / 2 + 50;  // trial 0: the root does not fit
+    uint32_t largest = 0;
+    for (uint32_t c = 0; c < t.size(); ++c) largest = std::max(largest, t.bytes(c));
+    v.byteBudget = largest + 100 * static_cast<uint64_t>(trial % 4);
+    Streamer s(t.size());
+    s.latency = 1 + trial % 3;
+    CellSelector sel(t);
+    float last = std::numeric_limits<float>::infinity();
+    int frame = 0;
+    for (; frame < 400; ++frame) {
+      s.deliver(frame);
+      const Frame f = runSelect(sel, t, v, s.res);
+      expectFrameWithinBudgets(t, v, f, s);
+      if (!f.draw.empty()) {
+        EXPECT_LE(f.stats.maxVoxel_px, last) << "trial " << trial << " frame " << frame;
+        last = f.stats.maxVoxel_px;
+      }
+      expectValidRealization(t, sel);
+      s.request(f.requests, frame);
+      if (f.requests.empty() && f.stats.blockedSplits == 0 && s.inFlight() == 0) break;
+    }
+    ASSERT_LT(frame, 400) << "streaming did not settle";
+    // Settled: the same quality as with everything resident.
+    CellSelector all(t);
+    const Frame a = runSelect(all, t, v);
+    if (std::isinf(last)) {
+      EXPECT_FALSE(a.stats.feasible) << "trial " << trial;
+    } else {
+      EXPECT_EQ(a.stats.maxVoxel_px, last) << "trial " << trial;
+      ++settled;
+    }
+  }
+  EXPECT_GE(settled, 10);
+}
+
+TEST(CellSelect, StreamingAlongAPathWithEvictionsAndAnOperationCap) {
+  std::mt19937 rng(43);
+  TreeSpec spec;
+  spec.levels = 7;
+  spec.maxChildren = 5;
+  spec.leafEarly = 0.05;
+  spec.rootEdge_m = 64.0;
+  const CellTree t = randomTree(rng, spec);
+  for (uint32_t cap : {1u << 30, 3u}) {
+    CellSelectorConfig cfg;
+    cfg.maxOperations = cap;
+    CellSelector sel(t, cfg);
+    Streamer s(t.size());
+    CellView v;
+    v.camera.far_m = 10000.0;
+    v.voxelBudget = 3000;
+    v.byteBudget = 2000;
+    v.minVoxel_px = 1.0;
+    for (int frame = 0; frame < 300; ++frame) {
+      const double a = frame * 0.02;
+      v.camera.eye_m = frame == 150 ? glm::dvec3(60.0, 60.0, 70.0)  // teleport
+                                    : glm::dvec3(32.0 + 50.0 * std::cos(a), 32.0 + 50.0 * std::sin(a), 40.0);
+      v.camera.heading_deg = 270.0 - a * 57.29578;  // roughly towards the centre
+      v.camera.pitch_deg = -20.0;
+      s.deliver(frame);
+      if (frame % 17 == 5) {
+        // Evict a third of the resident cells (never the root).
+        for (uint32_t c = 1; c < t.size(); c += 3)
+          if (s.res[c] == Residency::Resident) s.res[c] = Residency::Absent;
+      }
+      const Frame f = runSelect(sel, t, v, s.res);
+      expectFrameWithinBudgets(t, v, f, s);
+      if (cap < 100) {
+        EXPECT_LE(f.stats.splits + f.stats.merges, cap);
+      }
+      expectValidRealization(t, sel);
+      s.request(f.requests, frame);
+    }
+  }
+}
+
+TEST(CellSelect, RootNotResidentAndCellsLargerThanW) {
+  std::mt19937 rng(51);
+  TreeSpec spec;
+  spec.levels = 4;
+  spec.maxChildren = 8;
+  spec.empty = 0.0;
+  spec.leafEarly = 0.0;
+  const CellTree t = randomTree(rng, spec);
+  CellView v;
+  v.camera.eye_m = {4.0, -8.0, 4.0};
+  v.minVoxel_px = 0.0;
+  v.voxelBudget = 1u << 20;
+  v.byteBudget = t.bytes(0);
+  Streamer s(t.size());
+  CellSelector sel(t);
+  Frame f = runSelect(sel, t, v, s.res);
+  EXPECT_TRUE(f.stats.valid);
+  EXPECT_EQ(f.draw.size(), 0u);
+  ASSERT_EQ(f.requests.size(), 1u);
+  EXPECT_EQ(f.requests[0], 0u);
+  s.request(f.requests, 0);
+  // In flight: not requested again, nothing drawn yet.
+  f = runSelect(sel, t, v, s.res);
+  EXPECT_EQ(f.requests.size(), 0u);
+  EXPECT_EQ(f.draw.size(), 0u);
+  s.deliver(1);
+  f = runSelect(sel, t, v, s.res);
+  ASSERT_EQ(f.draw.size(), 1u);
+  EXPECT_EQ(f.draw[0].cell, 0u);
+  // W smaller than every child: nothing can be requested, the root stays.
+  v.byteBudget = 10;
+  f = runSelect(sel, t, v, s.res);
+  EXPECT_EQ(f.requests.size(), 0u);
+  EXPECT_GT(f.stats.unfetchable, 0u);
+  ASSERT_EQ(f.draw.size(), 1u);
+  // A root larger than the voxel budget: infeasible, nothing drawn.
+  v.byteBudget = 1u << 20;
+  v.voxelBudget = t.voxels(0) - 1;
+  f = runSelect(sel, t, v, s.res);
+  EXPECT_FALSE(f.stats.feasible);
+  EXPECT_EQ(f.draw.size(), 0u);
+  EXPECT_EQ(f.stats.drawnVoxels, 0u);
+}
+
+TEST(CellSelect, SelectDoesNotAllocate) {
+  std::mt19937 rng(61);
+  TreeSpec spec;
+  spec.levels = 7;
+  spec.maxChildren = 6;
+  spec.rootEdge_m = 64.0;
+  const CellTree t = randomTree(rng, spec);
+  CellSelector sel(t);
+  Streamer s(t.size());
+  std::vector<CellDraw> draw(sel.drawBound());
+  std::vector<uint32_t> req(t.size());
+  CellView v;
+  v.voxelBudget = 5000;
+  v.byteBudget = 3000;
+  long allocs = 0;
+  for (int frame = 0; frame < 100; ++frame) {
+    v.camera.eye_m = {32.0 + 40.0 * std::cos(frame * 0.05), -30.0 + frame * 0.5, 40.0};
+    v.camera.pitch_deg = -25.0;
+    s.deliver(frame);
+    gAllocs = 0;
+    gCountAllocs = true;
+    const CellSelectStats st = sel.select(v, s.res, draw, req);
+    gCountAllocs = false;
+    allocs += gAllocs.load();
+    EXPECT_TRUE(st.valid);
+    s.request(std::span<const uint32_t>(req.data(), st.requestedCells), frame);
+  }
+  EXPECT_EQ(allocs, 0);
+}
+
+}  // namespace

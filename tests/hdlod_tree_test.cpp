@@ -1,0 +1,442 @@
+// lod/hdlod_build + hdlod_select + hdlod_site: f_c, gamma_c and delta_c on hand-made cases
+// (f = 0, 0.5, 1; t = 0, T, before 0, after T); zero-triangle, degenerate and coincident objects;
+// all-dynamic and one-object scenes; camera inside a box; NaN input; huge coordinates; the
+// selection at r = 0 equals the present objects in the frustum; triangles fall as r grows.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <vector>
+
+#include <glm/geometric.hpp>
+
+#include "lod/hdlod_build.h"
+#include "lod/hdlod_select.h"
+#include "lod/hdlod_site.h"
+
+using namespace ig::lod;
+using namespace ig::lod::hdlod;
+
+namespace {
+
+constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
+
+Object placed(const std::string& name, uint32_t model, glm::dvec3 pos, std::vector<Interval> visible) {
+  Object o;
+  o.name = name;
+  o.model = model;
+  o.path.push_back({0.0, pos, 0.0});
+  o.visible = std::move(visible);
+  return o;
+}
+
+// Looks north at `target` from `distance` south of it, level.
+SelectView viewOf(glm::dvec3 target, double distance, double t, double r) {
+  SelectView v;
+  v.camera.eye_m = target - glm::dvec3(0, distance, 0);
+  v.camera.fovY_deg = 60;
+  v.camera.aspect = 1.0;
+  v.camera.near_m = 0.1;
+  v.camera.far_m = 1e7;
+  v.time_s = t;
+  v.tolerance_rad = r;
+  return v;
+}
+
+std::vector<uint32_t> sortedClusters(std::span<const Draw> d) {
+  std::vector<uint32_t> ids;
+  for (const Draw& x : d) ids.push_back(x.cluster);
+  std::sort(ids.begin(), ids.end());
+  return ids;
+}
+
+// Two objects of the same box, side by side: A present on [T/5, T], B on [3T/5, T].
+Scene twoObjects(double T) {
+  Scene s;
+  s.duration_s = T;
+  s.models.push_back(makeBoxModel("b", {1, 1, 1}));
+  s.objects.push_back(placed("A", 0, {0, 0, 0}, {{0.2 * T, T}}));
+  s.objects.push_back(placed("B", 0, {1.5, 0, 0}, {{0.6 * T, T}}));
+  return s;
+}
+
+}  // namespace
+
+TEST(HdlodBuild, PresenceGammaAndDeltaOnAHandMadePair) {
+  const double T = 100;
+  const Scene s = twoObjects(T);
+  const HdlodTree tree = buildHdlod(s);
+  const Cluster& top = tree.clusters[tree.root];
+  ASSERT_EQ(top.kind, ClusterKind::Group);
+  ASSERT_EQ(top.childCount, 1u);
+  const Cluster& c = tree.clusters[tree.childrenOf(top)[0]];
+  ASSERT_EQ(c.kind, ClusterKind::Merged);
+  ASSERT_EQ(c.childCount, 2u);
+  // Equal weights: nobody before T/5, half until 3T/5, all after; t clamped to [0, T].
+  EXPECT_EQ(clusterPresence(tree, c, -10), 0.0);
+  EXPECT_EQ(clusterPresence(tree, c, 0), 0.0);
+  EXPECT_EQ(clusterPresence(tree, c, 20), 0.5);
+  EXPECT_EQ(clusterPresence(tree, c, 59.9), 0.5);
+  EXPECT_EQ(clusterPresence(tree, c, 60), 1.0);
+  EXPECT_EQ(clusterPresence(tree, c, T), 1.0);
+  EXPECT_EQ(clusterPresence(tree, c, 1e9), 1.0);
+  // gamma: each object is 0.5 away from f_c on [T/5, 3T/5).
+  EXPECT_NEAR(c.gamma, 0.2, 1e-12);
+  // delta = eps + w (1 - |2f - 1|): eps at f = 0 and 1, eps + w at f = 0.5.
+  EXPECT_NEAR(clusterDelta(tree, c, 0), c.eps_m, 1e-12);
+  EXPECT_NEAR(clusterDelta(tree, c, 30), c.eps_m + c.size_m, 1e-12);
+  EXPECT_NEAR(clusterDelta(tree, c, T), c.eps_m, 1e-12);
+  EXPECT_NEAR(c.size_m, glm::length(glm::dvec3(2.5, 1, 1)), 1e-6);
+  // Leaves: f in {0, 1}, eps 0.
+  const Cluster& b = tree.clusters[tree.objectCluster[1]];
+  EXPECT_EQ(clusterPresence(tree, b, 30), 0.0);
+  EXPECT_EQ(clusterPresence(tree, b, T), 1.0);
+  EXPECT_EQ(clusterDelta(tree, b, T), 0.0);
+}
+
+TEST(HdlodBuild, PresenceZeroAndStepDistance) {
+  const double T = 10;
+  Scene s;
+  s.duration_s = T;
+  s.models.push_back(makeBoxModel("b", {1, 1, 1}));
+  s.objects.push_back(placed("A", 0, {0, 0, 0}, {{2, 4}}));
+  s.objects.push_back(placed("B", 0, {0.5, 0, 0}, {{3, 5}}));
+  const HdlodTree tree = buildHdlod(s);
+  const Cluster& c = tree.clusters[tree.childrenOf(tree.clusters[tree.root])[0]];
+  EXPECT_EQ(clusterPresence(tree, c, 0), 0.0);  // exactly 0: nobody there
+  EXPECT_EQ(clusterPresence(tree, c, 2.5), 0.5);
+  EXPECT_EQ(clusterPresence(tree, c, 3.5), 1.0);
+  EXPECT_EQ(clusterPresence(tree, c, 4.5), 0.5);
+  EXPECT_EQ(clusterPresence(tree, c, 5), 0.0);
+  EXPECT_EQ(clusterPresence(tree, c, T), 0.0);
+  // Nothing selected at t = 0 however coarse r is: f_c == 0 skips the subtree.
+  SelectStats st;
+  std::vector<Draw> out(drawBound(tree));
+  EXPECT_EQ(selectHdlod(tree, s, viewOf({0, 0, 0}, 50, 0, 1.0), out, &st), 0u);
+  EXPECT_GE(st.absent, 1u);
+  const double ta[] = {0, 5}, va[] = {0, 1}, tb[] = {0}, vb[] = {0.25};
+  EXPECT_NEAR(stepDistance(ta, va, tb, vb, 10), 0.5 * 0.25 + 0.5 * 0.75, 1e-12);
+  EXPECT_EQ(stepDistance(ta, va, ta, va, 10), 0.0);
+}
+
+TEST(HdlodSelect, HalfPresentClusterIsSkippedMostlyPresentIsDrawn) {
+  const double T = 100;
+  Scene s;
+  s.duration_s = T;
+  s.models.push_back(makeBoxModel("b", {1, 1, 1}));
+  // Four coincident-ish boxes: present at t = 10 are one (f = 0.25) or three (f = 0.75).
+  s.objects.push_back(placed("a", 0, {0, 0, 0}, {{1, T}}));  // pseudo-dynamic, like the others
+  s.objects.push_back(placed("b", 0, {0.1, 0, 0}, {{5, T}}));
+  s.objects.push_back(placed("c", 0, {0.2, 0, 0}, {{5, T}}));
+  s.objects.push_back(placed("d", 0, {0.3, 0, 0}, {{20, T}}));
+  const HdlodTree tree = buildHdlod(s);
+  std::vector<Draw> out(drawBound(tree));
+  SelectStats st;
+  // Far away, coarse r: the top cluster is good enough.
+  const size_t n = selectHdlod(tree, s, viewOf({0, 0, 0}, 1000, 10, 1.0), out, &st);
+  ASSERT_EQ(n, 1u);
+  EXPECT_EQ(tree.clusters[out[0].cluster].kind, ClusterKind::Merged);
+  EXPECT_NEAR(clusterPresence(tree, tree.clusters[out[0].cluster], 10), 0.75, 1e-12);
+  // At t = 2 only 'a' is present (f = 0.25 < 0.5): the good-enough cluster is skipped.
+  EXPECT_EQ(selectHdlod(tree, s, viewOf({0, 0, 0}, 1000, 2, 1.0), out, &st), 0u);
+  EXPECT_EQ(st.halfSkipped, 1u);
+  // r = 0: exactly the present objects.
+  EXPECT_EQ(selectHdlod(tree, s, viewOf({0, 0, 0}, 1000, 2, 0.0), out, &st), 1u);
+  EXPECT_EQ(out[0].cluster, tree.objectCluster[0]);
+}
+
+TEST(HdlodBuild, ZeroTriangleAndDegenerateObjects) {
+  Scene s;
+  s.duration_s = 10;
+  s.models.push_back(Model{"empty", {}, {}, {}});
+  Model degenerate{"degenerate", {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {0, 0, 0}}, {0, 1, 2, 0, 3, 0, 1, 1, 1}, {}};
+  s.models.push_back(degenerate);
+  s.models.push_back(makeBoxModel("box", {1, 1, 1}));
+  computeModelBoxes(s);
+  s.objects.push_back(placed("e", 0, {0, 0, 0}, {{0, 10}}));
+  s.objects.push_back(placed("d", 1, {0, 0, 0}, {{0, 10}}));
+  s.objects.push_back(placed("b", 2, {0.5, 0, 0}, {{0, 10}}));
+  ASSERT_EQ(validateScene(s), "");
+  const HdlodTree tree = buildHdlod(s);
+  EXPECT_EQ(tree.stats.emptyObjects, 1u);
+  EXPECT_EQ(tree.objectCluster[0], ~0u);
+  for (const Cluster& c : tree.clusters) {
+    EXPECT_TRUE(std::isfinite(c.eps_m));
+    EXPECT_TRUE(std::isfinite(c.size_m));
+  }
+  std::vector<Draw> out(drawBound(tree));
+  const size_t n = selectHdlod(tree, s, viewOf({0, 0, 0}, 20, 5, 0.0), out);
+  EXPECT_EQ(sortedClusters({out.data(), n}), (std::vector<uint32_t>{tree.objectCluster[1], tree.objectCluster[2]}));
+  // Only empty objects: no tree, nothing selected.
+  Scene only;
+  only.duration_s = 1;
+  only.models.push_back(Model{"empty", {}, {}, {}});
+  only.objects.push_back(placed("e", 0, {0, 0, 0}, {{0, 1}}));
+  const HdlodTree none = buildHdlod(only);
+  EXPECT_EQ(none.root, ~0u);
+  EXPECT_EQ(selectHdlod(none, only, viewOf({0, 0, 0}, 20, 0, 0.0), out), 0u);
+}
+
+TEST(HdlodBuild, SampledHausdorffHandCases) {
+  const std::vector<glm::vec3> tri = {{0, 0, 0}, {2, 0, 0}, {0, 2, 0}};
+  const std::vector<uint32_t> idx = {0, 1, 2};
+  const std::vector<glm::vec3> samples = {{0.5f, 0.5f, 1.0f}, {0.2f, 0.2f, -0.5f}, {4, 0, 0}};
+  EXPECT_NEAR(sampledHausdorff(samples, tri, idx), 2.0, 1e-6);  // (4,0,0) is 2 from the corner
+  EXPECT_EQ(sampledHausdorff({}, tri, idx), 0.0);
+  EXPECT_TRUE(std::isinf(sampledHausdorff(samples, tri, {})));
+  // A zero-area triangle is measured as its edges.
+  const std::vector<glm::vec3> line = {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}};
+  const std::vector<glm::vec3> above = {{1.5f, 0, 3}};
+  EXPECT_NEAR(sampledHausdorff(above, line, idx), 3.0, 1e-6);
+}
+
+TEST(HdlodBuild, CoincidentObjectsMergeIntoOneSmallCluster) {
+  Scene s;
+  s.duration_s = 10;
+  s.models.push_back(makeBoxModel("b", {1, 1, 1}));
+  for (int i = 0; i < 100; ++i) s.objects.push_back(placed(std::to_string(i), 0, {0, 0, 0}, {{0, 10}}));
+  const HdlodTree tree = buildHdlod(s);
+  const Cluster& top = tree.clusters[tree.childrenOf(tree.clusters[tree.root])[0]];
+  EXPECT_EQ(top.kind, ClusterKind::Merged);
+  EXPECT_LE(top.triangles, 12u);  // duplicates removed
+  EXPECT_LT(top.eps_m, 1.0);
+  std::vector<Draw> out(drawBound(tree));
+  EXPECT_EQ(selectHdlod(tree, s, viewOf({0, 0, 0}, 20, 5, 0.0), out), 100u);
+  SelectStats st;
+  EXPECT_EQ(selectHdlod(tree, s, viewOf({0, 0, 0}, 1e4, 5, 0.01), out, &st), 1u);
+  EXPECT_LE(st.triangles, 12u);
+}
+
+TEST(HdlodSelect, AllDynamicScene) {
+  const double T = 60;
+  Scene s;
+  s.duration_s = T;
+  s.models.push_back(makeBoxModel("truck", {2, 5, 3}));
+  for (int i = 0; i < 40; ++i) {
+    Object o;
+    o.name = std::to_string(i);  // (GCC 12 -O3 warns falsely on "t" + string)
+    o.model = 0;
+    o.visible.push_back({i * 1.0, i + 10.0});
+    o.path.push_back({0, {i * 10.0, 0, 0}, 0});
+    o.path.push_back({T, {i * 10.0, 100, 0}, 90});
+    s.objects.push_back(o);
+  }
+  const HdlodTree tree = buildHdlod(s);
+  EXPECT_EQ(tree.stats.dynamicObjects, 40u);
+  EXPECT_EQ(tree.stats.mergedClusters, 0u);
+  std::vector<Draw> out(drawBound(tree));
+  for (double t : {-1.0, 0.0, 15.5, T, 2 * T}) {
+    SelectView v = viewOf({200, 50, 0}, 2000, t, 1.0);
+    const size_t n = selectHdlod(tree, s, v, out);
+    size_t expected = 0;
+    for (const Object& o : s.objects) expected += isPresent(o, t, T) ? 1 : 0;
+    ASSERT_EQ(n, expected) << t;
+    for (size_t i = 0; i < n; ++i) {
+      const Cluster& c = tree.clusters[out[i].cluster];
+      ASSERT_EQ(c.kind, ClusterKind::Dynamic);
+      EXPECT_EQ(out[i].model, objectMatrix(s.objects[c.object], t, T));
+    }
+  }
+}
+
+TEST(HdlodSelect, OneObjectScene) {
+  Scene s;
+  s.duration_s = 5;
+  s.models.push_back(makeBoxModel("b", {1, 1, 1}));
+  s.objects.push_back(placed("only", 0, {3, 4, 5}, {{0, 5}}));
+  const HdlodTree tree = buildHdlod(s);
+  std::vector<Draw> out(drawBound(tree));
+  ASSERT_EQ(out.size(), 1u);
+  for (double r : {0.0, 1.0, 1e9}) {
+    ASSERT_EQ(selectHdlod(tree, s, viewOf({3, 4, 5}, 30, 2, r), out), 1u) << r;
+    EXPECT_EQ(out[0].cluster, tree.objectCluster[0]);
+    EXPECT_EQ(out[0].model[3], glm::dvec4(3, 4, 5, 1));
+  }
+  // Looking away: culled.
+  SelectView away = viewOf({3, 4, 5}, 30, 2, 0.0);
+  away.camera.heading_deg = 180;
+  SelectStats st;
+  EXPECT_EQ(selectHdlod(tree, s, away, out, &st), 0u);
+  EXPECT_EQ(st.culled, 1u);
+}
+
+TEST(HdlodSelect, CameraInsideABoxRefines) {
+  SiteParams p;
+  p.scale = 0.02;
+  p.loadsPerFloor = 5;
+  std::string error;
+  const Scene s = makeConstructionSite(p, error);
+  ASSERT_EQ(error, "");
+  const HdlodTree tree = buildHdlod(s);
+  std::vector<Draw> out(drawBound(tree));
+  // Inside the tower at mid height, with an r so coarse that anything not containing the eye
+  // is good enough.
+  SelectView v = viewOf({0, 0, 2}, 0, s.duration_s, 1e6);
+  SelectStats st;
+  const size_t n = selectHdlod(tree, s, v, out, &st);
+  ASSERT_GT(n, 0u);
+  for (size_t i = 0; i < n; ++i) {
+    const Cluster& c = tree.clusters[out[i].cluster];
+    if (c.kind == ClusterKind::Merged) {
+      EXPECT_FALSE(c.box.contains(v.camera.eye_m)) << out[i].cluster;
+    }
+  }
+}
+
+TEST(HdlodSelect, BadInputSelectsNothing) {
+  const Scene s = twoObjects(10);
+  const HdlodTree tree = buildHdlod(s);
+  std::vector<Draw> out(drawBound(tree));
+  SelectStats st;
+  const SelectView good = viewOf({0, 0, 0}, 20, 10.0, 0.0);
+  ASSERT_EQ(selectHdlod(tree, s, good, out, &st), 2u);
+  EXPECT_FALSE(st.rejected);
+  auto expectRejected = [&](SelectView v) {
+    EXPECT_EQ(selectHdlod(tree, s, v, out, &st), 0u);
+    EXPECT_TRUE(st.rejected);
+    EXPECT_EQ(selectAll(tree, s, v, out, &st), 0u);
+    EXPECT_TRUE(st.rejected);
+  };
+  SelectView v = good;
+  v.camera.eye_m.x = kNan;
+  expectRejected(v);
+  v = good;
+  v.camera.heading_deg = kNan;
+  expectRejected(v);
+  v = good;
+  v.time_s = kNan;
+  expectRejected(v);
+  v = good;
+  v.tolerance_rad = kNan;
+  expectRejected(v);
+  v = good;
+  v.camera.fovY_deg = 0;
+  expectRejected(v);
+  v = good;
+  v.camera.near_m = v.camera.far_m;
+  expectRejected(v);
+  v = good;
+  v.camera.eye_m.y = std::numeric_limits<double>::infinity();
+  expectRejected(v);
+  // A negative r reads as 0; a span too small is filled and the rest counted.
+  v = good;
+  v.tolerance_rad = -1;
+  EXPECT_EQ(selectHdlod(tree, s, v, out, &st), 2u);
+  EXPECT_EQ(selectHdlod(tree, s, good, std::span<Draw>(out.data(), 1), &st), 1u);
+  EXPECT_TRUE(st.overflow);
+  EXPECT_EQ(st.draws, 2u);
+}
+
+TEST(HdlodSite, CountsClassesAndBadParameters) {
+  SiteParams p;
+  p.scale = 0.05;
+  std::string error;
+  const Scene s = makeConstructionSite(p, error);
+  ASSERT_EQ(error, "");
+  EXPECT_EQ(validateScene(s), "");
+  size_t count[3] = {0, 0, 0};
+  for (const Object& o : s.objects) ++count[static_cast<int>(classify(o, s.duration_s))];
+  EXPECT_GT(count[0], 300u);
+  EXPECT_GT(count[1], 1500u);
+  EXPECT_GT(count[2], 500u);
+  // Deterministic.
+  const Scene again = makeConstructionSite(p, error);
+  ASSERT_EQ(again.objects.size(), s.objects.size());
+  EXPECT_EQ(again.objects.back().path.back().position_m, s.objects.back().path.back().position_m);
+  p.scale = kNan;
+  EXPECT_TRUE(makeConstructionSite(p, error).objects.empty());
+  EXPECT_NE(error.find("scale"), std::string::npos);
+  p.scale = 1;
+  p.floors = 0;
+  makeConstructionSite(p, error);
+  EXPECT_NE(error.find("floors = 0"), std::string::npos);
+}
+
+// The site at a few times: r = 0 selects exactly the present objects in the frustum (the same
+// set as selectAll and as a brute-force check); with everything present and in view, the
+// triangle count never rises as r grows; the build is deterministic.
+TEST(HdlodSelect, SiteExactAtZeroAndMonotoneInR) {
+  SiteParams p;
+  p.scale = 0.05;
+  p.loadsPerFloor = 40;
+  std::string error;
+  const Scene s = makeConstructionSite(p, error);
+  ASSERT_EQ(error, "");
+  const HdlodTree tree = buildHdlod(s);
+  EXPECT_GT(tree.stats.mergedClusters, 10u);
+  std::vector<Draw> out(drawBound(tree)), all(drawBound(tree));
+  const Cluster& root = tree.clusters[tree.root];
+  const glm::dvec3 centre = (root.box.min + root.box.max) * 0.5;
+  const double R = 0.5 * glm::length(root.box.max - root.box.min);
+  for (double f : {0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0}) {
+    const double t = f * s.duration_s;
+    for (double dist : {3.0 * R, 0.6 * R}) {  // all in view; partly in view
+      const SelectView v = viewOf(centre, dist, t, 0.0);
+      const size_t n = selectHdlod(tree, s, v, out);
+      const size_t m = selectAll(tree, s, v, all);
+      ASSERT_EQ(sortedClusters({out.data(), n}), sortedClusters({all.data(), m})) << f << " " << dist;
+      const Frustum fr = makeFrustum(v.camera);
+      std::vector<uint32_t> brute;
+      for (uint32_t i = 0; i < s.objects.size(); ++i) {
+        const Object& o = s.objects[i];
+        if (tree.objectCluster[i] == ~0u || !isPresent(o, t, s.duration_s)) continue;
+        const Aabb b = transformBox(s.models[o.model].box, objectMatrix(o, t, s.duration_s));
+        if (fr.intersects(Aabb{b.min - v.camera.eye_m, b.max - v.camera.eye_m})) brute.push_back(tree.objectCluster[i]);
+      }
+      std::sort(brute.begin(), brute.end());
+      EXPECT_EQ(sortedClusters({out.data(), n}), brute) << f << " " << dist;
+    }
+  }
+  // Monotone in r at the end of construction (all present), the whole site in view.
+  uint64_t previous = std::numeric_limits<uint64_t>::max();
+  for (double px : {0.0, 0.1, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 64.0, 1e4}) {
+    SelectStats st;
+    selectHdlod(tree, s, viewOf(centre, 3.0 * R, s.duration_s, toleranceFromPixels(px, 60, 1000)), out, &st);
+    EXPECT_LE(st.triangles, previous) << px;
+    previous = st.triangles;
+  }
+  EXPECT_LT(previous, tree.stats.leafTriangles / 10);
+  const HdlodTree again = buildHdlod(s);
+  ASSERT_EQ(again.clusters.size(), tree.clusters.size());
+  for (size_t i = 0; i < tree.clusters.size(); ++i) {
+    ASSERT_EQ(again.clusters[i].eps_m, tree.clusters[i].eps_m);
+    ASSERT_EQ(again.clusters[i].triangles, tree.clusters[i].triangles);
+  }
+}
+
+TEST(HdlodBuild, HugeCoordinatesKeepPrecision) {
+  SiteParams p;
+  p.scale = 0.02;
+  p.loadsPerFloor = 5;
+  p.origin_m = {1.0e6, -2.0e6, 300.0};
+  std::string error;
+  const Scene far = makeConstructionSite(p, error);
+  p.origin_m = glm::dvec3(0.0);
+  const Scene near = makeConstructionSite(p, error);
+  const HdlodTree a = buildHdlod(far), b = buildHdlod(near);
+  // Ties between equally distant neighbours may break differently at 1e6 m, so the trees are
+  // compared in aggregate; the stored geometry must stay relative to each cluster's origin.
+  ASSERT_GT(a.meshes.size(), 10u);
+  EXPECT_NEAR(static_cast<double>(a.stats.mergedTriangles), static_cast<double>(b.stats.mergedTriangles),
+              0.1 * static_cast<double>(b.stats.mergedTriangles));
+  double epsA = 0, epsB = 0;
+  for (const Cluster& c : a.clusters) epsA = std::max(epsA, c.eps_m);
+  for (const Cluster& c : b.clusters) epsB = std::max(epsB, c.eps_m);
+  EXPECT_NEAR(epsA, epsB, 0.25 * epsB);
+  for (size_t i = 0; i < a.clusters.size(); ++i) {
+    const Cluster& c = a.clusters[i];
+    if (c.kind != ClusterKind::Merged) continue;
+    const ClusterMesh& m = a.meshes[c.mesh];
+    EXPECT_GT(m.origin_m.x, 0.9e6);
+    EXPECT_EQ(a.leafMatrix[i][3], glm::dvec4(m.origin_m, 1.0));
+    for (const glm::vec3& q : m.positions) {
+      ASSERT_LE(glm::length(glm::dvec3(q)), 0.5 * c.size_m + c.eps_m + 1e-3) << i;
+    }
+  }
+  // Selection at r = 0 near the far site matches the brute force count.
+  std::vector<Draw> out(drawBound(a)), all(drawBound(a));
+  const glm::dvec3 centre = (a.clusters[a.root].box.min + a.clusters[a.root].box.max) * 0.5;
+  const SelectView v = viewOf(centre, 400, far.duration_s, 0.0);
+  EXPECT_EQ(selectHdlod(a, far, v, out), selectAll(a, far, v, all));
+}
