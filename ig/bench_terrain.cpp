@@ -87,6 +87,7 @@ struct MethodResult {
   std::string name;
   double updateP50 = 0, updateP99 = 0, teleport = 0, maxErrorPx = 0;
   uint64_t trianglesP50 = 0, uploadsP50 = 0;
+  uint64_t visibleP50 = 0;  // triangles in the view frustum (what is drawn)
 };
 
 lod::RoamView viewFor(const lod::Camera& cam, int height_px, double tolerance_px) {
@@ -99,10 +100,10 @@ lod::RoamView viewFor(const lod::Camera& cam, int height_px, double tolerance_px
 
 // Flies the path with one method. `update(view)` runs the method's LOD step (timed) and
 // returns {triangles, maxErrorPx}; `emit(out)` writes its mesh for the upload count.
-template <class Update, class Emit>
+template <class Update, class Emit, class Visible>
 MethodResult fly(const char* name, const std::vector<PathFrame>& path, int height_px, double tolerance_px,
-                 Update update, Emit emit) {
-  std::vector<double> ms, tris, uploads;
+                 Update update, Emit emit, Visible visible) {
+  std::vector<double> ms, tris, uploads, visibleTris;
   std::vector<lod::RoamTriangle> out;
   std::vector<uint64_t> prev, cur;
   MethodResult r;
@@ -116,6 +117,7 @@ MethodResult fly(const char* name, const std::vector<PathFrame>& path, int heigh
     tris.push_back(static_cast<double>(triangles));
     r.maxErrorPx = std::max(r.maxErrorPx, maxErrorPx);
     emit(out);
+    visibleTris.push_back(static_cast<double>(visible(f.camera, out)));
     cur.clear();
     for (const auto& tri : out) cur.push_back(triangleKey(tri));
     uploads.push_back(static_cast<double>(changedTriangles(prev, cur)));
@@ -124,6 +126,7 @@ MethodResult fly(const char* name, const std::vector<PathFrame>& path, int heigh
   r.updateP99 = percentile(ms, 99);
   r.trianglesP50 = static_cast<uint64_t>(percentile(tris, 50));
   r.uploadsP50 = static_cast<uint64_t>(percentile(uploads, 50));
+  r.visibleP50 = static_cast<uint64_t>(percentile(visibleTris, 50));
   return r;
 }
 
@@ -144,6 +147,10 @@ MethodResult flyRoam(const io::Dem& dem, double spacing_m, const std::vector<Pat
       [&](std::vector<lod::RoamTriangle>& out) {
         out.resize(roam.triangleCount());
         out.resize(roam.emitTriangles(out));
+      },
+      [&](const lod::Camera& cam, std::vector<lod::RoamTriangle>& scratch) {
+        scratch.resize(roam.triangleCount());
+        return roam.emitVisible(cam, scratch);
       });
 }
 
@@ -159,7 +166,8 @@ MethodResult flyBlock(const io::Dem& dem, double spacing_m, const std::vector<Pa
       [&](std::vector<lod::RoamTriangle>& out) {
         out.resize(block.triangleBound());
         out.resize(block.emitTriangles(out));
-      });
+      },
+      [&](const lod::Camera&, std::vector<lod::RoamTriangle>& out) { return out.size(); });
 }
 
 struct SweepRow {
@@ -213,6 +221,7 @@ int runTerrainBench(const TerrainBenchOptions& o) {
   methods.push_back(flyRoam(dem, spacing, path, lod::RoamMode::MergeQueue, "roam_merge", o.height_px, 1.0));
   methods.push_back(flyRoam(dem, spacing, path, lod::RoamMode::Rebuild, "roam_rebuild", o.height_px, 1.0));
   methods.push_back(flyBlock(dem, spacing, path, o.height_px, 1.0));
+  methods.push_back(flyRoam(dem, spacing, path, lod::RoamMode::Deferred, "roam_deferred", o.height_px, 1.0));
 
   // Equal error (1 px) at the reference view: triangles each method needs.
   const lod::Camera refCam = path[static_cast<size_t>(o.frames / 4)].camera;
@@ -305,10 +314,10 @@ int runTerrainBench(const TerrainBenchOptions& o) {
     for (size_t i = 0; i < methods.size(); ++i) {
       const MethodResult& m = methods[i];
       std::printf("%s\"%s\":{\"update_ms_p50\":%.4f,\"update_ms_p99\":%.4f,\"teleport_update_ms\":%.4f,"
-                  "\"triangles_p50\":%llu,\"max_error_px\":%.4f,\"uploads_p50\":%llu}",
+                  "\"triangles_p50\":%llu,\"visible_triangles_p50\":%llu,\"max_error_px\":%.4f,\"uploads_p50\":%llu}",
                   i ? "," : "", m.name.c_str(), m.updateP50, m.updateP99, m.teleport,
-                  static_cast<unsigned long long>(m.trianglesP50), m.maxErrorPx,
-                  static_cast<unsigned long long>(m.uploadsP50));
+                  static_cast<unsigned long long>(m.trianglesP50), static_cast<unsigned long long>(m.visibleP50),
+                  m.maxErrorPx, static_cast<unsigned long long>(m.uploadsP50));
     }
     std::printf("},\"block_triangles_at_equal_error\":%llu,\"roam_triangles_at_equal_error\":%llu,\"sweep\":[",
                 static_cast<unsigned long long>(blockEqual), static_cast<unsigned long long>(roamEqual));
@@ -323,11 +332,12 @@ int runTerrainBench(const TerrainBenchOptions& o) {
   } else {
     std::printf("terrain suite: %s (%dx%d samples, %.1f m, loaded in %.0f ms), %d-frame flight with a teleport\n",
                 demName.c_str(), dem.width, dem.height, spacing, loadMs, o.frames);
-    std::printf("  %-14s %10s %10s %12s %10s %9s %10s\n", "method", "upd p50", "upd p99", "teleport ms", "tris p50",
-                "max err", "uploads");
+    std::printf("  %-14s %10s %10s %12s %10s %10s %9s %10s\n", "method", "upd p50", "upd p99", "teleport ms",
+                "tris p50", "visible", "max err", "uploads");
     for (const auto& m : methods)
-      std::printf("  %-14s %10.3f %10.3f %12.3f %10llu %9.2f %10llu\n", m.name.c_str(), m.updateP50, m.updateP99,
-                  m.teleport, static_cast<unsigned long long>(m.trianglesP50), m.maxErrorPx,
+      std::printf("  %-14s %10.3f %10.3f %12.3f %10llu %10llu %9.2f %10llu\n", m.name.c_str(), m.updateP50,
+                  m.updateP99, m.teleport, static_cast<unsigned long long>(m.trianglesP50),
+                  static_cast<unsigned long long>(m.visibleP50), m.maxErrorPx,
                   static_cast<unsigned long long>(m.uploadsP50));
     std::printf("  at 1 px: block LOD %llu triangles, ROAM %llu (%.2fx)\n", static_cast<unsigned long long>(blockEqual),
                 static_cast<unsigned long long>(roamEqual),

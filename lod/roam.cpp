@@ -304,6 +304,10 @@ uint32_t Roam::allocPair() {
 void Roam::freePair(uint32_t firstChild) {
   nodes_[firstChild].free = 1;
   nodes_[firstChild + 1].free = 1;
+  if (!schedTag_.empty()) {  // Deferred: their queued entries become stale
+    ++schedTag_[firstChild];
+    ++schedTag_[firstChild + 1];
+  }
   freePairs_.push_back(firstChild / 2);  // capacity reserved for every pair
   liveNodes_ -= 2;
   stats_.nodesFreed += 2;
@@ -329,6 +333,9 @@ void Roam::splitNode(uint32_t n) {
     ++c->gen;
   }
   nd.children = c0;
+  touch(n);
+  touch(c0);
+  touch(c1);
   // Child c's hypotenuse is our leg c; its partner is the mirrored child of the node across.
   for (int c = 0; c < 2; ++c) {
     const uint32_t across = legNode(n, c);
@@ -393,6 +400,7 @@ void Roam::mergeDiamond(uint32_t n) {
     freePair(first);
     nodes_[z].children = kNone;
     triangles_ -= 1;
+    touch(z);
   }
 }
 
@@ -453,7 +461,7 @@ double Roam::priority(const Node& n, const ViewState& vs) const {
   Aabb box = diamondBox(n);
   box.min -= vs.eye_m;
   box.max -= vs.eye_m;
-  if (!vs.frustum.intersects(box)) return 0.0;
+  if (vs.cullFrustum && !vs.frustum.intersects(box)) return 0.0;
   const double d = distanceToBox(box, glm::dvec3(0.0));
   if (!(d > 0.0)) return kInf;  // eye in the box
   const double p = e * vs.scale / d;
@@ -579,6 +587,7 @@ bool Roam::walkEnhMerge() {
   for (uint32_t n = 0; n < end; ++n) {
     const Node& nd = nodes_[n];
     if (nd.free) continue;
+    ++stats_.nodesExamined;
     const double p = priority(nd, vs_);
     if (nd.children == kNone) {
       considerLeaf(n, p);
@@ -614,6 +623,7 @@ bool Roam::collectQueues() {
   for (uint32_t n = 0; n < end; ++n) {
     const Node& nd = nodes_[n];
     if (nd.free) continue;
+    ++stats_.nodesExamined;
     if (nd.children == kNone) {
       considerLeaf(n, priority(nd, vs_));
     } else if ((nd.partner == kNone || n < nd.partner) && mergeable(n)) {  // cheap test first
@@ -711,6 +721,9 @@ RoamStats Roam::update(const RoamView& view, RoamMode mode) {
     case RoamMode::MergeQueue:
       ok = collectQueues() && mergeUnneeded() && splitPhase() && capPhase();
       break;
+    case RoamMode::Deferred:
+      ok = deferredUpdate();
+      break;
     case RoamMode::Rebuild:
       if (!resumeRebuild_) {
         stats_.nodesFreed += static_cast<uint32_t>(liveNodes_ - baseTriangles());
@@ -720,12 +733,183 @@ RoamStats Roam::update(const RoamView& view, RoamMode mode) {
       break;
   }
   resumeRebuild_ = mode == RoamMode::Rebuild && !ok;
+  if (mode != RoamMode::Deferred) scheduleValid_ = false;  // other modes do not keep it
   stats_.finished = ok;
   stats_.triangles = triangles_;
   QueueEntry s;
   stats_.maxErrorPx = topSplit(&s) ? std::max(maxSmallPx_, s.priority) : maxSmallPx_;
+  // Deferred: unseen leaves are within tolerance (their decision cannot have changed); with
+  // nothing scheduled every leaf has zero error.
+  if (mode == RoamMode::Deferred && ok && dueQ_.size() > 0)
+    stats_.maxErrorPx = std::max(stats_.maxErrorPx, vs_.tolerance_px);
   if (!ok) stats_.maxErrorPx = maxErrorPx(view);  // interrupted: leaves were not all seen
   return stats_;
+}
+
+// ---- deferred priority recomputation -----------------------------------------------------
+
+// How far the eye must travel before n's decision can change. A leaf is split once its
+// errorPx exceeds the tolerance, i.e. once the eye is nearer to its box than
+// D = e * scale / tolerance; a split node is merged once the eye is farther than D. The
+// distance to a box changes by at most the eye's travel, so until the travel since now exceeds
+// |d - D| the decision stands. Infinity: never changes (finest level, flat diamond).
+double Roam::slack(uint32_t n) const {
+  const Node& nd = nodes_[n];
+  const double e = static_cast<double>(nd.bound.error_m);
+  if (!vs_.valid || !(e > 0.0) || !(vs_.tolerance_px > 0.0)) return kInf;
+  if (nd.children == kNone && nd.level >= maxLevel_) return kInf;
+  Aabb box = diamondBox(nd);
+  box.min -= vs_.eye_m;
+  box.max -= vs_.eye_m;
+  const double d = distanceToBox(box, glm::dvec3(0.0));
+  const double threshold = e * vs_.scale / vs_.tolerance_px;
+  // Split if d < threshold (errorPx > tolerance); merge if d >= threshold.
+  const double s = nd.children == kNone ? d - threshold : threshold - d;
+  return s > 0.0 ? s : 0.0;
+}
+
+void Roam::DueQueue::clear(uint64_t now_cm) {
+  for (auto& b : ring_) b.clear();
+  size_ = 0;
+  cursor_ = now_cm / kBucket_cm;
+}
+
+void Roam::DueQueue::push(DueEntry e) {
+  const uint64_t last = (cursor_ + kBuckets - 1) * kBucket_cm;  // the horizon's last bucket
+  e.due_cm = std::max(std::min(e.due_cm, last), cursor_ * kBucket_cm);
+  ring_[(e.due_cm / kBucket_cm) % kBuckets].push_back(e);
+  ++size_;
+}
+
+size_t Roam::DueQueue::popDue(uint64_t limit_cm, std::vector<DueEntry>& out, size_t max) {
+  const uint64_t limitBucket = limit_cm / kBucket_cm;
+  size_t n = 0;
+  // Whole buckets behind the limit, oldest first; once the eye jumped past the horizon,
+  // every bucket is due.
+  while (cursor_ < limitBucket) {
+    auto& b = ring_[cursor_ % kBuckets];
+    while (!b.empty()) {
+      if (n++ == max) return max + 1;
+      out.push_back(b.back());
+      b.pop_back();
+      --size_;
+    }
+    ++cursor_;
+    if (size_ == 0) cursor_ = limitBucket;
+  }
+  // The limit's own bucket: only the entries due already.
+  auto& b = ring_[cursor_ % kBuckets];
+  for (size_t i = 0; i < b.size();) {
+    if (b[i].due_cm > limit_cm) {
+      ++i;
+      continue;
+    }
+    if (n++ == max) return max + 1;
+    out.push_back(b[i]);
+    b[i] = b.back();
+    b.pop_back();
+    --size_;
+  }
+  return n;
+}
+
+namespace {
+uint64_t centimetres(double m) { return m < 1.8e16 ? static_cast<uint64_t>(m * 100.0) : uint64_t{1} << 62; }
+}  // namespace
+
+void Roam::schedule(uint32_t n) {
+  if (nodes_[n].free) return;
+  const double s = slack(n);
+  if (s == kInf) return;
+  if (dueQ_.size() >= dueCapacity_) {  // full of stale entries: rebuild from the live nodes
+    scheduleAll();
+    return;
+  }
+  dueQ_.push({centimetres(travel_m_ + s), n, ++schedTag_[n]});
+}
+
+void Roam::scheduleAll() {
+  dueQ_.clear(centimetres(travel_m_));
+  const uint32_t end = 2 * highPairs_;
+  for (uint32_t n = 0; n < end; ++n) {
+    if (nodes_[n].free) continue;
+    const double s = slack(n);
+    if (s == kInf) continue;
+    dueQ_.push({centimetres(travel_m_ + s), n, ++schedTag_[n]});
+  }
+}
+
+bool Roam::deferredUpdate() {
+  vs_.cullFrustum = false;
+  if (dueCapacity_ == 0) {  // first Deferred update: the schedule's storage
+    dueCapacity_ = nodes_.size() + nodes_.size() / 2 + 64;
+    schedTag_.assign(nodes_.size(), 0);
+    touched_.reserve(2 * nodes_.size() + 64);
+    recheck_.reserve(nodes_.size() + 64);
+    due_.reserve(nodes_.size() / 8 + 1024 + 1);
+  }
+  const bool sameView = scheduleValid_ && vs_.valid && vs_.scale == lastScale_ && vs_.tolerance_px == lastTolerance_px_;
+  if (vs_.valid) {
+    if (scheduleValid_) travel_m_ += glm::length(vs_.eye_m - lastEye_m_);
+    lastEye_m_ = vs_.eye_m;
+    lastScale_ = vs_.scale;
+    lastTolerance_px_ = vs_.tolerance_px;
+  }
+  bool full = !sameView;
+  touched_.clear();
+  recheck_.clear();
+  touchedOverflow_ = false;
+  bool ok = true;
+  if (!full) {
+    trackTouched_ = true;
+    // A jump that makes most of the mesh due (a teleport) is cheaper as one linear walk.
+    const size_t walkInstead = liveNodes_ / 8 + 1024;
+    due_.clear();
+    if (dueQ_.popDue(centimetres(travel_m_), due_, walkInstead) > walkInstead) full = true;
+    for (size_t i = 0; i < due_.size() && !full; ++i) {
+      const DueEntry& e = due_[i];
+      if (e.tag != schedTag_[e.node]) continue;  // rescheduled or freed since
+      const Node& nd = nodes_[e.node];
+      ++stats_.nodesExamined;
+      const double p = priority(nd, vs_);
+      // Rescheduling happens after the loop: a node exactly at its threshold has slack 0 and
+      // would be due again at once.
+      if (nd.children == kNone) {
+        if (p > vs_.tolerance_px && nd.level < maxLevel_) pushSplit(e.node, p);
+        recheck_.push_back(e.node);  // split below (then touched), or rescheduled
+      } else if (p > vs_.tolerance_px) {
+        recheck_.push_back(e.node);
+      } else if (nd.parent == kNone || priority(nodes_[nd.parent], vs_) > vs_.tolerance_px) {
+        if (!takeOp()) {  // out of budget: this and the remaining due nodes are looked at next time
+          for (size_t j = i; j < due_.size(); ++j)
+            if (due_[j].tag == schedTag_[due_[j].node]) recheck_.push_back(due_[j].node);
+          ok = false;
+          break;
+        }
+        collapse(e.node);  // enhMerge; touches the node, now a leaf
+        ++stats_.enhMerges;
+        maxSmallPx_ = std::max(maxSmallPx_, p);
+      } else {
+        recheck_.push_back(e.node);  // its ancestor is due as well and merges it
+      }
+    }
+    if (ok && !full) ok = splitPhase() && capPhase();
+    trackTouched_ = false;
+  }
+  if (full) {
+    trackTouched_ = false;
+    ok = walkEnhMerge() && splitPhase() && capPhase();
+    scheduleAll();
+    scheduleValid_ = vs_.valid;
+    return ok;
+  }
+  if (touchedOverflow_) {
+    scheduleAll();
+  } else {
+    for (const uint32_t n : touched_) schedule(n);
+    for (const uint32_t n : recheck_) schedule(n);
+  }
+  return ok;
 }
 
 // ---- output ------------------------------------------------------------------------------

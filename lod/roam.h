@@ -35,9 +35,10 @@
 // triangle whose errorPx <= tolerance_px is merged. After a finished update without the
 // triangle cap binding, every leaf has errorPx <= tolerance_px (or is at the finest level).
 //
-// Cost. Every update scans the live nodes once in pool order (O(nodes), a priority each),
-// plus O(log n) per split / merge; there is no deferred priority recomputation yet, so the
-// scan dominates for large meshes (a 1 px view of a 16385^2 DEM, ~580k triangles: ~30 ms).
+// Cost. EnhMerge, MergeQueue and Rebuild scan the live nodes once per update in pool order
+// (O(nodes), a priority each), plus O(log n) per split / merge: the scan dominates for large
+// meshes (a 1 px view of a 16385^2 DEM, ~580k triangles: ~30 ms). Deferred re-examines only
+// the nodes whose decision may have changed (a schedule keyed by eye travel), O(due log n).
 //
 // Memory. The Roam object keeps a pointer to the caller's heights: they must stay alive and
 // unchanged while the object lives. Every buffer (node pool, queues, stacks) is allocated in
@@ -77,6 +78,13 @@ enum class RoamMode {
   EnhMerge,    // walk last frame's tree: enhMerge subtrees that became unnecessary, then split
   MergeQueue,  // classic ROAM: merge queue (one diamond at a time) + split queue
   Rebuild,     // start from the base triangles every frame, split by priority (no coherence)
+  Deferred,    // EnhMerge with deferred priority recomputation: each node is re-examined only
+               // when the eye has travelled far enough that its split / merge decision could
+               // have changed (distance to a box is 1-Lipschitz in the eye position). Priorities
+               // ignore the frustum, so turning the view costs nothing; the whole surroundings
+               // are refined and emitVisible() culls what is drawn. The first Deferred update
+               // (and one after the tolerance, viewport or field of view changed) walks every
+               // node and allocates the schedule; later ones touch only the due nodes.
 };
 
 struct RoamStats {
@@ -84,6 +92,7 @@ struct RoamStats {
   uint32_t merges = 0;       // single diamond merges (merge queue, or room for the triangle cap)
   uint32_t enhMerges = 0;    // enhMerge operations (each may free a whole subtree)
   uint32_t nodesFreed = 0;   // nodes returned to the pool by merges, enhMerges and rebuilds
+  uint32_t nodesExamined = 0;  // nodes whose priority the update's walk or schedule looked at
   uint64_t triangles = 0;    // leaf triangles after the update
   bool finished = true;      // false: the work budget stopped it; the mesh is valid, and the
                              // next update resumes (Rebuild then continues instead of restarting)
@@ -176,6 +185,7 @@ class Roam {
   struct ViewState {
     glm::dvec3 eye_m{0.0};  // eye relative to origin_m
     Frustum frustum{};
+    bool cullFrustum = true;  // false (Deferred): priorities by distance only
     double scale = 0.0;  // viewportHeight_px / (2 tan(fovY / 2))
     double tolerance_px = 0.0;
     bool valid = false;  // false for non-finite input: every priority is 0
@@ -225,6 +235,43 @@ class Roam {
   bool mergeUnneeded();
   bool splitPhase();
   bool capPhase();
+  // Deferred mode.
+  struct DueEntry {
+    uint64_t due_cm;  // eye travel (centimetres) at which the node must be re-examined
+    uint32_t node;
+    uint32_t tag;     // schedTag_[node] when pushed; stale otherwise
+  };
+  // The schedule: a ring of 1 m buckets over the next 16 km of eye travel (a calendar queue).
+  // The travel only grows, so the buckets behind it are drained in order; a node whose
+  // decision is safe for longer than the horizon is simply looked at again after it (an early
+  // look is always safe). Work per update is the entries due plus one bucket per metre
+  // travelled, in contiguous memory, with no bursts from reorganising the queue.
+  class DueQueue {
+   public:
+    static constexpr uint64_t kBucket_cm = 100;
+    static constexpr uint64_t kBuckets = 16384;
+    void clear(uint64_t now_cm);
+    size_t size() const { return size_; }
+    void push(DueEntry e);
+    // Moves the entries due at `limit_cm` into `out`, at most `max` of them (more: returns
+    // max + 1 and leaves the rest queued); returns how many.
+    size_t popDue(uint64_t limit_cm, std::vector<DueEntry>& out, size_t max);
+
+   private:
+    std::vector<std::vector<DueEntry>> ring_ = std::vector<std::vector<DueEntry>>(kBuckets);
+    uint64_t cursor_ = 0;  // bucket number of the oldest bucket not yet drained
+    size_t size_ = 0;
+  };
+  bool deferredUpdate();
+  double slack(uint32_t n) const;  // eye travel before n's decision can change; 0 = act now
+  void schedule(uint32_t n);
+  void scheduleAll();
+  void touch(uint32_t n) {
+    if (trackTouched_) {
+      if (touched_.size() < touched_.capacity()) touched_.push_back(n);
+      else touchedOverflow_ = true;
+    }
+  }
 
   const float* heights_m_;
   int width_, height_;
@@ -254,6 +301,18 @@ class Roam {
   uint64_t capTriangles_ = 0;  // triangle cap of this update
   double maxSmallPx_ = 0.0;  // largest errorPx among leaves not queued for splitting
   bool resumeRebuild_ = false;
+  // Deferred schedule (allocated by the first Deferred update).
+  DueQueue dueQ_;
+  size_t dueCapacity_ = 0;          // entries before the schedule is rebuilt (stale ones pile up)
+  std::vector<uint32_t> schedTag_;  // per node
+  std::vector<uint32_t> touched_;   // nodes whose state changed during this update
+  std::vector<uint32_t> recheck_;   // due nodes to look at again next update
+  std::vector<DueEntry> due_;       // entries due this update
+  bool trackTouched_ = false, touchedOverflow_ = false;
+  bool scheduleValid_ = false;
+  double travel_m_ = 0.0;           // eye travel summed over Deferred updates
+  glm::dvec3 lastEye_m_{0.0};
+  double lastScale_ = 0.0, lastTolerance_px_ = 0.0;
 };
 
 }  // namespace ig::lod

@@ -19,9 +19,17 @@ using namespace ig::lod;
 
 namespace {
 
+// Modes that refine to the same (frustum-culled) mesh; Deferred refines the surroundings too.
 constexpr RoamMode kModes[] = {RoamMode::EnhMerge, RoamMode::MergeQueue, RoamMode::Rebuild};
+constexpr RoamMode kAllModes[] = {RoamMode::EnhMerge, RoamMode::MergeQueue, RoamMode::Rebuild, RoamMode::Deferred};
 const char* modeName(RoamMode m) {
-  return m == RoamMode::EnhMerge ? "EnhMerge" : m == RoamMode::MergeQueue ? "MergeQueue" : "Rebuild";
+  switch (m) {
+    case RoamMode::EnhMerge: return "EnhMerge";
+    case RoamMode::MergeQueue: return "MergeQueue";
+    case RoamMode::Rebuild: return "Rebuild";
+    case RoamMode::Deferred: return "Deferred";
+  }
+  return "?";
 }
 
 std::vector<float> fractal(int w, int h, uint32_t seed = 7, double scale_m = 400.0, double spacing_m = 30.0) {
@@ -136,7 +144,7 @@ TEST(Roam, SmallDemsRefineToFullResolutionAndEmitTheDemExactly) {
     // Straight down from high above the centre, zero tolerance: every diamond with an error
     // is split, and a noise field has an error everywhere inside the DEM.
     RoamView v = makeView({0.5 * (w - 1) * sp, 0.5 * (h - 1) * sp, 5000.0}, 0.0, -90.0, 0.0);
-    for (RoamMode mode : kModes) {
+    for (RoamMode mode : kAllModes) {
       const RoamStats st = roam.update(v, mode);
       EXPECT_TRUE(st.finished);
       EXPECT_VALID(roam);
@@ -163,7 +171,7 @@ TEST(Roam, SmallDemsRefineToFullResolutionAndEmitTheDemExactly) {
 TEST(Roam, FlightPathStaysCrackFreeWithinToleranceInEveryMode) {
   const int n = 257;
   const auto hts = fractal(n, n);
-  for (RoamMode mode : kModes) {
+  for (RoamMode mode : kAllModes) {
     Roam roam(hts, n, n, 30.0, {0, 0, 0}, smallConfig());
     uint64_t maxTris = 0, sumTris = 0, maxOps = 0, sumOps = 0;
     const auto path = flightPath();
@@ -217,7 +225,7 @@ TEST(Roam, InterruptedAtAnyPointStaysValidAndConverges) {
   const auto hts = fractal(n, n, 5);
   const RoamView views[] = {makeView({600, 450, 500}, 30, -20, 1.0), makeView({1500, 1600, 400}, 200, -25, 1.0),
                             makeView({150, 1750, 700}, 120, -10, 3.0)};
-  for (RoamMode mode : kModes) {
+  for (RoamMode mode : kAllModes) {
     for (uint32_t budget : {1u, 2u, 5u}) {
       Roam roam(hts, n, n, 30.0, {0, 0, 0}, smallConfig());
       Roam reference(hts, n, n, 30.0, {0, 0, 0}, smallConfig());
@@ -287,7 +295,7 @@ TEST(Roam, EnhMergeCollapsesATeleportInFewOperations) {
 TEST(Roam, FlatTerrainStaysAtTheBaseTriangles) {
   const int n = 65;
   const std::vector<float> hts(static_cast<size_t>(n) * n, 123.0f);
-  for (RoamMode mode : kModes) {
+  for (RoamMode mode : kAllModes) {
     Roam roam(hts, n, n, 30.0, {0, 0, 0}, smallConfig());
     for (double tol : {1e-9, 0.5, 4.0}) {
       // On the surface, exactly on a vertex, looking along it and straight down.
@@ -308,7 +316,7 @@ TEST(Roam, CliffIsRefinedAlongTheCliffOnly) {
   std::vector<float> hts(static_cast<size_t>(n) * n);
   for (int y = 0; y < n; ++y)
     for (int x = 0; x < n; ++x) hts[static_cast<size_t>(y) * n + x] = x >= cliffX ? 500.0f : 0.0f;
-  for (RoamMode mode : kModes) {
+  for (RoamMode mode : kAllModes) {
     Roam roam(hts, n, n, 30.0, {0, 0, 0}, smallConfig());
     const RoamView v = makeView({1920, 1920, 20000}, 0, -90, 0.5);  // whole map in view
     const RoamStats st = roam.update(v, mode);
@@ -339,7 +347,7 @@ TEST(Roam, CliffIsRefinedAlongTheCliffOnly) {
 TEST(Roam, CameraOnAVertexAndBelowTheSurface) {
   const int n = 65;
   const auto hts = fractal(n, n, 21);
-  for (RoamMode mode : kModes) {
+  for (RoamMode mode : kAllModes) {
     Roam roam(hts, n, n, 30.0, {0, 0, 0}, smallConfig());
     const RoamView onVertex = makeView(roam.vertexPosition(20, 33), 70, -5, 1.0);
     RoamStats st = roam.update(onVertex, mode);
@@ -359,7 +367,7 @@ TEST(Roam, HugeCoordinatesGiveTheSameTriangulation) {
   const int n = 129;
   const auto hts = fractal(n, n, 4);
   const glm::dvec3 far{1.0e6, 1.0e6, 0.0};
-  for (RoamMode mode : kModes) {
+  for (RoamMode mode : kAllModes) {
     Roam near0(hts, n, n, 30.0, {0, 0, 0}, smallConfig());
     Roam farAway(hts, n, n, 30.0, far, smallConfig());
     const auto path = flightPath();
@@ -380,7 +388,7 @@ TEST(Roam, NonFiniteCameraRefinesNothingAndDoesNotCrash) {
   const int n = 65;
   const auto hts = fractal(n, n, 2);
   const double nan = std::numeric_limits<double>::quiet_NaN();
-  for (RoamMode mode : kModes) {
+  for (RoamMode mode : kAllModes) {
     Roam roam(hts, n, n, 30.0, {0, 0, 0}, smallConfig());
     roam.update(makeView({900, 900, 300}, 20, -20, 1.0), mode);
     ASSERT_GT(roam.triangleCount(), roam.baseTriangles());
@@ -404,7 +412,7 @@ TEST(Roam, NonFiniteCameraRefinesNothingAndDoesNotCrash) {
 TEST(Roam, TriangleCapIsRespectedAndLoweringItCoarsens) {
   const int n = 257;
   const auto hts = fractal(n, n, 8);
-  for (RoamMode mode : kModes) {
+  for (RoamMode mode : kAllModes) {
     Roam roam(hts, n, n, 30.0, {0, 0, 0}, smallConfig());
     RoamView v = makeView({2000, 2000, 500}, 45, -20, 0.25);
     v.maxTriangles = 3000;
@@ -432,7 +440,7 @@ TEST(Roam, TriangleCapIsRespectedAndLoweringItCoarsens) {
 TEST(Roam, PoolExhaustionIsReportedAndTheMeshStaysValid) {
   const int n = 129;
   const auto hts = fractal(n, n, 6);
-  for (RoamMode mode : kModes) {
+  for (RoamMode mode : kAllModes) {
     RoamConfig cfg;
     cfg.maxTriangles = 100000;
     cfg.nodeCapacity = 60;
@@ -523,4 +531,48 @@ TEST(Roam, SplitEndsAreTheHypotenuseOfTheSplitThatCreatesAVertex) {
     }
   }
   EXPECT_GT(checked, 100u);
+}
+
+// Deferred priority recomputation must give exactly the mesh a fresh walk gives for the same
+// view (the refined mesh is unique), whatever the history, while looking at far fewer nodes
+// per frame on smooth flight.
+TEST(Roam, DeferredMatchesAFreshWalkAndExaminesFewNodes) {
+  const int n = 257;
+  const auto hts = fractal(n, n, 3);
+  Roam roam(hts, n, n, 30.0, {0, 0, 0}, smallConfig(400000));
+  const auto path = flightPath();
+  uint64_t examinedSmooth = 0, nodesSmooth = 0;
+  for (size_t f = 0; f < path.size(); ++f) {
+    const RoamStats st = roam.update(path[f], RoamMode::Deferred);
+    ASSERT_TRUE(st.finished);
+    EXPECT_VALID(roam);
+    if (f % 3 == 0 || f >= 34) {  // every third frame, and each teleport
+      Roam fresh(hts, n, n, 30.0, {0, 0, 0}, smallConfig(400000));
+      fresh.update(path[f], RoamMode::Deferred);
+      ASSERT_EQ(sortedTriangles(roam), sortedTriangles(fresh)) << "frame " << f;
+    }
+    EXPECT_LE(roam.maxErrorPx(path[f]), path[f].tolerance_px);
+    // Frames 1..19 cruise straight and level: the schedule's cost.
+    if (f >= 1 && f < 20) {
+      examinedSmooth += st.nodesExamined;
+      nodesSmooth += roam.nodeCount();
+    }
+  }
+  // Cruising 60 m a frame, a small share of the nodes is due each frame.
+  EXPECT_LT(static_cast<double>(examinedSmooth), 0.25 * static_cast<double>(nodesSmooth))
+      << examinedSmooth << " of " << nodesSmooth;
+  // Turning on the spot costs nothing: priorities do not depend on the view direction.
+  RoamView turn = path.back();
+  for (int i = 1; i <= 12; ++i) {
+    turn.camera.heading_deg += 30.0;
+    const RoamStats st = roam.update(turn, RoamMode::Deferred);
+    EXPECT_EQ(st.splits + st.merges + st.enhMerges, 0u) << "turn " << i;
+    EXPECT_EQ(st.nodesExamined, 0u) << "turn " << i;
+  }
+  // A new tolerance invalidates the schedule: one full walk, then the right mesh.
+  turn.tolerance_px = 4.0;
+  roam.update(turn, RoamMode::Deferred);
+  Roam fresh(hts, n, n, 30.0, {0, 0, 0}, smallConfig(400000));
+  fresh.update(turn, RoamMode::Deferred);
+  EXPECT_EQ(sortedTriangles(roam), sortedTriangles(fresh));
 }
