@@ -2,6 +2,7 @@
 
 #include <arpa/inet.h>
 #include <netinet/in.h>
+#include <sys/resource.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
@@ -220,6 +221,9 @@ int runLatencyBench(const LatencyBenchOptions& opt) {
   std::atomic<uint64_t> floodSent{0};
   stopSender = false;
   std::thread flooder([&] {
+    // The flood stands for traffic from other machines: here it shares the IG's two cores, so
+    // it runs below the render threads (nice +10) and reports the rate it achieved.
+    setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 10);
     Sender s(flood.port);
     std::array<std::byte, 256> buf{};
     const int64_t t0 = clock.now_ns();
@@ -240,8 +244,10 @@ int runLatencyBench(const LatencyBenchOptions& opt) {
       }
     }
   });
+  const int64_t floodStart_ns = clock.now_ns();
   const int floodRc = flood.service->run(clock, stop);
   stopSender = true;
+  const double floodElapsed_s = static_cast<double>(clock.now_ns() - floodStart_ns) * 1e-9;
   flooder.join();
   if (floodRc != 0) return 1;
   const RunSummary floodRun = flood.service->summary();
@@ -259,13 +265,13 @@ int runLatencyBench(const LatencyBenchOptions& opt) {
         "\"latency_ms_max\":%.3f,\"render_ms_p50\":%.3f,\"render_ms_p99\":%.3f,\"latency_goal_ms\":%.3f,"
         "\"latency_run_overruns\":%lld,\"host_messages_received\":%llu,\"host_messages_accepted\":%llu,"
         "\"decode_msgs_per_s\":%.0f,\"decode_msgs_per_s_swapped\":%.0f,\"flood_rate_pps\":%.0f,"
-        "\"flood_seconds\":%.1f,\"flood_frames\":%lld,\"flood_overruns\":%lld,\"flood_frame_ms_p99\":%.3f,"
+        "\"flood_seconds\":%.1f,\"flood_rate_achieved_pps\":%.0f,\"flood_frames\":%lld,\"flood_overruns\":%lld,\"flood_frame_ms_p99\":%.3f,"
         "\"flood_packets_sent\":%llu,\"flood_packets_received\":%llu,\"flood_packets_accepted\":%llu}\n",
         renderer.c_str(), width, height, 1000.0 / period_ms, period_ms, opt.hostRate_hz, latency_ms.size(), p50, p99,
         lmax, latencyRun.workMs_p50, latencyRun.workMs_p99, goal_ms, static_cast<long long>(latencyRun.overruns),
         static_cast<unsigned long long>(latencyCounters.received),
         static_cast<unsigned long long>(latencyCounters.accepted), decodeNative, decodeSwapped, opt.floodRate_pps,
-        opt.floodSeconds, static_cast<long long>(floodRun.frames), static_cast<long long>(floodRun.overruns),
+        opt.floodSeconds, static_cast<double>(floodSent.load()) / floodElapsed_s, static_cast<long long>(floodRun.frames), static_cast<long long>(floodRun.overruns),
         floodRun.workMs_p99, static_cast<unsigned long long>(floodSent.load()),
         static_cast<unsigned long long>(floodCounters.received), static_cast<unsigned long long>(floodCounters.accepted));
   } else {
@@ -278,11 +284,13 @@ int runLatencyBench(const LatencyBenchOptions& opt) {
                 goal_ms, p99 <= goal_ms ? "met" : "NOT met");
     std::printf("  CIGI decode (IG Control + Entity Control): %.2f M msgs/s native order, %.2f M swapped\n",
                 decodeNative * 1e-6, decodeSwapped * 1e-6);
-    std::printf("  flood %.0f packets/s for %.0f s: %llu sent, %llu received, %lld of %lld frames over budget "
-                "(frame p99 %.2f ms)\n",
-                opt.floodRate_pps, opt.floodSeconds, static_cast<unsigned long long>(floodSent.load()),
+    std::printf("  flood %.0f packets/s (achieved %.0f) for %.0f s: %llu sent, %llu received, %lld of %lld frames over "
+                "budget (frame p99 %.2f ms; %lld over budget without the flood)\n",
+                opt.floodRate_pps, static_cast<double>(floodSent.load()) / floodElapsed_s, opt.floodSeconds,
+                static_cast<unsigned long long>(floodSent.load()),
                 static_cast<unsigned long long>(floodCounters.received), static_cast<long long>(floodRun.overruns),
-                static_cast<long long>(floodRun.frames), floodRun.workMs_p99);
+                static_cast<long long>(floodRun.frames), floodRun.workMs_p99,
+                static_cast<long long>(latencyRun.overruns));
   }
   return 0;
 }

@@ -85,6 +85,7 @@ void CanLink::stop() {
 }
 
 void CanLink::run(HostSink* sink) {
+  lowerLinkThreadPriority();
   CanSetAssembler assembler(config_, origin_, counters_);
   bool inBurst = false;
   int64_t lastError_us = 0;

@@ -29,6 +29,8 @@
 #include <string>
 #include <thread>
 
+#include <netinet/in.h>
+
 #include <glm/mat3x3.hpp>
 #include <glm/vec3.hpp>
 
@@ -161,6 +163,7 @@ class CigiLink final : public HostLink {
 
  private:
   void run();
+  void handleDatagram(const void* data, size_t size, int flags, sockaddr_in src);
 
   CigiLinkConfig config_;
   std::unique_ptr<CigiAssembler> assembler_;  // touched only by the receive thread

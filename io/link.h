@@ -11,6 +11,9 @@
 // good value) and counts as `outOfRange`; the rest of the packet still applies.
 #pragma once
 
+#include <sys/resource.h>
+#include <unistd.h>
+
 #include <atomic>
 #include <cstdint>
 #include <string>
@@ -63,6 +66,14 @@ struct FrameStart {
   bool hostLost = false;       // no valid host input for longer than [host] link_timeout_s
   bool overrun = false;        // the previous frame overran its budget
 };
+
+// Link receive threads run at nice +5: under a packet flood the render threads keep the CPU
+// and the socket drops what the link cannot read (the frame loop wants only the newest
+// sample anyway). Called by each link at the start of its receive thread.
+inline void lowerLinkThreadPriority() {
+  constexpr int kLinkNice = 5;
+  setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), kLinkNice);
+}
 
 class HostLink {
  public:

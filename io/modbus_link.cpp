@@ -318,6 +318,7 @@ bool ModbusLink::start(HostSink& sink, std::string& error) {
   m.sink = &sink;
   m.stopping = false;
   m.thread = std::thread([&m] {
+    lowerLinkThreadPriority();
     pthread_setname_np(pthread_self(), "ig-modbus");
     if (m.transport == ModbusTransport::Tcp) {
       m.runTcp();
