@@ -80,8 +80,14 @@ int runHdlodBench(const HdlodBenchOptions& o) {
     return 2;
   }
   const double sceneS = secondsSince(tScene);
+  hd::BuildConfig config;
+  if (!hd::parseSimplifier(o.simplifier, config.simplifier)) {
+    std::fprintf(stderr, "igbench hdlod: --simplifier: unknown simplifier '%s' (meshoptimizer, openmesh, clustering)\n",
+                 o.simplifier.c_str());
+    return 2;
+  }
   const auto tBuild = BenchClock::now();
-  const hd::HdlodTree tree = hd::buildHdlod(scene);
+  const hd::HdlodTree tree = hd::buildHdlod(scene, config);
   const double buildS = secondsSince(tBuild);
   uint64_t triangles = 0;
   for (const hd::Object& obj : scene.objects) triangles += scene.models[obj.model].triangleCount();
@@ -139,6 +145,44 @@ int runHdlodBench(const HdlodBenchOptions& o) {
     }
   }
 
+  // Per simplifier: build time, measured error of the merged clusters' own simplification (D,
+  // the sampled Hausdorff distance without the children's eps: mean and max), and the smallest
+  // full / HDLOD triangle ratio at 1/16 of the screen over the four times.
+  struct SimplifierRun {
+    hd::Simplifier simplifier;
+    double seconds = 0.0, meanM = 0.0, maxM = 0.0, ratio116 = 0.0;
+    uint64_t mergedTriangles = 0;
+    uint32_t sloppy = 0;
+  };
+  std::vector<SimplifierRun> runs;
+  for (hd::Simplifier s : {hd::Simplifier::Meshoptimizer, hd::Simplifier::OpenMesh, hd::Simplifier::Clustering}) {
+    if (!o.compareSimplifiers) break;
+    hd::BuildConfig sc = config;
+    sc.simplifier = s;
+    const auto t0 = BenchClock::now();
+    const hd::HdlodTree other = hd::buildHdlod(scene, sc);
+    SimplifierRun run{s};
+    run.seconds = secondsSince(t0);
+    const auto& os = other.stats;
+    run.meanM = os.mergedClusters ? os.simplifyErrorSum_m / os.mergedClusters : 0.0;
+    run.maxM = os.simplifyErrorMax_m;
+    run.mergedTriangles = os.mergedTriangles;
+    run.sloppy = os.sloppyClusters;
+    run.ratio116 = 1e300;
+    std::vector<hd::Draw> otherDraws(hd::drawBound(other));
+    for (int ti = 0; ti < 4; ++ti) {
+      hd::SelectView v;
+      v.camera = cameraFor(root.box, 0.25, o);
+      v.time_s = timeFrac[ti] * scene.duration_s;
+      v.tolerance_rad = r;
+      hd::SelectStats a, b;
+      hd::selectHdlod(other, scene, v, otherDraws, &a);
+      hd::selectAll(other, scene, v, otherDraws, &b);
+      if (a.triangles > 0) run.ratio116 = std::min(run.ratio116, static_cast<double>(b.triangles) / static_cast<double>(a.triangles));
+    }
+    runs.push_back(run);
+  }
+
   const auto& st = tree.stats;
   if (o.json) {
     std::printf("{\"suite\":\"hdlod\",\"scale\":%g,\"seed\":%u,\"objects\":%zu,\"static\":%u,\"pseudo_dynamic\":%u,\"dynamic\":%u,"
@@ -161,13 +205,23 @@ int runHdlodBench(const HdlodBenchOptions& o) {
       std::printf("%s{\"r_px\":%g,\"triangles\":%llu,\"draws\":%u,\"select_ms\":%.4f}", i ? "," : "", sweepPx[i],
                   static_cast<unsigned long long>(sweep[i].triangles), sweep[i].draws, sweep[i].selectMs);
     }
+    std::printf("],\"simplifier\":\"%s\",\"sloppy_clusters\":%u,\"simplifiers\":[", hd::simplifierName(config.simplifier),
+                st.sloppyClusters);
+    for (size_t i = 0; i < runs.size(); ++i) {
+      const SimplifierRun& run = runs[i];
+      std::printf("%s{\"name\":\"%s\",\"seconds\":%.3f,\"hausdorff_m\":%.4f,\"hausdorff_max_m\":%.4f,\"merged_triangles\":%llu,"
+                  "\"sloppy_clusters\":%u,\"triangle_ratio_1_16_min\":%.2f}",
+                  i ? "," : "", hd::simplifierName(run.simplifier), run.seconds, run.meanM, run.maxM,
+                  static_cast<unsigned long long>(run.mergedTriangles), run.sloppy, run.ratio116);
+    }
     std::printf("],\"select_ms_max\":%.4f,\"triangle_ratio_1_16_min\":%.2f}\n", worstSelect, worstRatio116);
   } else {
     std::printf("hdlod suite: site scale %g (seed %u): %zu objects (%u static, %u pseudo-dynamic, %u dynamic, %u empty), %llu triangles\n",
                 o.scale, o.seed, scene.objects.size(), st.staticObjects, st.pseudoDynamicObjects, st.dynamicObjects, st.emptyObjects,
                 static_cast<unsigned long long>(triangles));
-    std::printf("  generated in %.2f s, tree built in %.2f s: %zu clusters (%u merged, %u levels, %llu merged triangles)\n", sceneS,
-                buildS, tree.clusters.size(), st.mergedClusters, st.levels, static_cast<unsigned long long>(st.mergedTriangles));
+    std::printf("  generated in %.2f s, tree built in %.2f s (%s): %zu clusters (%u merged, %u levels, %llu merged triangles)\n", sceneS,
+                buildS, hd::simplifierName(config.simplifier), tree.clusters.size(), st.mergedClusters, st.levels,
+                static_cast<unsigned long long>(st.mergedTriangles));
     std::printf("  r = %g px, %dx%d: time screen | HDLOD triangles draws select ms | full triangles draws select ms | ratio\n",
                 o.tolerance_px, o.width_px, o.height_px);
     for (const Case& c : cases) {
@@ -180,6 +234,11 @@ int runHdlodBench(const HdlodBenchOptions& o) {
     for (size_t i = 0; i < sweep.size(); ++i) {
       std::printf("    %5.2f %9llu %6u %8.3f\n", sweepPx[i], static_cast<unsigned long long>(sweep[i].triangles), sweep[i].draws,
                   sweep[i].selectMs);
+    }
+    for (const SimplifierRun& run : runs) {
+      std::printf("  simplifier %-13s: built in %6.2f s, measured error mean %.3f m max %.3f m, %llu merged triangles, 1/16 ratio %.1fx\n",
+                  hd::simplifierName(run.simplifier), run.seconds, run.meanM, run.maxM,
+                  static_cast<unsigned long long>(run.mergedTriangles), run.ratio116);
     }
     std::printf("  goals: select <= 0.5 ms (max %.3f), >= 20x fewer triangles at 1/16 (min %.1fx), build <= 300 s at scale 1\n",
                 worstSelect, worstRatio116);

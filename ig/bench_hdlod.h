@@ -4,10 +4,12 @@
 // of the schedule) and screen size of the scene (1/1, 1/4, 1/16 of the screen area) selects with
 // HDLOD at r_px and without it (every present object in the frustum): triangles, draws and the
 // median selection time. Then sweeps r (at 1/3 of the schedule, the paper's worst case, scene
-// filling the screen).
+// filling the screen). Then, unless disabled, builds the tree once per simplifier
+// (lod/hdlod_simplify.h) and reports each one's build time, measured error and 1/16 ratio.
 #pragma once
 
 #include <cstdint>
+#include <string>
 
 namespace ig {
 
@@ -19,6 +21,8 @@ struct HdlodBenchOptions {
   double tolerance_px = 1.0;  // r for the cases
   int repeats = 31;         // selections per case (the median is reported)
   bool json = false;
+  std::string simplifier = "meshoptimizer";  // parent geometry for the main run: meshoptimizer, openmesh, clustering
+  bool compareSimplifiers = true;  // also build with each simplifier (field `simplifiers`)
 };
 
 int runHdlodBench(const HdlodBenchOptions& options);

@@ -6,3 +6,11 @@ target_sources(ig_lod PRIVATE
   ${CMAKE_CURRENT_SOURCE_DIR}/hdlod_select.cpp
   ${CMAKE_CURRENT_SOURCE_DIR}/hdlod_site.cpp
 )
+
+# Parent-cluster simplifiers (lod/hdlod_simplify.h): Debian libmeshoptimizer-dev (CMake package
+# meshoptimizer, target meshoptimizer::meshoptimizer) and libopenmesh-dev (CMake package OpenMesh,
+# targets OpenMeshCore and OpenMeshTools).
+find_package(meshoptimizer REQUIRED CONFIG)
+find_package(OpenMesh REQUIRED CONFIG)
+target_sources(ig_lod PRIVATE ${CMAKE_CURRENT_SOURCE_DIR}/hdlod_simplify.cpp)
+target_link_libraries(ig_lod PRIVATE meshoptimizer::meshoptimizer OpenMeshTools OpenMeshCore)

@@ -1,6 +1,8 @@
 // HDLOD cluster-tree generation: paper 000, appendix 2 (see hdlod_build.h for the definitions).
 #include "lod/hdlod_build.h"
 
+#include "lod/hdlod_simplify.h"
+
 #include <algorithm>
 #include <cassert>
 #include <cmath>
@@ -309,96 +311,6 @@ class TriangleBvh {
   std::vector<Node> nodes_;
 };
 
-// ---------------------------------------------------------------- vertex clustering
-
-// Vertex clustering: vertices collapse to the mean of their cell of a grid of `cell_m` anchored
-// at `anchor` (the tree's box corner: the result does not change when the scene is moved). `indices` keeps the triangles with three distinct cells (the
-// first of duplicates, input order); `collapsed` gets the triangles that became segments or
-// points (deduplicated), the simplicial complex of Rossignac-Borrel that the error is measured
-// against. Deterministic.
-struct Clustered {
-  std::vector<glm::vec3> positions;  // one per occupied cell
-  std::vector<uint32_t> indices, collapsed;
-};
-
-Clustered clusterVertices(const glm::dvec3& origin, const glm::dvec3& anchor, double cell_m,
-                          std::span<const glm::vec3> positions, std::span<const uint32_t> indices) {
-  Clustered r;
-  const size_t nv = positions.size();
-  if (nv == 0 || !(cell_m > 0.0)) return r;
-  std::vector<glm::i64vec3> cellOf(nv);
-  glm::i64vec3 lo(0), hi(0);
-  double cell = cell_m;
-  for (int attempt = 0;; ++attempt) {
-    lo = glm::i64vec3(std::numeric_limits<int64_t>::max());
-    hi = glm::i64vec3(std::numeric_limits<int64_t>::min());
-    for (size_t i = 0; i < nv; ++i) {
-      const glm::dvec3 w = (origin - anchor) + glm::dvec3(positions[i]);
-      cellOf[i] = glm::i64vec3(static_cast<int64_t>(std::floor(w.x / cell)), static_cast<int64_t>(std::floor(w.y / cell)),
-                               static_cast<int64_t>(std::floor(w.z / cell)));
-      lo = glm::min(lo, cellOf[i]);
-      hi = glm::max(hi, cellOf[i]);
-    }
-    const glm::dvec3 range = glm::dvec3(hi - lo) + 1.0;
-    if (range.x * range.y * range.z < 4.0e18 || attempt > 60) break;
-    cell *= 2.0;
-  }
-  const uint64_t rx = static_cast<uint64_t>(hi.x - lo.x + 1), ry = static_cast<uint64_t>(hi.y - lo.y + 1);
-  std::vector<std::pair<uint64_t, uint32_t>> keyed(nv);
-  for (size_t i = 0; i < nv; ++i) {
-    const glm::i64vec3 c = cellOf[i] - lo;
-    keyed[i] = {static_cast<uint64_t>(c.x) + rx * (static_cast<uint64_t>(c.y) + ry * static_cast<uint64_t>(c.z)),
-                static_cast<uint32_t>(i)};
-  }
-  std::sort(keyed.begin(), keyed.end());
-  std::vector<uint32_t> remap(nv);
-  for (size_t i = 0; i < nv;) {
-    size_t j = i;
-    glm::dvec3 sum(0.0);
-    while (j < nv && keyed[j].first == keyed[i].first) {
-      sum += glm::dvec3(positions[keyed[j].second]);
-      remap[keyed[j].second] = static_cast<uint32_t>(r.positions.size());
-      ++j;
-    }
-    r.positions.push_back(glm::vec3(sum / static_cast<double>(j - i)));
-    i = j;
-  }
-  struct Tri {
-    uint32_t sorted[3];
-    uint32_t original;  // position in the input: keeps the first occurrence and the order
-  };
-  std::vector<Tri> tris;
-  const size_t nt = indices.size() / 3;
-  tris.reserve(nt);
-  for (size_t t = 0; t < nt; ++t) {
-    uint32_t s[3] = {remap[indices[3 * t]], remap[indices[3 * t + 1]], remap[indices[3 * t + 2]]};
-    std::sort(s, s + 3);
-    tris.push_back({{s[0], s[1], s[2]}, static_cast<uint32_t>(t)});
-  }
-  std::sort(tris.begin(), tris.end(), [](const Tri& x, const Tri& y) {
-    if (x.sorted[0] != y.sorted[0]) return x.sorted[0] < y.sorted[0];
-    if (x.sorted[1] != y.sorted[1]) return x.sorted[1] < y.sorted[1];
-    if (x.sorted[2] != y.sorted[2]) return x.sorted[2] < y.sorted[2];
-    return x.original < y.original;
-  });
-  std::vector<uint32_t> keep;
-  for (size_t i = 0; i < tris.size(); ++i) {
-    const uint32_t* s = tris[i].sorted;
-    if (i > 0 && std::equal(s, s + 3, tris[i - 1].sorted)) continue;
-    if (s[0] == s[1] || s[1] == s[2]) {
-      r.collapsed.insert(r.collapsed.end(), {s[0], s[1], s[2]});
-    } else {
-      keep.push_back(tris[i].original);
-    }
-  }
-  std::sort(keep.begin(), keep.end());
-  r.indices.reserve(keep.size() * 3);
-  for (uint32_t t : keep) {
-    for (int k = 0; k < 3; ++k) r.indices.push_back(remap[indices[3 * t + static_cast<uint32_t>(k)]]);
-  }
-  return r;
-}
-
 // The mesh of `indices` with only the vertices they use.
 void compactMesh(std::span<const glm::vec3> positions, std::span<const uint32_t> indices, ClusterMesh& mesh) {
   std::vector<uint32_t> used(positions.size(), kNone);
@@ -563,7 +475,13 @@ class Builder {
     childPositions_.clear();
     childIndices_.clear();
     for (uint32_t k : kids) appendGeometry(k, mesh.origin_m, childPositions_, childIndices_);
-    Clustered simple = clusterVertices(mesh.origin_m, anchor_, eps_l, childPositions_, childIndices_);
+    SimplifyParams sp;
+    sp.simplifier = config_.simplifier;
+    sp.gridOffset_m = anchor_ - mesh.origin_m;
+    sp.sloppyAboveTriangles = config_.sloppyAboveTriangles;
+    sp.maxSamples = static_cast<uint32_t>(std::max(1, config_.maxHausdorffSamples));
+    SimplifiedMesh& simple = simplified_;
+    simplifyMesh(childPositions_, childIndices_, eps_l, sp, simple);
 
     // Samples: every child vertex and triangle centroid, evenly strided down to the cap.
     samples_.clear();
@@ -583,11 +501,20 @@ class Builder {
     // The distance is measured to the simplified complex: the kept triangles plus, unless
     // strictHausdorff, the segments and points that collapsed triangles became.
     if (!config_.strictHausdorff) simple.indices.insert(simple.indices.end(), simple.collapsed.begin(), simple.collapsed.end());
-    double d = simple.indices.empty() ? 0.5 * p.size_m : sampledHausdorff(samples_, simple.positions, simple.indices);
+    double d = samples_.empty() ? 0.0
+               : simple.indices.empty() ? 0.5 * p.size_m
+                                        : sampledHausdorff(samples_, simple.positions, simple.indices);
     if (!std::isfinite(d)) d = 0.5 * p.size_m;
     if (!config_.strictHausdorff) simple.indices.resize(simple.indices.size() - simple.collapsed.size());
     compactMesh(simple.positions, simple.indices, mesh);
     p.eps_m = d + childEps;
+    tree_.stats.sloppyClusters += simple.sloppy ? 1u : 0u;
+    tree_.stats.simplifyErrorSum_m += d;
+    tree_.stats.simplifyErrorMax_m = std::max(tree_.stats.simplifyErrorMax_m, d);
+    if (eps_l > 0.0) {
+      tree_.stats.simplifyRelativeSum += d / eps_l;
+      tree_.stats.simplifyRelativeMax = std::max(tree_.stats.simplifyRelativeMax, d / eps_l);
+    }
     p.triangles = static_cast<uint32_t>(mesh.indices.size() / 3);
     tree_.stats.mergedTriangles += p.triangles;
     p.mesh = static_cast<uint32_t>(tree_.meshes.size());
@@ -786,6 +713,7 @@ class Builder {
   std::vector<Event> events_;
   std::vector<glm::vec3> childPositions_, samples_;
   std::vector<uint32_t> childIndices_;
+  SimplifiedMesh simplified_;
 };
 
 }  // namespace

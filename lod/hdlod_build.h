@@ -8,16 +8,16 @@
 // - Leaves are objects: g_c = the object's model (shared, instanced), its constant matrix
 //   (static / pseudo-dynamic) or its path (dynamic); eps_c = 0; f_c = v_s.
 // - Merged clusters (built bottom-up, appendix 2): g_c = the union of the children's geometry,
-//   simplified to eps(l) by vertex clustering on a grid of cell eps(l) anchored at the tree's box (the cell's
-//   vertices collapse to their mean; triangles that lose a corner and duplicates are dropped);
-//   stored in float relative to the cluster's origin (its box centre, double), so huge world
-//   coordinates keep their precision. meshoptimizer / OpenMesh's quadric decimater are the next
-//   step (issue 4).
+//   simplified to eps(l) by BuildConfig::simplifier (lod/hdlod_simplify.h: meshoptimizer by
+//   default, OpenMesh's Decimater, or the vertex clustering on a grid of cell eps(l) anchored at
+//   the tree's box kept for comparison); stored in float relative to the cluster's origin (its
+//   box centre, double), so huge world coordinates keep their precision.
 // - eps_c = D(children -> g_c) + max over children eps_child, where D is a sampled one-sided
 //   Hausdorff distance: the largest distance from a sample of the children's surfaces (every
 //   vertex and every triangle's centroid; at most `maxHausdorffSamples`, evenly strided) to the
-//   nearest point of the simplified complex (exact point-triangle distance through a BVH). The
-//   complex is g_c's triangles plus the segments and points that vertex clustering made of the
+//   nearest point of the simplified complex (exact point-triangle distance through a BVH),
+//   whatever the simplifier (their own error estimates are not used). The complex is g_c's
+//   triangles plus, for vertex clustering only, the segments and points it made of the
 //   collapsed triangles (Rossignac-Borrel): a thin column that collapses to a segment counts as
 //   an error of about its thickness (what is lost on screen), not as its distance to the
 //   nearest surviving triangle. `strictHausdorff` measures against g_c's triangles only. With no
@@ -57,6 +57,7 @@
 #include <glm/vec3.hpp>
 
 #include "lod/hdlod_scene.h"
+#include "lod/hdlod_simplify.h"
 #include "lod/view.h"
 
 namespace ig::lod::hdlod {
@@ -64,7 +65,9 @@ namespace ig::lod::hdlod {
 struct BuildConfig {
   int levels = 0;                     // L; 0 = from the scene (see above)
   int maxChildren = 8;                // children per merged cluster (>= 2)
-  double epsPerSize = 1.0 / 32.0;     // eps(l) / w(l): the vertex-clustering cell against the cluster size
+  double epsPerSize = 1.0 / 32.0;     // eps(l) / w(l): the simplification error target against the cluster size
+  Simplifier simplifier = Simplifier::Meshoptimizer;  // parent geometry (lod/hdlod_simplify.h)
+  uint32_t sloppyAboveTriangles = 64; // meshoptimizer: try the sloppy simplifier above this many triangles
   int maxHausdorffSamples = 4096;     // per merged cluster
   bool strictHausdorff = false;       // measure to the kept triangles only (see eps_c above)
   int dynamicGroupSize = 16;          // leaves per dynamic group
@@ -106,6 +109,11 @@ struct BuildStats {
   uint32_t mergedClusters = 0, levels = 0;
   uint64_t leafTriangles = 0, mergedTriangles = 0;
   uint64_t hausdorffSamples = 0;
+  // Over the merged clusters: D (the measured Hausdorff distance of the cluster's own
+  // simplification, without the children's eps), its sum and largest value, and D / eps(l).
+  uint32_t sloppyClusters = 0;  // meshoptimizer's sloppy fallback taken
+  double simplifyErrorSum_m = 0.0, simplifyErrorMax_m = 0.0;
+  double simplifyRelativeSum = 0.0, simplifyRelativeMax = 0.0;
 };
 
 struct HdlodTree {
