@@ -7,6 +7,7 @@
 
 #include "ig/app_common.h"
 #include "ig/bench_cells.h"
+#include "ig/bench_forest.h"
 #include "ig/bench_hdlod.h"
 #include "ig/bench_latency.h"
 #include "ig/bench_terrain.h"
@@ -153,7 +154,8 @@ int main(int argc, char** argv) {
       "JSON fields: objects, static, pseudo_dynamic, dynamic, empty, triangles, scene_s, build_s,\n"
       "clusters, merged_clusters, levels, merged_triangles, cases [{time, screen, hdlod{triangles,\n"
       "draws, select_ms}, full{...}}], sweep [{r_px, triangles, draws, select_ms}], select_ms_max,\n"
-      "triangle_ratio_1_16_min.");
+      "triangle_ratio_1_16_min, simplifier, simplifiers [{name, seconds, hausdorff_m, hausdorff_max_m,\n"
+      "merged_triangles, sloppy_clusters, triangle_ratio_1_16_min}].");
   hdlod->add_option("--scale", hdlodOptions.scale, "Site scale: 1 = the paper's ~56k objects / ~4 M triangles")
       ->capture_default_str()->check(CLI::PositiveNumber);
   hdlod->add_option("--seed", hdlodOptions.seed, "Site generator seed")->capture_default_str();
@@ -167,6 +169,12 @@ int main(int argc, char** argv) {
       ->capture_default_str()->check(CLI::Range(0.0, 1000.0));
   hdlod->add_option("--repeats", hdlodOptions.repeats, "Selections per case (the median is reported)")
       ->capture_default_str()->check(CLI::Range(1, 10000));
+  hdlod->add_option("--simplifier", hdlodOptions.simplifier,
+                    "Parent-cluster simplifier for the main run: meshoptimizer, openmesh, clustering")
+      ->capture_default_str();
+  bool noSimplifierCompare = false;
+  hdlod->add_flag("--no-simplifier-compare", noSimplifierCompare,
+                  "Skip building the tree once per simplifier (the simplifiers field; OpenMesh takes ~95 s at scale 1)");
   hdlod->add_flag("--json", hdlodOptions.json, "Print one JSON object instead of the human summary");
   ig::CellsBenchOptions cellsOptions;
   CLI::App* cells = app.add_subcommand(
@@ -194,9 +202,44 @@ int main(int argc, char** argv) {
       ->capture_default_str()->check(CLI::Range(0, 100000));
   cells->add_option("--seed", cellsOptions.seed, "Scene seed")->capture_default_str();
   cells->add_flag("--json", cellsOptions.json, "Print one JSON object instead of the human summary");
+  ig::ForestBenchOptions forestOptions;
+  CLI::App* forest = app.add_subcommand(
+      "forest",
+      "Near forest and fins of paper 004 on a procedural 7.68 km terrain with >= 1 M trees: times\n"
+      "kd-tree cull + gather + far-to-near sort along a low flight (one core), fins after tangent-cone\n"
+      "rejection, and a sweep over near ranges. No rendering yet (layers, frame_ms, popping_max and\n"
+      "psnr_db come with the forest render pass). Exit 1 if any tree was dropped. JSON fields:\n"
+      "trees, area_km2, leaves, cull_ms_p50, cull_ms_p99, cull_cpu_ms_p99, trees_drawn_p50, fins,\n"
+      "fin_groups, fins_drawn_p50, sweep [{near_m, cull_ms_p50, cull_ms_p99, trees_drawn_p50}] and\n"
+      "more (docs/forest.md).");
+  forest->add_option("--posts", forestOptions.posts, "Terrain posts per side (32 m spacing)")
+      ->capture_default_str()->check(CLI::Range(2, 16385));
+  forest->add_option("--tree-spacing", forestOptions.treeSpacing_m,
+                     "Metres between placement slots; the density map decides which are kept")
+      ->capture_default_str()->check(CLI::PositiveNumber);
+  forest->add_option("--leaf-size", forestOptions.leafSize_m, "kd-tree leaf size in metres")
+      ->capture_default_str()->check(CLI::PositiveNumber);
+  forest->add_option("--near-fade-start", forestOptions.nearFadeStart_m, "Near trees start fading out here (m)")
+      ->capture_default_str()->check(CLI::PositiveNumber);
+  forest->add_option("--near-fade-end", forestOptions.nearFadeEnd_m, "Near trees are gone from here (m)")
+      ->capture_default_str()->check(CLI::PositiveNumber);
+  forest->add_option("--critical-angle", forestOptions.criticalAngle_deg,
+                     "Fins where the dihedral angle through the ground is below this (degrees)")
+      ->capture_default_str()->check(CLI::Range(0.001, 359.999));
+  forest->add_option("--fin-alpha-threshold", forestOptions.finAlphaThreshold,
+                     "Reject fin groups whose view alpha is below this everywhere")
+      ->capture_default_str()->check(CLI::Range(0.000001, 1.0));
+  forest->add_option("--frames", forestOptions.frames, "Flight length in frames (60 Hz)")
+      ->capture_default_str()->check(CLI::Range(1, 1000000));
+  forest->add_option("--seed", forestOptions.seed, "Forest seed")->capture_default_str();
+  forest->add_flag("--json", forestOptions.json, "Print one JSON object instead of the human summary");
   if (const auto rc = ig::parseCommandLine(app, argc, argv)) return *rc;
+  if (forest->parsed()) return ig::runForestBench(forestOptions);
   if (cells->parsed()) return ig::runCellsBench(cellsOptions);
-  if (hdlod->parsed()) return ig::runHdlodBench(hdlodOptions);
+  if (hdlod->parsed()) {
+    hdlodOptions.compareSimplifiers = !noSimplifierCompare;
+    return ig::runHdlodBench(hdlodOptions);
+  }
   if (latency->parsed()) return ig::runLatencyBench(latencyOptions);
   if (terrain->parsed()) {
     terrainOptions.render = !noRender;
