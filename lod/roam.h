@@ -42,7 +42,8 @@
 //
 // Memory. The Roam object keeps a pointer to the caller's heights: they must stay alive and
 // unchanged while the object lives. Every buffer (node pool, queues, stacks) is allocated in
-// the constructor; update(), emit*() do not allocate. validate() is a debug tool and allocates.
+// the constructor; update() (but see RoamMode::Deferred) and emit*() do not allocate. validate() is a
+// debug tool and allocates.
 #pragma once
 
 #include <cstddef>
@@ -84,7 +85,9 @@ enum class RoamMode {
                // ignore the frustum, so turning the view costs nothing; the whole surroundings
                // are refined and emitVisible() culls what is drawn. The first Deferred update
                // (and one after the tolerance, viewport or field of view changed) walks every
-               // node and allocates the schedule; later ones touch only the due nodes.
+               // node and allocates the schedule; later ones touch only the due nodes. The
+               // schedule's buckets keep their capacity, but one that receives more entries than
+               // ever before grows (amortised; the other modes never allocate in update()).
 };
 
 struct RoamStats {
@@ -117,7 +120,7 @@ class Roam {
   Roam(std::span<const float> heights_m, int width, int height, double spacing_m, const glm::dvec3& origin_m,
        const RoamConfig& config = {});
 
-  // One frame of LOD work (see the selection rule above). No allocation.
+  // One frame of LOD work (see the selection rule above). No allocation (Deferred: see RoamMode).
   RoamStats update(const RoamView& view, RoamMode mode);
 
   // Bound partner of emitTriangles: the number of leaf triangles (including zero-area ones
