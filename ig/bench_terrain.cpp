@@ -137,7 +137,7 @@ struct UpdateResult {
 
 MethodResult flyRoam(const io::Dem& dem, double spacing_m, const std::vector<PathFrame>& path, lod::RoamMode mode,
                      const char* name, int height_px, double tolerance_px) {
-  // Deferred refines the whole surroundings (about 3x the triangles of the view-culled mesh),
+  // Deferred refines the whole surroundings (4-7x the triangles of the view-culled mesh),
   // so it gets room for 8 M; the view-culled modes stay well under the default 1 M.
   lod::RoamConfig config;
   if (mode == lod::RoamMode::Deferred) config.maxTriangles = 8u << 20;

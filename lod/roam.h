@@ -42,8 +42,8 @@
 //
 // Memory. The Roam object keeps a pointer to the caller's heights: they must stay alive and
 // unchanged while the object lives. Every buffer (node pool, queues, stacks) is allocated in
-// the constructor; update() (but see RoamMode::Deferred) and emit*() do not allocate. validate() is a
-// debug tool and allocates.
+// the constructor; update() (but see RoamMode::Deferred) and emit*() do not allocate.
+// validate() is a debug tool and allocates.
 #pragma once
 
 #include <cstddef>
