@@ -18,6 +18,9 @@ import socket
 import subprocess
 import sys
 import tempfile
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from igd_link_config import write_link_config  # noqa: E402
 import time
 
 sys.dont_write_bytecode = True  # no __pycache__ in the source tree
@@ -60,36 +63,12 @@ def main():
     host_port = rx.getsockname()[1]
     stats = os.path.join(tmp, "stats.csv")
     rec = os.path.join(tmp, "host.rec")
-    cfg = os.path.join(tmp, "igd.toml")
-    with open(cfg, "w") as f:
-        f.write(f"""
-[frame]
-rate_hz = {RATE_HZ}
-frames = {FRAMES}
-free_run = false
-[output]
-mode = "headless"
-width_px = 64
-height_px = 64
-snapshot_dir = "{tmp}/snapshots"
-snapshot_every = 0
-[stats]
-file = "{stats}"
-format = "csv"
-[host]
-source = "cigi"
-link_timeout_s = 3.0
-record_file = "{rec}"
-[host.cigi]
-bind_address = "127.0.0.1"
+    cfg = write_link_config(tmp, "cigi", "cigi", f"""bind_address = "127.0.0.1"
 port = {port}
 host_address = "127.0.0.1"
 host_port = {host_port}
 entity_id = 0
-view_id = 0
-[scene]
-file = "{os.path.join(src, 'config/scenes/default.toml')}"
-""")
+view_id = 0""", src, RATE_HZ, FRAMES, 3.0, rec)
     proc = subprocess.Popen([igd, "--config", cfg], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     sofs = []

@@ -23,6 +23,9 @@ import sys
 import tempfile
 import time
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from igd_link_config import write_link_config  # noqa: E402
+
 IGD, SRC = sys.argv[1], sys.argv[2]
 RATE_HZ, FRAMES = 30, 90
 FIRST_FRAME = 1000
@@ -46,35 +49,9 @@ def set_args(k):
             "50", "0.5", "30000", str(k / RATE_HZ), str(v["frame"]), "12", str(k)]
 
 
-def write_config(tmp, source, table):
-    path = os.path.join(tmp, "igd.toml")
-    with open(path, "w") as f:
-        f.write(f"""[frame]
-rate_hz = {RATE_HZ}
-frames = {FRAMES}
-free_run = false
-[output]
-mode = "headless"
-width_px = 64
-height_px = 64
-snapshot_every = 0
-[stats]
-file = "{tmp}/stats.csv"
-format = "csv"
-[host]
-source = "{source}"
-link_timeout_s = 0.5
-[host.modbus]
-{table}
-[scene]
-file = "{SRC}/config/scenes/default.toml"
-""")
-    return path
-
-
 def run_case(name, table, mbpoll_base, tmp):
     os.makedirs(tmp)
-    config = write_config(tmp, name, table)
+    config = write_link_config(tmp, name, "modbus", table, SRC, RATE_HZ, FRAMES, 0.5)
     err_path = os.path.join(tmp, "igd.err")
     with open(err_path, "w") as err:
         igd = subprocess.Popen([IGD, "--config", config], stdout=subprocess.DEVNULL, stderr=err)
