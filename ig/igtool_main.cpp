@@ -31,7 +31,9 @@ int convertCommand(const std::string& configFile, const std::string& format, con
     std::fprintf(stderr, "igtool convert: %s\n", error.c_str());
     return 2;
   }
-  const ig::lod::Geodetic origin{scene.originGeodetic[0], scene.originGeodetic[1], scene.originGeodetic[2]};
+  [[maybe_unused]] const ig::lod::Geodetic origin{scene.originGeodetic[0], scene.originGeodetic[1],
+                                                  scene.originGeodetic[2]};
+  (void)port, (void)staleMs;  // unused when the build has neither link
   ig::io::Recording rec;
   bool ok = false;
   if (format == "pcap") {

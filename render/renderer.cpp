@@ -180,6 +180,7 @@ class TerrainPass {
   }
 
   uint64_t bytes() const { return bytes_; }
+  unsigned vertexBufferId() const { return dynamicBuffer_.id() ? dynamicBuffer_.id() : vertexBuffer_.id(); }
   bool hasStatic() const { return static_cast<bool>(vertexArray_); }
   bool hasDynamic() const { return static_cast<bool>(dynamicArray_); }
 
@@ -345,6 +346,8 @@ void Renderer::readPixels(Image& out) {
 }
 
 unsigned Renderer::framebuffer() const { return target_ ? target_->fbo.id() : 0; }
+
+unsigned Renderer::terrainMeshVertexBuffer() const { return terrainMesh_ ? terrainMesh_->vertexBufferId() : 0; }
 
 uint64_t Renderer::bufferBytes() const {
   return (terrain_ ? terrain_->bytes() : 0) + (terrainMesh_ ? terrainMesh_->bytes() : 0);

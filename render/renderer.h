@@ -69,6 +69,18 @@ class Renderer {
   void readPixels(Image& out);
 
   unsigned framebuffer() const;
+  // For passes that live in their own files (render/<part>_pass.*): the frame's camera and
+  // lighting (valid between beginFrame and endFrame), and a place to add what they drew so
+  // endFrame's stats cover every pass. Such a pass binds its own program and VAO and leaves
+  // the FBO, viewport, depth state (reverse-Z, GL_GREATER) as beginFrame set them.
+  const lod::Camera& camera() const { return camera_; }
+  const Lighting& lighting() const { return lighting_; }
+  void addStats(uint64_t triangles, uint32_t drawCalls) {
+    stats_.triangles += triangles;
+    stats_.drawCalls += drawCalls;
+  }
+  // GL name of the terrain mesh's vertex buffer (lod::TerrainVertex layout), 0 without one.
+  unsigned terrainMeshVertexBuffer() const;
   int width() const { return width_; }
   int height() const { return height_; }
   // Bytes of GPU buffers owned by passes (0 when the scene has no layers).
