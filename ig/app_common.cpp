@@ -34,6 +34,7 @@ bool loadConfigs(const std::string& serviceFile, const Overrides& o, ServiceConf
     s.height_px = *o.height_px;
   }
   if (o.statsFile) s.statsFile = *o.statsFile;
+  if (o.statusFile) s.statusFile = *o.statusFile;
   if (o.statsFormat) {
     if (*o.statsFormat == "csv") s.statsFormat = StatsFormat::Csv;
     else if (*o.statsFormat == "jsonl") s.statsFormat = StatsFormat::JsonLines;

@@ -14,7 +14,7 @@ struct Overrides {
   bool freeRun = false;
   std::optional<std::string> output;       // headless | window | osmesa
   std::optional<int> width_px, height_px;
-  std::optional<std::string> statsFile, statsFormat, snapshotDir, sceneFile, replayFile;
+  std::optional<std::string> statsFile, statsFormat, snapshotDir, sceneFile, replayFile, statusFile;
   std::optional<int64_t> snapshotEvery;
 };
 

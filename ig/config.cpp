@@ -535,14 +535,21 @@ bool parseService(const std::string& text, const std::string& name, const std::s
   r.get(budget, "frame_ms", cfg.budgetFrame_ms, atLeast(0.0));
   r.get(budget, "triangles", cfg.budgetTriangles, IntRange{1000});
 
-  const Table service = r.table(root, "service", {"watchdog_interval_s"});
+  const Table service = r.table(root, "service", {"watchdog_interval_s", "realtime_priority", "cpu_affinity",
+                                                  "lock_memory", "status_file", "status_interval_s"});
   r.get(service, "watchdog_interval_s", cfg.watchdogInterval_s, atLeast(0.0));
+  r.get(service, "realtime_priority", cfg.realtimePriority, IntRange{0, 99});
+  r.get(service, "cpu_affinity", cfg.cpuAffinity, IntRange{0, 1023});
+  r.get(service, "lock_memory", cfg.lockMemory);
+  r.get(service, "status_file", cfg.statusFile);
+  r.get(service, "status_interval_s", cfg.statusInterval_s, closed(0.05, 3600.0));
 
   if (!r.ok()) {
     error = r.error();
     return false;
   }
-  for (std::string* path : {&cfg.snapshotDir, &cfg.statsFile, &cfg.replayFile, &cfg.sceneFile, &cfg.recordFile}) {
+  for (std::string* path :
+       {&cfg.snapshotDir, &cfg.statsFile, &cfg.replayFile, &cfg.sceneFile, &cfg.recordFile, &cfg.statusFile}) {
     *path = resolvePath(*path, baseDir);
   }
   out = std::move(cfg);

@@ -67,7 +67,17 @@ struct ServiceConfig {
   int64_t budgetTriangles = 2'000'000;       // triangles per frame for all layers together
   // [service]
   double watchdogInterval_s = 0.0;           // 0 = half of systemd's WatchdogSec, if any
+  int realtimePriority = 0;                  // 0 = normal scheduling; 1..99 = SCHED_FIFO (render thread)
+  std::vector<int64_t> cpuAffinity;          // CPUs the render thread may run on; empty = any
+  bool lockMemory = false;                   // mlockall: no page faults in the frame loop
+  std::string statusFile;                    // JSON health report, rewritten every status_interval_s
+  double statusInterval_s = 1.0;             // also the period of systemd STATUS= updates
+  bool operator==(const ServiceConfig&) const = default;
 };
+
+// Keys whose new value a reload (SIGHUP) applies between two frames; every other key needs a
+// restart. Names are dotted config paths.
+std::vector<std::string> reloadableKeys();
 
 struct TerrainLayerConfig {
   enum class Source { Procedural, Dem } source = Source::Procedural;
@@ -85,14 +95,17 @@ struct TerrainLayerConfig {
   double heightScale_m = 400.0;              // peak-to-valley of the procedural relief
   std::array<double, 3> offset_m{0, 0, 0};   // placement of the SW corner in local ENU
   int chunkQuads = 64;                       // quads per chunk side (one draw per chunk)
+  bool operator==(const TerrainLayerConfig&) const = default;
 };
 
 struct ForestLayerConfig {
   std::string file;                          // tree placement data (forest issue)
+  bool operator==(const ForestLayerConfig&) const = default;
 };
 
 struct HdlodLayerConfig {
   std::string file;                          // 4D scene description (HDLOD issue)
+  bool operator==(const HdlodLayerConfig&) const = default;
 };
 
 struct SunConfig {
@@ -100,12 +113,14 @@ struct SunConfig {
   double elevation_deg = 35.0;
   std::array<double, 3> color{1.0, 0.96, 0.88};
   double ambient = 0.25;                     // 0..1
+  bool operator==(const SunConfig&) const = default;
 };
 
 struct FogConfig {
   bool enabled = true;
   double visibility_m = 20000.0;             // meteorological visibility (2 % contrast)
   std::array<double, 3> color{0.70, 0.78, 0.86};
+  bool operator==(const FogConfig&) const = default;
 };
 
 // Scene config (config/scenes/*.toml): which layers exist and their data. A layer that is
@@ -119,6 +134,7 @@ struct SceneConfig {
   std::optional<HdlodLayerConfig> hdlod;
   SunConfig sun;
   FogConfig fog;
+  bool operator==(const SceneConfig&) const = default;
 };
 
 // Parse + validate. On failure returns false, fills `error`, leaves `out` untouched.

@@ -49,6 +49,9 @@ class FramePacer {
   // Closes the frame: work time, overrun, missed slots. Valid until the next beginFrame.
   const FrameTiming& endFrame();
 
+  // Reload: a new work budget (0 = the period) from the next frame on.
+  void setBudget_ms(double budget_ms) { budget_ns_ = static_cast<int64_t>(budget_ms * 1e6 + 0.5); }
+  double budget_ms() const { return static_cast<double>(budget_ns_ > 0 ? budget_ns_ : period_ns_) * 1e-6; }
   double period_s() const { return static_cast<double>(period_ns_) * 1e-9; }
   int64_t period_ns() const { return period_ns_; }
   // Scheduled time of a slot since the loop start: the replay/simulation clock of a frame.

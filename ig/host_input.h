@@ -82,6 +82,8 @@ class HostInput final : public io::HostSink {
   bool updateLost();
   bool lost() const { return lost_; }
   io::HostLink* link() { return link_.get(); }
+  // Reload: the new [host] link_timeout_s, from the next frame on (render thread).
+  void setLinkTimeout(double linkTimeout_s) { timeout_ns_ = static_cast<int64_t>(linkTimeout_s * 1e9); }
   HostRecorder* recorder() { return recorder_.get(); }
   // Threads this input runs (link receive thread + recorder writer).
   uint32_t threads() const { return (link_ ? 1u : 0u) + (recorder_ ? 1u : 0u); }

@@ -11,7 +11,9 @@
 
 namespace {
 std::atomic<bool> gStop{false};
+ig::ReloadSource gReload;
 void onSignal(int) { gStop.store(true); }
+void onHangup(int) { gReload.requested.store(true); }
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -21,8 +23,10 @@ int main(int argc, char** argv) {
       "replay), selects terrain detail within the frame budget and renders with OpenGL 4.5\n"
       "through EGL: headless (off-screen, snapshots to PNG), in a window, or via OSMesa.\n"
       "It runs at a fixed rate with absolute deadlines, writes one stats line per frame, and\n"
-      "talks to systemd (READY, WATCHDOG) when started as a service. SIGTERM/SIGINT stop it\n"
-      "cleanly. Exit codes: 0 ok, 1 run-time failure, 2 bad config or option, 3 start-up failure."};
+      "talks to systemd (READY, WATCHDOG, STATUS) when started as a service. SIGTERM/SIGINT stop it\n"
+      "cleanly; SIGHUP (systemctl reload igd) re-reads the configs between two frames: light, fog,\n"
+      "terrain tolerance, budgets, snapshots, status and link timeout change at once, other keys\n"
+      "are named in the log as needing a restart. Exit codes: 0 ok, 1 run-time failure, 2 bad config or option, 3 start-up failure."};
   std::string configFile = "config/igd.toml";
   ig::Overrides o;
   bool checkOnly = false;
@@ -35,6 +39,8 @@ int main(int argc, char** argv) {
   app.add_option("--width", o.width_px, "Frame width in pixels; overrides output.width_px");
   app.add_option("--height", o.height_px, "Frame height in pixels; overrides output.height_px");
   app.add_option("--stats", o.statsFile, "Per-frame stats file ('' = none); overrides stats.file");
+  app.add_option("--status-file", o.statusFile,
+                 "JSON health report, replaced every service.status_interval_s ('' = none); overrides service.status_file");
   app.add_option("--stats-format", o.statsFormat, "csv | jsonl; overrides stats.format");
   app.add_option("--snapshot-dir", o.snapshotDir, "Folder for snapshot PNGs; overrides output.snapshot_dir");
   app.add_option("--snapshot-every", o.snapshotEvery, "Write a snapshot every N frames (0 = never); overrides output.snapshot_every");
@@ -62,6 +68,14 @@ int main(int argc, char** argv) {
   sigemptyset(&sa.sa_mask);
   sigaction(SIGTERM, &sa, nullptr);
   sigaction(SIGINT, &sa, nullptr);
+  struct sigaction hup {};
+  hup.sa_handler = onHangup;
+  sigemptyset(&hup.sa_mask);
+  sigaction(SIGHUP, &hup, nullptr);
+  // Re-reads the same files with the same command-line overrides.
+  gReload.load = [&configFile, &o](ig::ServiceConfig& c, ig::SceneConfig& s, std::string& e) {
+    return ig::loadConfigs(configFile, o, c, s, e);
+  };
 
   auto service = ig::Service::create(config, scene, error);
   if (!service) {
@@ -74,6 +88,7 @@ int main(int argc, char** argv) {
   std::fprintf(stderr, "igd: %s\nigd: scene '%s': layers:%s; %u pass(es), %.1f MiB GPU buffers, %u thread(s)\n",
                info.context.c_str(), scene.name.c_str(), layers.empty() ? " (none)" : layers.c_str(), info.passes,
                static_cast<double>(info.gpuBufferBytes) / (1024.0 * 1024.0), info.threads);
+  if (!info.scheduling.empty()) std::fprintf(stderr, "igd: render thread: %s\n", info.scheduling.c_str());
   if (!info.terrainSource.empty())
     std::fprintf(stderr, "igd: terrain: %s, built in %.0f ms (load, LOD precomputation, upload)\n",
                  info.terrainSource.c_str(), info.terrainBuild_ms);
@@ -82,7 +97,7 @@ int main(int argc, char** argv) {
                config.frames > 0 ? (std::to_string(config.frames) + " frames").c_str() : "until SIGTERM");
 
   ig::MonotonicClock clock;
-  const int rc = service->run(clock, gStop);
+  const int rc = service->run(clock, gStop, &gReload);
   const ig::RunSummary s = service->summary();
   std::fprintf(stderr,
                "igd: %lld frames, work p50 %.2f ms p99 %.2f ms max %.2f ms, overruns %lld, missed slots %lld, "

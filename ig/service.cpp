@@ -6,10 +6,14 @@
 #include <cstdio>
 #include <filesystem>
 #include <span>
+#include <thread>
 
 #include "ig/frame_loop.h"
 #include "ig/snapshot_writer.h"
 #include "ig/systemd.h"
+#include "ig/realtime.h"
+#include "ig/reload.h"
+#include "ig/status.h"
 #include "io/dem.h"
 #include "io/replay.h"
 #include "lod/sun.h"
@@ -264,6 +268,20 @@ struct Service::Impl {
   int64_t overruns = 0, missed = 0;
   int64_t loopStart_ns = 0;
   std::unique_ptr<SnapshotWriter> snapshots;  // only when the config asks for snapshots
+  int generation = 1;                         // config generation: +1 per applied reload
+  std::string lastReloadError;
+
+  // The scene's sun and fog (start-up and reload).
+  void setLighting() {
+    const double az = scene.sun.azimuth_deg * kDeg, el = scene.sun.elevation_deg * kDeg;
+    lighting.sunDirection = {std::sin(az) * std::cos(el), std::cos(az) * std::cos(el), std::sin(el)};
+    lighting.sunColor = {scene.sun.color[0], scene.sun.color[1], scene.sun.color[2]};
+    lighting.ambient = scene.sun.ambient;
+    lighting.fog = scene.fog.enabled;
+    lighting.fogVisibility_m = scene.fog.visibility_m;
+    lighting.fogColor = {scene.fog.color[0], scene.fog.color[1], scene.fog.color[2]};
+    if (!scene.fog.enabled) lighting.fogColor = {0.52, 0.68, 0.88};  // clear sky
+  }
 
   lod::Camera cameraFor(const io::HostState& h) const {
     lod::Camera c;
@@ -411,18 +429,20 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
   s->info_.gpuBufferBytes = m.renderer.bufferBytes();
 
   m.enu.emplace(origin);
-  const double az = scene.sun.azimuth_deg * kDeg, el = scene.sun.elevation_deg * kDeg;
-  m.lighting.sunDirection = {std::sin(az) * std::cos(el), std::cos(az) * std::cos(el), std::sin(el)};
-  m.lighting.sunColor = {scene.sun.color[0], scene.sun.color[1], scene.sun.color[2]};
-  m.lighting.ambient = scene.sun.ambient;
-  m.lighting.fog = scene.fog.enabled;
-  m.lighting.fogVisibility_m = scene.fog.visibility_m;
-  m.lighting.fogColor = {scene.fog.color[0], scene.fog.color[1], scene.fog.color[2]};
-  if (!scene.fog.enabled) m.lighting.fogColor = {0.52, 0.68, 0.88};  // clear sky
+  m.setLighting();
 
   // Until the host speaks: above the scene origin, looking north and slightly down.
   s->host_.eyeEnu_m = {0.0, 0.0, 1000.0};
   s->host_.pitch_deg = -10.0;
+  // Real-time scheduling for this (the render) thread only: every thread started above keeps
+  // normal scheduling; threads started later reset themselves (ig/realtime.h).
+  RealtimeSettings rt;
+  rt.priority = config.realtimePriority;
+  rt.cpus = config.cpuAffinity;
+  rt.lockMemory = config.lockMemory;
+  if (!applyRealtime(rt, error)) return nullptr;
+  s->info_.scheduling = describeScheduling();
+
   // Warm-up frame: the driver compiles shaders and faults in buffers on first use, which
   // would otherwise make frame 0 an overrun.
   s->renderOnce(s->host_, nullptr);
@@ -444,7 +464,17 @@ FrameRecord Service::renderOnce(const io::HostState& host, render::Image* image)
   return Impl::record(st, host);
 }
 
-int Service::run(Clock& clock, const std::atomic<bool>& stop) {
+// A reload in progress: the configs are read on a short-lived thread.
+struct PendingReload {
+  std::thread thread;
+  std::atomic<bool> done{false};
+  bool ok = false;
+  ServiceConfig config;
+  SceneConfig scene;
+  std::string error;
+};
+
+int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* reload) {
   Impl& m = *impl_;
   const ServiceConfig& cfg = m.config;
   StatsWriter stats;
@@ -476,6 +506,69 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop) {
   m.loopStart_ns = loopStart_ns;
   pacer.startAt(loopStart_ns);
   if (m.hostInput) m.hostInput->setTimeBase(clock, loopStart_ns);
+  // The health report exists only where someone reads it: systemd or a status file.
+  std::unique_ptr<StatusReporter> status;
+  bool statusErrorLogged = false;
+  auto makeStatus = [&] {
+    status.reset();
+    if (notifier.underSystemd() || !cfg.statusFile.empty()) {
+      status = std::make_unique<StatusReporter>(cfg.statusFile, cfg.statusInterval_s, cfg.rate_hz);
+      status->start(clock.now_ns());
+    }
+    statusErrorLogged = false;
+  };
+  makeStatus();
+  std::string layerList;
+  for (const auto& l : info_.layers) layerList += (layerList.empty() ? "" : ", ") + l;
+  auto statusContext = [&](const char* state) {
+    StatusContext c;
+    c.state = state;
+    c.rate_hz = cfg.rate_hz;
+    c.budgetFrame_ms = pacer.budget_ms();
+    c.budgetTriangles = cfg.budgetTriangles;
+    c.hostSource = toString(cfg.host);
+    c.hostLost = m.hostInput && m.hostInput->lost();
+    if (link) {
+      c.haveLink = true;
+      c.link = io::snapshot(link->counters());
+    }
+    c.hostRejected = hostRejected_;
+    c.configGeneration = m.generation;
+    c.lastReloadError = m.lastReloadError;
+    c.layers = layerList;
+    c.scheduling = info_.scheduling;
+    return c;
+  };
+  std::unique_ptr<PendingReload> pending;
+  // Between two frames: takes the reloadable keys of a finished reload.
+  auto applyReload = [&](PendingReload& p, int64_t frame) {
+    if (!p.ok) {
+      m.lastReloadError = p.error;
+      std::fprintf(stderr, "igd: reload failed after frame %lld, the running config is unchanged: %s\n",
+                   static_cast<long long>(frame), p.error.c_str());
+      return;
+    }
+    ServiceConfig mc;
+    SceneConfig ms;
+    const ReloadPlan plan = planReload(m.config, m.scene, p.config, p.scene, mc, ms);
+    const bool statusChanged = mc.statusFile != cfg.statusFile || mc.statusInterval_s != cfg.statusInterval_s;
+    m.config = std::move(mc);  // `cfg` refers to m.config
+    m.scene = std::move(ms);
+    ++m.generation;
+    m.lastReloadError.clear();
+    pacer.setBudget_ms(cfg.budgetFrame_ms);
+    if (m.hostInput) m.hostInput->setLinkTimeout(cfg.linkTimeout_s);
+    m.setLighting();
+    if (m.terrainMesh && m.scene.terrain) {
+      m.terrainMesh->tolerance_px = m.scene.terrain->tolerance_px;
+      m.terrainMesh->budget_ms = m.scene.terrain->lodBudget_ms;
+    }
+    if (statusChanged) makeStatus();
+    std::fprintf(stderr,
+                 "igd: config reloaded after frame %lld (#%d): applied: %s; needs a restart (running value kept): %s\n",
+                 static_cast<long long>(frame), m.generation, joinKeys(plan.applied).c_str(),
+                 joinKeys(plan.needRestart).c_str());
+  };
   notifier.ready("rendering at " + std::to_string(cfg.rate_hz) + " Hz");
   std::string why;
   bool hostWasBad = false;
@@ -558,8 +651,39 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop) {
     r.period_ms = pacer.period_s() * 1e3;
     stats.write(r);
     m.summary.add(r);
-    notifier.watchdog(clock.now_ns());
+    const int64_t now = clock.now_ns();
+    notifier.watchdog(now);
+    if (status) {
+      status->addFrame(r.timing, r.triangles);
+      if (status->due(now)) {
+        notifier.status(status->report(now, statusContext("running")));
+        if (!status->fileError().empty() && !statusErrorLogged) {
+          std::fprintf(stderr, "igd: %s (the report goes on to systemd only)\n", status->fileError().c_str());
+          statusErrorLogged = true;
+        }
+      }
+    }
+
+    // reload: read the files off the render thread, apply between frames
+    if (reload) {
+      if (!pending && reload->requested.exchange(false)) {
+        pending = std::make_unique<PendingReload>();
+        PendingReload* p = pending.get();
+        p->thread = std::thread([p, reload] {
+          normalScheduling();
+          p->ok = reload->load(p->config, p->scene, p->error);
+          p->done.store(true, std::memory_order_release);
+        });
+      }
+      if (pending && pending->done.load(std::memory_order_acquire)) {
+        pending->thread.join();
+        applyReload(*pending, r.timing.frame);
+        pending.reset();
+      }
+    }
   }
+  if (pending) pending->thread.join();
+  if (status) notifier.status(status->report(clock.now_ns(), statusContext("stopping")));
   notifier.stopping();
   if (m.hostInput) {
     m.hostInput->stop();
@@ -590,6 +714,8 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop) {
 const io::HostLink* Service::hostLink() const { return impl_->hostInput ? impl_->hostInput->link() : nullptr; }
 int64_t Service::loopStart_ns() const { return impl_->loopStart_ns; }
 bool Service::hostLost() const { return impl_->hostInput && impl_->hostInput->lost(); }
+
+int Service::configGeneration() const { return impl_->generation; }
 
 RunSummary Service::summary() const { return impl_->summary.summarize(impl_->overruns, impl_->missed); }
 

@@ -12,6 +12,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -34,6 +35,7 @@ struct ServiceInfo {
   uint32_t passes = 0;               // render passes created
   uint64_t gpuBufferBytes = 0;       // bytes of GPU buffers uploaded for layers
   uint32_t threads = 1;              // threads the service runs (1 = render thread only)
+  std::string scheduling;            // render thread: e.g. "SCHED_FIFO 40, CPUs 2" ([service])
   uint64_t terrainTriangles = 0;     // triangles in the whole terrain (0 = no terrain)
   std::string terrainSource;         // "procedural 257x257" or the DEM file with its size
   double terrainBuild_ms = 0.0;      // start-up time: load + LOD precomputation + upload
@@ -44,6 +46,15 @@ lod::TerrainGridDesc terrainGridDesc(const TerrainLayerConfig& terrain);
 
 // Why a host sample was rejected (kept the previous one).
 bool hostStateValid(const io::HostState& s, std::string* why = nullptr);
+
+// Config reload on request (igd: SIGHUP). When `requested` is set, the frame loop runs `load` on
+// a short-lived thread (normal scheduling), so no frame waits for file I/O, and applies the
+// result between two frames: reloadable keys take effect, keys that need a restart are named in
+// the log and keep their running value, and a config with an error changes nothing.
+struct ReloadSource {
+  std::atomic<bool> requested{false};
+  std::function<bool(ServiceConfig&, SceneConfig&, std::string&)> load;
+};
 
 class Service {
  public:
@@ -57,8 +68,10 @@ class Service {
   ~Service();
 
   // Runs the fixed-rate loop until `config.frames` frames, a window close, or `stop`.
-  // Returns 0 on a clean exit.
-  int run(Clock& clock, const std::atomic<bool>& stop);
+  // Returns 0 on a clean exit. `reload` (optional) is polled once per frame.
+  int run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* reload = nullptr);
+  // 1 at start, +1 for every reload that was applied.
+  int configGeneration() const;
 
   // Renders one frame for this host state outside the loop (igtool, tests). Optionally
   // reads back the image.

@@ -53,6 +53,7 @@ struct CanLinkConfig {
   std::string interface = "vcan0";  // SocketCAN network interface, 1..15 characters
   uint32_t baseId = 0x100;          // id of the first frame; the map uses baseId..baseId+4, so 0..0x7FB
   int64_t stale_ms = 100;           // an incomplete set older than this is dropped, 1..60000 ms
+  bool operator==(const CanLinkConfig&) const = default;
 };
 
 // Checks the ranges above; on failure sets `error` like "host.can.base_id = 2047: must be

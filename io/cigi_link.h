@@ -53,6 +53,7 @@ struct CigiLinkConfig {
   int entity_id = 0;                     // ownship Entity ID, 0..65535
   int view_id = 0;                       // View ID of igd's view, 0..65535
   int database = -1;                     // expected database number 0..127; -1 = any
+  bool operator==(const CigiLinkConfig&) const = default;
 };
 
 // Checks ranges; on error returns false and sets `error` to e.g.

@@ -50,6 +50,7 @@ struct ModbusLinkConfig {
   int stopBits = 1;                      // 1 or 2
   // Both
   modbus::WordOrder wordOrder = modbus::WordOrder::LowFirst;  // "low_first" | "high_first"
+  bool operator==(const ModbusLinkConfig&) const = default;
 };
 
 // Checks the fields the transport uses; on failure sets `error` naming the key and the value,

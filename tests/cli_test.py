@@ -399,6 +399,152 @@ def free_display():
             yield n
 
 
+# ------------------------------------------------------------------------------------------------
+# c2. service control: SIGHUP reload, status file, real-time scheduling and CPU affinity
+# ------------------------------------------------------------------------------------------------
+def wait_for(predicate, what, timeout=30, proc=None, err_path=None):
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        if proc is not None and proc.poll() is not None:
+            raise AssertionError(f"igd exited early with {proc.returncode} while waiting for {what}:\n"
+                                 + (open(err_path).read() if err_path else ""))
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out after {timeout} s waiting for {what}"
+                                 + (":\n" + open(err_path).read() if err_path else ""))
+        time.sleep(0.05)
+
+
+class Control(Tmp):
+    def configs(self, **service):
+        """A service config and a scene copy in tmp (10 Hz, status file every 0.2 s); `service`
+        sets other [service] keys (TOML literals)."""
+        scene = write(os.path.join(self.tmp, "scene.toml"), open(SCENE, encoding="utf-8").read())
+        config = service_config_copy(self.tmp)
+        text = open(config, encoding="utf-8").read()
+        text = re.sub(r"(?m)^file = .*default\.toml\"$", "file = " + toml_str(scene), text)
+        text = re.sub(r"(?m)^rate_hz = .*$", "rate_hz = 10", text)
+        keys = {"status_file": toml_str(os.path.join(self.tmp, "status.json")), "status_interval_s": "0.2", **service}
+        for key, value in keys.items():
+            text, n = re.subn(rf"(?m)^{key} = .*$", f"{key} = {value}", text)
+            self.assertEqual(n, 1, f"config/igd.toml should set [service] {key} exactly once")
+        write(config, text)
+        return config, scene
+
+    def start(self, config, stats):
+        err_path = os.path.join(self.tmp, "igd.stderr")
+        with open(err_path, "w") as err:
+            proc = subprocess.Popen([IGD, "--config", config, "--frames", "0", "--width", "160", "--height", "90",
+                                     "--stats", stats, "--snapshot-dir", os.path.join(self.tmp, "snapshots")],
+                                    stdin=subprocess.DEVNULL, stdout=err, stderr=err, cwd=self.tmp)
+        self.addCleanup(lambda: (proc.poll() is None and proc.kill(), proc.wait(timeout=10)))
+        return proc, err_path
+
+    def stop(self, proc, err_path):
+        proc.send_signal(signal.SIGTERM)
+        rc = proc.wait(timeout=10)
+        stderr = open(err_path).read()
+        self.assertEqual(rc, 0, stderr)
+        return stderr
+
+    def status(self):
+        try:
+            with open(os.path.join(self.tmp, "status.json"), encoding="utf-8") as f:
+                return json.load(f)
+        except (FileNotFoundError, json.JSONDecodeError):
+            return None
+
+    def test_sighup_reload_between_frames(self):
+        # (Command-line overrides such as --width stay in force across a reload.)
+        config, scene = self.configs()
+        stats = os.path.join(self.tmp, "frames.csv")
+        proc, err_path = self.start(config, stats)
+        wait_for(lambda: len(complete_lines(stats)) > 5, "5 frames", proc=proc, err_path=err_path)
+        # A reloadable change (fog, frame budget) and one that needs a restart (frame size).
+        write(scene, open(scene, encoding="utf-8").read().replace("visibility_m = 12000", "visibility_m = 3000"))
+        text = open(config, encoding="utf-8").read()
+        text = re.sub(r"(?m)^frame_ms = 0$", "frame_ms = 0.001", text)
+        text = re.sub(r"(?m)^rate_hz = .*$", "rate_hz = 12", text)
+        write(config, text)
+        proc.send_signal(signal.SIGHUP)
+        wait_for(lambda: "config reloaded" in open(err_path).read(), "the reload log line", proc=proc, err_path=err_path)
+        m = re.search(r"config reloaded after frame (\d+) \(#2\): applied: ([^;]*); needs a restart \(running value kept\): (.*)",
+                      open(err_path).read())
+        self.assertIsNotNone(m, open(err_path).read())
+        reload_frame = int(m.group(1))
+        self.assertIn("scene.fog", m.group(2))
+        self.assertIn("budget.frame_ms", m.group(2))
+        self.assertIn("frame.rate_hz", m.group(3))
+        wait_for(lambda: len(complete_lines(stats)) > reload_frame + 6, "frames after the reload", proc=proc, err_path=err_path)
+        # A bad config: the running one stays, the error names the key and value.
+        write(scene, open(scene, encoding="utf-8").read().replace("visibility_m = 3000", "visibility_m = -5"))
+        proc.send_signal(signal.SIGHUP)
+        wait_for(lambda: "reload failed" in open(err_path).read(), "the failed-reload log line", proc=proc, err_path=err_path)
+        wait_for(lambda: (self.status() or {}).get("last_reload_error", "") != "", "the status file to report the failed reload",
+                 proc=proc, err_path=err_path)
+        st = self.status()
+        self.assertEqual(st["config_generation"], 2, st)
+        self.assertIn("visibility_m", st["last_reload_error"])
+        self.assertAlmostEqual(st["budget"]["frame_ms"], 0.001, places=6)
+        stderr = self.stop(proc, err_path)
+        self.assertRegex(stderr, r"reload failed after frame \d+, the running config is unchanged: .*visibility_m = -5")
+
+        rows = [dict(zip(STATS_COLUMNS, l.split(","))) for l in complete_lines(stats)[1:]]
+        by_frame = {int(r["frame"]): r for r in rows}
+        # The new budget took effect from the next frame on: every frame after is an overrun
+        # against 1 us, every frame before against the 100 ms period was not.
+        after = [r for f, r in by_frame.items() if f > reload_frame]
+        self.assertTrue(after and all(r["overrun"] == "1" for r in after), "budget.frame_ms was not applied")
+        # No frame was dropped around the reload: the frames from 3 before to 3 after are all there
+        # and none ran into the next slot.
+        for f in range(max(0, reload_frame - 3), reload_frame + 4):
+            self.assertIn(f, by_frame, f"frame {f} missing around the reload at frame {reload_frame}")
+            self.assertEqual(by_frame[f]["missed_slots"], "0", f"frame {f} missed slots around the reload")
+
+    def test_status_file(self):
+        config, _ = self.configs()
+        stats = os.path.join(self.tmp, "frames.csv")
+        proc, err_path = self.start(config, stats)
+        wait_for(lambda: (self.status() or {}).get("frames", 0) >= 5, "a status report with 5 frames", proc=proc,
+                 err_path=err_path)
+        st = self.status()
+        self.stop(proc, err_path)
+        self.assertEqual(st["state"], "running")
+        self.assertAlmostEqual(st["rate_hz"], 10.0)
+        self.assertEqual(st["host"]["source"], "replay")
+        self.assertFalse(st["host"]["lost"])
+        self.assertGreater(st["interval"]["frames"], 0)
+        self.assertGreater(st["interval"]["work_ms_p99"], 0.0)
+        self.assertLessEqual(st["interval"]["work_ms_p50"], st["interval"]["work_ms_p99"])
+        self.assertEqual(st["config_generation"], 1)
+        self.assertIn("terrain", st["layers"])
+        for phase in ("input", "lod", "submit", "gpu_finish", "present"):
+            self.assertIn(phase, st["interval"]["phase_ms_max"])
+        final = self.status()
+        self.assertEqual(final["state"], "stopping", "the last report at exit says stopping")
+        self.assertFalse(os.path.exists(os.path.join(self.tmp, "status.json.tmp")), "temporary file left behind")
+
+    def test_cpu_affinity_and_realtime(self):
+        config, _ = self.configs(cpu_affinity="[0]", realtime_priority="10")
+        p = run([IGD, "--config", config, "--frames", "3", "--free-run", "--width", "64", "--height", "36"],
+                timeout=RUN, cwd=self.tmp)
+        if p.returncode == 0:
+            self.assertRegex(p.stderr, r"render thread: SCHED_FIFO 10, CPUs 0\n", describe(p))
+        else:
+            # Without CAP_SYS_NICE / RLIMIT_RTPRIO the start-up fails and says why.
+            self.assertExit(p, 3)
+            self.assertMentions(p, "service.realtime_priority = 10", "SCHED_FIFO")
+        config, _ = self.configs(cpu_affinity="[0]")
+        p = run([IGD, "--config", config, "--frames", "3", "--free-run", "--width", "64", "--height", "36"],
+                timeout=RUN, cwd=self.tmp)
+        self.assertExit(p, 0)
+        self.assertRegex(p.stderr, r"render thread: SCHED_OTHER, CPUs 0\n")
+        config, _ = self.configs(cpu_affinity="[1000]")
+        p = run([IGD, "--config", config, "--frames", "3", "--free-run", "--width", "64", "--height", "36"],
+                timeout=RUN, cwd=self.tmp)
+        self.assertExit(p, 3)
+        self.assertMentions(p, "service.cpu_affinity = [1000]", "CPU 1000 is not available")
+
+
 class Outputs(Tmp):
     def start_xvfb(self):
         import shutil

@@ -1,0 +1,150 @@
+#include "ig/status.h"
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdarg>
+#include <cstdio>
+#include <cstring>
+#include <ctime>
+
+namespace ig {
+namespace {
+
+void appendf(std::string& out, const char* fmt, ...) __attribute__((format(printf, 2, 3)));
+void appendf(std::string& out, const char* fmt, ...) {
+  char buf[512];
+  va_list ap;
+  va_start(ap, fmt);
+  const int n = std::vsnprintf(buf, sizeof buf, fmt, ap);
+  va_end(ap);
+  if (n > 0) out.append(buf, static_cast<size_t>(std::min<int>(n, static_cast<int>(sizeof buf) - 1)));
+}
+
+void appendJsonString(std::string& out, const std::string& s) {
+  out += '"';
+  for (const char c : s) {
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += c;
+    } else if (static_cast<unsigned char>(c) < 0x20) {
+      appendf(out, "\\u%04x", static_cast<unsigned>(static_cast<unsigned char>(c)));
+    } else {
+      out += c;
+    }
+  }
+  out += '"';
+}
+
+// Percentile of the first n values, reordering `v` (no allocation).
+double percentileInPlace(std::vector<double>& v, size_t n, double p) {
+  if (n == 0) return 0.0;
+  const auto k = static_cast<size_t>(std::min<double>(static_cast<double>(n - 1), std::ceil(p * static_cast<double>(n)) - 1.0));
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.begin() + static_cast<std::ptrdiff_t>(n));
+  return v[k];
+}
+
+}  // namespace
+
+StatusReporter::StatusReporter(std::string file, double interval_s, double rate_hz)
+    : file_(std::move(file)),
+      tmpFile_(file_.empty() ? std::string() : file_ + ".tmp"),
+      interval_ns_(static_cast<int64_t>(std::max(interval_s, 0.01) * 1e9)) {
+  const auto perInterval = static_cast<size_t>(std::ceil(std::max(interval_s, 0.01) * std::max(rate_hz, 1.0)));
+  work_ms_.reserve(4 * perInterval + 16);
+  scratch_.reserve(work_ms_.capacity());
+  json_.reserve(2048);
+  line_.reserve(256);
+}
+
+void StatusReporter::addFrame(const FrameTiming& t, uint64_t triangles) {
+  if (work_ms_.size() < work_ms_.capacity()) work_ms_.push_back(t.work_ms);
+  for (int p = 0; p < kPhaseCount; ++p) phaseMax_ms_[static_cast<size_t>(p)] =
+      std::max(phaseMax_ms_[static_cast<size_t>(p)], t.phase_ms[static_cast<size_t>(p)]);
+  ++frames_;
+  ++totalFrames_;
+  if (t.overrun) {
+    ++overruns_;
+    ++totalOverruns_;
+  }
+  missed_ += t.missedSlots;
+  totalMissed_ += t.missedSlots;
+  triangles_ += triangles;
+  lastFrame_ = t.frame;
+}
+
+const std::string& StatusReporter::report(int64_t now_ns, const StatusContext& ctx) {
+  const double seconds = static_cast<double>(now_ns - lastReport_ns_) * 1e-9;
+  scratch_.assign(work_ms_.begin(), work_ms_.end());
+  const size_t n = scratch_.size();
+  const double p50 = percentileInPlace(scratch_, n, 0.50);
+  const double p99 = percentileInPlace(scratch_, n, 0.99);
+  const double mx = n ? *std::max_element(scratch_.begin(), scratch_.end()) : 0.0;
+
+  json_.clear();
+  appendf(json_, "{\"state\":\"%s\",\"time_unix_s\":%lld,\"frame\":%lld,\"rate_hz\":%.3f,", ctx.state,
+          static_cast<long long>(std::time(nullptr)), static_cast<long long>(lastFrame_), ctx.rate_hz);
+  appendf(json_, "\"frames\":%lld,\"overruns\":%lld,\"missed_slots\":%lld,", static_cast<long long>(totalFrames_),
+          static_cast<long long>(totalOverruns_), static_cast<long long>(totalMissed_));
+  appendf(json_,
+          "\"interval\":{\"seconds\":%.3f,\"frames\":%lld,\"work_ms_p50\":%.3f,\"work_ms_p99\":%.3f,"
+          "\"work_ms_max\":%.3f,\"overruns\":%lld,\"missed_slots\":%lld,\"triangles_mean\":%.0f,\"phase_ms_max\":{",
+          seconds, static_cast<long long>(frames_), p50, p99, mx, static_cast<long long>(overruns_),
+          static_cast<long long>(missed_),
+          frames_ ? static_cast<double>(triangles_) / static_cast<double>(frames_) : 0.0);
+  for (int p = 0; p < kPhaseCount; ++p)
+    appendf(json_, "%s\"%s\":%.3f", p ? "," : "", phaseName(static_cast<Phase>(p)), phaseMax_ms_[static_cast<size_t>(p)]);
+  appendf(json_, "}},\"budget\":{\"frame_ms\":%.3f,\"triangles\":%lld},", ctx.budgetFrame_ms,
+          static_cast<long long>(ctx.budgetTriangles));
+  json_ += "\"host\":{\"source\":";
+  appendJsonString(json_, ctx.hostSource);
+  appendf(json_, ",\"lost\":%s,\"rejected\":%llu", ctx.hostLost ? "true" : "false",
+          static_cast<unsigned long long>(ctx.hostRejected));
+  if (ctx.haveLink)
+    appendf(json_,
+            ",\"link\":{\"received\":%llu,\"accepted\":%llu,\"malformed\":%llu,\"out_of_range\":%llu,\"late\":%llu,"
+            "\"dropped\":%llu}",
+            static_cast<unsigned long long>(ctx.link.received), static_cast<unsigned long long>(ctx.link.accepted),
+            static_cast<unsigned long long>(ctx.link.malformed),
+            static_cast<unsigned long long>(ctx.link.outOfRange), static_cast<unsigned long long>(ctx.link.late),
+            static_cast<unsigned long long>(ctx.link.dropped));
+  appendf(json_, "},\"config_generation\":%d,\"last_reload_error\":", ctx.configGeneration);
+  appendJsonString(json_, ctx.lastReloadError);
+  json_ += ",\"layers\":";
+  appendJsonString(json_, ctx.layers);
+  json_ += ",\"scheduling\":";
+  appendJsonString(json_, ctx.scheduling);
+  json_ += "}\n";
+
+  line_.clear();
+  appendf(line_, "frame %lld, %.2f Hz: work p99 %.1f of %.1f ms, overruns %lld (%lld in last %.1f s); host %s %s",
+          static_cast<long long>(lastFrame_), ctx.rate_hz, p99, ctx.budgetFrame_ms,
+          static_cast<long long>(totalOverruns_), static_cast<long long>(overruns_), seconds,
+          ctx.hostSource.c_str(), ctx.hostSource == "none" ? "" : (ctx.hostLost ? "LOST" : "ok"));
+  appendf(line_, "; config #%d%s", ctx.configGeneration, ctx.lastReloadError.empty() ? "" : " (last reload failed)");
+
+  if (!file_.empty()) {
+    fileError_.clear();
+    FILE* f = std::fopen(tmpFile_.c_str(), "w");
+    if (!f) {
+      fileError_ = "service.status_file '" + file_ + "': cannot write '" + tmpFile_ + "': " + std::strerror(errno);
+    } else {
+      const bool wrote = std::fwrite(json_.data(), 1, json_.size(), f) == json_.size();
+      const bool closed = std::fclose(f) == 0;
+      if (!wrote || !closed) {
+        fileError_ = "service.status_file '" + file_ + "': write failed: " + std::strerror(errno);
+      } else if (std::rename(tmpFile_.c_str(), file_.c_str()) != 0) {
+        fileError_ = "service.status_file '" + file_ + "': rename failed: " + std::strerror(errno);
+      }
+    }
+  }
+  // New interval.
+  lastReport_ns_ = now_ns;
+  work_ms_.clear();
+  phaseMax_ms_.fill(0.0);
+  overruns_ = missed_ = frames_ = 0;
+  triangles_ = 0;
+  return line_;
+}
+
+}  // namespace ig

@@ -1,0 +1,70 @@
+// The service's health report, once per [service] status_interval_s:
+//   - one line for `systemctl status igd` (sd_notify STATUS=), e.g.
+//     "frame 5400, 30.00 Hz: work p99 21.3 of 33.3 ms, overruns 0 (0 in last 1.0 s); host cigi ok; config #2"
+//   - optionally a JSON file ([service] status_file, e.g. /run/igd/status.json), replaced
+//     atomically (write to a temporary file, then rename), so a reader never sees half a report.
+// Collecting a frame does not allocate; a report formats into a buffer reserved at start-up.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "ig/frame_loop.h"
+#include "io/link.h"
+
+namespace ig {
+
+// What the frame loop knows besides the frames themselves.
+struct StatusContext {
+  const char* state = "running";    // "running" | "stopping"
+  double rate_hz = 0.0;
+  double budgetFrame_ms = 0.0;      // the work budget of a frame
+  int64_t budgetTriangles = 0;
+  std::string hostSource;           // "replay", "cigi", ... ("none")
+  bool hostLost = false;
+  bool haveLink = false;
+  io::LinkCountersSnapshot link;
+  uint64_t hostRejected = 0;        // samples the frame loop rejected (NaN, out of range)
+  int configGeneration = 1;         // 1 at start, +1 per successful reload
+  std::string lastReloadError;      // "" = the last reload (if any) succeeded
+  std::string layers;               // e.g. "terrain forest"
+  std::string scheduling;           // e.g. "SCHED_FIFO 40, CPUs 2"
+};
+
+class StatusReporter {
+ public:
+  // `file` "" = no file, only the one-line text. `interval_s` > 0.
+  StatusReporter(std::string file, double interval_s, double rate_hz);
+
+  // The first interval starts here (the frame loop's start).
+  void start(int64_t now_ns) { lastReport_ns_ = now_ns; }
+  // Per frame: adds the frame's timing to the current interval.
+  void addFrame(const FrameTiming& t, uint64_t triangles);
+  // True when `now_ns` (the frame loop's clock) is at least one interval after the last report.
+  bool due(int64_t now_ns) const { return now_ns - lastReport_ns_ >= interval_ns_; }
+  // Builds the report of the interval since the last one, writes the file (if any) and
+  // returns the one-line status. Starts a new interval.
+  const std::string& report(int64_t now_ns, const StatusContext& ctx);
+  // The JSON of the last report (tests).
+  const std::string& json() const { return json_; }
+  // The error of the last failed file write, "" if none (logged once by the caller).
+  const std::string& fileError() const { return fileError_; }
+
+ private:
+  std::string file_, tmpFile_;
+  int64_t interval_ns_;
+  int64_t lastReport_ns_ = 0;
+  // Current interval.
+  std::vector<double> work_ms_;     // reserved for the frames of 4 intervals; beyond: dropped
+  std::array<double, kPhaseCount> phaseMax_ms_{};
+  int64_t overruns_ = 0, missed_ = 0, frames_ = 0;
+  uint64_t triangles_ = 0;
+  // Totals.
+  int64_t totalFrames_ = 0, totalOverruns_ = 0, totalMissed_ = 0, lastFrame_ = -1;
+  std::vector<double> scratch_;
+  std::string json_, line_, fileError_;
+};
+
+}  // namespace ig
