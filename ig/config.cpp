@@ -626,10 +626,27 @@ bool parseScene(const std::string& text, const std::string& name, const std::str
     r.require(forest, "file", "a [forest] table needs the tree placement data file");
   }
 
-  const Table hdlod = r.table(root, "hdlod", {"file"});
+  const Table hdlod = r.table(root, "hdlod", {"schedule", "site_scale", "site_seed", "site_origin_m", "cache",
+                                              "simplifier", "tolerance_px", "time_offset_s", "time_scale",
+                                              "octree_depth"});
   if (hdlod.present()) {
-    r.get(hdlod, "file", cfg.hdlod.emplace().file, false);
-    r.require(hdlod, "file", "an [hdlod] table needs the 4D scene description file");
+    HdlodLayerConfig& h = cfg.hdlod.emplace();
+    r.get(hdlod, "schedule", h.schedule);
+    r.get(hdlod, "site_scale", h.siteScale, closed(0.001, 10.0));
+    r.get(hdlod, "site_seed", h.siteSeed, IntRange{0, 0xFFFFFFFFll});
+    std::array<double, 3> siteOrigin{h.siteX_m, h.siteY_m, h.siteZ_m};
+    r.get(hdlod, "site_origin_m", siteOrigin, closed(-1e7, 1e7));
+    h.siteX_m = siteOrigin[0];
+    h.siteY_m = siteOrigin[1];
+    h.siteZ_m = siteOrigin[2];
+    r.get(hdlod, "cache", h.cache);
+    r.getEnum(hdlod, "simplifier", h.simplifier,
+              {{"meshoptimizer", std::string("meshoptimizer")}, {"openmesh", std::string("openmesh")},
+               {"clustering", std::string("clustering")}});
+    r.get(hdlod, "tolerance_px", h.tolerance_px, openClosed(0.0, 1000.0));
+    r.get(hdlod, "time_offset_s", h.timeOffset_s, closed(-1e12, 1e12));
+    r.get(hdlod, "time_scale", h.timeScale, closed(-1e9, 1e9));
+    r.get(hdlod, "octree_depth", h.octreeDepth, IntRange{0, 6});
   }
 
   const Table sun = r.table(root, "sun", {"azimuth_deg", "elevation_deg", "color", "ambient"});
@@ -649,7 +666,10 @@ bool parseScene(const std::string& text, const std::string& name, const std::str
   }
   if (cfg.terrain && !cfg.terrain->file.empty()) cfg.terrain->file = resolvePath(cfg.terrain->file, baseDir);
   if (cfg.forest) cfg.forest->file = resolvePath(cfg.forest->file, baseDir);
-  if (cfg.hdlod) cfg.hdlod->file = resolvePath(cfg.hdlod->file, baseDir);
+  if (cfg.hdlod) {
+    if (!cfg.hdlod->schedule.empty()) cfg.hdlod->schedule = resolvePath(cfg.hdlod->schedule, baseDir);
+    if (!cfg.hdlod->cache.empty()) cfg.hdlod->cache = resolvePath(cfg.hdlod->cache, baseDir);
+  }
   out = std::move(cfg);
   return true;
 }

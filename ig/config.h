@@ -103,8 +103,19 @@ struct ForestLayerConfig {
   bool operator==(const ForestLayerConfig&) const = default;
 };
 
+// [hdlod]: a 4D scene (paper 000) — objects that appear, vanish and move on a schedule.
 struct HdlodLayerConfig {
-  std::string file;                          // 4D scene description (HDLOD issue)
+  std::string schedule;             // schedule file (docs/hdlod.md); "" = the synthetic site below
+  double siteScale = 0.25;          // synthetic construction site: 1 = the paper's ~56k objects
+  uint32_t siteSeed = 1;
+  double siteX_m = 0.0, siteY_m = 0.0, siteZ_m = 0.0;  // synthetic site: centre (local ENU)
+  std::string cache;                // cache file of the built tree ("" = build at every start)
+  std::string simplifier = "meshoptimizer";  // meshoptimizer | openmesh | clustering
+  double tolerance_px = 1.0;        // r, screen-space pixels
+  double timeOffset_s = 0.0;        // schedule time = timeOffset_s + timeScale * simulation time
+  double timeScale = 1.0;
+  int octreeDepth = 3;              // render/hdlod_pass.h
+  bool progress = false;            // build progress bar even when stderr is not a terminal
   bool operator==(const HdlodLayerConfig&) const = default;
 };
 

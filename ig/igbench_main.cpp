@@ -4,12 +4,25 @@
 
 #include <atomic>
 #include <cstdio>
+#include <cstdlib>
 
 #include "ig/app_common.h"
+#if __has_include("ig/bench_adaptive.h")
+#include "ig/bench_adaptive.h"
+#define IG_HAVE_BENCH_ADAPTIVE 1
+#endif
 #include "ig/bench_cells.h"
 #include "ig/bench_forest.h"
+#if __has_include("ig/bench_governor.h")
+#include "ig/bench_governor.h"
+#define IG_HAVE_BENCH_GOVERNOR 1
+#endif
 #include "ig/bench_hdlod.h"
 #include "ig/bench_latency.h"
+#if __has_include("ig/bench_perfmodel.h")
+#include "ig/bench_perfmodel.h"
+#define IG_HAVE_BENCH_PERFMODEL 1
+#endif
 #include "ig/bench_terrain.h"
 #include "ig/clock.h"
 #include "ig/service.h"
@@ -148,14 +161,14 @@ int main(int argc, char** argv) {
       "hdlod",
       "HDLOD (paper 000) on the synthetic construction site (columns, beams, slabs, facade panels\n"
       "installed floor by floor, scaffolding up and down, vehicles on paths): builds the 4D cluster\n"
-      "tree, then for each time (start, 1/3, 2/3, end) and screen size of the scene (1/1, 1/4, 1/16)\n"
-      "selects with HDLOD at --tolerance and without it: triangles, draws and median selection time;\n"
-      "then an r sweep. Selection only: frame_ms and psnr_db come with the HDLOD render pass.\n"
-      "JSON fields: objects, static, pseudo_dynamic, dynamic, empty, triangles, scene_s, build_s,\n"
-      "clusters, merged_clusters, levels, merged_triangles, cases [{time, screen, hdlod{triangles,\n"
-      "draws, select_ms}, full{...}}], sweep [{r_px, triangles, draws, select_ms}], select_ms_max,\n"
-      "triangle_ratio_1_16_min, simplifier, simplifiers [{name, seconds, hausdorff_m, hausdorff_max_m,\n"
-      "merged_triangles, sloppy_clusters, triangle_ratio_1_16_min}].");
+      "tree (or loads it from --cache), then for each time (start, 1/3, 2/3, end, animation) and\n"
+      "screen size of the scene (1/1, 1/4, 1/16) selects and renders with HDLOD at --tolerance and\n"
+      "with full detail: triangles, draws, select_ms, frame_ms (glFinish) and the PSNR of the HDLOD\n"
+      "image against the full one; then an r sweep. JSON fields: objects, triangles, build_s,\n"
+      "cache_bytes, clusters, levels, cases [{time, screen, hdlod{triangles, draws, select_ms,\n"
+      "frame_ms}, full{...}, psnr_db}], sweep [{r_px, triangles, select_ms, frame_ms, psnr_db}],\n"
+      "select_ms_max, triangle_ratio_1_16_min, frame_ratio_end_1_16, psnr_db_min, two_thread_gain_max,\n"
+      "simplifiers [{name, seconds, hausdorff_m, merged_triangles, triangle_ratio_1_16_min}] (docs/hdlod.md).");
   hdlod->add_option("--scale", hdlodOptions.scale, "Site scale: 1 = the paper's ~56k objects / ~4 M triangles")
       ->capture_default_str()->check(CLI::PositiveNumber);
   hdlod->add_option("--seed", hdlodOptions.seed, "Site generator seed")->capture_default_str();
@@ -175,6 +188,25 @@ int main(int argc, char** argv) {
   bool noSimplifierCompare = false;
   hdlod->add_flag("--no-simplifier-compare", noSimplifierCompare,
                   "Skip building the tree once per simplifier (the simplifiers field; OpenMesh takes ~95 s at scale 1)");
+  hdlod->add_option("--frames", hdlodOptions.frames, "Rendered frames per case (the median is reported)")
+      ->capture_default_str()->check(CLI::Range(1, 1000));
+  hdlod->add_option("--animation-frames", hdlodOptions.animationFrames,
+                    "Frames of the animation case (schedule played from 0 to T)")
+      ->capture_default_str()->check(CLI::Range(2, 1000000));
+  bool hdlodNoRender = false;
+  hdlod->add_flag("--no-render", hdlodNoRender, "Selection only: no GL context, no frame_ms / psnr_db");
+  hdlod->add_flag("--quick", hdlodOptions.quick,
+                  "CI: scale 0.05, at most 480x270, 5 repeats, 2 frames, 8 animation frames, no simplifier comparison");
+  hdlod->add_option("--eps-per-size", hdlodOptions.epsPerSize,
+                    "eps(l) / w(l): the simplification target against the cluster size")
+      ->capture_default_str()->check(CLI::Range(1e-6, 1.0));
+  hdlod->add_flag("--strict-hausdorff", hdlodOptions.strictHausdorff, "Measure eps_c against the drawn triangles only");
+  hdlod->add_option("--compare-scale", hdlodOptions.compareScale,
+                    "Site scale of the simplifier comparison (OpenMesh takes ~50 s at 0.25)")
+      ->capture_default_str()->check(CLI::Range(0.001, 10.0));
+  hdlod->add_option("--cache", hdlodOptions.cacheFile, "Load the tree from this cache file, or build it and write it there");
+  hdlod->add_option("--images", hdlodOptions.imageDir, "Write the HDLOD and full PNG of every case into this existing folder");
+  hdlod->add_flag("--progress", hdlodOptions.progress, "Build progress bar on stderr even when it is not a terminal");
   hdlod->add_flag("--json", hdlodOptions.json, "Print one JSON object instead of the human summary");
   ig::CellsBenchOptions cellsOptions;
   CLI::App* cells = app.add_subcommand(
@@ -233,11 +265,107 @@ int main(int argc, char** argv) {
       ->capture_default_str()->check(CLI::Range(1, 1000000));
   forest->add_option("--seed", forestOptions.seed, "Forest seed")->capture_default_str();
   forest->add_flag("--json", forestOptions.json, "Print one JSON object instead of the human summary");
+#if IG_HAVE_BENCH_PERFMODEL
+  ig::PerfModelBenchOptions perfOptions;
+  std::string perfSizes;
+  CLI::App* perf = app.add_subcommand(
+      "perfmodel",
+      "Paper 002's rendering performance model against measured frame times (its Table 1):\n"
+      "calibrates T_frag, T_tri, T_state, t_c, t_s and the occlusion-test cost on this GL\n"
+      "implementation, then draws 10 ... 300,000 random boxes and compares predicted with measured\n"
+      "frame time (glFinish, median of repeats). JSON: points [{objects, measured_ms, predicted_ms,\n"
+      "error_pct}], error_pct_median, error_pct_max, the calibrated constants. Goal: median <= 5 %,\n"
+      "max <= 10 %.");
+  perf->add_option("--sizes", perfSizes, "Box counts, comma-separated (default 10,100,1000,10000,50000,100000,300000)");
+  perf->add_option("--width", perfOptions.width_px, "Frame width in pixels")->capture_default_str()->check(CLI::Range(16, 8192));
+  perf->add_option("--height", perfOptions.height_px, "Frame height in pixels")->capture_default_str()->check(CLI::Range(16, 8192));
+  perf->add_option("--fragment-work", perfOptions.fragmentWork, "Extra shading iterations per fragment (material cost)")
+      ->capture_default_str()->check(CLI::Range(0, 1000));
+  perf->add_option("--coverage", perfOptions.coverage, "Total projected box area, in screens")
+      ->capture_default_str()->check(CLI::PositiveNumber);
+  perf->add_option("--repeats", perfOptions.repeats, "Timed frames per point (median)")->capture_default_str()->check(CLI::Range(1, 1000));
+  perf->add_option("--seed", perfOptions.seed, "Scene seed")->capture_default_str();
+  perf->add_option("--cache", perfOptions.cachePath, "Calibration cache file ('' = calibrate every run)");
+  perf->add_flag("--quick", perfOptions.quick, "CI size: 10 ... 4000 boxes, fewer repeats, short calibration");
+  perf->add_flag("--json", perfOptions.json, "Print one JSON object instead of the human summary");
+#endif
+#if IG_HAVE_BENCH_ADAPTIVE
+  ig::AdaptiveBenchOptions adaptiveOptions;
+  CLI::App* adaptive = app.add_subcommand(
+      "adaptive",
+      "Paper 002's adaptive strategy against its three fixed strategies (per-object commands, octree\n"
+      "of indirect commands, octree + occlusion queries) on one animation in which boxes are added,\n"
+      "move and get hidden; all four drawn side by side every frame. JSON: modes {percommand, octree,\n"
+      "occlusion, adaptive: {mean_ms, p99_ms}}, adaptive_worst_ratio, adaptive_mean_ratio, trace.\n"
+      "Goal: adaptive never > 1.1x the best fixed strategy, better on average.");
+  adaptive->add_option("--width", adaptiveOptions.width_px, "Frame width in pixels")->capture_default_str()->check(CLI::Range(16, 8192));
+  adaptive->add_option("--height", adaptiveOptions.height_px, "Frame height in pixels")->capture_default_str()->check(CLI::Range(16, 8192));
+  adaptive->add_option("--objects", adaptiveOptions.objects, "Boxes at the end of the growing phase")
+      ->capture_default_str()->check(CLI::Range(1, 10000000));
+  adaptive->add_option("--frames-per-phase", adaptiveOptions.framesPerPhase, "Frames of each animation phase")
+      ->capture_default_str()->check(CLI::Range(1, 1000000));
+  adaptive->add_option("--window", adaptiveOptions.window, "Frames per trace sample")->capture_default_str()->check(CLI::Range(1, 100000));
+  adaptive->add_option("--seed", adaptiveOptions.seed, "Scene seed")->capture_default_str();
+  adaptive->add_option("--cache", adaptiveOptions.cachePath, "Calibration cache file ('' = calibrate every run)");
+  adaptive->add_option("--trace", adaptiveOptions.tracePath, "Also write the JSON here (input of scripts/plot_adaptive.py)");
+  adaptive->add_flag("--quick", adaptiveOptions.quick, "CI size: 4000 boxes, 40 frames per phase");
+  adaptive->add_flag("--json", adaptiveOptions.json, "Print one JSON object instead of the human summary");
+#endif
+#if IG_HAVE_BENCH_GOVERNOR
+  ig::GovernorBenchOptions govOptions;
+  CLI::App* gov = app.add_subcommand(
+      "governor",
+      "The frame governor on a rendered flight whose triangle load swings 10x (plain, mountains,\n"
+      "jumps between them): ROAM terrain at 960x540, once with the governor steering the pixel\n"
+      "tolerance and once at a fixed tolerance, side by side. JSON: frames, overrun_pct,\n"
+      "frame_ms_p50/p99, load_swing, fixed {...}, tolerance_trace. Goal: overruns <= 0.1 %.");
+  gov->add_option("--samples", govOptions.samples, "Height-field posts per side (30 m apart)")
+      ->capture_default_str()->check(CLI::Range(65, 16385));
+  gov->add_option("--rate", govOptions.rate_hz, "Frame rate in Hz; the work budget is the period")
+      ->capture_default_str()->check(CLI::Range(1.0, 1000.0));
+  gov->add_option("--seconds", govOptions.seconds, "Flight length in seconds")->capture_default_str()->check(CLI::PositiveNumber);
+  gov->add_option("--width", govOptions.width_px, "Frame width in pixels")->capture_default_str()->check(CLI::Range(16, 8192));
+  gov->add_option("--height", govOptions.height_px, "Frame height in pixels")->capture_default_str()->check(CLI::Range(16, 8192));
+  gov->add_option("--tolerance", govOptions.tolerance_px, "Fixed run's tolerance and the governed run's finest (px)")
+      ->capture_default_str()->check(CLI::PositiveNumber);
+  gov->add_option("--max-tolerance", govOptions.maxTolerance_px, "Governed run's coarsest tolerance (px)")
+      ->capture_default_str()->check(CLI::PositiveNumber);
+  gov->add_option("--lod-budget", govOptions.lodBudget_ms, "Fixed run's ROAM work budget in ms (0 = converge)")
+      ->capture_default_str()->check(CLI::NonNegativeNumber);
+  gov->add_option("--plot", govOptions.plotFile, "Write a PNG of the tolerance trace (scripts/plot_governor.py)");
+  gov->add_flag("--quick", govOptions.quick, "CI size: 513 posts, one 6 s lap");
+  gov->add_flag("--json", govOptions.json, "Print one JSON object instead of the human summary");
+#endif
   if (const auto rc = ig::parseCommandLine(app, argc, argv)) return *rc;
+#if IG_HAVE_BENCH_PERFMODEL
+  if (perf->parsed()) {
+    for (size_t i = 0; i < perfSizes.size();) {
+      size_t j = perfSizes.find(',', i);
+      if (j == std::string::npos) j = perfSizes.size();
+      const std::string item = perfSizes.substr(i, j - i);
+      char* end = nullptr;
+      const unsigned long v = std::strtoul(item.c_str(), &end, 10);
+      if (item.empty() || *end != '\0' || v == 0 || v > 100000000ul) {
+        std::fprintf(stderr, "igbench perfmodel: --sizes: '%s' is not a box count (1 ... 100000000)\n", item.c_str());
+        return 2;
+      }
+      perfOptions.sizes.push_back(static_cast<uint32_t>(v));
+      i = j + 1;
+    }
+    return ig::runPerfModelBench(perfOptions);
+  }
+#endif
+#if IG_HAVE_BENCH_ADAPTIVE
+  if (adaptive->parsed()) return ig::runAdaptiveBench(adaptiveOptions);
+#endif
+#if IG_HAVE_BENCH_GOVERNOR
+  if (gov->parsed()) return ig::runGovernorBench(govOptions);
+#endif
   if (forest->parsed()) return ig::runForestBench(forestOptions);
   if (cells->parsed()) return ig::runCellsBench(cellsOptions);
   if (hdlod->parsed()) {
     hdlodOptions.compareSimplifiers = !noSimplifierCompare;
+    hdlodOptions.render = !hdlodNoRender;
     return ig::runHdlodBench(hdlodOptions);
   }
   if (latency->parsed()) return ig::runLatencyBench(latencyOptions);

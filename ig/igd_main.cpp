@@ -88,6 +88,8 @@ int main(int argc, char** argv) {
   std::fprintf(stderr, "igd: %s\nigd: scene '%s': layers:%s; %u pass(es), %.1f MiB GPU buffers, %u thread(s)\n",
                info.context.c_str(), scene.name.c_str(), layers.empty() ? " (none)" : layers.c_str(), info.passes,
                static_cast<double>(info.gpuBufferBytes) / (1024.0 * 1024.0), info.threads);
+  if (!info.hdlodDescription.empty())
+    std::fprintf(stderr, "igd: hdlod: %s, ready in %.0f ms\n", info.hdlodDescription.c_str(), info.hdlodBuild_ms);
   if (!info.scheduling.empty()) std::fprintf(stderr, "igd: render thread: %s\n", info.scheduling.c_str());
   if (!info.terrainSource.empty())
     std::fprintf(stderr, "igd: terrain: %s, built in %.0f ms (load, LOD precomputation, upload)\n",

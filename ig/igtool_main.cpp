@@ -18,6 +18,7 @@
 #endif
 #include "io/replay.h"
 #include "render/image.h"
+#include "ig/hdlod_tool.h"
 
 namespace {
 
@@ -200,7 +201,35 @@ int main(int argc, char** argv) {
   convert->add_option("--stale-ms", convStaleMs,
                       "candump: drop a frame set not complete within this many ms (default: host.can.stale_ms)")
       ->check(CLI::Range(int64_t{1}, int64_t{60000}));
+  ig::SiteToolOptions siteOptions;
+  std::vector<double> siteOrigin;
+  CLI::App* site = app.add_subcommand(
+      "site", "Writes the HDLOD synthetic construction site (docs/hdlod.md) as OUT/site.sched with\n"
+              "OUT/models/*.obj: ground and site buildings, columns, beams, slabs, facade panels and windows\n"
+              "installed floor by floor, scaffolding put up and taken down, cranes, excavators and trucks on\n"
+              "paths. With --cache it also builds the 4D cluster tree into a cache file igd loads at start-up.");
+  site->add_option("--out", siteOptions.out, "Output folder (created)")->capture_default_str();
+  site->add_option("--scale", siteOptions.scale, "Site scale: 1 = the paper's ~56k objects / ~4 M triangles")
+      ->capture_default_str()->check(CLI::Range(0.001, 10.0));
+  site->add_option("--seed", siteOptions.seed, "Generator seed")->capture_default_str();
+  site->add_option("--floors", siteOptions.floors, "Floors of the tower at scale 1")->capture_default_str()->check(CLI::Range(1, 1000));
+  site->add_option("--bays", siteOptions.bays, "Structural bays per side")->capture_default_str()->check(CLI::Range(1, 100));
+  site->add_option("--days", siteOptions.durationDays, "Length of the schedule T in days")
+      ->capture_default_str()->check(CLI::PositiveNumber);
+  site->add_option("--origin", siteOrigin, "Site centre X Y Z in the scene's local ENU frame (m)")->expected(3);
+  site->add_option("--cache", siteOptions.cache, "Also build the tree into this cache file");
+  site->add_option("--simplifier", siteOptions.simplifier, "Parent-cluster simplifier")
+      ->capture_default_str()->check(CLI::IsMember({"meshoptimizer", "openmesh", "clustering"}));
+  site->add_flag("--progress", siteOptions.progress, "Build progress bar on stderr even when it is not a terminal");
   if (const auto rc = ig::parseCommandLine(app, argc, argv)) return *rc;
+  if (site->parsed()) {
+    if (siteOrigin.size() == 3) {
+      siteOptions.originX_m = siteOrigin[0];
+      siteOptions.originY_m = siteOrigin[1];
+      siteOptions.originZ_m = siteOrigin[2];
+    }
+    return ig::runSiteTool(siteOptions);
+  }
   if (convert->parsed()) return convertCommand(convConfig, convFormat, convIn, convOut, convPort, convStaleMs);
 
   if (demInfo->parsed()) {

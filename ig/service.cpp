@@ -17,6 +17,7 @@
 #include "io/dem.h"
 #include "io/replay.h"
 #include "lod/sun.h"
+#include "ig/hdlod_layer.h"
 #include "ig/host_input.h"
 #include "ig/host_links.h"
 #include "lod/block_lod.h"
@@ -259,6 +260,7 @@ struct Service::Impl {
   render::Renderer renderer;
   std::unique_ptr<TerrainLayer> terrain;          // lod = "grid"
   std::unique_ptr<TerrainMeshLayer> terrainMesh;  // lod = "roam" | "block"
+  std::unique_ptr<HdlodLayer> hdlod;              // [hdlod]: 4D scene
   std::unique_ptr<io::ReplaySource> replay;
   MonotonicClock startClock;                 // stamps host samples until run() hands over its clock
   std::unique_ptr<HostInput> hostInput;      // live link and recorder; only for link sources
@@ -298,8 +300,9 @@ struct Service::Impl {
 
   // lod phase: every layer the scene has selects what to draw. `clock` (the frame loop's)
   // lets layers keep to their time budgets; without it they converge fully.
-  void select(const lod::Camera& cam, Clock* clock, double now_s) {
+  void select(const lod::Camera& cam, Clock* clock, double now_s, double simTime_s) {
     if (terrainMesh) terrainMesh->select(cam, config.height_px, clock, now_s);
+    if (hdlod) hdlod->select(cam, simTime_s, config.height_px);
     if (terrain) {
       const lod::Frustum fr = lod::makeFrustum(cam);
       terrain->selectedCount =
@@ -329,7 +332,10 @@ struct Service::Impl {
     if (terrain) renderer.drawTerrain(std::span(terrain->selected.data(), terrain->selectedCount));
     if (terrainMesh)
       renderer.drawTerrainMesh(terrainMesh->origin_m, terrainMesh->vertexCount());
-    return renderer.endFrame();
+    if (hdlod) hdlod->draw(renderer);
+    render::RenderStats st = renderer.endFrame();
+    if (hdlod) ++st.passes;  // passes in their own files
+    return st;
   }
 
   static FrameRecord record(const render::RenderStats& st, const io::HostState& host) {
@@ -362,11 +368,6 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
   if (scene.forest) {
     error = "scene '" + scene.path + "': [forest] (file '" + scene.forest->file +
             "') is not supported by this build yet; remove the table to run without a forest";
-    return nullptr;
-  }
-  if (scene.hdlod) {
-    error = "scene '" + scene.path + "': [hdlod] (file '" + scene.hdlod->file +
-            "') is not supported by this build yet; remove the table to run without HDLOD objects";
     return nullptr;
   }
 
@@ -405,6 +406,21 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
                                                                                         : std::string("procedural")) +
                              " " + std::to_string(w) + "x" + std::to_string(h);
   }
+  if (scene.hdlod) {
+    const auto t0 = std::chrono::steady_clock::now();
+    m.hdlod = HdlodLayer::create(*scene.hdlod, error);
+    if (!m.hdlod) {
+      error = "scene '" + scene.path + "' [hdlod]: " + error;
+      return nullptr;
+    }
+    if (!m.hdlod->initRender(error)) {
+      error = "scene '" + scene.path + "' [hdlod]: " + error;
+      return nullptr;
+    }
+    s->info_.layers.push_back("hdlod");
+    s->info_.hdlodDescription = m.hdlod->describe();
+    s->info_.hdlodBuild_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  }
   if (config.snapshotEvery > 0 || !config.snapshotFrames.empty()) {
     std::error_code ec;
     std::filesystem::create_directories(config.snapshotDir, ec);
@@ -426,7 +442,8 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
     s->info_.threads += m.hostInput->threads();
   }
   s->info_.passes = m.renderer.passCount();
-  s->info_.gpuBufferBytes = m.renderer.bufferBytes();
+  s->info_.gpuBufferBytes = m.renderer.bufferBytes() + (m.hdlod ? m.hdlod->gpuBytes() : 0);
+  if (m.hdlod) ++s->info_.passes;
 
   m.enu.emplace(origin);
   m.setLighting();
@@ -457,7 +474,7 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
 FrameRecord Service::renderOnce(const io::HostState& host, render::Image* image) {
   Impl& m = *impl_;
   const lod::Camera cam = m.cameraFor(host);
-  m.select(cam, nullptr, std::nan(""));
+  m.select(cam, nullptr, std::nan(""), host.simTime_s);
   const render::RenderStats st = m.submit(cam, host);
   m.renderer.finish();
   if (image) m.renderer.readPixels(*image);
@@ -615,7 +632,7 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
 
     // lod
     const lod::Camera cam = m.cameraFor(host_);
-    m.select(cam, &clock, pacer.slotTime_s(slot));
+    m.select(cam, &clock, pacer.slotTime_s(slot), host_.simTime_s);
     pacer.endPhase(Phase::Lod);
 
     // submit

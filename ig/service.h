@@ -39,6 +39,8 @@ struct ServiceInfo {
   uint64_t terrainTriangles = 0;     // triangles in the whole terrain (0 = no terrain)
   std::string terrainSource;         // "procedural 257x257" or the DEM file with its size
   double terrainBuild_ms = 0.0;      // start-up time: load + LOD precomputation + upload
+  std::string hdlodDescription;      // [hdlod]: objects, clusters, cache outcome
+  double hdlodBuild_ms = 0.0;        // [hdlod]: schedule + tree (cache or build) + upload
 };
 
 // The terrain grid a scene's [terrain] table describes.

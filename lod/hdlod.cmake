@@ -5,7 +5,13 @@ target_sources(ig_lod PRIVATE
   ${CMAKE_CURRENT_SOURCE_DIR}/hdlod_build.cpp
   ${CMAKE_CURRENT_SOURCE_DIR}/hdlod_select.cpp
   ${CMAKE_CURRENT_SOURCE_DIR}/hdlod_site.cpp
+  ${CMAKE_CURRENT_SOURCE_DIR}/hdlod_cache.cpp
+  ${CMAKE_CURRENT_SOURCE_DIR}/hdlod_models.cpp
 )
+# glTF models (lod/hdlod_models.cpp): Debian libtinygltf-dev (CMake package TinyGLTF, a shared
+# library with its header).
+find_package(TinyGLTF REQUIRED CONFIG)
+target_link_libraries(ig_lod PRIVATE TinyGLTF::TinyGLTF)
 
 # Parent-cluster simplifiers (lod/hdlod_simplify.h): Debian libmeshoptimizer-dev (CMake package
 # meshoptimizer, target meshoptimizer::meshoptimizer) and libopenmesh-dev (CMake package OpenMesh,

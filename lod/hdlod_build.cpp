@@ -4,6 +4,7 @@
 #include "lod/hdlod_simplify.h"
 
 #include <algorithm>
+#include <array>
 #include <cassert>
 #include <cmath>
 #include <limits>
@@ -17,6 +18,8 @@ namespace {
 constexpr uint32_t kNone = ~0u;
 constexpr double kMinWeight_m = 1e-6;
 
+// A scene model index as a vertex material (models past 65535 share the last).
+uint16_t materialOf(size_t model) { return static_cast<uint16_t>(std::min<size_t>(model, 65535)); }
 double diagonal(const Aabb& b) { return glm::length(b.max - b.min); }
 Aabb unite(const Aabb& a, const Aabb& b) { return Aabb{glm::min(a.min, b.min), glm::max(a.max, b.max)}; }
 glm::dvec3 centre(const Aabb& b) { return (b.min + b.max) * 0.5; }
@@ -211,7 +214,7 @@ class TriangleBvh {
   }
 
   // Smallest distance from p to a triangle; returns as soon as a distance <= enough is found.
-  float nearest(const glm::vec3& p, float enough) const {
+  float nearest(const glm::vec3& p, float enough, uint32_t* which = nullptr) const {
     if (nodes_.empty()) return std::numeric_limits<float>::infinity();
     float best2 = std::numeric_limits<float>::infinity();
     const float enough2 = enough * enough;
@@ -224,7 +227,11 @@ class TriangleBvh {
       if (node.count > 0) {
         for (uint32_t i = node.first; i < node.first + node.count; ++i) {
           const uint32_t t = order_[i];
-          best2 = std::min(best2, pointTriangleDistance2(p, vertex(t, 0), vertex(t, 1), vertex(t, 2)));
+          const float d2 = pointTriangleDistance2(p, vertex(t, 0), vertex(t, 1), vertex(t, 2));
+          if (d2 < best2) {
+            best2 = d2;
+            if (which) *which = t;
+          }
         }
         if (best2 <= enough2) break;
         continue;
@@ -378,14 +385,33 @@ class Builder {
     for (uint32_t id : active) {
       (classify(scene_.objects[tree_.clusters[id].object], T) == ObjectClass::Static ? statics : pseudo).push_back(id);
     }
+    // Progress: the share of each stage is its share of the objects (model versions: 2 %).
+    const double total = std::max<double>(1.0, static_cast<double>(active.size() + dynamic.size()));
+    const double staticShare = 0.98 * static_cast<double>(statics.size()) / total;
+    const double pseudoShare = 0.98 * static_cast<double>(pseudo.size()) / total;
+    stage_ = "static";
+    stageBase_ = 0.0;
+    stageSpan_ = staticShare;
     if (!statics.empty()) tops.push_back(clusterStatic(std::move(statics)));
+    stage_ = "pseudo-dynamic";
+    stageBase_ = staticShare;
+    stageSpan_ = pseudoShare;
     if (!pseudo.empty()) tops.push_back(clusterStatic(std::move(pseudo)));
+    report(staticShare + pseudoShare, "dynamic");
     if (!dynamic.empty()) tops.push_back(groupDynamic(std::move(dynamic)));
     if (!tops.empty()) tree_.root = addGroup(tops, /*level=*/static_cast<uint16_t>(tree_.stats.levels + 1));
+    report(0.98, "model versions");
+    makeModelLods();
+    reorderDepthFirst();
+    report(1.0, "done");
     return std::move(tree_);
   }
 
  private:
+  void report(double fraction, const char* stage) const {
+    if (config_.progress) config_.progress(std::clamp(fraction, 0.0, 1.0), stage);
+  }
+
   uint32_t addCluster(Cluster c, std::span<const double> times, std::span<const double> values, const glm::dmat4& matrix) {
     c.stepBegin = static_cast<uint32_t>(tree_.stepTimes.size());
     c.stepCount = static_cast<uint32_t>(times.size());
@@ -441,9 +467,9 @@ class Builder {
     return level[0];
   }
 
-  // Appends a cluster's geometry relative to `origin`.
+  // Appends a cluster's geometry relative to `origin` (and each vertex's material).
   void appendGeometry(uint32_t id, const glm::dvec3& origin, std::vector<glm::vec3>& positions,
-                      std::vector<uint32_t>& indices) const {
+                      std::vector<uint32_t>& indices, std::vector<uint16_t>& materials) const {
     const Cluster& c = tree_.clusters[id];
     const uint32_t base = static_cast<uint32_t>(positions.size());
     if (c.kind == ClusterKind::Object) {
@@ -451,11 +477,29 @@ class Builder {
       const glm::dmat4& M = tree_.leafMatrix[id];
       for (const glm::vec3& p : m.positions) positions.push_back(glm::vec3(glm::dvec3(M * glm::dvec4(glm::dvec3(p), 1.0)) - origin));
       for (uint32_t i : m.indices) indices.push_back(base + i);
+      materials.insert(materials.end(), m.triangleCount(), materialOf(c.mesh));
     } else {
       const ClusterMesh& mesh = tree_.meshes[c.mesh];
       const glm::dvec3 shift = mesh.origin_m - origin;
       for (const glm::vec3& p : mesh.positions) positions.push_back(glm::vec3(glm::dvec3(p) + shift));
       for (uint32_t i : mesh.indices) indices.push_back(base + i);
+      materials.insert(materials.end(), mesh.materials.begin(), mesh.materials.end());
+    }
+  }
+
+  // mesh.materials: per triangle, the material of the input triangle nearest to its centroid.
+  void assignMaterials(std::span<const glm::vec3> positions, std::span<const uint32_t> indices, std::span<const uint16_t> materials,
+                       ClusterMesh& mesh) {
+    const size_t n = mesh.indices.size() / 3;
+    mesh.materials.assign(n, materials.empty() ? uint16_t{0} : materials[0]);
+    if (indices.size() < 3 || n == 0) return;
+    const TriangleBvh bvh(positions, indices);
+    for (size_t t = 0; t < n; ++t) {
+      const glm::vec3 c = (mesh.positions[mesh.indices[3 * t]] + mesh.positions[mesh.indices[3 * t + 1]] +
+                           mesh.positions[mesh.indices[3 * t + 2]]) / 3.0f;
+      uint32_t which = 0;
+      bvh.nearest(c, 0.0f, &which);
+      if (which < materials.size()) mesh.materials[t] = materials[which];
     }
   }
 
@@ -474,7 +518,8 @@ class Builder {
     mesh.origin_m = centre(p.box);
     childPositions_.clear();
     childIndices_.clear();
-    for (uint32_t k : kids) appendGeometry(k, mesh.origin_m, childPositions_, childIndices_);
+    childMaterials_.clear();
+    for (uint32_t k : kids) appendGeometry(k, mesh.origin_m, childPositions_, childIndices_, childMaterials_);
     SimplifyParams sp;
     sp.simplifier = config_.simplifier;
     sp.gridOffset_m = anchor_ - mesh.origin_m;
@@ -483,30 +528,9 @@ class Builder {
     SimplifiedMesh& simple = simplified_;
     simplifyMesh(childPositions_, childIndices_, eps_l, sp, simple);
 
-    // Samples: every child vertex and triangle centroid, evenly strided down to the cap.
-    samples_.clear();
-    const size_t nt = childIndices_.size() / 3, total = childPositions_.size() + nt;
-    const size_t cap = static_cast<size_t>(std::max(1, config_.maxHausdorffSamples));
-    const size_t stride = std::max<size_t>(1, (total + cap - 1) / cap);
-    for (size_t i = 0; i < total; i += stride) {
-      if (i < childPositions_.size()) {
-        samples_.push_back(childPositions_[i]);
-      } else {
-        const size_t t = i - childPositions_.size();
-        samples_.push_back((childPositions_[childIndices_[3 * t]] + childPositions_[childIndices_[3 * t + 1]] +
-                            childPositions_[childIndices_[3 * t + 2]]) / 3.0f);
-      }
-    }
-    tree_.stats.hausdorffSamples += samples_.size();
-    // The distance is measured to the simplified complex: the kept triangles plus, unless
-    // strictHausdorff, the segments and points that collapsed triangles became.
-    if (!config_.strictHausdorff) simple.indices.insert(simple.indices.end(), simple.collapsed.begin(), simple.collapsed.end());
-    double d = samples_.empty() ? 0.0
-               : simple.indices.empty() ? 0.5 * p.size_m
-                                        : sampledHausdorff(samples_, simple.positions, simple.indices);
-    if (!std::isfinite(d)) d = 0.5 * p.size_m;
-    if (!config_.strictHausdorff) simple.indices.resize(simple.indices.size() - simple.collapsed.size());
+    const double d = measuredError(childPositions_, childIndices_, simple, 0.5 * p.size_m);
     compactMesh(simple.positions, simple.indices, mesh);
+    assignMaterials(childPositions_, childIndices_, childMaterials_, mesh);
     p.eps_m = d + childEps;
     tree_.stats.sloppyClusters += simple.sloppy ? 1u : 0u;
     tree_.stats.simplifyErrorSum_m += d;
@@ -539,6 +563,150 @@ class Builder {
     for (uint32_t k : kids) std::vector<uint32_t>().swap(leaves_[k]);
     ++tree_.stats.mergedClusters;
     return id;
+  }
+
+  // The sampled one-sided Hausdorff distance from the input (every vertex and triangle centroid,
+  // evenly strided down to the cap) to the simplified complex: the kept triangles plus, unless
+  // strictHausdorff, the segments and points that collapsed triangles became. `emptyError` when
+  // nothing is left.
+  double measuredError(std::span<const glm::vec3> positions, std::span<const uint32_t> indices, SimplifiedMesh& simple,
+                       double emptyError) {
+    samples_.clear();
+    const size_t nt = indices.size() / 3, total = positions.size() + nt;
+    const size_t cap = static_cast<size_t>(std::max(1, config_.maxHausdorffSamples));
+    const size_t stride = std::max<size_t>(1, (total + cap - 1) / cap);
+    for (size_t i = 0; i < total; i += stride) {
+      if (i < positions.size()) {
+        samples_.push_back(positions[i]);
+      } else {
+        const size_t t = i - positions.size();
+        samples_.push_back((positions[indices[3 * t]] + positions[indices[3 * t + 1]] + positions[indices[3 * t + 2]]) / 3.0f);
+      }
+    }
+    tree_.stats.hausdorffSamples += samples_.size();
+    if (!config_.strictHausdorff) simple.indices.insert(simple.indices.end(), simple.collapsed.begin(), simple.collapsed.end());
+    double d = samples_.empty() ? 0.0 : simple.indices.empty() ? emptyError : sampledHausdorff(samples_, simple.positions, simple.indices);
+    if (!std::isfinite(d)) d = emptyError;
+    if (!config_.strictHausdorff) simple.indices.resize(simple.indices.size() - simple.collapsed.size());
+    if (config_.twoSidedHausdorff && !simple.indices.empty() && indices.size() >= 3) {
+      // The other direction: from the drawn triangles (vertices and centroids) to the input.
+      samples_.clear();
+      const size_t snt = simple.indices.size() / 3, stotal = simple.positions.size() + snt;
+      const size_t sstride = std::max<size_t>(1, (stotal + cap - 1) / cap);
+      for (size_t i = 0; i < stotal; i += sstride) {
+        if (i < simple.positions.size()) {
+          samples_.push_back(simple.positions[i]);
+        } else {
+          const size_t t = i - simple.positions.size();
+          samples_.push_back((simple.positions[simple.indices[3 * t]] + simple.positions[simple.indices[3 * t + 1]] +
+                              simple.positions[simple.indices[3 * t + 2]]) / 3.0f);
+        }
+      }
+      tree_.stats.hausdorffSamples += samples_.size();
+      const double back = sampledHausdorff(samples_, positions, indices);
+      if (std::isfinite(back)) d = std::max(d, back);
+    }
+    return d;
+  }
+
+  // Coarser versions of the scene models that leaves use (see hdlod_build.h).
+  void makeModelLods() {
+    std::vector<uint8_t> used(scene_.models.size(), 0);
+    for (const Cluster& c : tree_.clusters) {
+      if (c.kind == ClusterKind::Object || c.kind == ClusterKind::Dynamic) used[c.mesh] = 1;
+    }
+    tree_.modelLodBegin.assign(1, 0);
+    SimplifyParams sp;
+    sp.simplifier = config_.simplifier == Simplifier::Clustering ? Simplifier::Meshoptimizer : config_.simplifier;
+    sp.sloppyAboveTriangles = config_.sloppyAboveTriangles;
+    sp.maxSamples = static_cast<uint32_t>(std::max(1, config_.maxHausdorffSamples));
+    for (size_t m = 0; m < scene_.models.size(); ++m) {
+      const Model& model = scene_.models[m];
+      if (used[m] && model.triangleCount() > config_.modelLodMinTriangles) {
+        const double diag = diagonal(model.box);
+        size_t previous = model.triangleCount();
+        double previousEps = 0.0;
+        for (int k = 0; k < config_.modelLodLevels; ++k) {
+          const double eps = diag * std::exp2(k - 6);
+          simplifyMesh(model.positions, model.indices, eps, sp, simplified_);
+          const double d = measuredError(model.positions, model.indices, simplified_, 0.5 * diag);
+          const size_t triangles = simplified_.indices.size() / 3;
+          if (triangles == 0 || 4 * triangles > 3 * previous) continue;
+          ClusterMesh mesh;
+          compactMesh(simplified_.positions, simplified_.indices, mesh);
+          mesh.materials.assign(mesh.indices.size() / 3, materialOf(m));
+          previousEps = std::max(previousEps, d);
+          tree_.modelLods.push_back({static_cast<uint32_t>(tree_.meshes.size()), static_cast<uint32_t>(triangles), previousEps});
+          tree_.meshes.push_back(std::move(mesh));
+          previous = triangles;
+          ++tree_.stats.modelLods;
+        }
+        // Last, the model's box (12 triangles): thin or lattice parts that edge collapses keep.
+        if (previous > 12) {
+          const Model box = makeBoxModel("", model.box.max - model.box.min);
+          const glm::vec3 shift((model.box.min + model.box.max) * 0.5 - glm::dvec3(0, 0, 0.5 * (model.box.max.z - model.box.min.z)));
+          simplified_.positions = box.positions;
+          for (glm::vec3& v : simplified_.positions) v += shift;
+          simplified_.indices = box.indices;
+          simplified_.collapsed.clear();
+          const double d = measuredError(model.positions, model.indices, simplified_, 0.5 * diag);
+          ClusterMesh mesh;
+          mesh.positions = simplified_.positions;
+          mesh.indices = simplified_.indices;
+          mesh.materials.assign(mesh.indices.size() / 3, materialOf(m));
+          previousEps = std::max(previousEps, d);
+          tree_.modelLods.push_back({static_cast<uint32_t>(tree_.meshes.size()), 12u, previousEps});
+          tree_.meshes.push_back(std::move(mesh));
+          ++tree_.stats.modelLods;
+        }
+      }
+      tree_.modelLodBegin.push_back(static_cast<uint32_t>(tree_.modelLods.size()));
+    }
+  }
+
+  // Renumbers the clusters depth-first (pre-order from the root), children contiguous.
+  void reorderDepthFirst() {
+    const size_t n = tree_.clusters.size();
+    if (tree_.root == kNone || n == 0) return;
+    std::vector<uint32_t> order, stack{tree_.root};
+    order.reserve(n);
+    while (!stack.empty()) {
+      const uint32_t id = stack.back();
+      stack.pop_back();
+      order.push_back(id);
+      const auto kids = tree_.childrenOf(tree_.clusters[id]);
+      for (size_t k = kids.size(); k-- > 0;) stack.push_back(kids[k]);
+    }
+    std::vector<uint32_t> newId(n, kNone);
+    for (size_t i = 0; i < order.size(); ++i) newId[order[i]] = static_cast<uint32_t>(i);
+    HdlodTree out;
+    out.duration_s = tree_.duration_s;
+    out.root = 0;
+    out.clusters.reserve(order.size());
+    out.leafMatrix.reserve(order.size());
+    out.children.reserve(tree_.children.size());
+    for (uint32_t old : order) {
+      Cluster c = tree_.clusters[old];
+      const auto kids = tree_.childrenOf(tree_.clusters[old]);
+      c.firstChild = static_cast<uint32_t>(out.children.size());
+      for (uint32_t k : kids) out.children.push_back(newId[k]);
+      c.stepBegin = static_cast<uint32_t>(out.stepTimes.size());
+      out.stepTimes.insert(out.stepTimes.end(), tree_.stepTimes.begin() + tree_.clusters[old].stepBegin,
+                           tree_.stepTimes.begin() + tree_.clusters[old].stepBegin + c.stepCount);
+      out.stepValues.insert(out.stepValues.end(), tree_.stepValues.begin() + tree_.clusters[old].stepBegin,
+                            tree_.stepValues.begin() + tree_.clusters[old].stepBegin + c.stepCount);
+      out.clusters.push_back(c);
+      out.leafMatrix.push_back(tree_.leafMatrix[old]);
+    }
+    tree_.clusters = std::move(out.clusters);
+    tree_.children = std::move(out.children);
+    tree_.stepTimes = std::move(out.stepTimes);
+    tree_.stepValues = std::move(out.stepValues);
+    tree_.leafMatrix = std::move(out.leafMatrix);
+    tree_.root = 0;
+    for (uint32_t& c : tree_.objectCluster) {
+      if (c != kNone) c = newId[c];
+    }
   }
 
   // gamma_c = max over leaves of mean |f_c - v_s|, with the f_c in times_ / values_:
@@ -584,6 +752,7 @@ class Builder {
       L = 1 + static_cast<int>(std::ceil(std::log2(std::max(1.0, W / (2.0 * median)))));
     }
     L = std::clamp(L, 1, 40);
+    levelsEstimate_ = L + 1;
     const int maxChildren = std::max(2, config_.maxChildren);
     int l = 0;
     while (active.size() > 1) {
@@ -651,8 +820,13 @@ class Builder {
     std::vector<std::pair<double, uint32_t>> candidates;
     std::vector<uint32_t> kids;
     const size_t perCell = static_cast<size_t>(std::max(1, config_.candidatesPerCell));
+    size_t visited = 0;
     for (const auto& [key, rep] : order) {
       (void)key;
+      if (config_.progress && (++visited & 255u) == 0) {
+        const double inLevel = static_cast<double>(visited) / static_cast<double>(n);
+        report(stageBase_ + stageSpan_ * std::min(1.0, (level - 1 + inLevel) / std::max(1, levelsEstimate_)), stage_);
+      }
       if (done[rep]) continue;
       done[rep] = 1;
       removeItem(rep);
@@ -713,6 +887,10 @@ class Builder {
   std::vector<Event> events_;
   std::vector<glm::vec3> childPositions_, samples_;
   std::vector<uint32_t> childIndices_;
+  std::vector<uint16_t> childMaterials_;
+  const char* stage_ = "";
+  double stageBase_ = 0.0, stageSpan_ = 0.0;
+  int levelsEstimate_ = 1;
   SimplifiedMesh simplified_;
 };
 

@@ -15,8 +15,10 @@
 // - eps_c = D(children -> g_c) + max over children eps_child, where D is a sampled one-sided
 //   Hausdorff distance: the largest distance from a sample of the children's surfaces (every
 //   vertex and every triangle's centroid; at most `maxHausdorffSamples`, evenly strided) to the
-//   nearest point of the simplified complex (exact point-triangle distance through a BVH),
-//   whatever the simplifier (their own error estimates are not used). The complex is g_c's
+//   nearest point of the simplified complex (exact point-triangle distance through a BVH), and
+//   with `twoSidedHausdorff` (default, the paper's D_H) also from a sample of the simplified
+//   triangles back to the children's, whatever the simplifier (their own error estimates are
+//   not used). The complex is g_c's
 //   triangles plus, for vertex clustering only, the segments and points it made of the
 //   collapsed triangles (Rossignac-Borrel): a thin column that collapses to a segment counts as
 //   an error of about its thickness (what is lost on screen), not as its distance to the
@@ -34,6 +36,17 @@
 //   `dynamicGroupSize` (sorted by first appearance time, so a group is often entirely absent);
 //   a group's box holds its members' swept boxes and its f_c is 1 while any member is present.
 //   Groups and the virtual root are never drawn themselves.
+// - Model versions (the paper's "optional parents with simplified geometry" of dynamic objects,
+//   used for every leaf): each scene model with more than `modelLodMinTriangles` triangles gets
+//   up to `modelLodLevels` coarser versions, simplified like merged clusters to eps = the
+//   model's diagonal x 2^-(6 - k), k = 0, 1, ..., each measured (sampled one-sided Hausdorff
+//   distance from the model to the version) and kept only when it has at most 3/4 of the
+//   previous version's triangles; then, if the last has more than 12, the model's box (lattices
+//   and thin parts that edge collapses cannot remove). A version's eps is at least the previous
+//   one's. Shared by every instance (static, pseudo-dynamic, dynamic). A
+//   leaf drawn at distance d may use the coarsest version whose eps < r d (hdlod_select.h).
+// - Layout: after the build, clusters are renumbered depth-first (pre-order from the root), so
+//   a traversal reads the cluster, step and matrix arrays front to back.
 //
 // Clustering (appendix 2), once for the static and once for the pseudo-dynamic objects:
 // active = one cluster per object with at least one triangle (objects without triangles get no cluster: there is nothing to draw). For level
@@ -49,6 +62,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <string>
 #include <vector>
@@ -65,13 +79,20 @@ namespace ig::lod::hdlod {
 struct BuildConfig {
   int levels = 0;                     // L; 0 = from the scene (see above)
   int maxChildren = 8;                // children per merged cluster (>= 2)
-  double epsPerSize = 1.0 / 32.0;     // eps(l) / w(l): the simplification error target against the cluster size
+  double epsPerSize = 1.0 / 16.0;     // eps(l) / w(l): the simplification error target against the cluster size
   Simplifier simplifier = Simplifier::Meshoptimizer;  // parent geometry (lod/hdlod_simplify.h)
   uint32_t sloppyAboveTriangles = 64; // meshoptimizer: try the sloppy simplifier above this many triangles
   int maxHausdorffSamples = 4096;     // per merged cluster
   bool strictHausdorff = false;       // measure to the kept triangles only (see eps_c above)
+  bool twoSidedHausdorff = true;      // also from the simplified triangles back to the input (the paper's D_H)
   int dynamicGroupSize = 16;          // leaves per dynamic group
   int candidatesPerCell = 64;         // neighbour candidates examined per grid cell (bounds the work)
+  int modelLodLevels = 6;             // simplified versions per scene model (then its box)
+  uint32_t modelLodMinTriangles = 16; // models with at most this many triangles get none
+  // Called now and then during the build with the fraction done (0..1) and the stage ("static",
+  // "pseudo-dynamic", "dynamic", "model versions", "done"); may be empty. Not part of the
+  // cache key.
+  std::function<void(double fraction, const char* stage)> progress;
 };
 
 enum class ClusterKind : uint8_t {
@@ -102,12 +123,23 @@ struct ClusterMesh {
   glm::dvec3 origin_m{0.0};
   std::vector<glm::vec3> positions;
   std::vector<uint32_t> indices;
+  // Per triangle: the scene model it stands for (its material, for the renderer): that of the
+  // input triangle nearest to its centroid (models past 65535 share the last index).
+  std::vector<uint16_t> materials;
+};
+
+// A coarser version of a scene model, in model space.
+struct ModelLod {
+  uint32_t mesh = 0;       // into HdlodTree::meshes (origin_m = 0)
+  uint32_t triangles = 0;
+  double eps_m = 0.0;      // measured: sampled one-sided Hausdorff distance from the model to it
 };
 
 struct BuildStats {
   uint32_t staticObjects = 0, pseudoDynamicObjects = 0, dynamicObjects = 0, emptyObjects = 0;
   uint32_t mergedClusters = 0, levels = 0;
   uint64_t leafTriangles = 0, mergedTriangles = 0;
+  uint32_t modelLods = 0;  // coarser model versions made
   uint64_t hausdorffSamples = 0;
   // Over the merged clusters: D (the measured Hausdorff distance of the cluster's own
   // simplification, without the children's eps), its sum and largest value, and D / eps(l).
@@ -126,9 +158,17 @@ struct HdlodTree {
   std::vector<ClusterMesh> meshes;
   std::vector<glm::dmat4> leafMatrix;  // per cluster: Object leaves' constant matrix, Merged: translate(origin)
   std::vector<uint32_t> objectCluster; // per scene object: its leaf cluster or ~0u (no triangles)
+  // Per scene model m: its coarser versions are modelLods[modelLodBegin[m] .. modelLodBegin[m + 1]),
+  // eps increasing (modelLodBegin has models + 1 entries).
+  std::vector<uint32_t> modelLodBegin;
+  std::vector<ModelLod> modelLods;
   BuildStats stats;
 
   std::span<const uint32_t> childrenOf(const Cluster& c) const { return {children.data() + c.firstChild, c.childCount}; }
+  std::span<const ModelLod> lodsOf(uint32_t model) const {
+    if (model + 1 >= modelLodBegin.size()) return {};
+    return {modelLods.data() + modelLodBegin[model], modelLodBegin[model + 1] - modelLodBegin[model]};
+  }
 };
 
 // f_c(t), t clamped to [0, T] (NaN -> 0).

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
@@ -308,16 +309,16 @@ std::optional<Scene> parseSchedule(const std::string& text, const std::string& n
           return fail("model box: expected three finite sizes >= 0: " + line);
         }
         m = makeBoxModel(w[1], s);
-      } else if (w[2] == "obj") {
-        if (!arity(4)) return fail("model obj: expected 'model NAME obj PATH': " + line);
+      } else if (w[2] == "obj" || w[2] == "ply" || w[2] == "gltf") {
+        if (!arity(4)) return fail("model " + w[2] + ": expected 'model NAME " + w[2] + " PATH': " + line);
         const std::string p = w[3][0] == '/' ? w[3] : baseDir + w[3];
         std::string objError;
-        auto loaded = loadObj(p, objError);
+        auto loaded = w[2] == "obj" ? loadObj(p, objError) : w[2] == "ply" ? loadPly(p, objError) : loadGltf(p, objError);
         if (!loaded) return fail("model " + w[1] + ": " + objError);
         m = std::move(*loaded);
         m.name = w[1];
       } else {
-        return fail("model: unknown kind (box, obj): " + w[2]);
+        return fail("model: unknown kind (box, obj, ply, gltf): " + w[2]);
       }
       modelIndex[w[1]] = static_cast<uint32_t>(scene.models.size());
       scene.models.push_back(std::move(m));
@@ -402,6 +403,83 @@ std::optional<Scene> loadSchedule(const std::string& path, std::string& error) {
   std::ostringstream text;
   text << in.rdbuf();
   return parseSchedule(text.str(), path, dirOf(path), error);
+}
+
+namespace {
+
+bool plainName(const std::string& n) {
+  if (n.empty()) return false;
+  for (char c : n) {
+    if (c == ' ' || c == '\t' || c == '\n' || c == '\r' || c == '#' || c == '/') return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+bool saveSchedule(const Scene& scene, const std::string& path, const std::string& modelDir, std::string& error) {
+  const std::string problem = validateScene(scene);
+  if (!problem.empty()) {
+    error = path + ": cannot write an invalid scene: " + problem;
+    return false;
+  }
+  const std::string base = dirOf(path);
+  const std::string dirPrefix = modelDir.empty() ? std::string() : modelDir + "/";
+  char buf[256];
+  for (const Model& m : scene.models) {
+    if (!plainName(m.name)) {
+      error = path + ": model name '" + m.name + "': must be non-empty without blanks, '#' or '/'";
+      return false;
+    }
+    const std::string file = base + dirPrefix + m.name + ".obj";
+    std::ofstream obj(file);
+    if (!obj) {
+      error = file + ": cannot write";
+      return false;
+    }
+    obj << "# " << m.name << ": " << m.positions.size() << " vertices, " << m.triangleCount() << " triangles (igtool site)\n";
+    for (const glm::vec3& v : m.positions) {
+      std::snprintf(buf, sizeof buf, "v %.9g %.9g %.9g\n", static_cast<double>(v.x), static_cast<double>(v.y), static_cast<double>(v.z));
+      obj << buf;
+    }
+    for (size_t i = 0; i + 2 < m.indices.size(); i += 3) obj << "f " << m.indices[i] + 1 << ' ' << m.indices[i + 1] + 1 << ' ' << m.indices[i + 2] + 1 << '\n';
+    if (!obj) {
+      error = file + ": write failed";
+      return false;
+    }
+  }
+  std::ofstream out(path);
+  if (!out) {
+    error = path + ": cannot write";
+    return false;
+  }
+  out << "hdlod-schedule 1\n";
+  std::snprintf(buf, sizeof buf, "duration_s %.17g\n", scene.duration_s);
+  out << buf;
+  for (const Model& m : scene.models) out << "model " << m.name << " obj " << dirPrefix << m.name << ".obj\n";
+  for (const Object& o : scene.objects) {
+    if (!plainName(o.name)) {
+      error = path + ": object name '" + o.name + "': must be non-empty without blanks, '#' or '/'";
+      return false;
+    }
+    out << "object " << o.name << ' ' << scene.models[o.model].name << '\n';
+    for (const Keyframe& k : o.path) {
+      std::snprintf(buf, sizeof buf, "at %s %.17g %.17g %.17g %.17g %.17g\n", o.name.c_str(), k.t_s, k.position_m.x, k.position_m.y,
+                    k.position_m.z, k.heading_deg);
+      out << buf;
+    }
+    if (o.visible.empty()) out << "visible " << o.name << " never\n";
+    for (const Interval& iv : o.visible) {
+      std::snprintf(buf, sizeof buf, "visible %s %.17g %.17g\n", o.name.c_str(), iv.appear_s, iv.disappear_s);
+      out << buf;
+    }
+  }
+  out.flush();
+  if (!out) {
+    error = path + ": write failed";
+    return false;
+  }
+  return true;
 }
 
 }  // namespace ig::lod::hdlod

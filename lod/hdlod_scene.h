@@ -96,9 +96,25 @@ std::optional<Scene> loadSchedule(const std::string& path, std::string& error);
 // Parses schedule text (`name` is used in error messages, `baseDir` for model paths).
 std::optional<Scene> parseSchedule(const std::string& text, const std::string& name, const std::string& baseDir,
                                    std::string& error);
+// Writes a schedule file that loadSchedule() reads back into the same scene (numbers with 17
+// significant digits, float vertices with 9): every model as `<modelDir>/<name>.obj` next to
+// the schedule (`modelDir` relative to the schedule's folder; the folder must exist), then the
+// objects. Names must be non-empty without blanks, '#' or '/'. False + error naming the file.
+bool saveSchedule(const Scene& scene, const std::string& path, const std::string& modelDir, std::string& error);
 // A minimal Wavefront OBJ reader: `v x y z` and `f a b c ...` (polygons fanned, negative
 // indices, `a/b/c` forms); everything else ignored. Error: "file:line: what: value".
 std::optional<Model> loadObj(const std::string& path, std::string& error);
+
+// A PLY reader (lod/hdlod_models.cpp): ascii, binary_little_endian and binary_big_endian;
+// `vertex` x y z of any scalar type, `face` vertex_indices (or vertex_index) lists, polygons
+// fanned; other elements and properties skipped. Error: "file[:line]: what: value".
+std::optional<Model> loadPly(const std::string& path, std::string& error);
+// glTF 2.0 through Debian's libtinygltf (.gltf with external or data-URI buffers, .glb): the
+// triangle, strip and fan primitives of every node of the default scene, with the node
+// transforms, converted from glTF's y up to z up ((x, y, z) -> (x, -z, y)); textures ignored.
+std::optional<Model> loadGltf(const std::string& path, std::string& error);
+// By extension: .obj, .ply, .gltf, .glb (case-insensitive).
+std::optional<Model> loadModelFile(const std::string& path, std::string& error);
 
 // An axis-aligned box model (12 triangles), centred on x and y, standing on z = 0.
 Model makeBoxModel(const std::string& name, const glm::dvec3& size_m);

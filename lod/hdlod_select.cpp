@@ -1,6 +1,7 @@
 // HDLOD selection: paper 000, appendix 1 (see hdlod_select.h for the rule).
 #include "lod/hdlod_select.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace ig::lod::hdlod {
@@ -17,23 +18,64 @@ bool validView(const SelectView& v) {
          c.far_m > c.near_m && std::isfinite(c.far_m) && std::isfinite(v.time_s) && !std::isnan(v.tolerance_rad);
 }
 
+// Frustum planes with the plane-mask test: a box inside a plane's half-space passes the bit
+// down cleared, so its descendants (whose boxes lie inside it) skip that plane. The outcome of
+// each test is the same as Frustum::intersects().
+struct Planes {
+  glm::dvec4 p[6];
+  // Eye-relative box; `mask` bits: planes still to test. Returns false when outside, else
+  // updates mask.
+  bool test(const glm::dvec3& lo, const glm::dvec3& hi, uint32_t& mask) const {
+    for (uint32_t i = 0; i < 6; ++i) {
+      if (!(mask & (1u << i))) continue;
+      const glm::dvec4& q = p[i];
+      const double far = q.x * (q.x >= 0 ? hi.x : lo.x) + q.y * (q.y >= 0 ? hi.y : lo.y) + q.z * (q.z >= 0 ? hi.z : lo.z) + q.w;
+      if (far < 0.0) return false;
+      const double near = q.x * (q.x >= 0 ? lo.x : hi.x) + q.y * (q.y >= 0 ? lo.y : hi.y) + q.z * (q.z >= 0 ? lo.z : hi.z) + q.w;
+      if (near >= 0.0) mask &= ~(1u << i);
+    }
+    return true;
+  }
+};
+
+double distance2ToBox(const Aabb& box, const glm::dvec3& p) {
+  const glm::dvec3 d = glm::max(glm::max(box.min - p, p - box.max), glm::dvec3(0.0));
+  return d.x * d.x + d.y * d.y + d.z * d.z;
+}
+
 struct Traversal {
   const HdlodTree& tree;
   const Scene& scene;
-  Frustum frustum;
+  Planes planes;
   glm::dvec3 eye;
-  double t, r;
+  double t, r, r2;
   bool all;  // selectAll(): draw every present leaf in the frustum
   std::span<Draw> out;
   SelectStats stats;
   size_t written = 0;
 
-  bool inFrustum(const Aabb& box) const { return frustum.intersects(Aabb{box.min - eye, box.max - eye}); }
+  // f_c(t), t already clamped: the step functions are short (leaves: at most a few steps).
+  double presence(const Cluster& c) const {
+    if (c.stepCount == 0) return 0.0;
+    const double* times = tree.stepTimes.data() + c.stepBegin;
+    uint32_t i = 0;
+    if (c.stepCount <= 16) {
+      while (i + 1 < c.stepCount && times[i + 1] <= t) ++i;
+    } else {
+      const double* it = std::upper_bound(times, times + c.stepCount, t);
+      i = it == times ? 0 : static_cast<uint32_t>(it - times) - 1;
+    }
+    return tree.stepValues[c.stepBegin + i];
+  }
 
-  void emit(uint32_t id, const glm::dmat4& m, uint32_t triangles) {
+  bool inFrustum(const Aabb& box, uint32_t& mask) const { return mask == 0 || planes.test(box.min - eye, box.max - eye, mask); }
+
+  void emit(uint32_t id, uint32_t lod, const glm::dmat4& m, uint32_t triangles) {
     if (written < out.size()) {
-      out[written].cluster = id;
-      out[written].model = m;
+      Draw& d = out[written];
+      d.cluster = id;
+      d.lod = lod;
+      d.model = m;
       ++written;
     } else {
       stats.overflow = true;
@@ -42,44 +84,69 @@ struct Traversal {
     stats.triangles += triangles;
   }
 
-  void visit(uint32_t id) {
+  // A leaf: the coarsest version of its model whose eps < r * distance (0 = the model itself).
+  void emitLeaf(uint32_t id, const Cluster& c, const Aabb& box, const glm::dmat4& m) {
+    uint32_t lod = 0, triangles = c.triangles;
+    if (!all && r > 0.0) {
+      const auto lods = tree.lodsOf(c.mesh);
+      if (!lods.empty()) {
+        const double d2 = distance2ToBox(box, eye);
+        for (size_t k = 0; k < lods.size(); ++k) {
+          if (!(lods[k].eps_m * lods[k].eps_m < r2 * d2)) break;
+          lod = static_cast<uint32_t>(k + 1);
+          triangles = lods[k].triangles;
+        }
+      }
+    }
+    emit(id, lod, m, triangles);
+  }
+
+  void visit(uint32_t id, uint32_t mask) {
     const Cluster& c = tree.clusters[id];
     ++stats.visited;
-    const double f = clusterPresence(tree, c, t);
+    const double f = presence(c);
     if (f == 0.0) {
       ++stats.absent;
       return;
     }
     if (c.kind == ClusterKind::Dynamic) {
-      const Object& o = scene.objects[c.object];
-      const glm::dmat4 m = objectMatrix(o, t, tree.duration_s);
-      if (!inFrustum(transformBox(scene.models[o.model].box, m))) {
+      // The swept box first (it holds the object at every time), then the box where it is now.
+      if (!inFrustum(c.box, mask)) {
         ++stats.culled;
         return;
       }
-      emit(id, m, c.triangles);
+      const Object& o = scene.objects[c.object];
+      const glm::dmat4 m = objectMatrix(o, t, tree.duration_s);
+      const Aabb box = transformBox(scene.models[o.model].box, m);
+      if (!inFrustum(box, mask)) {
+        ++stats.culled;
+        return;
+      }
+      emitLeaf(id, c, box, m);
       return;
     }
-    if (!inFrustum(c.box)) {
+    if (!inFrustum(c.box, mask)) {
       ++stats.culled;
       return;
     }
     if (c.kind == ClusterKind::Object) {
-      emit(id, tree.leafMatrix[id], c.triangles);
+      emitLeaf(id, c, c.box, tree.leafMatrix[id]);
       return;
     }
     if (c.kind == ClusterKind::Merged && !all) {
+      // delta < r * distance, squared (both sides >= 0; distance 0 is never good enough).
       const double delta = c.eps_m + c.size_m * (1.0 - std::abs(2.0 * f - 1.0));
-      if (delta < r * distanceToBox(c.box, eye)) {
+      if (delta * delta < r2 * distance2ToBox(c.box, eye)) {
         if (f >= 0.5) {
-          emit(id, tree.leafMatrix[id], c.triangles);
+          emit(id, 0, tree.leafMatrix[id], c.triangles);
         } else {
           ++stats.halfSkipped;
         }
         return;
       }
     }
-    for (uint32_t child : tree.childrenOf(c)) visit(child);
+    const uint32_t end = c.firstChild + c.childCount;
+    for (uint32_t k = c.firstChild; k < end; ++k) visit(tree.children[k], mask);
   }
 };
 
@@ -92,9 +159,12 @@ size_t run(const HdlodTree& tree, const Scene& scene, const SelectView& view, st
     }
     return 0;
   }
-  Traversal tr{tree, scene, makeFrustum(view.camera), view.camera.eye_m, clampTime(view.time_s, tree.duration_s),
-               view.tolerance_rad > 0.0 ? view.tolerance_rad : 0.0, all, out, SelectStats{}, 0};
-  tr.visit(tree.root);
+  const Frustum fr = makeFrustum(view.camera);
+  Planes planes;
+  for (int i = 0; i < 6; ++i) planes.p[i] = fr.planes[static_cast<size_t>(i)];
+  const double r = view.tolerance_rad > 0.0 ? view.tolerance_rad : 0.0;
+  Traversal tr{tree, scene, planes, view.camera.eye_m, clampTime(view.time_s, tree.duration_s), r, r * r, all, out, SelectStats{}, 0};
+  tr.visit(tree.root, 0x3fu);
   if (stats) *stats = tr.stats;
   return tr.written;
 }

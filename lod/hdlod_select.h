@@ -5,7 +5,9 @@
 //   f_c(t) == 0                          -> skip the subtree (nothing of it is present)
 //   box outside the view frustum         -> skip the subtree (dynamic leaves: the model box
 //                                           moved to p_s(t); others: b_c)
-//   leaf (an object)                     -> draw it (its error is 0: nothing finer exists)
+//   leaf (an object)                     -> draw it (its error is 0: nothing finer exists), with
+//                                           the coarsest version of its model whose measured
+//                                           eps < r * distance(eye, box) (hdlod_build.h)
 //   group (virtual root, dynamic group)  -> recurse
 //   delta_c(t) < r * distance(eye, b_c)  -> good enough: draw g_c if f_c(t) >= 0.5, else skip
 //                                           the whole subtree (most of it is absent)
@@ -21,7 +23,8 @@
 // returned. A draw of an Object or Dynamic cluster draws the scene model `cluster.mesh` with the
 // matrix; a Merged cluster draws HdlodTree::meshes[cluster.mesh] with translate(origin). When
 // the span is full, further draws are counted in stats but not written (size it with
-// drawBound()). No allocation, no clock; recursion depth = tree depth.
+// drawBound()). No allocation, no clock; recursion depth = tree depth. A box found inside a
+// frustum plane is not tested against it again below (plane masking: same outcome, fewer tests).
 //
 // Bad input: a non-finite camera, time or tolerance, a field of view outside (0, 180) degrees, a
 // non-positive aspect, or not 0 < near < far selects nothing and sets stats.rejected. A negative
@@ -42,6 +45,9 @@ namespace ig::lod::hdlod {
 
 struct Draw {
   uint32_t cluster = 0;
+  // Object / Dynamic leaves: 0 = the scene model itself, k > 0 = its k-th coarser version
+  // (HdlodTree::lodsOf(cluster.mesh)[k - 1]); always 0 for merged clusters.
+  uint32_t lod = 0;
   glm::dmat4 model{1.0};  // world matrix (double; the renderer makes it camera-relative)
 };
 

@@ -225,12 +225,13 @@ TEST(ConfigPaths, EmptyStatsFileMeansNoStatsFile) {
 }
 
 TEST(ConfigPaths, LayerFilesResolvedButNotRequiredToExist) {
-  const SceneConfig cfg = parseSceneOk("[forest]\nfile = \"trees/a.trees\"\n[hdlod]\nfile = \"/abs/h.hd\"\n",
-                                       "/scenes");
+  const SceneConfig cfg = parseSceneOk(
+      "[forest]\nfile = \"trees/a.trees\"\n[hdlod]\nschedule = \"/abs/h.sched\"\ncache = \"cache/h.bin\"\n", "/scenes");
   ASSERT_TRUE(cfg.forest.has_value());
   ASSERT_TRUE(cfg.hdlod.has_value());
   EXPECT_EQ(cfg.forest->file, "/scenes/trees/a.trees");
-  EXPECT_EQ(cfg.hdlod->file, "/abs/h.hd");
+  EXPECT_EQ(cfg.hdlod->schedule, "/abs/h.sched");
+  EXPECT_EQ(cfg.hdlod->cache, "/scenes/cache/h.bin");
 }
 
 TEST(ConfigPaths, LoadResolvesAgainstTheFilesFolder) {
@@ -446,8 +447,15 @@ TEST(ConfigErrors, LayerTableWithoutFile) {
   EXPECT_EQ(e.line, 2);
   e = sceneError("[hdlod]\nfiles = \"x\"\n");
   EXPECT_EQ(e.key, "hdlod.files");  // unknown key is reported before the missing one
-  e = sceneError("[hdlod]\n");
-  EXPECT_EQ(e.key, "hdlod.file");
+  e = sceneError("[hdlod]\nsimplifier = \"qslim\"\n");
+  EXPECT_EQ(e.key, "hdlod.simplifier");
+  e = sceneError("[hdlod]\ntolerance_px = 0\n");
+  EXPECT_EQ(e.key, "hdlod.tolerance_px");
+  // An empty [hdlod] table is the synthetic construction site.
+  const SceneConfig site = parseSceneOk("[hdlod]\n", "/scenes");
+  ASSERT_TRUE(site.hdlod.has_value());
+  EXPECT_EQ(site.hdlod->schedule, "");
+  EXPECT_EQ(site.hdlod->siteScale, 0.25);
 }
 
 TEST(ConfigErrors, TomlSyntaxErrorHasLine) {

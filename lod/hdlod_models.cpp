@@ -1,0 +1,439 @@
+// HDLOD model files beyond OBJ: PLY (own reader) and glTF 2.0 (Debian's libtinygltf). See
+// hdlod_scene.h.
+#include <tiny_gltf.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+
+#include <glm/gtc/quaternion.hpp>
+#include <glm/gtc/type_ptr.hpp>
+#include <glm/mat4x4.hpp>
+
+#include "lod/hdlod_scene.h"
+
+namespace ig::lod::hdlod {
+namespace {
+
+Model finish(Model m) {
+  Scene tmp;
+  tmp.models.push_back(std::move(m));
+  computeModelBoxes(tmp);
+  return std::move(tmp.models[0]);
+}
+
+bool endsWith(const std::string& s, const char* suffix) {
+  const size_t n = std::strlen(suffix);
+  if (s.size() < n) return false;
+  for (size_t i = 0; i < n; ++i) {
+    if (std::tolower(static_cast<unsigned char>(s[s.size() - n + i])) != suffix[i]) return false;
+  }
+  return true;
+}
+
+// ---------------------------------------------------------------- PLY
+
+enum class PlyType : uint8_t { I8, U8, I16, U16, I32, U32, F32, F64 };
+
+bool plyType(const std::string& name, PlyType& t) {
+  static const std::pair<const char*, PlyType> kTypes[] = {
+      {"char", PlyType::I8},     {"int8", PlyType::I8},      {"uchar", PlyType::U8},   {"uint8", PlyType::U8},
+      {"short", PlyType::I16},   {"int16", PlyType::I16},    {"ushort", PlyType::U16}, {"uint16", PlyType::U16},
+      {"int", PlyType::I32},     {"int32", PlyType::I32},    {"uint", PlyType::U32},   {"uint32", PlyType::U32},
+      {"float", PlyType::F32},   {"float32", PlyType::F32},  {"double", PlyType::F64}, {"float64", PlyType::F64},
+  };
+  for (const auto& [n, v] : kTypes) {
+    if (name == n) {
+      t = v;
+      return true;
+    }
+  }
+  return false;
+}
+
+size_t plySize(PlyType t) {
+  switch (t) {
+    case PlyType::I8:
+    case PlyType::U8: return 1;
+    case PlyType::I16:
+    case PlyType::U16: return 2;
+    case PlyType::I32:
+    case PlyType::U32:
+    case PlyType::F32: return 4;
+    case PlyType::F64: return 8;
+  }
+  return 1;
+}
+
+struct PlyProperty {
+  std::string name;
+  PlyType type = PlyType::F32;
+  bool list = false;
+  PlyType countType = PlyType::U8;
+};
+
+struct PlyElement {
+  std::string name;
+  uint64_t count = 0;
+  std::vector<PlyProperty> properties;
+};
+
+// Reads values from the body: ASCII tokens or binary of either byte order.
+class PlyBody {
+ public:
+  PlyBody(const std::string& data, size_t at, int format) : data_(data), at_(at), format_(format) {}
+  bool read(PlyType t, double& out) {
+    if (format_ == 0) {
+      while (at_ < data_.size() && std::isspace(static_cast<unsigned char>(data_[at_]))) ++at_;
+      if (at_ >= data_.size()) return false;
+      const char* begin = data_.c_str() + at_;
+      char* end = nullptr;
+      out = std::strtod(begin, &end);
+      if (end == begin) return false;
+      at_ += static_cast<size_t>(end - begin);
+      return std::isfinite(out);
+    }
+    const size_t n = plySize(t);
+    if (at_ + n > data_.size()) return false;
+    unsigned char b[8];
+    std::memcpy(b, data_.data() + at_, n);
+    at_ += n;
+    if (format_ == 2) std::reverse(b, b + n);
+    switch (t) {
+      case PlyType::I8: out = static_cast<int8_t>(b[0]); break;
+      case PlyType::U8: out = b[0]; break;
+      case PlyType::I16: { int16_t v; std::memcpy(&v, b, 2); out = v; break; }
+      case PlyType::U16: { uint16_t v; std::memcpy(&v, b, 2); out = v; break; }
+      case PlyType::I32: { int32_t v; std::memcpy(&v, b, 4); out = v; break; }
+      case PlyType::U32: { uint32_t v; std::memcpy(&v, b, 4); out = v; break; }
+      case PlyType::F32: { float v; std::memcpy(&v, b, 4); out = static_cast<double>(v); break; }
+      case PlyType::F64: { double v; std::memcpy(&v, b, 8); out = v; break; }
+    }
+    return std::isfinite(out);
+  }
+  size_t remaining() const { return data_.size() - at_; }
+
+ private:
+  const std::string& data_;
+  size_t at_;
+  int format_;  // 0 ascii, 1 binary little endian, 2 binary big endian
+};
+
+// ---------------------------------------------------------------- glTF
+
+glm::dmat4 nodeMatrix(const tinygltf::Node& n) {
+  if (n.matrix.size() == 16) return glm::make_mat4(n.matrix.data());
+  glm::dmat4 m(1.0);
+  if (n.translation.size() == 3) m[3] = glm::dvec4(n.translation[0], n.translation[1], n.translation[2], 1.0);
+  if (n.rotation.size() == 4) m = m * glm::mat4_cast(glm::dquat(n.rotation[3], n.rotation[0], n.rotation[1], n.rotation[2]));
+  if (n.scale.size() == 3) {
+    m[0] *= n.scale[0];
+    m[1] *= n.scale[1];
+    m[2] *= n.scale[2];
+  }
+  return m;
+}
+
+// The element data of an accessor: pointer, stride and count, or false when out of range.
+bool accessorData(const tinygltf::Model& g, int index, int wantComponents, const unsigned char*& data, size_t& stride,
+                  size_t& count, int& componentType, std::string& why) {
+  if (index < 0 || static_cast<size_t>(index) >= g.accessors.size()) {
+    why = "accessor " + std::to_string(index) + " out of range";
+    return false;
+  }
+  const tinygltf::Accessor& a = g.accessors[static_cast<size_t>(index)];
+  if (a.sparse.isSparse) {
+    why = "sparse accessor " + std::to_string(index) + " (not supported)";
+    return false;
+  }
+  const int components = tinygltf::GetNumComponentsInType(static_cast<uint32_t>(a.type));
+  if (components != wantComponents || a.bufferView < 0 || static_cast<size_t>(a.bufferView) >= g.bufferViews.size()) {
+    why = "accessor " + std::to_string(index) + ": unexpected type or buffer view";
+    return false;
+  }
+  const tinygltf::BufferView& v = g.bufferViews[static_cast<size_t>(a.bufferView)];
+  if (v.buffer < 0 || static_cast<size_t>(v.buffer) >= g.buffers.size()) {
+    why = "buffer view " + std::to_string(a.bufferView) + ": no buffer";
+    return false;
+  }
+  const tinygltf::Buffer& b = g.buffers[static_cast<size_t>(v.buffer)];
+  const int componentBytes = tinygltf::GetComponentSizeInBytes(static_cast<uint32_t>(a.componentType));
+  if (componentBytes <= 0) {
+    why = "accessor " + std::to_string(index) + ": bad component type";
+    return false;
+  }
+  const size_t element = static_cast<size_t>(componentBytes) * static_cast<size_t>(components);
+  stride = v.byteStride ? v.byteStride : element;
+  count = a.count;
+  const size_t begin = v.byteOffset + a.byteOffset;
+  if (count > 0 && (begin + (count - 1) * stride + element > b.data.size() || begin + (count - 1) * stride + element > v.byteOffset + v.byteLength)) {
+    why = "accessor " + std::to_string(index) + ": data past the end of its buffer";
+    return false;
+  }
+  data = b.data.data() + begin;
+  componentType = a.componentType;
+  return true;
+}
+
+bool skipImages(tinygltf::Image*, const int, std::string*, std::string*, int, int, const unsigned char*, int, void*) { return true; }
+
+}  // namespace
+
+std::optional<Model> loadPly(const std::string& path, std::string& error) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    error = path + ": cannot open";
+    return std::nullopt;
+  }
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  const std::string data = ss.str();
+  // Header.
+  size_t at = 0;
+  int lineNo = 0, format = -1;
+  std::vector<PlyElement> elements;
+  auto fail = [&](const std::string& what) {
+    error = path + ":" + std::to_string(lineNo) + ": " + what;
+    return std::nullopt;
+  };
+  bool ended = false;
+  while (!ended) {
+    const size_t eol = data.find('\n', at);
+    if (eol == std::string::npos) {
+      ++lineNo;
+      return fail("no 'end_header'");
+    }
+    std::string line = data.substr(at, eol - at);
+    at = eol + 1;
+    ++lineNo;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    std::istringstream ls(line);
+    std::string word;
+    ls >> word;
+    if (lineNo == 1) {
+      if (word != "ply") return fail("not a PLY file (first line '" + line + "')");
+      continue;
+    }
+    if (word == "format") {
+      std::string f;
+      ls >> f;
+      format = f == "ascii" ? 0 : f == "binary_little_endian" ? 1 : f == "binary_big_endian" ? 2 : -2;
+      if (format == -2) return fail("unknown format: " + f);
+    } else if (word == "element") {
+      PlyElement e;
+      long long count = -1;
+      ls >> e.name >> count;
+      if (e.name.empty() || count < 0) return fail("bad element line: " + line);
+      e.count = static_cast<uint64_t>(count);
+      elements.push_back(e);
+    } else if (word == "property") {
+      if (elements.empty()) return fail("property before any element: " + line);
+      PlyProperty p;
+      std::string type;
+      ls >> type;
+      if (type == "list") {
+        std::string countType, itemType;
+        ls >> countType >> itemType >> p.name;
+        if (!plyType(countType, p.countType) || !plyType(itemType, p.type)) return fail("unknown list type: " + line);
+        p.list = true;
+      } else {
+        ls >> p.name;
+        if (!plyType(type, p.type)) return fail("unknown property type: " + type);
+      }
+      elements.back().properties.push_back(p);
+    } else if (word == "end_header") {
+      ended = true;
+    } else if (word != "comment" && word != "obj_info" && !word.empty()) {
+      return fail("unknown header line: " + line);
+    }
+  }
+  if (format < 0) return fail("missing 'format' line");
+  PlyBody body(data, at, format);
+  Model m;
+  m.name = path;
+  for (const PlyElement& e : elements) {
+    const bool isVertex = e.name == "vertex", isFace = e.name == "face";
+    if (e.count > body.remaining() + 1) {
+      error = path + ": element " + e.name + ": count " + std::to_string(e.count) + " larger than the file";
+      return std::nullopt;
+    }
+    int xi = -1, yi = -1, zi = -1;
+    for (size_t k = 0; k < e.properties.size(); ++k) {
+      const std::string& n = e.properties[k].name;
+      if (n == "x") xi = static_cast<int>(k);
+      if (n == "y") yi = static_cast<int>(k);
+      if (n == "z") zi = static_cast<int>(k);
+    }
+    if (isVertex && (xi < 0 || yi < 0 || zi < 0)) {
+      error = path + ": element vertex without x, y and z properties";
+      return std::nullopt;
+    }
+    std::vector<uint32_t> face;
+    for (uint64_t i = 0; i < e.count; ++i) {
+      double xyz[3] = {0, 0, 0};
+      for (size_t k = 0; k < e.properties.size(); ++k) {
+        const PlyProperty& p = e.properties[k];
+        if (!p.list) {
+          double v = 0;
+          if (!body.read(p.type, v)) {
+            error = path + ": element " + e.name + " " + std::to_string(i) + ": property " + p.name + ": truncated or not a number";
+            return std::nullopt;
+          }
+          if (static_cast<int>(k) == xi) xyz[0] = v;
+          if (static_cast<int>(k) == yi) xyz[1] = v;
+          if (static_cast<int>(k) == zi) xyz[2] = v;
+          continue;
+        }
+        double n = 0;
+        if (!body.read(p.countType, n) || n < 0 || n > 1e6) {
+          error = path + ": element " + e.name + " " + std::to_string(i) + ": bad list length";
+          return std::nullopt;
+        }
+        const bool indices = isFace && (p.name == "vertex_indices" || p.name == "vertex_index");
+        face.clear();
+        for (int j = 0; j < static_cast<int>(n); ++j) {
+          double v = 0;
+          if (!body.read(p.type, v)) {
+            error = path + ": element " + e.name + " " + std::to_string(i) + ": list truncated";
+            return std::nullopt;
+          }
+          if (!indices) continue;
+          if (v < 0 || v >= static_cast<double>(m.positions.size()) || v != std::floor(v)) {
+            error = path + ": face " + std::to_string(i) + ": bad vertex index " + std::to_string(static_cast<long long>(v)) + " (" +
+                    std::to_string(m.positions.size()) + " vertices)";
+            return std::nullopt;
+          }
+          face.push_back(static_cast<uint32_t>(v));
+        }
+        for (size_t j = 2; j < face.size(); ++j) m.indices.insert(m.indices.end(), {face[0], face[j - 1], face[j]});
+      }
+      if (isVertex) m.positions.emplace_back(static_cast<float>(xyz[0]), static_cast<float>(xyz[1]), static_cast<float>(xyz[2]));
+    }
+  }
+  return finish(std::move(m));
+}
+
+std::optional<Model> loadGltf(const std::string& path, std::string& error) {
+  tinygltf::TinyGLTF loader;
+  loader.SetImageLoader(&skipImages, nullptr);
+  tinygltf::Model g;
+  std::string err, warn;
+  const bool ok = endsWith(path, ".glb") ? loader.LoadBinaryFromFile(&g, &err, &warn, path) : loader.LoadASCIIFromFile(&g, &err, &warn, path);
+  if (!ok) {
+    while (!err.empty() && (err.back() == '\n' || err.back() == '\r')) err.pop_back();
+    error = path + ": cannot load glTF: " + (err.empty() ? std::string("unknown error") : err);
+    return std::nullopt;
+  }
+  // glTF is y up; ours z up (x east, y north): (x, y, z) -> (x, -z, y).
+  const glm::dmat4 yUpToZUp(glm::dvec4(1, 0, 0, 0), glm::dvec4(0, 0, 1, 0), glm::dvec4(0, -1, 0, 0), glm::dvec4(0, 0, 0, 1));
+  Model m;
+  m.name = path;
+  std::string why;
+  std::vector<std::pair<int, glm::dmat4>> stack;
+  std::vector<int> roots;
+  if (!g.scenes.empty()) {
+    const size_t s = g.defaultScene >= 0 && static_cast<size_t>(g.defaultScene) < g.scenes.size() ? static_cast<size_t>(g.defaultScene) : 0;
+    roots = g.scenes[s].nodes;
+  } else {
+    for (size_t i = 0; i < g.nodes.size(); ++i) roots.push_back(static_cast<int>(i));
+  }
+  for (int r : roots) stack.emplace_back(r, yUpToZUp);
+  size_t visited = 0;
+  while (!stack.empty()) {
+    const auto [index, parent] = stack.back();
+    stack.pop_back();
+    if (index < 0 || static_cast<size_t>(index) >= g.nodes.size() || ++visited > 1000000) {
+      error = path + ": bad node index " + std::to_string(index) + " (or a cycle)";
+      return std::nullopt;
+    }
+    const tinygltf::Node& node = g.nodes[static_cast<size_t>(index)];
+    const glm::dmat4 world = parent * nodeMatrix(node);
+    for (int c : node.children) stack.emplace_back(c, world);
+    if (node.mesh < 0) continue;
+    if (static_cast<size_t>(node.mesh) >= g.meshes.size()) {
+      error = path + ": node " + std::to_string(index) + ": bad mesh index " + std::to_string(node.mesh);
+      return std::nullopt;
+    }
+    for (const tinygltf::Primitive& prim : g.meshes[static_cast<size_t>(node.mesh)].primitives) {
+      const int mode = prim.mode < 0 ? TINYGLTF_MODE_TRIANGLES : prim.mode;
+      if (mode != TINYGLTF_MODE_TRIANGLES && mode != TINYGLTF_MODE_TRIANGLE_STRIP && mode != TINYGLTF_MODE_TRIANGLE_FAN) continue;
+      const auto pos = prim.attributes.find("POSITION");
+      if (pos == prim.attributes.end()) continue;
+      const unsigned char* pdata = nullptr;
+      size_t pstride = 0, pcount = 0;
+      int ptype = 0;
+      if (!accessorData(g, pos->second, 3, pdata, pstride, pcount, ptype, why) || ptype != TINYGLTF_COMPONENT_TYPE_FLOAT) {
+        error = path + ": " + (why.empty() ? "POSITION is not float" : why);
+        return std::nullopt;
+      }
+      const uint32_t base = static_cast<uint32_t>(m.positions.size());
+      for (size_t i = 0; i < pcount; ++i) {
+        float p[3];
+        std::memcpy(p, pdata + i * pstride, sizeof p);
+        const glm::dvec4 w = world * glm::dvec4(p[0], p[1], p[2], 1.0);
+        if (!std::isfinite(w.x) || !std::isfinite(w.y) || !std::isfinite(w.z)) {
+          error = path + ": vertex " + std::to_string(i) + " not finite";
+          return std::nullopt;
+        }
+        m.positions.emplace_back(static_cast<float>(w.x), static_cast<float>(w.y), static_cast<float>(w.z));
+      }
+      std::vector<uint32_t> idx;
+      if (prim.indices >= 0) {
+        const unsigned char* idata = nullptr;
+        size_t istride = 0, icount = 0;
+        int itype = 0;
+        if (!accessorData(g, prim.indices, 1, idata, istride, icount, itype, why)) {
+          error = path + ": " + why;
+          return std::nullopt;
+        }
+        for (size_t i = 0; i < icount; ++i) {
+          uint32_t v = 0;
+          if (itype == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE) {
+            v = idata[i * istride];
+          } else if (itype == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT) {
+            uint16_t s;
+            std::memcpy(&s, idata + i * istride, 2);
+            v = s;
+          } else if (itype == TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT) {
+            std::memcpy(&v, idata + i * istride, 4);
+          } else {
+            error = path + ": index accessor " + std::to_string(prim.indices) + ": bad component type";
+            return std::nullopt;
+          }
+          if (v >= pcount) {
+            error = path + ": index " + std::to_string(v) + " past the " + std::to_string(pcount) + " vertices of its primitive";
+            return std::nullopt;
+          }
+          idx.push_back(v);
+        }
+      } else {
+        for (size_t i = 0; i < pcount; ++i) idx.push_back(static_cast<uint32_t>(i));
+      }
+      if (mode == TINYGLTF_MODE_TRIANGLES) {
+        for (size_t i = 0; i + 2 < idx.size(); i += 3) m.indices.insert(m.indices.end(), {base + idx[i], base + idx[i + 1], base + idx[i + 2]});
+      } else if (mode == TINYGLTF_MODE_TRIANGLE_STRIP) {
+        for (size_t i = 2; i < idx.size(); ++i) {
+          const bool odd = (i & 1) != 0;
+          m.indices.insert(m.indices.end(), {base + idx[odd ? i - 1 : i - 2], base + idx[odd ? i - 2 : i - 1], base + idx[i]});
+        }
+      } else {
+        for (size_t i = 2; i < idx.size(); ++i) m.indices.insert(m.indices.end(), {base + idx[0], base + idx[i - 1], base + idx[i]});
+      }
+    }
+  }
+  // A rotation or mirror in the node matrices can turn triangles inside out; the renderer
+  // shades both sides, so the winding is kept as is.
+  return finish(std::move(m));
+}
+
+std::optional<Model> loadModelFile(const std::string& path, std::string& error) {
+  if (endsWith(path, ".obj")) return loadObj(path, error);
+  if (endsWith(path, ".ply")) return loadPly(path, error);
+  if (endsWith(path, ".gltf") || endsWith(path, ".glb")) return loadGltf(path, error);
+  error = path + ": unknown model format (.obj, .ply, .gltf, .glb)";
+  return std::nullopt;
+}
+
+}  // namespace ig::lod::hdlod

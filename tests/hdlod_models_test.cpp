@@ -1,0 +1,144 @@
+// lod/hdlod_models: PLY (ascii with a quad fanned, binary little and big endian with extra
+// properties skipped, bad index / truncated / not PLY named with the file) and glTF 2.0 (a
+// data-URI buffer, node transforms, y up -> z up, bad files named), and schedules binding them.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstring>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "lod/hdlod_scene.h"
+
+using namespace ig::lod::hdlod;
+
+namespace {
+
+std::string tempPath(const std::string& name) { return std::string(IG_BINARY_DIR) + "/hdlod_models_test_" + name; }
+
+std::string writeFile(const std::string& name, const std::string& bytes) {
+  const std::string path = tempPath(name);
+  std::ofstream(path, std::ios::binary) << bytes;
+  return path;
+}
+
+template <typename T>
+void put(std::string& s, T v, bool bigEndian) {
+  char b[sizeof(T)];
+  std::memcpy(b, &v, sizeof v);
+  if (bigEndian) std::reverse(b, b + sizeof v);
+  s.append(b, sizeof v);
+}
+
+// A triangle (0,0,0) (1,0,0) (0,1,0) in glTF's y-up frame, indices as unsigned shorts, under a
+// node translated by (10, 0, 0) whose child is translated by (0, 5, 0).
+const char* kGltf = R"({
+  "asset": {"version": "2.0"},
+  "scene": 0,
+  "scenes": [{"nodes": [0]}],
+  "nodes": [{"translation": [10, 0, 0], "children": [1]}, {"translation": [0, 5, 0], "mesh": 0}],
+  "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+  "buffers": [{"byteLength": 44, "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAABAAIAAAA="}],
+  "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 6}],
+  "accessors": [
+    {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+    {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}
+  ]
+})";
+
+}  // namespace
+
+TEST(HdlodModels, PlyAsciiQuadIsFanned) {
+  const std::string path = writeFile("quad.ply",
+                                     "ply\nformat ascii 1.0\ncomment a unit quad\nelement vertex 4\nproperty float x\nproperty float y\n"
+                                     "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+                                     "0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n");
+  std::string error;
+  const auto m = loadPly(path, error);
+  ASSERT_TRUE(m) << error;
+  EXPECT_EQ(m->positions.size(), 4u);
+  EXPECT_EQ(m->indices, (std::vector<uint32_t>{0, 1, 2, 0, 2, 3}));
+  EXPECT_EQ(m->box.max, glm::dvec3(1, 1, 0));
+}
+
+TEST(HdlodModels, PlyBinaryBothByteOrdersSkipOtherProperties) {
+  for (bool big : {false, true}) {
+    std::string s = std::string("ply\nformat ") + (big ? "binary_big_endian" : "binary_little_endian") +
+                    " 1.0\nelement vertex 3\nproperty double x\nproperty double y\nproperty double z\nproperty uchar red\n"
+                    "element face 1\nproperty uchar flags\nproperty list uchar uint vertex_index\nend_header\n";
+    const double v[3][3] = {{0, 0, 0}, {2, 0, 0}, {0, 0, 3}};
+    for (const auto& p : v) {
+      for (double c : p) put(s, c, big);
+      put<uint8_t>(s, 200, big);
+    }
+    put<uint8_t>(s, 7, big);
+    put<uint8_t>(s, 3, big);
+    for (uint32_t i : {2u, 1u, 0u}) put(s, i, big);
+    std::string error;
+    const auto m = loadPly(writeFile(big ? "be.ply" : "le.ply", s), error);
+    ASSERT_TRUE(m) << error;
+    EXPECT_EQ(m->indices, (std::vector<uint32_t>{2, 1, 0})) << big;
+    EXPECT_EQ(m->box.max, glm::dvec3(2, 0, 3)) << big;
+  }
+}
+
+TEST(HdlodModels, PlyErrorsNameTheFileAndValue) {
+  std::string error;
+  const std::string head = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                           "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n";
+  const std::string badIndex = writeFile("badindex.ply", head + "3 0 1 7\n");
+  EXPECT_FALSE(loadPly(badIndex, error));
+  EXPECT_NE(error.find(badIndex), std::string::npos) << error;
+  EXPECT_NE(error.find("bad vertex index 7"), std::string::npos) << error;
+  EXPECT_FALSE(loadPly(writeFile("truncated.ply", head + "3 0 1\n"), error));
+  EXPECT_NE(error.find("truncated"), std::string::npos) << error;
+  EXPECT_FALSE(loadPly(writeFile("notply.ply", "solid x\n"), error));
+  EXPECT_NE(error.find("not a PLY file"), std::string::npos) << error;
+  EXPECT_FALSE(loadPly(writeFile("noend.ply", "ply\nformat ascii 1.0\n"), error));
+  EXPECT_NE(error.find("end_header"), std::string::npos) << error;
+  EXPECT_FALSE(loadPly(writeFile("nan.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+                                            "property float z\nend_header\n0 nan 0\n"),
+                       error));
+  EXPECT_FALSE(loadPly(tempPath("missing.ply"), error));
+  EXPECT_NE(error.find("cannot open"), std::string::npos) << error;
+}
+
+TEST(HdlodModels, GltfNodesTransformedToZUp) {
+  std::string error;
+  const auto m = loadGltf(writeFile("tri.gltf", kGltf), error);
+  ASSERT_TRUE(m) << error;
+  ASSERT_EQ(m->positions.size(), 3u);
+  EXPECT_EQ(m->indices, (std::vector<uint32_t>{0, 1, 2}));
+  // glTF (x, y, z) + (10, 5, 0) -> ours (x, -z, y).
+  EXPECT_EQ(m->positions[0], glm::vec3(10, 0, 5));
+  EXPECT_EQ(m->positions[1], glm::vec3(11, 0, 5));
+  EXPECT_EQ(m->positions[2], glm::vec3(10, 0, 6));
+  // Through a schedule, and loadModelFile by extension.
+  const std::string sched = writeFile("gltf.sched",
+                                      "hdlod-schedule 1\nduration_s 10\nmodel tri gltf hdlod_models_test_tri.gltf\n"
+                                      "model quad ply hdlod_models_test_quad.ply\nobject a tri\nat a 0 0 0 0 0\n");
+  writeFile("quad.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                        "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+  const auto scene = loadSchedule(sched, error);
+  ASSERT_TRUE(scene) << error;
+  EXPECT_EQ(scene->models[0].triangleCount(), 1u);
+  EXPECT_EQ(scene->models[1].triangleCount(), 1u);
+  EXPECT_TRUE(loadModelFile(tempPath("tri.gltf"), error)) << error;
+  EXPECT_FALSE(loadModelFile(tempPath("tri.stl"), error));
+  EXPECT_NE(error.find("unknown model format"), std::string::npos) << error;
+}
+
+TEST(HdlodModels, GltfErrorsNameTheFile) {
+  std::string error;
+  const std::string notJson = writeFile("bad.gltf", "{ not json");
+  EXPECT_FALSE(loadGltf(notJson, error));
+  EXPECT_NE(error.find(notJson), std::string::npos) << error;
+  std::string bad = kGltf;
+  bad.replace(bad.find("\"count\": 3, \"type\": \"SCALAR\""), std::strlen("\"count\": 3, \"type\": \"SCALAR\""),
+              "\"count\": 30, \"type\": \"SCALAR\"");
+  EXPECT_FALSE(loadGltf(writeFile("overrun.gltf", bad), error));
+  EXPECT_NE(error.find("past the end"), std::string::npos) << error;
+  EXPECT_FALSE(loadGltf(tempPath("missing.glb"), error));
+  EXPECT_NE(error.find("missing.glb"), std::string::npos) << error;
+}
