@@ -7,22 +7,13 @@
 #include <cstdlib>
 
 #include "ig/app_common.h"
-#if __has_include("ig/bench_adaptive.h")
 #include "ig/bench_adaptive.h"
-#define IG_HAVE_BENCH_ADAPTIVE 1
-#endif
 #include "ig/bench_cells.h"
 #include "ig/bench_forest.h"
-#if __has_include("ig/bench_governor.h")
 #include "ig/bench_governor.h"
-#define IG_HAVE_BENCH_GOVERNOR 1
-#endif
 #include "ig/bench_hdlod.h"
 #include "ig/bench_latency.h"
-#if __has_include("ig/bench_perfmodel.h")
 #include "ig/bench_perfmodel.h"
-#define IG_HAVE_BENCH_PERFMODEL 1
-#endif
 #include "ig/bench_terrain.h"
 #include "ig/clock.h"
 #include "ig/service.h"
@@ -265,7 +256,6 @@ int main(int argc, char** argv) {
       ->capture_default_str()->check(CLI::Range(1, 1000000));
   forest->add_option("--seed", forestOptions.seed, "Forest seed")->capture_default_str();
   forest->add_flag("--json", forestOptions.json, "Print one JSON object instead of the human summary");
-#if IG_HAVE_BENCH_PERFMODEL
   ig::PerfModelBenchOptions perfOptions;
   std::string perfSizes;
   CLI::App* perf = app.add_subcommand(
@@ -288,8 +278,6 @@ int main(int argc, char** argv) {
   perf->add_option("--cache", perfOptions.cachePath, "Calibration cache file ('' = calibrate every run)");
   perf->add_flag("--quick", perfOptions.quick, "CI size: 10 ... 4000 boxes, fewer repeats, short calibration");
   perf->add_flag("--json", perfOptions.json, "Print one JSON object instead of the human summary");
-#endif
-#if IG_HAVE_BENCH_ADAPTIVE
   ig::AdaptiveBenchOptions adaptiveOptions;
   CLI::App* adaptive = app.add_subcommand(
       "adaptive",
@@ -301,17 +289,15 @@ int main(int argc, char** argv) {
   adaptive->add_option("--width", adaptiveOptions.width_px, "Frame width in pixels")->capture_default_str()->check(CLI::Range(16, 8192));
   adaptive->add_option("--height", adaptiveOptions.height_px, "Frame height in pixels")->capture_default_str()->check(CLI::Range(16, 8192));
   adaptive->add_option("--objects", adaptiveOptions.objects, "Boxes at the end of the growing phase")
-      ->capture_default_str()->check(CLI::Range(1, 10000000));
+      ->capture_default_str()->check(CLI::Range(100, 1000000));
   adaptive->add_option("--frames-per-phase", adaptiveOptions.framesPerPhase, "Frames of each animation phase")
-      ->capture_default_str()->check(CLI::Range(1, 1000000));
+      ->capture_default_str()->check(CLI::Range(10, 1000000));
   adaptive->add_option("--window", adaptiveOptions.window, "Frames per trace sample")->capture_default_str()->check(CLI::Range(1, 100000));
   adaptive->add_option("--seed", adaptiveOptions.seed, "Scene seed")->capture_default_str();
   adaptive->add_option("--cache", adaptiveOptions.cachePath, "Calibration cache file ('' = calibrate every run)");
   adaptive->add_option("--trace", adaptiveOptions.tracePath, "Also write the JSON here (input of scripts/plot_adaptive.py)");
   adaptive->add_flag("--quick", adaptiveOptions.quick, "CI size: 4000 boxes, 40 frames per phase");
   adaptive->add_flag("--json", adaptiveOptions.json, "Print one JSON object instead of the human summary");
-#endif
-#if IG_HAVE_BENCH_GOVERNOR
   ig::GovernorBenchOptions govOptions;
   CLI::App* gov = app.add_subcommand(
       "governor",
@@ -334,10 +320,10 @@ int main(int argc, char** argv) {
       ->capture_default_str()->check(CLI::NonNegativeNumber);
   gov->add_option("--plot", govOptions.plotFile, "Write a PNG of the tolerance trace (scripts/plot_governor.py)");
   gov->add_flag("--quick", govOptions.quick, "CI size: 513 posts, one 6 s lap");
+  gov->add_flag("--cpu-time", govOptions.cpuTime,
+                "Measure frame work in process CPU time (all threads) instead of wall time, for shared machines");
   gov->add_flag("--json", govOptions.json, "Print one JSON object instead of the human summary");
-#endif
   if (const auto rc = ig::parseCommandLine(app, argc, argv)) return *rc;
-#if IG_HAVE_BENCH_PERFMODEL
   if (perf->parsed()) {
     for (size_t i = 0; i < perfSizes.size();) {
       size_t j = perfSizes.find(',', i);
@@ -354,13 +340,8 @@ int main(int argc, char** argv) {
     }
     return ig::runPerfModelBench(perfOptions);
   }
-#endif
-#if IG_HAVE_BENCH_ADAPTIVE
   if (adaptive->parsed()) return ig::runAdaptiveBench(adaptiveOptions);
-#endif
-#if IG_HAVE_BENCH_GOVERNOR
   if (gov->parsed()) return ig::runGovernorBench(govOptions);
-#endif
   if (forest->parsed()) return ig::runForestBench(forestOptions);
   if (cells->parsed()) return ig::runCellsBench(cellsOptions);
   if (hdlod->parsed()) {

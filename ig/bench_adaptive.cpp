@@ -1,0 +1,284 @@
+#include "ig/bench_adaptive.h"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "ig/stats.h"
+#include "render/context.h"
+#include "render/dynamic_pass.h"
+#include "render/perf_calibration.h"
+#include "render/renderer.h"
+
+namespace ig {
+namespace {
+
+using BenchClock = std::chrono::steady_clock;
+constexpr int kModes = 4;  // percommand, octree, occlusion, adaptive
+constexpr render::DynamicStrategy kStrategies[kModes] = {render::DynamicStrategy::PerCommand,
+                                                         render::DynamicStrategy::Octree,
+                                                         render::DynamicStrategy::Occlusion,
+                                                         render::DynamicStrategy::Adaptive};
+
+struct TraceRow {
+  int frame = 0;
+  const char* phase = "";
+  uint32_t objects = 0;
+  std::array<double, kModes> ms{};
+  std::array<int, 3> adaptiveModes{};  // frames in each mode within the window
+  uint32_t q = 0;
+  uint64_t hidden = 0;
+};
+
+double median(std::vector<double> v) { return v.empty() ? 0.0 : percentile(std::move(v), 50); }
+
+}  // namespace
+
+int runAdaptiveBench(const AdaptiveBenchOptions& o0) {
+  AdaptiveBenchOptions o = o0;
+  if (o.quick) {
+    o.objects = std::min<uint32_t>(o.objects, 4000);
+    o.framesPerPhase = std::min(o.framesPerPhase, 40);
+  }
+  if (o.objects < 100 || o.objects > 1000000 || o.framesPerPhase < 10 || o.framesPerPhase > 100000 || o.window < 1 ||
+      o.window > o.framesPerPhase || o.width_px < 16 || o.height_px < 16) {
+    std::fprintf(stderr, "igbench adaptive: bad option (objects %u: 100 .. 1000000, frames per phase %d: >= 10, window %d)\n",
+                 o.objects, o.framesPerPhase, o.window);
+    return 2;
+  }
+  std::string error;
+  auto context = render::createContext(render::ContextKind::Headless, o.width_px, o.height_px, error);
+  if (!context) {
+    std::fprintf(stderr, "igbench adaptive: %s\n", error.c_str());
+    return 3;
+  }
+  render::CalibrationOptions co;
+  co.width_px = o.width_px;
+  co.height_px = o.height_px;
+  co.fragmentWork = 0;
+  co.budget_s = o.quick ? 1.5 : 3.0;
+  render::CalibrationResult cal;
+  std::string warning;
+  if (!render::calibrate(o.cachePath, co, cal, error, &warning)) {
+    std::fprintf(stderr, "igbench adaptive: %s\n", error.c_str());
+    return 1;
+  }
+  if (!warning.empty()) std::fprintf(stderr, "igbench adaptive: calibration cache: %s\n", warning.c_str());
+
+  render::Renderer renderer;
+  if (!renderer.init(o.width_px, o.height_px, error)) {
+    std::fprintf(stderr, "igbench adaptive: %s\n", error.c_str());
+    return 3;
+  }
+  const uint32_t capacity = o.objects + 1024;
+  std::array<std::unique_ptr<render::DynamicPass>, kModes> passes;
+  for (int m = 0; m < kModes; ++m) {
+    render::DynamicPassConfig pc;
+    pc.maxObjects = capacity;
+    pc.bounds = {glm::dvec3(-128.0), glm::dvec3(128.0)};
+    pc.octreeDepth = 6;
+    pc.maxQueries = 8192;
+    pc.constants = cal.constants;
+    passes[m] = std::make_unique<render::DynamicPass>();
+    if (!passes[m]->init(pc, error)) {
+      std::fprintf(stderr, "igbench adaptive: %s\n", error.c_str());
+      return 3;
+    }
+    passes[m]->setStrategy(kStrategies[m]);
+    passes[m]->setOcclusionTests(8192);  // the fixed occlusion strategy tests every node it can
+  }
+  lod::Camera cam;
+  cam.aspect = static_cast<double>(o.width_px) / o.height_px;
+  cam.near_m = 0.5;
+  cam.far_m = 5000.0;
+  render::Lighting light;
+  light.fog = false;
+  light.sunDirection = glm::normalize(glm::dvec3(0.3, -0.5, 0.8));
+
+  std::mt19937 rng(o.seed);
+  std::uniform_real_distribution<double> u(-1.0, 1.0), u01(0.0, 1.0);
+  std::vector<render::DynamicObject> objs;
+  objs.reserve(capacity);
+  const auto randomBox = [&] {
+    const double y = 30.0 + 80.0 * u01(rng);
+    render::DynamicObject b;
+    b.center_m = {0.62 * y * u(rng), y, 0.33 * y * u(rng)};
+    b.halfSize_m = glm::dvec3(0.15 + 0.15 * u01(rng));
+    b.yaw_deg = 180.0 * u(rng);
+    b.rgba = 0xff000000u | (rng() & 0xffffffu);
+    return b;
+  };
+  const auto addAll = [&](const render::DynamicObject& b) {
+    for (auto& p : passes) p->add(b);
+    objs.push_back(b);
+  };
+  const auto setAll = [&](uint32_t id, const render::DynamicObject& b) {
+    for (auto& p : passes) p->set(id, b);
+    objs[id] = b;
+  };
+
+  const int phases = 3, frames = phases * o.framesPerPhase;
+  const char* phaseNames[phases] = {"few-moving", "growing", "occluded"};
+  std::array<std::vector<double>, kModes> all;
+  for (auto& v : all) v.reserve(static_cast<size_t>(frames));
+  std::vector<TraceRow> trace;
+  std::array<std::vector<double>, kModes> win;
+  TraceRow row;
+  std::array<int, 3> modeFrames{};
+  const uint32_t fewMoving = 300;
+  for (int i = 0; i < 50; ++i) addAll(randomBox());
+  const auto t0 = BenchClock::now();
+  for (int f = 0; f < frames; ++f) {
+    const int phase = f / o.framesPerPhase;
+    const int pf = f % o.framesPerPhase;
+    // Scene edits (not timed; the same for every pass).
+    if (phase == 0) {
+      const uint32_t target = 50 + static_cast<uint32_t>((fewMoving - 50) * (pf + 1) / o.framesPerPhase);
+      while (objs.size() < target) addAll(randomBox());
+      for (uint32_t id = 0; id < objs.size(); ++id) {  // everything moves
+        render::DynamicObject b = objs[id];
+        b.center_m.x += 0.4 * std::sin(0.05 * f + id);
+        b.center_m.z += 0.3 * std::cos(0.07 * f + id);
+        b.yaw_deg = std::fmod(b.yaw_deg + 2.0, 360.0);
+        setAll(id, b);
+      }
+    } else {
+      if (phase == 1) {
+        const uint32_t target = fewMoving + static_cast<uint32_t>(
+                                                static_cast<uint64_t>(o.objects - fewMoving) * (pf + 1) / o.framesPerPhase);
+        while (objs.size() < target) addAll(randomBox());
+      } else if (pf % (o.framesPerPhase / 5) == 0 && pf / (o.framesPerPhase / 5) < 4) {
+        // Walls just in front of the boxes, one after the other.
+        const int w = pf / (o.framesPerPhase / 5);
+        const double xs[4] = {-9.0, 9.0, 0.0, 0.0}, zs[4] = {0.0, 0.0, -6.0, 6.0};
+        const glm::dvec3 half[4] = {{9.5, 0.5, 10.0}, {9.5, 0.5, 10.0}, {19.0, 0.5, 4.5}, {19.0, 0.5, 4.5}};
+        addAll({{xs[w], 26.0, zs[w]}, half[w], 0.0, 0xff707070u});
+      }
+      // 1 % of the boxes move a little each frame.
+      const auto n = static_cast<uint32_t>(objs.size());
+      for (uint32_t id = static_cast<uint32_t>(f) % 100; id < n; id += 100) {
+        if (objs[id].halfSize_m.x > 5.0) continue;  // walls stay
+        render::DynamicObject b = objs[id];
+        b.center_m.x += 0.05 * std::sin(0.1 * f + id);
+        setAll(id, b);
+      }
+    }
+    cam.heading_deg = 2.0 * std::sin(0.02 * f);
+    // Draw the frame with every pass, rotating the order.
+    for (int k = 0; k < kModes; ++k) {
+      const int m = (k + f) % kModes;
+      const auto a = BenchClock::now();
+      renderer.beginFrame(cam, light);
+      passes[m]->draw(renderer, static_cast<uint64_t>(f) + 1);
+      renderer.endFrame();
+      renderer.finish();
+      const double ms = std::chrono::duration<double, std::milli>(BenchClock::now() - a).count();
+      all[m].push_back(ms);
+      win[m].push_back(ms);
+    }
+    const render::DynamicFrameStats& as = passes[3]->stats();
+    ++row.adaptiveModes[static_cast<int>(as.mode)];
+    ++modeFrames[static_cast<int>(as.mode)];
+    row.q = std::max(row.q, passes[3]->lastQ());
+    row.hidden = std::max(row.hidden, as.hiddenEstimate);
+    if ((f + 1) % o.window == 0) {
+      row.frame = f + 1;
+      row.phase = phaseNames[phase];
+      row.objects = static_cast<uint32_t>(objs.size());
+      for (int m = 0; m < kModes; ++m) {
+        row.ms[m] = median(win[m]);
+        win[m].clear();
+      }
+      trace.push_back(row);
+      row = TraceRow{};
+    }
+  }
+  const double wall_s = std::chrono::duration<double>(BenchClock::now() - t0).count();
+
+  // Ratios over windows (skip the first window: warm-up).
+  double worst = 0.0, sumAdaptive = 0.0, sumBest = 0.0;
+  int worstFrame = 0;
+  for (size_t i = 1; i < trace.size(); ++i) {
+    const TraceRow& r = trace[i];
+    const double best = std::min({r.ms[0], r.ms[1], r.ms[2]});
+    const double ratio = r.ms[3] / std::max(best, 1e-9);
+    if (ratio > worst) worst = ratio, worstFrame = r.frame;
+    sumAdaptive += r.ms[3];
+    sumBest += best;
+  }
+  const double meanRatio = sumAdaptive / std::max(sumBest, 1e-9);
+  std::array<double, kModes> mean{}, p99{};
+  for (int m = 0; m < kModes; ++m) {
+    double s = 0;
+    for (double v : all[m]) s += v;
+    mean[m] = s / static_cast<double>(std::max<size_t>(all[m].size(), 1));
+    p99[m] = percentile(all[m], 99);
+  }
+  const char* names[kModes] = {"percommand", "octree", "occlusion", "adaptive"};
+  std::string out;
+  char buf[512];
+  std::snprintf(buf, sizeof buf,
+                "{\"bench\":\"adaptive\",\"device\":\"%s\",\"viewport\":[%d,%d],\"objects\":%u,\"frames\":%d,\"window\":%d,"
+                "\"calibration_from_cache\":%s,\"calibration\":{\"frame_ns\":%.0f,\"tri_ns\":%.2f,\"frag_ns\":%.3f,"
+                "\"command_ns\":%.0f,\"rerecord_ns\":%.0f,\"submit_ns\":%.0f,\"cull_ns\":%.1f,"
+                "\"occlusion_test_ns\":%.0f,\"overlap\":%.2f},\"modes\":{",
+                cal.key.c_str(), o.width_px, o.height_px, o.objects, frames, o.window, cal.fromCache ? "true" : "false",
+                cal.constants.frame_ns, cal.constants.tri_ns, cal.constants.frag_ns, cal.constants.command_ns,
+                cal.constants.rerecord_ns, cal.constants.submit_ns, cal.constants.cull_ns, cal.constants.occlusionTest_ns,
+                cal.constants.overlap);
+  out += buf;
+  for (int m = 0; m < kModes; ++m) {
+    std::snprintf(buf, sizeof buf, "%s\"%s\":{\"mean_ms\":%.3f,\"p99_ms\":%.3f}", m ? "," : "", names[m], mean[m], p99[m]);
+    out += buf;
+  }
+  std::snprintf(buf, sizeof buf,
+                "},\"adaptive_worst_ratio\":%.3f,\"adaptive_worst_frame\":%d,\"adaptive_mean_ratio\":%.3f,"
+                "\"adaptive_mode_frames\":{\"percommand\":%d,\"octree\":%d,\"occlusion\":%d},\"adaptive_switches\":%u,"
+                "\"wall_s\":%.1f,\"trace\":[",
+                worst, worstFrame, meanRatio, modeFrames[0], modeFrames[1], modeFrames[2],
+                passes[3]->modeSwitches(), wall_s);
+  out += buf;
+  for (size_t i = 0; i < trace.size(); ++i) {
+    const TraceRow& r = trace[i];
+    const int dominant = static_cast<int>(std::max_element(r.adaptiveModes.begin(), r.adaptiveModes.end()) -
+                                          r.adaptiveModes.begin());
+    std::snprintf(buf, sizeof buf,
+                  "%s{\"frame\":%d,\"phase\":\"%s\",\"objects\":%u,\"percommand_ms\":%.3f,\"octree_ms\":%.3f,"
+                  "\"occlusion_ms\":%.3f,\"adaptive_ms\":%.3f,\"adaptive_mode\":\"%s\",\"q\":%u,\"hidden\":%llu}",
+                  i ? "," : "", r.frame, r.phase, r.objects, r.ms[0], r.ms[1], r.ms[2], r.ms[3],
+                  lod::modeName(static_cast<lod::DynamicMode>(dominant)), r.q, static_cast<unsigned long long>(r.hidden));
+    out += buf;
+  }
+  out += "]}\n";
+  if (!o.tracePath.empty()) {
+    FILE* f = std::fopen(o.tracePath.c_str(), "w");
+    if (!f || std::fputs(out.c_str(), f) < 0) {
+      std::fprintf(stderr, "igbench adaptive: --trace %s: cannot write\n", o.tracePath.c_str());
+      if (f) std::fclose(f);
+      return 1;
+    }
+    std::fclose(f);
+  }
+  if (o.json) {
+    std::fputs(out.c_str(), stdout);
+  } else {
+    std::printf("adaptive: %u boxes, %d frames (%d per phase), %.1f s\n", o.objects, frames, o.framesPerPhase, wall_s);
+    const lod::PerfConstants& k = cal.constants;
+    std::printf("  constants: tri %.1f ns, frag %.2f ns, command %.0f ns, rerecord %.0f ns, submit %.0f ns, cull %.1f ns, "
+                "occlusion test %.0f ns\n",
+                k.tri_ns, k.frag_ns, k.command_ns, k.rerecord_ns, k.submit_ns, k.cull_ns, k.occlusionTest_ns);
+    for (int m = 0; m < kModes; ++m) std::printf("  %-11s mean %8.3f ms  p99 %8.3f ms\n", names[m], mean[m], p99[m]);
+    std::printf("  adaptive / best fixed: worst window %.3f (frame %d), mean %.3f (goal <= 1.10 and < 1)\n", worst,
+                worstFrame, meanRatio);
+    std::printf("  adaptive frames: percommand %d, octree %d, occlusion %d\n", modeFrames[0], modeFrames[1], modeFrames[2]);
+  }
+  return 0;
+}
+
+}  // namespace ig

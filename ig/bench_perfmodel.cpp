@@ -1,0 +1,230 @@
+#include "ig/bench_perfmodel.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "ig/stats.h"
+#include "lod/perfmodel.h"
+#include "render/context.h"
+#include "render/dynamic_pass.h"
+#include "render/perf_calibration.h"
+#include "render/renderer.h"
+
+namespace ig {
+namespace {
+
+using BenchClock = std::chrono::steady_clock;
+
+struct Point {
+  uint32_t objects = 0;
+  const char* strategy = "";
+  double measured_ms = 0, predicted_ms = 0, error_pct = 0;
+  double measuredQ1_ms = 0, errorQ1_pct = 0;  // lower quartile of the repeats (least disturbed)
+  double fragments = 0;
+  uint64_t triangles = 0;
+  const char* bound = "";
+};
+
+std::array<glm::dvec3, 8> eyeCorners(const render::DynamicObject& o, const glm::dvec3& eye) {
+  const double a = o.yaw_deg * 0.017453292519943295;
+  const glm::dvec3 ax(std::cos(a), std::sin(a), 0.0), ay(-std::sin(a), std::cos(a), 0.0);
+  std::array<glm::dvec3, 8> c;
+  for (int i = 0; i < 8; ++i) {
+    const double sx = (i & 1) ? 1.0 : -1.0, sy = (i & 2) ? 1.0 : -1.0, sz = (i & 4) ? 1.0 : -1.0;
+    c[static_cast<size_t>(i)] = o.center_m - eye + sx * o.halfSize_m.x * ax + sy * o.halfSize_m.y * ay +
+                                glm::dvec3(0.0, 0.0, sz * o.halfSize_m.z);
+  }
+  return c;
+}
+
+const char* boundName(int b) {
+  static const char* names[] = {"state", "vertex", "fragment", "zbuffer"};
+  return names[std::clamp(b, 0, 3)];
+}
+
+}  // namespace
+
+int runPerfModelBench(const PerfModelBenchOptions& o) {
+  std::vector<uint32_t> sizes = o.sizes;
+  if (sizes.empty()) {
+    sizes = o.quick ? std::vector<uint32_t>{10, 100, 1000, 4000}
+                    : std::vector<uint32_t>{10, 100, 1000, 10000, 50000, 100000, 300000};
+  }
+  for (uint32_t n : sizes) {
+    if (n == 0 || n > 2000000) {
+      std::fprintf(stderr, "igbench perfmodel: --sizes: %u: out of range (1 .. 2000000)\n", n);
+      return 2;
+    }
+  }
+  if (o.repeats < 1 || o.repeats > 1000 || !(o.coverage > 0.0 && o.coverage <= 20.0) || o.width_px < 16 ||
+      o.height_px < 16) {
+    std::fprintf(stderr, "igbench perfmodel: bad option (repeats %d, coverage %g, viewport %dx%d)\n", o.repeats,
+                 o.coverage, o.width_px, o.height_px);
+    return 2;
+  }
+  const int repeats = o.quick ? std::min(o.repeats, 5) : o.repeats;
+  std::string error;
+  auto context = render::createContext(render::ContextKind::Headless, o.width_px, o.height_px, error);
+  if (!context) {
+    std::fprintf(stderr, "igbench perfmodel: %s\n", error.c_str());
+    return 3;
+  }
+  render::CalibrationOptions co;
+  co.width_px = o.width_px;
+  co.height_px = o.height_px;
+  co.fragmentWork = o.fragmentWork;
+  co.budget_s = o.quick ? 1.5 : 4.0;
+  render::CalibrationResult cal;
+  std::string warning;
+  if (!render::calibrate(o.cachePath, co, cal, error, &warning)) {
+    std::fprintf(stderr, "igbench perfmodel: %s\n", error.c_str());
+    return 1;
+  }
+  if (!warning.empty()) std::fprintf(stderr, "igbench perfmodel: calibration cache: %s\n", warning.c_str());
+  const lod::PerfConstants& k = cal.constants;
+
+  render::Renderer renderer;
+  if (!renderer.init(o.width_px, o.height_px, error)) {
+    std::fprintf(stderr, "igbench perfmodel: %s\n", error.c_str());
+    return 3;
+  }
+  lod::Camera cam;
+  cam.aspect = static_cast<double>(o.width_px) / o.height_px;
+  cam.near_m = 0.5;
+  cam.far_m = 5000.0;
+  render::Lighting light;
+  light.fog = false;
+  light.sunDirection = glm::normalize(glm::dvec3(0.3, -0.5, 0.8));
+  const uint32_t maxN = *std::max_element(sizes.begin(), sizes.end());
+  render::DynamicPassConfig pc;
+  pc.maxObjects = maxN;
+  pc.bounds = {glm::dvec3(-128.0), glm::dvec3(128.0)};
+  pc.octreeDepth = 6;
+  pc.maxQueries = 16;
+  pc.fragmentWork = o.fragmentWork;
+  render::DynamicPass pass;
+  if (!pass.init(pc, error)) {
+    std::fprintf(stderr, "igbench perfmodel: %s\n", error.c_str());
+    return 3;
+  }
+  const glm::dmat4 vp = lod::reverseZProjection(cam.fovY_deg, cam.aspect, cam.near_m, cam.far_m) *
+                        glm::dmat4(lod::viewRotation(cam));
+  const double screen = static_cast<double>(o.width_px) * o.height_px;
+
+  std::vector<Point> points;
+  std::vector<render::DynamicObject> objs;
+  objs.reserve(maxN);
+  uint64_t frame = 1;
+  const auto t0 = BenchClock::now();
+  for (uint32_t n : sizes) {
+    // Random boxes inside the view between 30 and 110 m, then scaled to the target coverage.
+    std::mt19937 rng(o.seed + n);
+    std::uniform_real_distribution<double> u(-1.0, 1.0), u01(0.0, 1.0);
+    objs.clear();
+    for (uint32_t i = 0; i < n; ++i) {
+      const double y = 30.0 + 80.0 * u01(rng);
+      render::DynamicObject ob;
+      ob.center_m = {0.62 * y * u(rng), y, 0.33 * y * u(rng)};
+      ob.halfSize_m = {0.5 + u01(rng), 0.5 + u01(rng), 0.5 + u01(rng)};
+      ob.yaw_deg = 180.0 * u(rng);
+      ob.rgba = 0xff000000u | (rng() & 0xffffffu);
+      objs.push_back(ob);
+    }
+    double area1 = 0.0;
+    for (const auto& ob : objs) area1 += std::max(0.0, lod::projectedBoxArea_px(vp, eyeCorners(ob, cam.eye_m), o.width_px, o.height_px));
+    const double scale = std::sqrt(o.coverage * screen / std::max(area1, 1e-9));
+    double fragments = 0.0;
+    pass.clear();
+    for (auto& ob : objs) {
+      ob.halfSize_m *= scale;
+      const double cap = 0.25 * ob.center_m.y / std::max({ob.halfSize_m.x, ob.halfSize_m.y, ob.halfSize_m.z});
+      if (cap < 1.0) ob.halfSize_m *= cap;
+      fragments += lod::shadedFragments(lod::projectedBoxArea_px(vp, eyeCorners(ob, cam.eye_m), o.width_px, o.height_px), 4.0);
+      pass.add(ob);
+    }
+    for (render::DynamicStrategy s : {render::DynamicStrategy::PerCommand, render::DynamicStrategy::Octree}) {
+      pass.setStrategy(s);
+      std::vector<double> ms;
+      const int warm = 2;
+      for (int r = 0; r < warm + repeats; ++r) {
+        const auto a = BenchClock::now();
+        renderer.beginFrame(cam, light);
+        pass.draw(renderer, frame++);
+        renderer.endFrame();
+        renderer.finish();
+        if (r >= warm) ms.push_back(std::chrono::duration<double, std::milli>(BenchClock::now() - a).count());
+      }
+      const render::DynamicFrameStats& st = pass.stats();
+      lod::PassLoad load;
+      load.triangles = static_cast<double>(st.triangles);
+      load.fragments = fragments * (st.objects ? static_cast<double>(st.objectsDrawn) / st.objects : 0.0);
+      load.stateChanges = 1;
+      load.commands = st.commands;
+      load.rerecorded = st.rerecorded;
+      load.submissions = st.submissions;
+      load.frustumTests = st.frustumTests;
+      lod::TimeBreakdown tb;
+      const double pred = lod::predictFrame_ns(k, load, {}, &tb) * 1e-6;
+      Point p;
+      p.objects = n;
+      p.strategy = render::strategyName(s);
+      p.measured_ms = percentile(ms, 50);
+      p.predicted_ms = pred;
+      p.error_pct = 100.0 * std::abs(pred - p.measured_ms) / std::max(p.measured_ms, 1e-9);
+      p.measuredQ1_ms = percentile(ms, 25);
+      p.errorQ1_pct = 100.0 * std::abs(pred - p.measuredQ1_ms) / std::max(p.measuredQ1_ms, 1e-9);
+      p.fragments = load.fragments;
+      p.triangles = st.triangles;
+      p.bound = boundName(tb.boundS);
+      points.push_back(p);
+    }
+  }
+  const double wall_s = std::chrono::duration<double>(BenchClock::now() - t0).count();
+  std::vector<double> errs, errsQ1;
+  for (const Point& p : points) errs.push_back(p.error_pct), errsQ1.push_back(p.errorQ1_pct);
+  const double med = percentile(errs, 50), mx = *std::max_element(errs.begin(), errs.end());
+  const double medQ1 = percentile(errsQ1, 50), mxQ1 = *std::max_element(errsQ1.begin(), errsQ1.end());
+
+  if (o.json) {
+    std::printf("{\"bench\":\"perfmodel\",\"device\":\"%s\",\"viewport\":[%d,%d],\"fragment_work\":%u,\"coverage\":%g,"
+                "\"repeats\":%d,\"calibration\":{\"from_cache\":%s,\"seconds\":%.3f,\"frame_ns\":%.1f,\"tri_ns\":%.3f,"
+                "\"frag_ns\":%.4f,\"depth_frag_ns\":%.4f,\"state_ns\":%.1f,\"command_ns\":%.1f,\"rerecord_ns\":%.1f,"
+                "\"submit_ns\":%.1f,\"cull_ns\":%.2f,\"occlusion_test_ns\":%.1f,\"overlap\":%.3f},\"points\":[",
+                cal.key.c_str(), o.width_px, o.height_px, o.fragmentWork, o.coverage, repeats,
+                cal.fromCache ? "true" : "false", cal.seconds, k.frame_ns, k.tri_ns, k.frag_ns, k.depthFrag_ns, k.state_ns,
+                k.command_ns, k.rerecord_ns, k.submit_ns, k.cull_ns, k.occlusionTest_ns, k.overlap);
+    for (size_t i = 0; i < points.size(); ++i) {
+      const Point& p = points[i];
+      std::printf("%s{\"objects\":%u,\"strategy\":\"%s\",\"measured_ms\":%.4f,\"predicted_ms\":%.4f,\"error_pct\":%.2f,"
+                  "\"measured_q1_ms\":%.4f,\"error_q1_pct\":%.2f,\"triangles\":%llu,\"fragments\":%.0f,\"bound\":\"%s\"}",
+                  i ? "," : "", p.objects, p.strategy, p.measured_ms, p.predicted_ms, p.error_pct, p.measuredQ1_ms, p.errorQ1_pct,
+                  static_cast<unsigned long long>(p.triangles), p.fragments, p.bound);
+    }
+    std::printf("],\"error_pct_median\":%.2f,\"error_pct_max\":%.2f,\"error_q1_pct_median\":%.2f,"
+                "\"error_q1_pct_max\":%.2f,\"wall_s\":%.1f}\n",
+                med, mx, medQ1, mxQ1, wall_s);
+  } else {
+    std::printf("perfmodel: %s, %dx%d, material work %u, calibration %s (%.1f s)\n", cal.key.c_str(), o.width_px,
+                o.height_px, o.fragmentWork, cal.fromCache ? "from cache" : "measured", cal.seconds);
+    std::printf("constants: frame %.0f ns, tri %.1f ns, frag %.2f ns, state %.0f ns, command %.0f ns, rerecord %.0f ns, "
+                "submit %.0f ns, cull %.1f ns, occlusion test %.0f ns, overlap %.2f\n",
+                k.frame_ns, k.tri_ns, k.frag_ns, k.state_ns, k.command_ns, k.rerecord_ns, k.submit_ns, k.cull_ns,
+                k.occlusionTest_ns, k.overlap);
+    std::printf("%9s %-11s %12s %12s %8s %12s %8s  %s\n", "objects", "strategy", "measured ms", "predicted ms", "error %",
+                "q1 ms", "error %", "bound");
+    for (const Point& p : points)
+      std::printf("%9u %-11s %12.3f %12.3f %8.2f %12.3f %8.2f  %s\n", p.objects, p.strategy, p.measured_ms, p.predicted_ms,
+                  p.error_pct, p.measuredQ1_ms, p.errorQ1_pct, p.bound);
+    std::printf("error vs median: median %.2f %%, max %.2f %%; vs lower quartile: median %.2f %%, max %.2f %% "
+                "(goal <= 5 %% / <= 10 %%), %.1f s\n",
+                med, mx, medQ1, mxQ1, wall_s);
+  }
+  return 0;
+}
+
+}  // namespace ig

@@ -1,0 +1,33 @@
+// igbench perfmodel: the performance model of paper 002 (lod/perfmodel.h) against measured frame
+// times, like the paper's Table 1. Calibrates the model on this GL implementation
+// (render/perf_calibration.h), then for each scene size draws random boxes with the per-object
+// command strategy and with the octree strategy (render/dynamic_pass.h), times frames (glFinish
+// and a monotonic clock, median of repeats) and compares with the model's prediction from the
+// frame's statistics (commands, submissions, triangles, fragments from the boxes' projected
+// areas, frustum tests). Box sizes shrink with the count so the total coverage stays near
+// `coverage` screens: few large boxes are fragment-bound, many small ones vertex/command-bound,
+// the sizes between exercise the max() of (2).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace ig {
+
+struct PerfModelBenchOptions {
+  std::vector<uint32_t> sizes;    // box counts; empty = 10 100 1000 10000 50000 100000 300000
+  int width_px = 640;
+  int height_px = 360;
+  uint32_t fragmentWork = 8;      // material cost (extra shading iterations per fragment)
+  double coverage = 0.8;          // total projected box area in screens
+  int repeats = 7;                // timed frames per point (median)
+  uint32_t seed = 1;
+  std::string cachePath;          // calibration cache; "" = calibrate every run
+  bool quick = false;             // CI size: 10 100 1000 4000 boxes, 5 repeats, short calibration
+  bool json = false;
+};
+
+int runPerfModelBench(const PerfModelBenchOptions& options);
+
+}  // namespace ig

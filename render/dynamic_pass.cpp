@@ -1,0 +1,746 @@
+// Dynamic objects with the three strategies of paper 002 and the adaptive choice. See
+// dynamic_pass.h.
+#include "render/dynamic_pass.h"
+
+#include <EGL/egl.h>
+#include <GL/osmesa.h>
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstring>
+
+#include <glm/gtc/type_ptr.hpp>
+#include <glm/mat4x4.hpp>
+
+#include "render/gl.h"
+#include "render/renderer.h"
+
+namespace ig::render {
+namespace {
+
+// Entry points beyond render/gl.h's table, loaded from whichever API made the current context.
+#define IG_DYN_GL(X)                                                    \
+  X(PFNGLMULTIDRAWELEMENTSINDIRECTPROC, MultiDrawElementsIndirect)      \
+  X(PFNGLDRAWELEMENTSINSTANCEDBASEINSTANCEPROC, DrawElementsInstancedBaseInstance) \
+  X(PFNGLVERTEXARRAYBINDINGDIVISORPROC, VertexArrayBindingDivisor)      \
+  X(PFNGLBINDBUFFERPROC, BindBuffer)                                    \
+  X(PFNGLCREATEQUERIESPROC, CreateQueries)                              \
+  X(PFNGLDELETEQUERIESPROC, DeleteQueries)                              \
+  X(PFNGLBEGINQUERYPROC, BeginQuery)                                    \
+  X(PFNGLENDQUERYPROC, EndQuery)                                        \
+  X(PFNGLGETQUERYOBJECTUIVPROC, GetQueryObjectuiv)                      \
+  X(PFNGLCOLORMASKPROC, ColorMask)                                      \
+  X(PFNGLPROGRAMUNIFORM1IPROC, ProgramUniform1i)
+
+struct DynGl {
+#define IG_DYN_DECLARE(type, name) type name = nullptr;
+  IG_DYN_GL(IG_DYN_DECLARE)
+#undef IG_DYN_DECLARE
+};
+DynGl dgl;
+
+bool loadDynGl(std::string& error) {
+  using Proc = void (*)();
+  Proc (*getProc)(const char*) = nullptr;
+  if (eglGetCurrentContext() != EGL_NO_CONTEXT) {
+    getProc = [](const char* n) { return reinterpret_cast<Proc>(eglGetProcAddress(n)); };
+  } else if (OSMesaGetCurrentContext() != nullptr) {
+    getProc = [](const char* n) { return reinterpret_cast<Proc>(OSMesaGetProcAddress(n)); };
+  } else {
+    error = "dynamic pass: no current GL context";
+    return false;
+  }
+  DynGl api;
+  std::string missing;
+#define IG_DYN_LOAD(type, name)                                      \
+  api.name = reinterpret_cast<type>(getProc("gl" #name));             \
+  if (api.name == nullptr) missing += (missing.empty() ? "gl" : ", gl") + std::string(#name);
+  IG_DYN_GL(IG_DYN_LOAD)
+#undef IG_DYN_LOAD
+  if (!missing.empty()) {
+    error = "dynamic pass: OpenGL entry points missing: " + missing;
+    return false;
+  }
+  dgl = api;
+  return true;
+}
+
+const char* kBoxVs = R"(#version 450 core
+layout(location = 0) in vec3 aPosition;   // unit box [-1, 1]^3
+layout(location = 1) in vec3 aNormal;
+layout(location = 2) in vec4 iAxisX;      // xyz: box x axis * half size; w: centre x - origin
+layout(location = 3) in vec4 iAxisY;
+layout(location = 4) in vec4 iAxisZ;
+layout(location = 5) in vec4 iColor;
+uniform mat4 uViewProjection;             // projection * world->camera rotation
+uniform vec3 uOriginOffset;               // origin - eye, computed in double
+out vec3 vNormal;
+out vec3 vColor;
+out vec3 vEyeToPoint;
+void main() {
+  vec3 centre = vec3(iAxisX.w, iAxisY.w, iAxisZ.w) + uOriginOffset;
+  vec3 rel = centre + aPosition.x * iAxisX.xyz + aPosition.y * iAxisY.xyz + aPosition.z * iAxisZ.xyz;
+  vNormal = aNormal.x * iAxisX.xyz / max(dot(iAxisX.xyz, iAxisX.xyz), 1e-30) +
+            aNormal.y * iAxisY.xyz / max(dot(iAxisY.xyz, iAxisY.xyz), 1e-30) +
+            aNormal.z * iAxisZ.xyz / max(dot(iAxisZ.xyz, iAxisZ.xyz), 1e-30);
+  vColor = iColor.rgb;
+  vEyeToPoint = rel;
+  gl_Position = uViewProjection * vec4(rel, 1.0);
+}
+)";
+
+const char* kBoxFs = R"(#version 450 core
+in vec3 vNormal;
+in vec3 vColor;
+in vec3 vEyeToPoint;
+uniform vec3 uSunDirection;
+uniform vec3 uSunColor;
+uniform float uAmbient;
+uniform vec3 uFogColor;
+uniform float uFogDensity;
+uniform int uWork;                        // material cost: extra shading iterations
+uniform float uStateTag;                  // changed between draws by the T_state calibration
+out vec4 fragColor;
+void main() {
+  vec3 n = normalize(vNormal);
+  float diffuse = max(dot(n, uSunDirection), 0.0);
+  vec3 lit = vColor * (uAmbient + (1.0 - uAmbient) * diffuse * uSunColor);
+  float w = 0.0;
+  for (int i = 0; i < uWork; ++i) w += sin(gl_FragCoord.x * 0.013 + float(i)) * cos(gl_FragCoord.y * 0.017 - float(i));
+  lit *= 1.0 + 1e-6 * w + 1e-9 * uStateTag;
+  float fog = exp(-uFogDensity * length(vEyeToPoint));
+  fragColor = vec4(mix(uFogColor, lit, fog), 1.0);
+}
+)";
+
+const char* kQueryVs = R"(#version 450 core
+layout(location = 0) in vec3 aPosition;
+uniform mat4 uViewProjection;
+uniform vec3 uCentre;                     // box centre - eye
+uniform vec3 uHalf;
+void main() { gl_Position = uViewProjection * vec4(uCentre + aPosition * uHalf, 1.0); }
+)";
+const char* kQueryFs = R"(#version 450 core
+out vec4 fragColor;
+void main() { fragColor = vec4(1.0); }
+)";
+
+struct DrawCommand {
+  GLuint count, instanceCount, firstIndex, baseVertex, baseInstance;
+};
+static_assert(sizeof(DrawCommand) == 20);
+
+constexpr GLsizei kBoxIndices = 36;
+constexpr uint32_t kBoxTriangles = 12;
+
+glm::mat4 viewProjection(const lod::Camera& c) {
+  return glm::mat4(lod::reverseZProjection(c.fovY_deg, c.aspect, c.near_m, c.far_m) * glm::dmat4(lod::viewRotation(c)));
+}
+
+bool validObject(const DynamicObject& o) {
+  for (int i = 0; i < 3; ++i)
+    if (!std::isfinite(o.center_m[i]) || !std::isfinite(o.halfSize_m[i]) || o.halfSize_m[i] < 0.0) return false;
+  return std::isfinite(o.yaw_deg);
+}
+
+lod::Aabb worldBox(const DynamicObject& o) {
+  const double a = o.yaw_deg * 0.017453292519943295;
+  const double c = std::abs(std::cos(a)), s = std::abs(std::sin(a));
+  const glm::dvec3 h(c * o.halfSize_m.x + s * o.halfSize_m.y, s * o.halfSize_m.x + c * o.halfSize_m.y, o.halfSize_m.z);
+  return {o.center_m - h, o.center_m + h};
+}
+
+}  // namespace
+
+const char* strategyName(DynamicStrategy s) {
+  switch (s) {
+    case DynamicStrategy::PerCommand: return "percommand";
+    case DynamicStrategy::Octree: return "octree";
+    case DynamicStrategy::Occlusion: return "occlusion";
+    case DynamicStrategy::Adaptive: return "adaptive";
+  }
+  return "?";
+}
+
+struct DynamicPass::Instance {
+  float axisX[4], axisY[4], axisZ[4], color[4];
+};
+
+struct DynamicPass::Gpu {
+  GlProgram program, queryProgram;
+  GlBuffer mesh, indices, instances, commands;
+  GlVertexArray vao;
+  Instance* mappedInstances = nullptr;  // [0, maxObjects): per-frame stream; then node blocks
+  DrawCommand* mappedCommands = nullptr;  // [0, maxObjects): per-object; then one per node
+  uint32_t blockSlots = 0;
+  uint32_t nodeCommands = 0;
+  std::vector<Instance> cache;          // per object, written on add / set
+  std::vector<GLuint> queries;
+  GLuint samplesQuery[2] = {0, 0};
+  bool samplesPending[2] = {false, false};
+  uint64_t bytes = 0;
+  GLint uVp = -1, uOrigin = -1, uSun = -1, uSunColor = -1, uAmbient = -1, uFogColor = -1, uFogDensity = -1,
+        uWork = -1, uStateTag = -1, qVp = -1, qCentre = -1, qHalf = -1;
+  ~Gpu() {
+    if (!queries.empty()) dgl.DeleteQueries(static_cast<GLsizei>(queries.size()), queries.data());
+    if (samplesQuery[0]) dgl.DeleteQueries(2, samplesQuery);
+  }
+};
+
+DynamicPass::DynamicPass() = default;
+DynamicPass::~DynamicPass() = default;
+
+bool DynamicPass::init(const DynamicPassConfig& config, std::string& error) {
+  if (config.maxObjects == 0 || config.maxObjects > (1u << 24)) {
+    error = "dynamic pass: maxObjects = " + std::to_string(config.maxObjects) + ": out of range (1 .. 16777216)";
+    return false;
+  }
+  if (!loadDynGl(error)) return false;
+  config_ = config;
+  lod::OctreeConfig oc;
+  oc.bounds = config.bounds;
+  oc.maxDepth = config.octreeDepth;
+  oc.maxObjects = config.maxObjects;
+  oc.maxNodes = 2 * config.maxObjects + 64;
+  oc.expensiveMinObjects = config.testMinObjects;
+  oc.occlusionMaxAge = config.resultMaxAge;
+  if (!octree_.init(oc)) {
+    error = "dynamic pass: bad octree bounds or depth (depth " + std::to_string(config.octreeDepth) + ")";
+    return false;
+  }
+  auto g = std::make_unique<Gpu>();
+  g->program = buildProgram(kBoxVs, kBoxFs, error);
+  if (!g->program) return error = "dynamic pass: " + error, false;
+  g->queryProgram = buildProgram(kQueryVs, kQueryFs, error);
+  if (!g->queryProgram) return error = "dynamic pass (query boxes): " + error, false;
+  const GLuint p = g->program.id(), qp = g->queryProgram.id();
+  g->uVp = gl.GetUniformLocation(p, "uViewProjection");
+  g->uOrigin = gl.GetUniformLocation(p, "uOriginOffset");
+  g->uSun = gl.GetUniformLocation(p, "uSunDirection");
+  g->uSunColor = gl.GetUniformLocation(p, "uSunColor");
+  g->uAmbient = gl.GetUniformLocation(p, "uAmbient");
+  g->uFogColor = gl.GetUniformLocation(p, "uFogColor");
+  g->uFogDensity = gl.GetUniformLocation(p, "uFogDensity");
+  g->uWork = gl.GetUniformLocation(p, "uWork");
+  g->uStateTag = gl.GetUniformLocation(p, "uStateTag");
+  g->qVp = gl.GetUniformLocation(qp, "uViewProjection");
+  g->qCentre = gl.GetUniformLocation(qp, "uCentre");
+  g->qHalf = gl.GetUniformLocation(qp, "uHalf");
+
+  // Unit box: 24 vertices (per-face normals), 36 indices, counter-clockwise from outside.
+  float verts[24 * 6];
+  uint16_t idx[36];
+  for (int f = 0; f < 6; ++f) {
+    const int axis = f / 2;
+    const float sign = (f % 2) ? 1.0f : -1.0f;
+    const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+    const float cu[4] = {-1, 1, 1, -1}, cv[4] = {-1, -1, 1, 1};
+    for (int k = 0; k < 4; ++k) {
+      float* o = verts + (f * 4 + k) * 6;
+      o[axis] = sign;
+      o[u] = cu[k];
+      o[v] = sign > 0 ? cv[k] : -cv[k];
+      o[3] = o[4] = o[5] = 0.0f;
+      o[3 + axis] = sign;
+    }
+    const uint16_t b = static_cast<uint16_t>(f * 4);
+    const uint16_t t[6] = {b, static_cast<uint16_t>(b + 1), static_cast<uint16_t>(b + 2), b, static_cast<uint16_t>(b + 2),
+                           static_cast<uint16_t>(b + 3)};
+    std::memcpy(idx + f * 6, t, sizeof t);
+  }
+  GLuint ids[4];
+  gl.CreateBuffers(4, ids);
+  g->mesh = GlBuffer::wrap(ids[0]);
+  g->indices = GlBuffer::wrap(ids[1]);
+  g->instances = GlBuffer::wrap(ids[2]);
+  g->commands = GlBuffer::wrap(ids[3]);
+  gl.NamedBufferStorage(ids[0], sizeof verts, verts, 0);
+  gl.NamedBufferStorage(ids[1], sizeof idx, idx, 0);
+  g->blockSlots = 2 * config.maxObjects + 1024;
+  g->nodeCommands = oc.maxNodes;
+  const GLbitfield flags = GL_MAP_WRITE_BIT | GL_MAP_PERSISTENT_BIT | GL_MAP_COHERENT_BIT;
+  const auto ibytes = static_cast<GLsizeiptr>((size_t{config.maxObjects} + g->blockSlots) * sizeof(Instance));
+  const auto cbytes = static_cast<GLsizeiptr>((size_t{config.maxObjects} + g->nodeCommands) * sizeof(DrawCommand));
+  gl.NamedBufferStorage(ids[2], ibytes, nullptr, flags);
+  gl.NamedBufferStorage(ids[3], cbytes, nullptr, flags);
+  g->mappedInstances = static_cast<Instance*>(gl.MapNamedBufferRange(ids[2], 0, ibytes, flags));
+  g->mappedCommands = static_cast<DrawCommand*>(gl.MapNamedBufferRange(ids[3], 0, cbytes, flags));
+  if (!g->mappedInstances || !g->mappedCommands) {
+    error = "dynamic pass: cannot map " + std::to_string(ibytes + cbytes) + " bytes of instance/command buffers";
+    return false;
+  }
+  std::memset(static_cast<void*>(g->mappedCommands), 0, static_cast<size_t>(cbytes));
+  g->bytes = static_cast<uint64_t>(sizeof verts + sizeof idx) + static_cast<uint64_t>(ibytes + cbytes);
+  GLuint vao = 0;
+  gl.CreateVertexArrays(1, &vao);
+  g->vao = GlVertexArray::wrap(vao);
+  gl.VertexArrayVertexBuffer(vao, 0, ids[0], 0, 6 * sizeof(float));
+  gl.VertexArrayVertexBuffer(vao, 1, ids[2], 0, sizeof(Instance));
+  dgl.VertexArrayBindingDivisor(vao, 1, 1);
+  gl.VertexArrayElementBuffer(vao, ids[1]);
+  for (GLuint a = 0; a < 6; ++a) {
+    gl.EnableVertexArrayAttrib(vao, a);
+    const GLuint binding = a < 2 ? 0u : 1u;
+    const GLuint offset = a < 2 ? a * 3 * sizeof(float) : (a - 2) * 4 * sizeof(float);
+    gl.VertexArrayAttribFormat(vao, a, a < 2 ? 3 : 4, GL_FLOAT, GL_FALSE, offset);
+    gl.VertexArrayAttribBinding(vao, a, binding);
+  }
+  g->queries.resize(config.maxQueries);
+  if (config.maxQueries) dgl.CreateQueries(GL_ANY_SAMPLES_PASSED_CONSERVATIVE, static_cast<GLsizei>(config.maxQueries), g->queries.data());
+  dgl.CreateQueries(GL_SAMPLES_PASSED, 2, g->samplesQuery);
+  g->cache.resize(config.maxObjects);
+  const std::string e = glErrors();
+  if (!e.empty()) {
+    error = "dynamic pass init: GL errors " + e;
+    return false;
+  }
+  gpu_ = std::move(g);
+  objects_.assign(config.maxObjects, DynamicObject{});
+  alive_.assign(config.maxObjects, 0);
+  freeIds_.clear();
+  freeIds_.reserve(config.maxObjects);
+  for (uint32_t i = config.maxObjects; i-- > 0;) freeIds_.push_back(i);
+  drawList_.assign(oc.maxNodes, 0);
+  testList_.assign(oc.maxNodes, 0);
+  blockFirst_.assign(oc.maxNodes, kNone);
+  blockCap_.assign(oc.maxNodes, 0);
+  freeBlocks_.assign(32, {});
+  blockTop_ = 0;
+  pending_.clear();
+  pending_.reserve(config.maxQueries);
+  freeQueries_.assign(gpu_->queries.rbegin(), gpu_->queries.rend());
+  switcher_ = lod::ModeSwitcher(config.switching);
+  fits_.reset();
+  return true;
+}
+
+uint64_t DynamicPass::bufferBytes() const { return gpu_ ? gpu_->bytes : 0; }
+
+void DynamicPass::writeInstance(uint32_t id) {
+  const DynamicObject& o = objects_[id];
+  const double a = o.yaw_deg * 0.017453292519943295;
+  const glm::dvec3 ax(std::cos(a), std::sin(a), 0.0), ay(-std::sin(a), std::cos(a), 0.0), az(0.0, 0.0, 1.0);
+  const glm::dvec3 c = o.center_m - config_.origin_m;
+  Instance& in = gpu_->cache[id];
+  for (int i = 0; i < 3; ++i) {
+    in.axisX[i] = static_cast<float>(ax[i] * o.halfSize_m.x);
+    in.axisY[i] = static_cast<float>(ay[i] * o.halfSize_m.y);
+    in.axisZ[i] = static_cast<float>(az[i] * o.halfSize_m.z);
+  }
+  in.axisX[3] = static_cast<float>(c.x);
+  in.axisY[3] = static_cast<float>(c.y);
+  in.axisZ[3] = static_cast<float>(c.z);
+  for (int i = 0; i < 4; ++i) in.color[i] = static_cast<float>((o.rgba >> (8 * i)) & 0xffu) / 255.0f;
+}
+
+uint32_t DynamicPass::add(const DynamicObject& o) {
+  if (!gpu_ || freeIds_.empty() || !validObject(o)) return kNone;
+  const uint32_t id = freeIds_.back();
+  if (!octree_.insert(id, worldBox(o))) return kNone;
+  freeIds_.pop_back();
+  objects_[id] = o;
+  alive_[id] = 1;
+  writeInstance(id);
+  ++movedThisFrame_;
+  return id;
+}
+
+bool DynamicPass::set(uint32_t id, const DynamicObject& o) {
+  if (!gpu_ || id >= alive_.size() || !alive_[id] || !validObject(o)) return false;
+  if (!octree_.move(id, worldBox(o))) return false;
+  objects_[id] = o;
+  writeInstance(id);
+  ++movedThisFrame_;
+  return true;
+}
+
+bool DynamicPass::remove(uint32_t id) {
+  if (!gpu_ || id >= alive_.size() || !alive_[id]) return false;
+  octree_.remove(id);
+  alive_[id] = 0;
+  freeIds_.push_back(id);
+  ++movedThisFrame_;
+  return true;
+}
+
+void DynamicPass::clear() {
+  for (uint32_t id = 0; id < alive_.size(); ++id)
+    if (alive_[id]) remove(id);
+  freeIds_.clear();  // ids are handed out from 0 again
+  for (auto i = static_cast<uint32_t>(alive_.size()); i-- > 0;) freeIds_.push_back(i);
+}
+
+void DynamicPass::setStrategy(DynamicStrategy s) {
+  strategy_ = s;
+  if (s == DynamicStrategy::Adaptive) switcher_ = lod::ModeSwitcher(config_.switching);
+}
+
+// Rewrites the instance block and the command of every node whose objects changed.
+void DynamicPass::rebuildDirtyNodes() {
+  Gpu& g = *gpu_;
+  uint32_t rewritten = 0;
+  const auto dirty = octree_.dirtyNodes();
+  for (uint32_t n : dirty) {
+    const auto& node = octree_.node(n);
+    const auto count = static_cast<uint32_t>(node.objects.size());
+    if (count > blockCap_[n]) {
+      if (blockFirst_[n] != kNone) freeBlocks_[std::countr_zero(blockCap_[n])].push_back(blockFirst_[n]);
+      const uint32_t cap = std::bit_ceil(count);
+      const int cls = std::countr_zero(cap);
+      if (!freeBlocks_[cls].empty()) {
+        blockFirst_[n] = freeBlocks_[cls].back();
+        freeBlocks_[cls].pop_back();
+      } else if (blockTop_ + cap <= g.blockSlots) {
+        blockFirst_[n] = blockTop_;
+        blockTop_ += cap;
+      } else {
+        // Out of block space (fragmentation): start over, every node gets a fresh block.
+        for (auto& f : freeBlocks_) f.clear();
+        blockTop_ = 0;
+        std::fill(blockFirst_.begin(), blockFirst_.end(), kNone);
+        std::fill(blockCap_.begin(), blockCap_.end(), 0u);
+        for (uint32_t m = 0; m < octree_.nodes().size(); ++m) {
+          const auto c = static_cast<uint32_t>(octree_.node(m).objects.size());
+          if (c == 0) continue;
+          const uint32_t cm = std::bit_ceil(c);
+          blockFirst_[m] = blockTop_, blockCap_[m] = cm, blockTop_ += cm;
+          Instance* dst = g.mappedInstances + config_.maxObjects + blockFirst_[m];
+          for (uint32_t id : octree_.node(m).objects) *dst++ = g.cache[id];
+          g.mappedCommands[config_.maxObjects + m] =
+              DrawCommand{static_cast<GLuint>(kBoxIndices), c, 0, 0, config_.maxObjects + blockFirst_[m]};
+          rewritten += c;
+        }
+        break;
+      }
+      blockCap_[n] = cap;
+    }
+    Instance* dst = g.mappedInstances + config_.maxObjects + (blockFirst_[n] == kNone ? 0 : blockFirst_[n]);
+    for (uint32_t id : node.objects) *dst++ = g.cache[id];
+    g.mappedCommands[config_.maxObjects + n] = DrawCommand{static_cast<GLuint>(kBoxIndices), count, 0, 0,
+                                                           config_.maxObjects + (blockFirst_[n] == kNone ? 0 : blockFirst_[n])};
+    rewritten += count;
+  }
+  stats_.dirtyNodes = static_cast<uint32_t>(dirty.size());
+  stats_.rerecorded += rewritten;
+  octree_.clearDirty();
+}
+
+namespace {
+void bindBoxState(GLuint program, GLuint vao, GLuint commands) {
+  gl.UseProgram(program);
+  gl.BindVertexArray(vao);
+  dgl.BindBuffer(GL_DRAW_INDIRECT_BUFFER, commands);
+}
+void unbindBoxState() {
+  dgl.BindBuffer(GL_DRAW_INDIRECT_BUFFER, 0);
+  gl.BindVertexArray(0);
+  gl.UseProgram(0);
+}
+}  // namespace
+
+void DynamicPass::drawPerCommand(Renderer& r) {
+  Gpu& g = *gpu_;
+  const lod::Frustum frustum = lod::makeFrustum(r.camera());
+  const glm::dvec3 eye = r.camera().eye_m;
+  uint32_t k = 0;
+  const auto n = static_cast<uint32_t>(alive_.size());
+  for (uint32_t id = 0; id < n; ++id) {
+    if (!alive_[id]) continue;
+    ++stats_.frustumTests;
+    const lod::Aabb& b = octree_.boxOf(id);
+    if (!frustum.intersects({b.min - eye, b.max - eye})) continue;
+    g.mappedInstances[k] = g.cache[id];
+    g.mappedCommands[k] = DrawCommand{static_cast<GLuint>(kBoxIndices), 1, 0, 0, k};
+    ++k;
+  }
+  stats_.objectsDrawn = k;
+  stats_.commands += k;
+  stats_.draws += k;
+  stats_.triangles += uint64_t{k} * kBoxTriangles;
+  if (k == 0) return;
+  dgl.MultiDrawElementsIndirect(GL_TRIANGLES, GL_UNSIGNED_SHORT, nullptr, static_cast<GLsizei>(k), 0);
+  ++stats_.submissions;
+}
+
+void DynamicPass::pollQueries() {
+  size_t keep = 0;
+  for (size_t i = 0; i < pending_.size(); ++i) {
+    const Pending p = pending_[i];
+    GLuint available = 0;
+    dgl.GetQueryObjectuiv(p.query, GL_QUERY_RESULT_AVAILABLE, &available);
+    if (!available) {
+      pending_[keep++] = p;
+      continue;
+    }
+    GLuint passed = 0;
+    dgl.GetQueryObjectuiv(p.query, GL_QUERY_RESULT, &passed);  // available: does not wait
+    octree_.setOcclusionResult(p.node, passed != 0, p.frame);
+    freeQueries_.push_back(p.query);
+    ++stats_.resultsRead;
+  }
+  pending_.resize(keep);
+}
+
+void DynamicPass::issueQueries(Renderer& r, uint64_t frame, uint32_t q) {
+  const auto candidates = std::min<uint32_t>(q, stats_.occlusionTests);
+  if (candidates == 0) {
+    stats_.occlusionTests = 0;
+    return;
+  }
+  Gpu& g = *gpu_;
+  const GLuint qp = g.queryProgram.id();
+  const glm::mat4 vp = viewProjection(r.camera());
+  gl.ProgramUniformMatrix4fv(qp, g.qVp, 1, GL_FALSE, glm::value_ptr(vp));
+  gl.UseProgram(qp);
+  dgl.ColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+  gl.DepthMask(GL_FALSE);
+  uint32_t issued = 0;
+  for (uint32_t i = 0; i < candidates && !freeQueries_.empty(); ++i) {
+    const uint32_t n = testList_[i];
+    const lod::Aabb& b = octree_.node(n).bounds;
+    const glm::vec3 centre(0.5 * (b.min + b.max) - r.camera().eye_m);
+    const glm::vec3 half(glm::max(0.5 * (b.max - b.min), glm::dvec3(1e-4)));
+    gl.ProgramUniform3fv(qp, g.qCentre, 1, glm::value_ptr(centre));
+    gl.ProgramUniform3fv(qp, g.qHalf, 1, glm::value_ptr(half));
+    const GLuint query = freeQueries_.back();
+    freeQueries_.pop_back();
+    dgl.BeginQuery(GL_ANY_SAMPLES_PASSED_CONSERVATIVE, query);
+    gl.DrawElementsBaseVertex(GL_TRIANGLES, kBoxIndices, GL_UNSIGNED_SHORT, nullptr, 0);
+    dgl.EndQuery(GL_ANY_SAMPLES_PASSED_CONSERVATIVE);
+    pending_.push_back({query, n, frame});
+    octree_.setQueryPending(n, true);
+    ++issued;
+  }
+  gl.DepthMask(GL_TRUE);
+  dgl.ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+  stats_.occlusionTests = issued;
+  stats_.triangles += uint64_t{issued} * kBoxTriangles;
+}
+
+void DynamicPass::drawNodes(Renderer& r, bool occlusion, uint64_t frame, uint32_t q) {
+  lod::DynamicOctree::Traversal t;
+  t.frame = frame;
+  t.useOcclusion = occlusion;
+  t.eye_m = r.camera().eye_m;
+  const auto tr = octree_.traverse(lod::makeFrustum(r.camera()), t, drawList_, testList_);
+  stats_.frustumTests += tr.frustumTests;
+  stats_.nodesDrawn = tr.drawn;
+  stats_.objectsDrawn = static_cast<uint32_t>(tr.objectsDrawn);
+  stats_.hiddenEstimate = tr.hiddenObjects;
+  stats_.triangles += tr.objectsDrawn * kBoxTriangles;
+  for (uint32_t i = 0; i < tr.drawn; ++i) {
+    const uintptr_t offset = (size_t{config_.maxObjects} + drawList_[i]) * sizeof(DrawCommand);
+    dgl.MultiDrawElementsIndirect(GL_TRIANGLES, GL_UNSIGNED_SHORT, reinterpret_cast<const void*>(offset), 1, 0);
+  }
+  stats_.submissions += tr.drawn;
+  stats_.commands += tr.drawn;  // one pre-built command per node range (all objects are boxes)
+  stats_.draws += tr.drawn;
+  lastNodeStats_ = stats_;
+  lastTraversalFrame_ = frame;
+  endSamples();  // one occlusion query target at a time
+  stats_.occlusionTests = tr.candidates;  // issueQueries() turns this into the tests issued
+  if (q > 0) {
+    issueQueries(r, frame, q);
+  } else {
+    stats_.occlusionTests = 0;
+  }
+}
+
+void DynamicPass::endSamples() {
+  if (samplesActive_) dgl.EndQuery(GL_SAMPLES_PASSED);
+  samplesActive_ = false;
+}
+
+void DynamicPass::drawStateChanges(Renderer& r, uint32_t count) {
+  if (!gpu_ || octree_.objectCount() == 0) return;
+  Gpu& g = *gpu_;
+  uint32_t first = 0;
+  while (!alive_[first]) ++first;
+  g.mappedInstances[0] = g.cache[first];
+  const GLuint p = g.program.id();
+  const glm::mat4 vp = viewProjection(r.camera());
+  gl.ProgramUniformMatrix4fv(p, g.uVp, 1, GL_FALSE, glm::value_ptr(vp));
+  const glm::vec3 origin(config_.origin_m - r.camera().eye_m);
+  gl.ProgramUniform3fv(p, g.uOrigin, 1, glm::value_ptr(origin));
+  bindBoxState(p, g.vao.id(), g.commands.id());
+  for (uint32_t i = 0; i < count; ++i) {
+    gl.ProgramUniform1f(p, g.uStateTag, static_cast<float>(i & 1u));
+    dgl.DrawElementsInstancedBaseInstance(GL_TRIANGLES, kBoxIndices, GL_UNSIGNED_SHORT, nullptr, 1, 0);
+  }
+  unbindBoxState();
+  r.addStats(uint64_t{count} * kBoxTriangles, count);
+}
+
+void DynamicPass::drawDepthBoxes(Renderer& r, std::span<const lod::Aabb> boxes) {
+  if (!gpu_) return;
+  Gpu& g = *gpu_;
+  const GLuint qp = g.queryProgram.id();
+  const glm::mat4 vp = viewProjection(r.camera());
+  gl.ProgramUniformMatrix4fv(qp, g.qVp, 1, GL_FALSE, glm::value_ptr(vp));
+  gl.UseProgram(qp);
+  gl.BindVertexArray(g.vao.id());
+  dgl.ColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+  gl.DepthMask(GL_FALSE);
+  for (const lod::Aabb& b : boxes) {
+    const glm::vec3 centre(0.5 * (b.min + b.max) - r.camera().eye_m);
+    const glm::vec3 half(0.5 * (b.max - b.min));
+    gl.ProgramUniform3fv(qp, g.qCentre, 1, glm::value_ptr(centre));
+    gl.ProgramUniform3fv(qp, g.qHalf, 1, glm::value_ptr(half));
+    gl.DrawElementsBaseVertex(GL_TRIANGLES, kBoxIndices, GL_UNSIGNED_SHORT, nullptr, 0);
+  }
+  gl.DepthMask(GL_TRUE);
+  dgl.ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+  gl.BindVertexArray(0);
+  gl.UseProgram(0);
+}
+
+lod::DynamicMode DynamicPass::chooseMode() {
+  const lod::PerfConstants& c = config_.constants;
+  const double n = octree_.objectCount();
+  const DynamicFrameStats& h = lastNodeStats_;
+  // Objects in frustum-visible nodes (an upper bound of per-object culling). With occlusion
+  // culling on, the hidden ones were not drawn: add them back, T(S) is the frame without tests.
+  const bool culled = switcher_.mode() == lod::DynamicMode::Occlusion;
+  const double visS = h.objectsDrawn + (culled ? static_cast<double>(h.hiddenEstimate) : 0.0);
+  const double nodes = std::max<double>(h.nodesDrawn, 1.0) * (h.objectsDrawn > 0 ? visS / h.objectsDrawn : 1.0);
+  const double rewritten = movedEma_ * std::max(1.0, n / std::max<double>(octree_.nonEmptyNodes(), 1.0));
+  // Fragments from the samples-passed query (async), scaled with the objects drawn.
+  const double frags = static_cast<double>(lastSamples_);
+  lod::ModeInputs in;
+  in.bufS_ns = visS * c.command_ns + c.submit_ns;
+  in.fcS_ns = n * c.cull_ns;
+  in.bufH_ns = std::min(rewritten, n) * c.rerecord_ns + nodes * (c.command_ns + c.submit_ns);
+  in.fcH_ns = h.frustumTests * c.cull_ns;
+  lod::PassLoad all;
+  all.triangles = visS * kBoxTriangles;
+  all.fragments = frags;
+  all.stateChanges = 1;
+  all.rerecorded = std::min(rewritten, n);
+  all.commands = nodes;
+  all.submissions = nodes;
+  all.frustumTests = h.frustumTests;
+  in.frameAll_ns = lod::predictFrame_ns(c, all, {});
+  lod::PassLoad vis = all;
+  const double hidden = std::min<double>(static_cast<double>(h.hiddenEstimate), visS);
+  const double keep = visS > 0 ? (visS - hidden) / visS : 1.0;
+  vis.triangles *= keep;
+  vis.commands = vis.submissions = std::max(1.0, nodes * keep);
+  in.frameVisible_ns = lod::predictFrame_ns(c, vis, {});
+  // T_vis(H): the tests that found the hidden objects (the estimator's), not the exploration's.
+  const double q = std::max<double>(culled ? std::min(lastQ_, estimatorQ_) : lastQ_, config_.estimatorTests);
+  in.visTests_ns = q * (c.occlusionTest_ns + kBoxTriangles * c.tri_ns);
+  lastInputs_ = in;
+  return switcher_.update(in);
+}
+
+void DynamicPass::draw(Renderer& r, uint64_t frame) {
+  stats_ = {};
+  if (!gpu_) return;
+  Gpu& g = *gpu_;
+  movedEma_ = 0.9 * movedEma_ + 0.1 * movedThisFrame_;
+  movedThisFrame_ = 0;
+  // The samples-passed count of an earlier frame, if it has arrived (never waits).
+  for (int i = 0; i < 2; ++i) {
+    if (!g.samplesPending[i]) continue;
+    GLuint available = 0;
+    dgl.GetQueryObjectuiv(g.samplesQuery[i], GL_QUERY_RESULT_AVAILABLE, &available);
+    if (available) {
+      GLuint s = 0;
+      dgl.GetQueryObjectuiv(g.samplesQuery[i], GL_QUERY_RESULT, &s);
+      lastSamples_ = s;
+      g.samplesPending[i] = false;
+    }
+  }
+  pollQueries();
+  octree_.refresh();
+
+  lod::DynamicMode mode = lod::DynamicMode::Octree;
+  uint32_t q = 0;
+  switch (strategy_) {
+    case DynamicStrategy::PerCommand: mode = lod::DynamicMode::PerCommand; break;
+    case DynamicStrategy::Octree: mode = lod::DynamicMode::Octree; break;
+    case DynamicStrategy::Occlusion: mode = lod::DynamicMode::Occlusion, q = fixedQ_; break;
+    case DynamicStrategy::Adaptive: {
+      mode = chooseMode();
+      const lod::PerfConstants& c = config_.constants;
+      if (mode == lod::DynamicMode::Octree) {
+        // The estimate of hidden objects: tests worth about 5 % of the predicted frame.
+        const double budget = 0.05 * lastInputs_.frameAll_ns / std::max(c.occlusionTest_ns, 1.0);
+        q = static_cast<uint32_t>(std::clamp(budget, static_cast<double>(config_.estimatorTests), 1024.0));
+        estimatorQ_ = q;
+      } else if (mode == lod::DynamicMode::Occlusion) {
+        // q from (11) once the fits have three distinct q; explore around it every 4 frames.
+        lod::OcclusionCoefficients k;
+        const uint32_t n0 = octree_.nonEmptyNodes();
+        uint32_t base = std::max<uint32_t>(config_.estimatorTests, estimatorQ_);  // enough to find them
+        lod::OcclusionCosts t{c.rerecord_ns, c.submit_ns, c.tri_ns, c.occlusionTest_ns};
+        if (fits_.solve(k)) base = lod::optimalQ(k, t, n0);
+        const double factors[4] = {1.0, 0.5, 1.0, 2.0};
+        q = static_cast<uint32_t>(std::lround(std::max(1.0, base * factors[(frame / 4) % 4])));
+        q = std::min(q, n0);
+      }
+      break;
+    }
+  }
+  stats_.mode = mode;
+  lastQ_ = q;
+
+  const GLuint p = g.program.id();
+  const Lighting& l = r.lighting();
+  const glm::mat4 vp = viewProjection(r.camera());
+  gl.ProgramUniformMatrix4fv(p, g.uVp, 1, GL_FALSE, glm::value_ptr(vp));
+  const glm::vec3 origin(config_.origin_m - r.camera().eye_m);
+  gl.ProgramUniform3fv(p, g.uOrigin, 1, glm::value_ptr(origin));
+  const glm::vec3 sun(l.sunDirection), sunColor(l.sunColor), fogColor(l.fogColor);
+  gl.ProgramUniform3fv(p, g.uSun, 1, glm::value_ptr(sun));
+  gl.ProgramUniform3fv(p, g.uSunColor, 1, glm::value_ptr(sunColor));
+  gl.ProgramUniform1f(p, g.uAmbient, static_cast<float>(l.ambient));
+  gl.ProgramUniform3fv(p, g.uFogColor, 1, glm::value_ptr(fogColor));
+  gl.ProgramUniform1f(p, g.uFogDensity, l.fog ? static_cast<float>(3.912 / l.fogVisibility_m) : 0.0f);
+  dgl.ProgramUniform1i(p, g.uWork, static_cast<GLint>(config_.fragmentWork));
+  bindBoxState(p, g.vao.id(), g.commands.id());
+  const int sq = static_cast<int>(frame & 1u);
+  samplesActive_ = strategy_ == DynamicStrategy::Adaptive && !g.samplesPending[sq];
+  if (samplesActive_) {
+    dgl.BeginQuery(GL_SAMPLES_PASSED, g.samplesQuery[sq]);
+    g.samplesPending[sq] = true;
+  }
+  if (mode == lod::DynamicMode::PerCommand) {
+    drawPerCommand(r);
+    // Node ranges are rebuilt only in the octree modes: the dirty nodes stay marked until then.
+    if (strategy_ == DynamicStrategy::Adaptive && frame >= lastTraversalFrame_ + 8) {
+      // Node statistics for condition (5), every 8 frames.
+      lod::DynamicOctree::Traversal t;
+      t.frame = frame;
+      t.eye_m = r.camera().eye_m;
+      const auto tr = octree_.traverse(lod::makeFrustum(r.camera()), t, drawList_, testList_);
+      lastNodeStats_.objectsDrawn = static_cast<uint32_t>(tr.objectsDrawn);
+      lastNodeStats_.nodesDrawn = tr.drawn;
+      lastNodeStats_.frustumTests = tr.frustumTests;
+      lastNodeStats_.hiddenEstimate = tr.hiddenObjects;
+      lastTraversalFrame_ = frame;
+    }
+  } else {
+    rebuildDirtyNodes();
+    drawNodes(r, mode == lod::DynamicMode::Occlusion, frame, q);
+  }
+  endSamples();
+  unbindBoxState();
+  stats_.objects = octree_.objectCount();
+  stats_.queriesPending = static_cast<uint32_t>(pending_.size());
+  stats_.nonEmptyNodes = octree_.nonEmptyNodes();
+  if (strategy_ == DynamicStrategy::Adaptive && mode == lod::DynamicMode::Occlusion && (frame % 4) >= 2) {
+    const lod::PerfConstants& c = config_.constants;
+    lod::PassLoad s;
+    s.triangles = static_cast<double>(stats_.triangles);
+    s.fragments = static_cast<double>(lastSamples_);
+    const double gpu = std::max(s.triangles * c.tri_ns, s.fragments * c.frag_ns);
+    fits_.add(stats_.occlusionTests, stats_.rerecorded + stats_.occlusionTests, stats_.submissions,
+              c.tri_ns > 0 ? gpu / c.tri_ns : 0.0);
+  }
+  if (strategy_ == DynamicStrategy::Adaptive) stats_.predicted_ns = lastInputs_.frameAll_ns;
+  r.addStats(stats_.triangles, stats_.draws);
+}
+
+}  // namespace ig::render

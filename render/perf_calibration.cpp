@@ -1,0 +1,488 @@
+// Calibration of the paper 002 performance model on the current GL implementation. See
+// perf_calibration.h.
+#include "render/perf_calibration.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <functional>
+#include <sstream>
+#include <vector>
+
+#include "render/dynamic_pass.h"
+#include "render/gl.h"
+#include "render/renderer.h"
+
+namespace ig::render {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+constexpr int kCacheVersion = 1;
+
+struct Field {
+  const char* name;
+  double lod::PerfConstants::*member;
+};
+constexpr Field kFields[] = {
+    {"frame_ns", &lod::PerfConstants::frame_ns},
+    {"tri_ns", &lod::PerfConstants::tri_ns},
+    {"frag_ns", &lod::PerfConstants::frag_ns},
+    {"depth_frag_ns", &lod::PerfConstants::depthFrag_ns},
+    {"state_ns", &lod::PerfConstants::state_ns},
+    {"command_ns", &lod::PerfConstants::command_ns},
+    {"rerecord_ns", &lod::PerfConstants::rerecord_ns},
+    {"submit_ns", &lod::PerfConstants::submit_ns},
+    {"cull_ns", &lod::PerfConstants::cull_ns},
+    {"occlusion_test_ns", &lod::PerfConstants::occlusionTest_ns},
+    {"overlap", &lod::PerfConstants::overlap},
+};
+
+std::string glString(GLenum e) {
+  const auto* s = reinterpret_cast<const char*>(gl.GetString(e));
+  std::string r = s ? s : "?";
+  for (char& c : r)
+    if (c == '\n' || c == '|') c = ' ';
+  return r;
+}
+
+// One measurement context: a renderer, a camera looking north from the origin, a light.
+struct Bench {
+  Renderer renderer;
+  lod::Camera camera;
+  Lighting light;
+  uint64_t frame = 1;
+  int reps = 7;
+  int rounds = 3;
+  Clock::time_point start = Clock::now();
+  double budget_s = 3.0;
+
+  // Lower quartile of the wall time (ms) of a frame drawing `draw`, after one warm-up frame:
+  // on a shared machine preemption only ever adds time, the quartile is the undisturbed cost.
+  double median(const std::function<void()>& draw) {
+    if (overBudget()) reps = 3, rounds = 1;
+    std::vector<double> ms;
+    for (int i = 0; i <= reps; ++i) {
+      const auto t0 = Clock::now();
+      renderer.beginFrame(camera, light);
+      draw();
+      renderer.endFrame();
+      renderer.finish();
+      if (i > 0) ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
+      ++frame;
+    }
+    std::sort(ms.begin(), ms.end());
+    return ms[ms.size() / 4];
+  }
+  bool overBudget() const { return std::chrono::duration<double>(Clock::now() - start).count() > 0.5 * budget_s; }
+  // Median of the slope (ns per unit) between two loads measured alternately.
+  double slope(const std::function<void()>& low, double lowUnits, const std::function<void()>& high, double highUnits) {
+    std::vector<double> s;
+    for (int k = 0; k < rounds; ++k) {
+      const double a = median(low), b = median(high);
+      s.push_back((b - a) * 1e6 / (highUnits - lowUnits));
+    }
+    std::sort(s.begin(), s.end());
+    return s[s.size() / 2];
+  }
+};
+
+// The CPU cost of recording one command: an 84-byte record (instance + indirect command)
+// written to memory, timed directly. The floor of t_c and t_s when frame slopes drown in noise.
+double recordFloor_ns() {
+  struct Record {
+    float instance[16];
+    uint32_t command[5];
+  };
+  constexpr size_t kN = 1 << 16;
+  std::vector<Record> dst(kN);
+  Record src{};
+  double best = 1e300;
+  for (int k = 0; k < 5; ++k) {
+    const auto t0 = Clock::now();
+    for (size_t i = 0; i < kN; ++i) {
+      src.command[4] = static_cast<uint32_t>(i);
+      dst[i] = src;
+    }
+    best = std::min(best, std::chrono::duration<double, std::nano>(Clock::now() - t0).count() / kN);
+  }
+  volatile uint32_t sink = dst[kN / 2].command[4];
+  (void)sink;
+  return best;
+}
+
+bool makePass(DynamicPass& pass, uint32_t maxObjects, uint32_t depth, double bounds_m, uint32_t work,
+              std::string& error) {
+  DynamicPassConfig c;
+  c.testMinObjects = 1;  // every node may be tested, every frame
+  c.resultMaxAge = 0;
+  c.maxObjects = maxObjects;
+  c.octreeDepth = depth;
+  c.bounds = {glm::dvec3(-bounds_m), glm::dvec3(bounds_m)};
+  c.maxQueries = maxObjects;
+  c.fragmentWork = work;
+  return pass.init(c, error);
+}
+
+}  // namespace
+
+std::string calibrationKey(const CalibrationOptions& o) {
+  return glString(GL_VENDOR) + "|" + glString(GL_RENDERER) + "|" + glString(GL_VERSION) +
+         "|work=" + std::to_string(o.fragmentWork) + "|" + std::to_string(o.width_px) + "x" + std::to_string(o.height_px);
+}
+
+bool readCalibrationCache(const std::string& path, const std::string& key, lod::PerfConstants& out, std::string& why) {
+  std::ifstream in(path);
+  if (!in) {
+    why = path + ": cannot open";
+    return false;
+  }
+  std::string line;
+  bool haveVersion = false, haveKey = false;
+  uint32_t seen = 0;
+  lod::PerfConstants c;
+  int lineNo = 0;
+  while (std::getline(in, line)) {
+    ++lineNo;
+    if (line.empty() || line[0] == '#') continue;
+    const size_t sp = line.find(' ');
+    const std::string name = line.substr(0, sp), value = sp == std::string::npos ? "" : line.substr(sp + 1);
+    const std::string where = path + ":" + std::to_string(lineNo) + ": ";
+    if (name == "version") {
+      if (value != std::to_string(kCacheVersion)) return why = where + "version " + value + " (expected " + std::to_string(kCacheVersion) + ")", false;
+      haveVersion = true;
+      continue;
+    }
+    if (name == "key") {
+      if (value != key) return why = where + "key '" + value + "' is not this device's '" + key + "'", false;
+      haveKey = true;
+      continue;
+    }
+    bool known = false;
+    for (size_t i = 0; i < std::size(kFields); ++i) {
+      if (name != kFields[i].name) continue;
+      known = true;
+      if (seen & (1u << i)) return why = where + name + " repeated", false;
+      char* end = nullptr;
+      const double v = std::strtod(value.c_str(), &end);
+      if (value.empty() || end == value.c_str() || *end != '\0' || !std::isfinite(v) || v < 0.0)
+        return why = where + name + " = '" + value + "': not a finite number >= 0", false;
+      c.*kFields[i].member = v;
+      seen |= 1u << i;
+    }
+    if (!known) return why = where + "unknown field '" + name + "'", false;
+  }
+  if (!haveVersion || !haveKey) return why = path + ": no version or key line", false;
+  for (size_t i = 0; i < std::size(kFields); ++i)
+    if (!(seen & (1u << i))) return why = path + ": " + kFields[i].name + " missing", false;
+  if (!lod::valid(c)) return why = path + ": constants out of range", false;
+  out = c;
+  return true;
+}
+
+bool writeCalibrationCache(const std::string& path, const std::string& key, const lod::PerfConstants& c,
+                           std::string& error) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream f(tmp, std::ios::trunc);
+    if (!f) return error = tmp + ": cannot write", false;
+    f << "# igd performance-model calibration (paper 002, render/perf_calibration.h); rewritten when stale\n";
+    f << "version " << kCacheVersion << "\nkey " << key << "\n";
+    char buf[96];
+    for (const Field& fl : kFields) {
+      std::snprintf(buf, sizeof buf, "%s %.9g\n", fl.name, c.*fl.member);
+      f << buf;
+    }
+    if (!f.flush()) return error = tmp + ": write failed", false;
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) return error = path + ": cannot replace", false;
+  return true;
+}
+
+bool calibrate(const std::string& cachePath, const CalibrationOptions& o, CalibrationResult& out, std::string& error,
+               std::string* warning) {
+  if (o.width_px <= 0 || o.height_px <= 0 || o.width_px > 16384 || o.height_px > 16384) {
+    error = "calibration: viewport " + std::to_string(o.width_px) + "x" + std::to_string(o.height_px) + ": out of range";
+    return false;
+  }
+  if (!std::isfinite(o.budget_s) || o.budget_s <= 0.0) {
+    error = "calibration: budget_s = " + std::to_string(o.budget_s) + ": must be > 0";
+    return false;
+  }
+  out = {};
+  out.key = calibrationKey(o);
+  std::string why;
+  if (!cachePath.empty() && !o.ignoreCache && readCalibrationCache(cachePath, out.key, out.constants, why)) {
+    out.fromCache = true;
+    return true;
+  }
+  Bench b;
+  b.budget_s = o.budget_s;
+  if (!b.renderer.init(o.width_px, o.height_px, error)) return error = "calibration: " + error, false;
+  b.camera.aspect = static_cast<double>(o.width_px) / o.height_px;
+  b.camera.near_m = 0.1;
+  b.camera.far_m = 10000.0;
+  b.light.fog = false;
+  const double pixels = static_cast<double>(o.width_px) * o.height_px;
+  lod::PerfConstants c;
+
+  // Fixed cost of a frame.
+  c.frame_ns = b.median([] {}) * 1e6;
+
+  // T_frag: full-screen boxes, far first, one per-object command each.
+  {
+    DynamicPass pass;
+    if (!makePass(pass, 64, 0, 1000.0, o.fragmentWork, error)) return false;
+    pass.setStrategy(DynamicStrategy::PerCommand);
+    const auto layers = [&](int k) {
+      pass.clear();
+      for (int i = 0; i < k; ++i) {
+        const double d = 50.0 - i;
+        pass.add({{0.0, d, 0.0}, {3.0 * d, 0.4, 3.0 * d}, 0.0, 0xff8080ffu});
+      }
+    };
+    const auto draw = [&] { pass.draw(b.renderer, b.frame); };
+    std::vector<double> s;
+    for (int k = 0; k < b.rounds; ++k) {
+      layers(1);
+      const double a = b.median(draw);
+      layers(4);
+      const double z = b.median(draw);
+      s.push_back((z - a) * 1e6 / (3.0 * pixels));
+    }
+    std::sort(s.begin(), s.end());
+    c.frag_ns = s[s.size() / 2];
+    // Depth-only fragments of occlusion boxes over a depth buffer at the far plane.
+    std::vector<lod::Aabb> boxes;
+    for (int i = 0; i < 8; ++i) {
+      const double d = 50.0 - i;
+      boxes.push_back({{-3.0 * d, d - 0.4, -3.0 * d}, {3.0 * d, d + 0.4, 3.0 * d}});
+    }
+    pass.clear();
+    c.depthFrag_ns = std::max(0.0, b.slope([&] { pass.drawDepthBoxes(b.renderer, std::span(boxes).first(1)); }, pixels,
+                                           [&] { pass.drawDepthBoxes(b.renderer, boxes); }, 8.0 * pixels));
+  }
+
+  // Tiny (sub-pixel) boxes in front of the camera.
+  // Tiny boxes spread over the whole view (a concentrated cloud costs llvmpipe more per
+  // triangle). Not sub-pixel by orders of magnitude: llvmpipe handles those on a slower path
+  // than the few-pixel boxes of large scenes.
+  constexpr double kTinyHalf_m = 0.005;
+  // In 2 m octree cells (bounds +-64 m): 14 x 8 cells across the view at y in [20, 22], so any
+  // count of boxes fills the same 112 nodes and a slope over the count is per box, not per node.
+  const auto tiny = [](uint32_t i, double y) {
+    const auto jitter = [](uint32_t h) { return 0.8 * ((h >> 8) % 65536u / 32768.0 - 1.0); };
+    const double x = -13.0 + 2.0 * (i % 14u) + jitter(i * 2654435761u);
+    const double z = -7.0 + 2.0 * ((i / 14u) % 8u) + jitter(i * 2246822519u);
+    return DynamicObject{{x, y + jitter(i * 3266489917u), z}, glm::dvec3(kTinyHalf_m), 0.0, 0xffffffffu};
+  };
+  // Their fragments: a box of 2 x 0.01 m at 21 m covers ~0.2 px; shaded in blocks (4 x 4 on
+  // llvmpipe) as lod::shadedFragments models it, subtracted from the per-box slopes below.
+  const double pxPerMetre = o.height_px / (2.0 * 21.0 * std::tan(0.5 * b.camera.fovY_deg * 0.017453292519943295));
+  const double tinyFragments = lod::shadedFragments(std::pow(2.0 * kTinyHalf_m * pxPerMetre, 2.0) * 1.5, 4.0);
+  // T_tri, t_c and t_s come from differences of per-box costs, so the loads they compare are
+  // measured interleaved (one frame of each per repeat) and see the same machine load.
+  constexpr uint32_t kLow = 500, kHigh = 3000, kNodesLow = 150, kNodesHigh = 900;
+  DynamicPass low, high, nodesLow, nodesHigh, nodesDouble;
+  for (DynamicPass* p : {&low, &high})
+    if (!makePass(*p, kHigh, 6, 64.0, o.fragmentWork, error)) return false;  // 2 m leaves
+  for (DynamicPass* p : {&nodesLow, &nodesHigh, &nodesDouble})
+    if (!makePass(*p, 4096, 6, 64.0, o.fragmentWork, error)) return false;
+  for (uint32_t i = 0; i < kHigh; ++i) {
+    if (i < kLow) low.add(tiny(i, 21.0));
+    high.add(tiny(i, 21.0));
+  }
+  // One tiny box per octree leaf (2 m cells): one node range, one indirect call per box.
+  // `perNode` boxes in each cell (the second 0.4 m beside the first, same cell).
+  const auto grid = [&](DynamicPass& pass, uint32_t n, int perNode) {
+    uint32_t k = 0;
+    for (int layer = 0; layer < 4 && k < n; ++layer)
+      for (int zi = -6; zi < 6 && k < n; ++zi)
+        for (int xi = -14; xi < 14 && k < n; ++xi, ++k)
+          for (int j = 0; j < perNode; ++j)
+            pass.add({{2.0 * xi + 1.0 + 0.4 * j, 41.0 + 2.0 * layer, 2.0 * zi + 1.0}, glm::dvec3(kTinyHalf_m), 0.0,
+                      0xffffffffu});
+  };
+  grid(nodesLow, kNodesLow, 1);
+  grid(nodesHigh, kNodesHigh, 1);
+  grid(nodesDouble, kNodesHigh, 2);
+  nodesLow.setStrategy(DynamicStrategy::Octree);
+  nodesHigh.setStrategy(DynamicStrategy::Octree);
+  {
+    // Whole frame (ms), and in `cpu` the part until the GL calls return (before glFinish).
+    double cpuLast = 0.0;
+    const auto frameMs = [&](DynamicPass& p, DynamicStrategy s) {
+      p.setStrategy(s);
+      const auto t0 = Clock::now();
+      b.renderer.beginFrame(b.camera, b.light);
+      p.draw(b.renderer, b.frame++);
+      b.renderer.endFrame();
+      cpuLast = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+      b.renderer.finish();
+      return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+    };
+    std::vector<double> inst, cmd, node, cpuCmd, cpuNode;
+    const int reps = b.overBudget() || b.budget_s < 3.0 ? 3 : 7;
+    for (int r = 0; r <= reps; ++r) {
+      // llvmpipe's cost per instance grows with the instances in one draw: measure the box in
+      // the small instanced draws of big scenes (one vs two boxes per node, same nodes).
+      const double nd = frameMs(nodesDouble, DynamicStrategy::Octree);
+      const double cl = frameMs(low, DynamicStrategy::PerCommand);
+      const double ccl = cpuLast;
+      const double ch = frameMs(high, DynamicStrategy::PerCommand);
+      const double cch = cpuLast;
+      const double nl = frameMs(nodesLow, DynamicStrategy::Octree);
+      const double cnl = cpuLast;
+      const double nh = frameMs(nodesHigh, DynamicStrategy::Octree);
+      const double cnh = cpuLast;
+      if (r == 0) continue;  // warm-up (node ranges built, shaders compiled)
+      cpuCmd.push_back((cch - ccl) * 1e6 / (kHigh - kLow));
+      cpuNode.push_back((cnh - cnl) * 1e6 / (kNodesHigh - kNodesLow));
+      inst.push_back((nd - nh) * 1e6 / kNodesHigh);
+      cmd.push_back((ch - cl) * 1e6 / (kHigh - kLow));
+      node.push_back((nh - nl) * 1e6 / (kNodesHigh - kNodesLow));
+    }
+    const auto mid = [](std::vector<double> v) {
+      std::sort(v.begin(), v.end());
+      return v[v.size() / 2];
+    };
+    const double perBox = mid(inst), perCommandBox = mid(cmd), perNode = mid(node);
+    // An instanced box: 12 triangles and its fragments. A per-object command box: the same plus
+    // the command and a frustum test. A node of one box: the box, its command, its submission.
+    c.tri_ns = (perBox - tinyFragments * c.frag_ns) / 12.0;
+    if (!(c.tri_ns > 0.0)) c.tri_ns = perBox / 12.0;
+    // Frustum tests: per-object culling of boxes behind the camera.
+    DynamicPass behindPass;
+    if (!makePass(behindPass, kHigh, 6, 64.0, o.fragmentWork, error)) return false;
+    behindPass.setStrategy(DynamicStrategy::PerCommand);
+    const auto drawBehind = [&] { behindPass.draw(b.renderer, b.frame); };
+    std::vector<double> sc;
+    for (int k = 0; k < b.rounds; ++k) {
+      behindPass.clear();
+      for (uint32_t i = 0; i < kLow; ++i) behindPass.add(tiny(i, -20.0));
+      const double a0 = b.median(drawBehind);
+      for (uint32_t i = kLow; i < kHigh; ++i) behindPass.add(tiny(i, -20.0));
+      const double z0 = b.median(drawBehind);
+      sc.push_back((z0 - a0) * 1e6 / (kHigh - kLow));
+    }
+    c.cull_ns = std::max(0.0, mid(sc));
+    {
+      // The frustum test alone, timed directly: frame slopes of a few ns per box drown in noise.
+      const lod::Frustum f = lod::makeFrustum(b.camera);
+      double best = 1e300;
+      uint32_t hits = 0;
+      for (int k = 0; k < 5; ++k) {
+        const auto t0 = Clock::now();
+        for (uint32_t i = 0; i < 100000; ++i) {
+          const glm::dvec3 p(0.001 * i - 50.0, 20.0 + 0.0001 * i, 0.0);
+          hits += f.intersects({p - glm::dvec3(0.1), p + glm::dvec3(0.1)}) ? 1u : 0u;
+        }
+        best = std::min(best, std::chrono::duration<double, std::nano>(Clock::now() - t0).count() / 100000.0);
+      }
+      c.cull_ns = std::max(c.cull_ns, best);
+      volatile uint32_t sink = hits;
+      (void)sink;
+    }
+    // A negative difference of frame slopes is noise: fall back to the CPU-side slopes (the GL
+    // calls of llvmpipe do the per-draw and vertex work on this thread), which do not include
+    // the rasterizer threads' share.
+    c.command_ns = perCommandBox - perBox - c.cull_ns;
+    if (!(c.command_ns > 0.0)) c.command_ns = std::max(0.0, mid(cpuCmd) - perBox - c.cull_ns);
+    if (!(c.command_ns > 0.0)) c.command_ns = recordFloor_ns();
+    c.submit_ns = perNode - perBox - c.command_ns - 8.0 / 7.0 * c.cull_ns;
+    if (!(c.submit_ns > 0.0)) c.submit_ns = std::max(0.0, mid(cpuNode) - perBox - c.command_ns - 8.0 / 7.0 * c.cull_ns);
+    if (!(c.submit_ns > 0.0)) c.submit_ns = recordFloor_ns();
+    // T_state: one tiny box per draw, a uniform change before each.
+    c.state_ns = std::max(0.0, b.slope([&] { low.drawStateChanges(b.renderer, 200); }, 200.0,
+                                       [&] { low.drawStateChanges(b.renderer, 2000); }, 2000.0) -
+                                   perBox);
+    // t_r: every object moved (in place) each frame in octree mode: its node range is rewritten.
+    high.setStrategy(DynamicStrategy::Octree);
+    const auto drawHigh = [&] { high.draw(b.renderer, b.frame); };
+    const auto moveAll = [&] {
+      for (uint32_t i = 0; i < kHigh; ++i) high.set(i, tiny(i, 21.0));
+      high.draw(b.renderer, b.frame);
+    };
+    c.rerecord_ns = std::max(0.0, b.slope(drawHigh, 0.0, moveAll, kHigh));
+    if (!(c.rerecord_ns > 0.0)) {
+      // Noise ate the slope: time the CPU work of changing an object directly (octree move and
+      // instance record; the range rewrite is a 64-byte copy on top).
+      double best = 1e300;
+      for (int k = 0; k < 3; ++k) {
+        const auto t0 = Clock::now();
+        for (uint32_t i = 0; i < kHigh; ++i) high.set(i, tiny(i, 21.0));
+        best = std::min(best, std::chrono::duration<double, std::nano>(Clock::now() - t0).count() / kHigh);
+      }
+      c.rerecord_ns = best + recordFloor_ns();
+      drawHigh();
+    }
+  }
+  {
+    // The occlusion test cost on the one-box nodes.
+    DynamicPass& pass = nodesHigh;
+    const auto draw = [&] { pass.draw(b.renderer, b.frame); };
+    pass.setStrategy(DynamicStrategy::Occlusion);
+    std::vector<double> sq;
+    for (int k = 0; k < b.rounds; ++k) {
+      pass.setOcclusionTests(0);
+      const double a = b.median(draw);
+      pass.setOcclusionTests(600);
+      const double z = b.median(draw);
+      sq.push_back((z - a) * 1e6 / 600.0);
+    }
+    std::sort(sq.begin(), sq.end());
+    c.occlusionTest_ns = std::max(0.0, sq[sq.size() / 2]);
+  }
+  {
+    // Overlap of the stages inside the max() of (2): a vertex-bound load V (tiny boxes) and a
+    // fragment-bound load F (full-screen boxes) of similar cost, then both in one frame M.
+    // w = (V + F - M - frame) / min(V - frame, F - frame): 1 if the stages run in parallel.
+    DynamicPass pass;
+    if (!makePass(pass, 40000, 0, 1000.0, o.fragmentWork, error)) return false;
+    pass.setStrategy(DynamicStrategy::Octree);
+    const double tf = 3.0 * pixels * c.frag_ns;
+    const auto m = static_cast<uint32_t>(std::clamp(tf / std::max(12.0 * c.tri_ns, 1e-3), 100.0, 40000.0));
+    const auto fill = [&](bool layers, bool boxes) {
+      pass.clear();
+      if (layers)
+        for (int i = 0; i < 3; ++i) {
+          const double d = 50.0 - i;
+          pass.add({{0.0, d, 0.0}, {3.0 * d, 0.4, 3.0 * d}, 0.0, 0xff8080ffu});
+        }
+      if (boxes)
+        for (uint32_t i = 0; i < m; ++i) pass.add(tiny(i, 21.0));
+    };
+    const auto draw = [&] { pass.draw(b.renderer, b.frame); };
+    std::vector<double> w;
+    for (int k = 0; k < b.rounds; ++k) {
+      fill(false, true);
+      const double v = b.median(draw) * 1e6 - c.frame_ns;
+      fill(true, false);
+      const double f = b.median(draw) * 1e6 - c.frame_ns;
+      fill(true, true);
+      const double both = b.median(draw) * 1e6 - c.frame_ns;
+      w.push_back(std::clamp((v + f - both) / std::max(std::min(v, f), 1.0), 0.0, 1.0));
+    }
+    std::sort(w.begin(), w.end());
+    c.overlap = w[w.size() / 2];
+  }
+  const std::string e = glErrors();
+  if (!e.empty()) return error = "calibration: GL errors " + e, false;
+  if (!lod::valid(c)) {
+    char buf[256];
+    std::snprintf(buf, sizeof buf, "calibration: implausible constants (tri %.3g ns, frag %.3g ns, state %.3g ns)",
+                  c.tri_ns, c.frag_ns, c.state_ns);
+    error = buf;
+    return false;
+  }
+  out.constants = c;
+  out.seconds = std::chrono::duration<double>(Clock::now() - b.start).count();
+  if (!cachePath.empty()) {
+    std::string werr;
+    if (!writeCalibrationCache(cachePath, out.key, c, werr) && warning) *warning = werr;
+  }
+  return true;
+}
+
+}  // namespace ig::render

@@ -1,0 +1,58 @@
+// Start-up calibration of the performance model of paper 002 (lod/perfmodel.h) on the GL
+// implementation actually in use, with the material and box mesh of render/dynamic_pass.h:
+//   frame_ns     an empty frame (clear, finish)
+//   frag_ns      full-screen boxes drawn back to front (every fragment shaded): T_frag
+//   depthFrag_ns the same boxes depth-only, as occlusion boxes are drawn
+//   tri_ns       tiny boxes (0.2 px) in 112 fixed octree leaves, one instanced draw per node: T_tri
+//   command_ns   the same boxes as per-object commands, minus the instanced cost: t_c
+//   submit_ns    one tiny box per octree leaf, one indirect call per node, minus the above: t_s
+//   state_ns     one tiny box per draw with a uniform change between draws: T_state
+//   cull_ns      per-object frustum tests of boxes behind the camera
+//   rerecord_ns  every object moved each frame in octree mode (node ranges rewritten): t_r
+//   occlusionTest_ns  q queries on tiny nodes minus the same frame without: one test
+//   overlap      vertex-bound + fragment-bound load in one frame vs each alone
+// Each constant is the slope between two loads (lower quartile of repeated frames, glFinish + a
+// monotonic clock; the median of three such slopes), so fixed costs cancel; T_tri, t_c and t_s
+// (differences of per-box costs) from loads measured interleaved frame by frame. Results are
+// cached in a small text file keyed by GL_VENDOR / GL_RENDERER / GL_VERSION, the material and
+// the viewport; a cache for another key, or one that does not parse, is ignored and rewritten.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "lod/perfmodel.h"
+
+namespace ig::render {
+
+struct CalibrationOptions {
+  int width_px = 640;          // viewport of the measurements (the fragment costs scale with it)
+  int height_px = 360;
+  uint32_t fragmentWork = 0;   // material: DynamicPassConfig::fragmentWork of the pass to model
+  double budget_s = 3.0;       // repeats are cut when the measurements run longer than this
+  bool ignoreCache = false;    // measure even if the cache matches (the cache is rewritten)
+};
+
+struct CalibrationResult {
+  lod::PerfConstants constants;
+  bool fromCache = false;
+  std::string key;             // what the cache is keyed by
+  double seconds = 0.0;        // time spent measuring (0 from the cache)
+};
+
+// Needs a current GL context (render/context.h). `cachePath` may be empty (no cache). Returns
+// false with a message when the measurements fail (GL errors, a constant not positive); a cache
+// that cannot be written is not an error (the message goes to `warning`).
+bool calibrate(const std::string& cachePath, const CalibrationOptions& options, CalibrationResult& out,
+               std::string& error, std::string* warning = nullptr);
+
+// The cache key of the current context for these options.
+std::string calibrationKey(const CalibrationOptions& options);
+// Cache file I/O (also for tests). read returns false with the reason when the file is absent,
+// has another key or version, or a field is missing, repeated, not a number, negative or NaN.
+bool readCalibrationCache(const std::string& path, const std::string& key, lod::PerfConstants& out,
+                          std::string& why);
+bool writeCalibrationCache(const std::string& path, const std::string& key, const lod::PerfConstants& c,
+                           std::string& error);
+
+}  // namespace ig::render

@@ -1,0 +1,317 @@
+// GL tests of the dynamic-object pass of paper 002 (render/dynamic_pass.h) and the calibration
+// cache (render/perf_calibration.h), on a real headless context (llvmpipe).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <unistd.h>
+
+#include "render/context.h"
+#include "render/dynamic_pass.h"
+#include "render/gl.h"
+#include "render/image.h"
+#include "render/perf_calibration.h"
+#include "render/renderer.h"
+
+using namespace ig;
+using render::DynamicObject;
+using render::DynamicStrategy;
+
+namespace {
+
+constexpr int kW = 160, kH = 90;
+
+class DynamicGl : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::string error;
+    ctx_ = render::createContext(render::ContextKind::Headless, kW, kH, error);
+    ASSERT_TRUE(ctx_) << error;
+    ASSERT_TRUE(renderer_.init(kW, kH, error)) << error;
+    cam_.aspect = static_cast<double>(kW) / kH;
+    cam_.near_m = 0.5;
+    cam_.far_m = 5000.0;
+    light_.fog = false;
+  }
+
+  std::unique_ptr<render::DynamicPass> makePass(glm::dvec3 origin = glm::dvec3(0.0), uint32_t capacity = 4096) {
+    render::DynamicPassConfig c;
+    c.maxObjects = capacity;
+    c.bounds = {origin - glm::dvec3(128.0), origin + glm::dvec3(128.0)};
+    c.octreeDepth = 6;
+    c.maxQueries = 1024;
+    c.origin_m = origin;
+    auto p = std::make_unique<render::DynamicPass>();
+    std::string error;
+    EXPECT_TRUE(p->init(c, error)) << error;
+    return p;
+  }
+
+  // A static scene: random boxes in view, and optionally a wall hiding the left half.
+  static std::vector<DynamicObject> scene(bool wall, glm::dvec3 shift = glm::dvec3(0.0)) {
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<double> u(-1.0, 1.0), u01(0.0, 1.0);
+    std::vector<DynamicObject> v;
+    for (int i = 0; i < 600; ++i) {
+      const double y = 40.0 + 60.0 * u01(rng);
+      v.push_back({shift + glm::dvec3(0.6 * y * u(rng), y, 0.3 * y * u(rng)), glm::dvec3(0.6 + 0.4 * u01(rng)),
+                   90.0 * u(rng), 0xff000000u | (static_cast<uint32_t>(rng()) & 0xffffffu)});
+    }
+    if (wall) v.push_back({shift + glm::dvec3(-12.0, 25.0, 0.0), {12.0, 0.5, 12.0}, 0.0, 0xff606060u});
+    return v;
+  }
+
+  render::Image frame(render::DynamicPass& p, uint64_t f, bool finish = true) {
+    renderer_.beginFrame(cam_, light_);
+    p.draw(renderer_, f);
+    renderer_.endFrame();
+    render::Image img;
+    if (finish) {
+      renderer_.finish();
+      renderer_.readPixels(img);
+    }
+    EXPECT_EQ(renderer_.errors(), "");
+    return img;
+  }
+
+  std::unique_ptr<render::GlContext> ctx_;
+  render::Renderer renderer_;
+  lod::Camera cam_;
+  render::Lighting light_;
+};
+
+TEST_F(DynamicGl, ThreeStrategiesDrawTheSameImageOfAStaticScene) {
+  for (bool wall : {false, true}) {
+    std::vector<render::Image> images;
+    std::vector<render::DynamicFrameStats> stats;
+    for (DynamicStrategy s : {DynamicStrategy::PerCommand, DynamicStrategy::Octree, DynamicStrategy::Occlusion}) {
+      auto p = makePass();
+      for (const DynamicObject& o : scene(wall)) ASSERT_NE(p->add(o), render::DynamicPass::kNone);
+      p->setStrategy(s);
+      p->setOcclusionTests(1024);
+      render::Image img;
+      for (uint64_t f = 1; f <= 6; ++f) img = frame(*p, f);  // occlusion: results of earlier frames
+      images.push_back(img);
+      stats.push_back(p->stats());
+    }
+    EXPECT_EQ(stats[0].objectsDrawn, stats[0].objects);  // everything is in view
+    EXPECT_GT(stats[1].nodesDrawn, 10u);
+    EXPECT_EQ(stats[0].submissions, 1u);
+    EXPECT_EQ(stats[1].submissions, stats[1].nodesDrawn);
+    EXPECT_LT(render::fractionDifferent(images[0], images[1], 2), 0.002) << "wall " << wall;
+    EXPECT_LT(render::fractionDifferent(images[1], images[2], 2), 0.002) << "wall " << wall;
+    EXPECT_GT(render::fractionDifferent(images[0], render::Image{images[0].width, images[0].height,
+                                                                 std::vector<uint8_t>(images[0].rgba.size(), 0)}, 2),
+              0.3);  // something was drawn
+    if (wall) {
+      EXPECT_GT(stats[2].hiddenEstimate, 100u);  // the wall hides a good part of the boxes
+      EXPECT_LT(stats[2].objectsDrawn, stats[1].objectsDrawn);
+    } else {
+      EXPECT_LT(stats[2].hiddenEstimate, 60u);  // nothing big hides anything
+    }
+  }
+}
+
+TEST_F(DynamicGl, SameImageOneThousandKilometresFromTheOrigin) {
+  const glm::dvec3 far(977.0 * 1024.0, -512.0 * 1024.0, 0.0);
+  std::vector<render::Image> images;
+  for (glm::dvec3 shift : {glm::dvec3(0.0), far}) {
+    auto p = makePass(shift);
+    for (const DynamicObject& o : scene(true, shift)) p->add(o);
+    p->setStrategy(DynamicStrategy::Octree);
+    cam_.eye_m = shift;
+    images.push_back(frame(*p, 1));
+  }
+  cam_.eye_m = glm::dvec3(0.0);
+  EXPECT_LT(render::fractionDifferent(images[0], images[1], 2), 0.002);
+}
+
+TEST_F(DynamicGl, MovingAnObjectRebuildsOnlyItsNodes) {
+  auto p = makePass();
+  std::vector<DynamicObject> objs = scene(false);
+  for (const DynamicObject& o : objs) p->add(o);
+  p->setStrategy(DynamicStrategy::Octree);
+  frame(*p, 1);
+  EXPECT_GT(p->stats().dirtyNodes, 10u);  // first frame: every node is built
+  frame(*p, 2);
+  EXPECT_EQ(p->stats().dirtyNodes, 0u);   // nothing changed: nothing rebuilt
+  EXPECT_EQ(p->stats().rerecorded, 0u);
+  // Within its octant (a 1 cm nudge keeps it in the same leaf or the same parent).
+  const uint32_t id = 5;
+  const uint32_t before = p->octree().nodeOf(id);
+  DynamicObject o = objs[id];
+  o.center_m.z += 0.01;
+  ASSERT_TRUE(p->set(id, o));
+  ASSERT_EQ(p->octree().nodeOf(id), before);
+  frame(*p, 3);
+  EXPECT_EQ(p->stats().dirtyNodes, 1u);
+  EXPECT_EQ(p->stats().rerecorded, p->octree().node(before).objects.size());
+  // Across octants: to the other side of the scene.
+  o.center_m = {-o.center_m.x, o.center_m.y + 5.0, -o.center_m.z};
+  ASSERT_TRUE(p->set(id, o));
+  const uint32_t after = p->octree().nodeOf(id);
+  ASSERT_NE(after, before);
+  frame(*p, 4);
+  EXPECT_EQ(p->stats().dirtyNodes, 2u);
+  EXPECT_EQ(p->stats().rerecorded, p->octree().node(before).objects.size() + p->octree().node(after).objects.size());
+  EXPECT_TRUE(p->octree().checkInvariant());
+  // Per-object commands are rebuilt every frame whatever moved.
+  p->setStrategy(DynamicStrategy::PerCommand);
+  frame(*p, 5);
+  EXPECT_EQ(p->stats().commands, p->stats().objectsDrawn);
+  // Bad input is refused and leaves the object where it was.
+  DynamicObject bad = o;
+  bad.center_m.x = std::nan("");
+  EXPECT_FALSE(p->set(id, bad));
+  bad = o;
+  bad.halfSize_m.y = -1.0;
+  EXPECT_EQ(p->add(bad), render::DynamicPass::kNone);
+  EXPECT_EQ(p->octree().nodeOf(id), after);
+}
+
+TEST_F(DynamicGl, OcclusionResultsAreReadOnlyFramesLaterAndNeverWaitedOn) {
+  auto p = makePass();
+  for (const DynamicObject& o : scene(true)) p->add(o);
+  p->setStrategy(DynamicStrategy::Occlusion);
+  p->setOcclusionTests(200);
+  frame(*p, 1, /*finish=*/false);
+  const uint32_t issued = p->stats().occlusionTests;
+  EXPECT_GT(issued, 20u);
+  EXPECT_EQ(p->stats().resultsRead, 0u);  // nothing is read in the frame that issued it
+  EXPECT_EQ(p->stats().queriesPending, issued);
+  renderer_.finish();
+  frame(*p, 2);
+  EXPECT_EQ(p->stats().resultsRead, issued);  // finished: all available, all read
+  EXPECT_EQ(p->blockingReads(), 0u);
+  // The camera inside a node's box: that node is never tested (a box test says nothing there).
+  cam_.eye_m = p->octree().node(p->octree().nodeOf(0)).bounds.min + glm::dvec3(0.01);
+  for (uint64_t f = 3; f < 6; ++f) frame(*p, f);
+  cam_.eye_m = glm::dvec3(0.0);
+}
+
+TEST_F(DynamicGl, AdaptiveStartsWithPerObjectCommandsAndMovesToTheOctreeAsObjectsAreAdded) {
+  render::DynamicPassConfig c;
+  c.maxObjects = 20000;
+  c.bounds = {glm::dvec3(-128.0), glm::dvec3(128.0)};
+  c.switching.minFrames = 2;
+  // Synthetic constants (the decision logic, not this machine's speed): per-object commands
+  // cost 2 us, a node range 2 us, a frustum test 20 ns.
+  c.constants.tri_ns = 10.0;
+  c.constants.frag_ns = 1.0;
+  c.constants.command_ns = 2000.0;
+  c.constants.rerecord_ns = 50.0;
+  c.constants.submit_ns = 2000.0;
+  c.constants.cull_ns = 20.0;
+  c.constants.occlusionTest_ns = 5000.0;
+  render::DynamicPass p;
+  std::string error;
+  ASSERT_TRUE(p.init(c, error)) << error;
+  p.setStrategy(DynamicStrategy::Adaptive);
+  p.add({{0.0, 50.0, 0.0}, glm::dvec3(1.0), 0.0, 0xffffffffu});
+  for (uint64_t f = 1; f < 12; ++f) frame(p, f, false), renderer_.finish();
+  EXPECT_EQ(p.stats().mode, lod::DynamicMode::PerCommand);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  // A dense cluster: a few octree nodes hold thousands of objects.
+  for (int i = 0; i < 5000; ++i) p.add({{3.0 * u(rng), 50.0 + 3.0 * u(rng), 3.0 * u(rng)}, glm::dvec3(0.05), 0.0, 0xffffffffu});
+  for (uint64_t f = 12; f < 20; ++f) frame(p, f, false), renderer_.finish();
+  EXPECT_NE(p.stats().mode, lod::DynamicMode::PerCommand);
+  EXPECT_GE(p.modeSwitches(), 1u);
+}
+
+// ---- calibration cache ---------------------------------------------------------------------
+
+std::string tempPath(const char* name) { return "/tmp/igd_dyn_" + std::to_string(getpid()) + "_" + name; }
+
+TEST_F(DynamicGl, CalibrationCacheRoundTripsAndRejectsCorruptFiles) {
+  lod::PerfConstants c;
+  c.frame_ns = 120000.5;
+  c.tri_ns = 33.25;
+  c.frag_ns = 1.125;
+  c.depthFrag_ns = 0.5;
+  c.state_ns = 900;
+  c.command_ns = 1500;
+  c.rerecord_ns = 40;
+  c.submit_ns = 2500;
+  c.cull_ns = 6.5;
+  c.occlusionTest_ns = 7000;
+  c.overlap = 0.25;
+  const std::string path = tempPath("cache.txt"), key = "vendor|renderer|4.5|work=0|64x64";
+  std::string error, why;
+  ASSERT_TRUE(render::writeCalibrationCache(path, key, c, error)) << error;
+  lod::PerfConstants r;
+  ASSERT_TRUE(render::readCalibrationCache(path, key, r, why)) << why;
+  EXPECT_DOUBLE_EQ(r.frame_ns, c.frame_ns);
+  EXPECT_DOUBLE_EQ(r.tri_ns, c.tri_ns);
+  EXPECT_DOUBLE_EQ(r.overlap, c.overlap);
+  EXPECT_DOUBLE_EQ(r.occlusionTest_ns, c.occlusionTest_ns);
+  EXPECT_FALSE(render::readCalibrationCache(path, "other|device", r, why));
+  EXPECT_NE(why.find("key"), std::string::npos) << why;
+  std::string text;
+  {
+    std::ifstream in(path);
+    text.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  const auto corrupt = [&](const std::string& from, const std::string& to) {
+    std::string t = text;
+    const size_t at = t.find(from);
+    EXPECT_NE(at, std::string::npos) << from;
+    t.replace(at, from.size(), to);
+    std::ofstream(path, std::ios::trunc) << t;
+    lod::PerfConstants x;
+    std::string w;
+    EXPECT_FALSE(render::readCalibrationCache(path, key, x, w)) << "accepted " << to;
+    EXPECT_NE(w.find(path), std::string::npos) << w;
+    return w;
+  };
+  EXPECT_NE(corrupt("tri_ns 33.25", "tri_ns nan").find("tri_ns"), std::string::npos);
+  corrupt("tri_ns 33.25", "tri_ns -4");
+  corrupt("tri_ns 33.25", "tri_ns 33.25x");
+  corrupt("tri_ns 33.25\n", "");                 // missing
+  corrupt("cull_ns", "cull_ms");                 // unknown field
+  corrupt("version 1", "version 7");
+  corrupt("overlap 0.25", "overlap 3");          // out of range
+  corrupt("frag_ns 1.125", "frag_ns 1.125\nfrag_ns 2");  // repeated
+  std::ofstream(path, std::ios::trunc) << text.substr(0, text.size() / 2);  // truncated
+  EXPECT_FALSE(render::readCalibrationCache(path, key, r, why));
+  std::remove(path.c_str());
+  EXPECT_FALSE(render::readCalibrationCache(path, key, r, why));  // absent
+}
+
+TEST_F(DynamicGl, CalibrateUsesAMatchingCacheAndRewritesACorruptOne) {
+  const std::string path = tempPath("cal.txt");
+  render::CalibrationOptions o;
+  o.width_px = 64;
+  o.height_px = 64;
+  o.budget_s = 0.2;
+  render::CalibrationResult r;
+  std::string error;
+  std::ofstream(path, std::ios::trunc) << "version 1\nkey garbage\ntri_ns x\n";
+  ASSERT_TRUE(render::calibrate(path, o, r, error)) << error;
+  EXPECT_FALSE(r.fromCache);
+  EXPECT_TRUE(lod::valid(r.constants));
+  EXPECT_EQ(r.key, render::calibrationKey(o));
+  lod::PerfConstants cached;
+  std::string why;
+  ASSERT_TRUE(render::readCalibrationCache(path, r.key, cached, why)) << why;  // rewritten
+  render::CalibrationResult again;
+  ASSERT_TRUE(render::calibrate(path, o, again, error)) << error;
+  EXPECT_TRUE(again.fromCache);
+  EXPECT_DOUBLE_EQ(again.constants.tri_ns, cached.tri_ns);
+  // Another material is another key: the cache does not match it (calibrate would measure).
+  o.fragmentWork = 4;
+  EXPECT_NE(render::calibrationKey(o), r.key);
+  EXPECT_FALSE(render::readCalibrationCache(path, render::calibrationKey(o), cached, why));
+  o.budget_s = std::nan("");
+  EXPECT_FALSE(render::calibrate(path, o, again, error));
+  EXPECT_NE(error.find("budget"), std::string::npos) << error;
+  std::remove(path.c_str());
+}
+
+}  // namespace

@@ -1,0 +1,436 @@
+// Paper 002, pure parts: memory model (1), time model (2), switching (5)/(6) with hysteresis,
+// q* of (11) against a brute-force minimum of (7), the online fits of (8)-(10), and the
+// single-reference octree with the expensive-node estimate of hidden objects.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <random>
+#include <vector>
+
+#include "lod/dynamic_octree.h"
+#include "lod/perfmodel.h"
+#include "lod/view.h"
+
+using namespace ig::lod;
+
+namespace {
+
+PerfConstants handConstants() {
+  PerfConstants c;
+  c.frame_ns = 10000;
+  c.tri_ns = 10;
+  c.frag_ns = 1;
+  c.depthFrag_ns = 0.5;
+  c.state_ns = 100;
+  c.command_ns = 1000;
+  c.rerecord_ns = 50;
+  c.submit_ns = 500;
+  c.cull_ns = 20;
+  c.occlusionTest_ns = 3000;
+  c.overlap = 1.0;
+  return c;
+}
+
+TEST(PerfModel, MemoryModelSumsEveryTerm) {
+  const uint64_t tex[] = {1024}, buf[] = {64, 36}, desc[] = {16};
+  MemoryModelInput in;
+  in.vertices = 1000;
+  in.indices = 3000;
+  in.texCoords = 1000;
+  in.normals = 1000;
+  in.textureBytes = tex;
+  in.bufferBytes = buf;
+  in.descriptorBytes = desc;
+  EXPECT_EQ(sceneMemoryBytes(in), 12000u + 12000u + 8000u + 12000u + 1024u + 100u + 16u);
+  in.vertices = std::numeric_limits<uint64_t>::max() / 2;  // would wrap: saturates
+  EXPECT_EQ(sceneMemoryBytes(in), std::numeric_limits<uint64_t>::max());
+  EXPECT_EQ(sceneMemoryBytes(MemoryModelInput{}), 0u);
+}
+
+TEST(PerfModel, TimeModelOnHandMadeNumbers) {
+  const PerfConstants c = handConstants();
+  PassLoad s, h;
+  s.triangles = 1200;     // vert 12000
+  s.fragments = 5000;     // frag 5000
+  s.stateChanges = 2;     // state 200
+  s.commands = 100;       // 100000
+  s.submissions = 1;      // 500
+  s.frustumTests = 100;   // 2000
+  h.occlusionTests = 10;  // 30000
+  h.depthFragments = 4000;  // z-buffer 2000
+  h.triangles = 120;      // 1200
+  h.frustumTests = 8;     // 160
+  TimeBreakdown b;
+  EXPECT_DOUBLE_EQ(predictFrame_ns(c, s, h, &b), 10000 + 100500 + 2000 + 12000 + 160 + 30000 + 2000);
+  EXPECT_EQ(b.boundS, 1);  // vertex
+  EXPECT_EQ(b.boundH, 3);  // z-buffer
+  EXPECT_DOUBLE_EQ(b.gpuS, 12000);
+  // The max() is real: more fragments make the objects fragment-bound.
+  s.fragments = 20000;
+  EXPECT_DOUBLE_EQ(predictFrame_ns(c, s, h, &b), 10000 + 100500 + 2000 + 20000 + 160 + 30000 + 2000);
+  EXPECT_EQ(b.boundS, 2);
+  // Re-recorded objects cost t_r each.
+  s.rerecorded = 10;
+  EXPECT_DOUBLE_EQ(predictFrame_ns(c, s, h), 10000 + 100500 + 500 + 2000 + 20000 + 160 + 30000 + 2000);
+  s.rerecorded = 0;
+  // No overlap: the stages of each max() add up.
+  PerfConstants serial = c;
+  serial.overlap = 0.0;
+  EXPECT_DOUBLE_EQ(predictFrame_ns(serial, s, h), 10000 + 100500 + 2000 + (20000 + 12000 + 200) + 160 + 30000 +
+                                                      (2000 + 1200));
+  serial.overlap = 0.5;
+  EXPECT_DOUBLE_EQ(predictFrame_ns(serial, s, h),
+                   10000 + 100500 + 2000 + (20000 + 0.5 * 12200) + 160 + 30000 + (2000 + 0.5 * 1200));
+}
+
+TEST(PerfModel, NanAndNegativeInputsCountAsZero) {
+  const PerfConstants c = handConstants();
+  PassLoad s;
+  s.triangles = 1200;
+  const double base = predictFrame_ns(c, s, {});
+  PassLoad bad = s;
+  bad.commands = std::nan("");
+  bad.fragments = -5000;
+  bad.submissions = std::numeric_limits<double>::infinity();
+  bad.stateChanges = -1;
+  EXPECT_DOUBLE_EQ(predictFrame_ns(c, bad, {}), base);
+  PerfConstants badC = c;
+  badC.tri_ns = std::nan("");
+  EXPECT_FALSE(valid(badC));
+  EXPECT_DOUBLE_EQ(predictFrame_ns(badC, s, {}), c.frame_ns);  // the NaN term counts as 0
+  badC = c;
+  badC.overlap = 1.5;
+  EXPECT_FALSE(valid(badC));
+  badC.overlap = 1.0;
+  badC.cull_ns = -1.0;
+  EXPECT_FALSE(valid(badC));
+  EXPECT_TRUE(valid(c));
+  EXPECT_FALSE(valid(PerfConstants{}));  // T_tri and T_frag must be measured
+}
+
+TEST(PerfModel, ProjectedBoxArea) {
+  // 90 degree fov, square 200 px viewport: 10 px per metre at 10 m.
+  Camera cam;
+  cam.fovY_deg = 90.0;
+  cam.aspect = 1.0;
+  cam.near_m = 0.1;
+  cam.far_m = 1000.0;
+  const glm::dmat4 vp = reverseZProjection(cam.fovY_deg, cam.aspect, cam.near_m, cam.far_m) * glm::dmat4(viewRotation(cam));
+  const auto box = [](glm::dvec3 c, glm::dvec3 h) {
+    std::array<glm::dvec3, 8> p;
+    for (int i = 0; i < 8; ++i)
+      p[static_cast<size_t>(i)] = c + glm::dvec3((i & 1) ? h.x : -h.x, (i & 2) ? h.y : -h.y, (i & 4) ? h.z : -h.z);
+    return p;
+  };
+  EXPECT_NEAR(projectedBoxArea_px(vp, box({0, 10, 0}, {1, 0.001, 1}), 200, 200), 400.0, 4.0);
+  EXPECT_NEAR(projectedBoxArea_px(vp, box({0, 10, 0}, {50, 0.001, 50}), 200, 200), 40000.0, 1e-6);  // clipped
+  EXPECT_DOUBLE_EQ(projectedBoxArea_px(vp, box({0, -10, 0}, {1, 1, 1}), 200, 200), -1.0);          // behind
+  EXPECT_NEAR(projectedBoxArea_px(vp, box({500, 10, 0}, {1, 0.001, 1}), 200, 200), 0.0, 1e-9);     // off screen
+  EXPECT_DOUBLE_EQ(projectedBoxArea_px(vp, box({0, 10, 0}, {0, 0, 0}), 200, 200), 0.0);            // degenerate
+  EXPECT_DOUBLE_EQ(shadedFragments(100.0, 4.0), 196.0);
+  EXPECT_DOUBLE_EQ(shadedFragments(0.25, 4.0), 4.5 * 4.5 * 0.25);
+  EXPECT_DOUBLE_EQ(shadedFragments(std::nan(""), 4.0), 0.0);
+  EXPECT_DOUBLE_EQ(shadedFragments(-3.0, 4.0), 0.0);
+}
+
+ModeInputs inputs(double l5, double r5, double l6, double r6) {
+  ModeInputs in;
+  in.bufS_ns = l5;
+  in.bufH_ns = r5;
+  in.frameAll_ns = l6;
+  in.frameVisible_ns = r6;
+  return in;
+}
+
+TEST(PerfModel, ModeSwitchingFollowsConditions5And6WithHysteresis) {
+  ModeSwitcher m({0.15, 3});
+  // (5) holds: stay with per-object commands.
+  for (int i = 0; i < 10; ++i) EXPECT_EQ(m.update(inputs(900, 1000, 0, 0)), DynamicMode::PerCommand);
+  // (5) fails by less than the hysteresis: still per-object commands.
+  for (int i = 0; i < 10; ++i) EXPECT_EQ(m.update(inputs(1100, 1000, 0, 0)), DynamicMode::PerCommand);
+  EXPECT_EQ(m.switches(), 0u);
+  // ... by more: octree.
+  EXPECT_EQ(m.update(inputs(1200, 1000, 0, 0)), DynamicMode::Octree);
+  EXPECT_EQ(m.switches(), 1u);
+  // Noise around the threshold does not flip it back (no oscillation).
+  for (int i = 0; i < 50; ++i) m.update(inputs(i % 2 ? 1100 : 900, 1000, 100, 100));
+  EXPECT_EQ(m.mode(), DynamicMode::Octree);
+  EXPECT_EQ(m.switches(), 1u);
+  // (6) fails clearly: occlusion queries; not before minFrames.
+  m.update(inputs(1200, 1000, 130, 100));
+  EXPECT_EQ(m.mode(), DynamicMode::Occlusion);
+  EXPECT_EQ(m.update(inputs(1200, 1000, 50, 100)), DynamicMode::Occlusion);  // within minFrames
+  for (int i = 0; i < 3; ++i) m.update(inputs(1200, 1000, 90, 100));         // within hysteresis
+  EXPECT_EQ(m.mode(), DynamicMode::Occlusion);
+  EXPECT_EQ(m.update(inputs(1200, 1000, 80, 100)), DynamicMode::Octree);
+  // NaN statistics keep the mode.
+  for (int i = 0; i < 10; ++i) m.update(inputs(std::nan(""), 1000, std::nan(""), 100));
+  EXPECT_EQ(m.mode(), DynamicMode::Octree);
+  // Back to per-object commands when (5) holds clearly.
+  for (int i = 0; i < 4; ++i) m.update(inputs(500, 1000, 100, 100));
+  EXPECT_EQ(m.mode(), DynamicMode::PerCommand);
+  EXPECT_EQ(m.switches(), 4u);
+}
+
+TEST(PerfModel, OptimalQMatchesBruteForceMinimum) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  int interior = 0;
+  for (int trial = 0; trial < 500; ++trial) {
+    OcclusionCoefficients k;
+    const uint32_t n0 = 1 + static_cast<uint32_t>(u(rng) * 3000);
+    const double an_cn = 0.1 + 20 * u(rng), s1 = 50 * u(rng);
+    k.cA = an_cn * n0;
+    k.cB = an_cn * s1;
+    k.sA = n0 + 1.0;
+    k.s1 = s1;
+    k.e0 = 1e6 * u(rng);
+    k.p = 10 * u(rng);
+    k.e1 = 1e5 * u(rng);
+    OcclusionCosts t{100 + 2000 * u(rng), 500 + 5000 * u(rng), 1 + 50 * u(rng), trial % 2 ? -1.0 : 1000 + 5000 * u(rng)};
+    double best = 1e300;
+    uint32_t bestQ = 0;
+    for (uint32_t q = 0; q <= n0; ++q) {
+      const double tq = occlusionFrame_ns(k, t, q);
+      if (tq < best) best = tq, bestQ = q;
+    }
+    double tOpt = 0;
+    const uint32_t q = optimalQ(k, t, n0, &tOpt);
+    EXPECT_LE(q, n0);
+    EXPECT_NEAR(tOpt, best, 1e-9 * std::abs(best)) << "trial " << trial << " q " << q << " brute " << bestQ;
+    const double qs = stationaryQ(k, t);
+    if (qs > 1 && qs < n0 - 1) {
+      ++interior;
+      const double h = 1e-3;
+      const double d = (occlusionFrame_ns(k, t, qs + h) - occlusionFrame_ns(k, t, qs - h)) / (2 * h);
+      EXPECT_NEAR(d, 0.0, 1e-6 * (std::abs(occlusionFrame_ns(k, t, qs)) + 1.0));  // T'(q*) = 0
+    }
+  }
+  EXPECT_GT(interior, 50);  // the stationary point was exercised, not only the bounds
+  // (11) by hand: (a c s1 t_c + s1 t_s + e1 t_e) / (p t_e + t_c) - 1.
+  OcclusionCoefficients k;
+  k.cB = 2.0 * 10.0;  // a_n c_n = 2, s1 = 10
+  k.s1 = 10.0;
+  k.e1 = 1000.0;
+  k.p = 5.0;
+  const OcclusionCosts t{100.0, 400.0, 2.0};
+  EXPECT_DOUBLE_EQ(stationaryQ(k, t), (20.0 * 100.0 + 10.0 * 400.0 + 1000.0 * 2.0) / (5.0 * 2.0 + 100.0) - 1.0);
+  EXPECT_TRUE(std::isnan(stationaryQ(OcclusionCoefficients{}, OcclusionCosts{})));
+  EXPECT_EQ(optimalQ(OcclusionCoefficients{}, OcclusionCosts{1, 1, 1}, 100), 0u);  // tests only cost
+}
+
+TEST(PerfModel, FitsRecoverKnownCoefficients) {
+  OcclusionCoefficients truth;
+  truth.cA = 5000;
+  truth.cB = 300;
+  truth.sA = 801;
+  truth.s1 = 60;
+  truth.e0 = 2e6;
+  truth.p = 40;
+  truth.e1 = 1.5e5;
+  OcclusionFits fits(1.0);
+  OcclusionCoefficients k;
+  EXPECT_FALSE(fits.solve(k));
+  const double qs[] = {0, 1, 3, 7, 15, 31, 63, 127, 255};
+  for (int rep = 0; rep < 3; ++rep) {
+    for (double q : qs) {
+      const double l = std::log1p(q);
+      ASSERT_TRUE(fits.add(q, truth.cA - truth.cB * l + q, truth.sA - truth.s1 * l, truth.e0 + truth.p * q - truth.e1 * l));
+    }
+    if (rep == 0) {
+      EXPECT_TRUE(fits.solve(k));
+    }
+  }
+  ASSERT_TRUE(fits.solve(k));
+  EXPECT_NEAR(k.cA, truth.cA, 1e-6 * truth.cA);
+  EXPECT_NEAR(k.cB, truth.cB, 1e-6 * truth.cA);
+  EXPECT_NEAR(k.sA, truth.sA, 1e-6 * truth.sA);
+  EXPECT_NEAR(k.s1, truth.s1, 1e-6 * truth.sA);
+  EXPECT_NEAR(k.e0, truth.e0, 1e-6 * truth.e0);
+  EXPECT_NEAR(k.p, truth.p, 1e-6 * truth.p + 1e-6);
+  EXPECT_NEAR(k.e1, truth.e1, 1e-6 * truth.e0);
+  // Bad samples are refused and change nothing.
+  EXPECT_FALSE(fits.add(std::nan(""), 1, 1, 1));
+  EXPECT_FALSE(fits.add(1, -1, 1, 1));
+  EXPECT_FALSE(fits.add(1, 1, std::numeric_limits<double>::infinity(), 1));
+  OcclusionCoefficients k2;
+  ASSERT_TRUE(fits.solve(k2));
+  EXPECT_DOUBLE_EQ(k2.e1, k.e1);
+  // Two distinct q cannot determine three unknowns.
+  OcclusionFits two;
+  for (int i = 0; i < 10; ++i) two.add(i % 2 ? 4.0 : 9.0, 10, 10, 10);
+  EXPECT_FALSE(two.solve(k2));
+}
+
+// ---- octree ----------------------------------------------------------------------------------
+
+Aabb cube(glm::dvec3 c, double h) { return {c - glm::dvec3(h), c + glm::dvec3(h)}; }
+
+bool containedIn(const Aabb& outer, const Aabb& b) {
+  return b.min.x >= outer.min.x && b.min.y >= outer.min.y && b.min.z >= outer.min.z && b.max.x <= outer.max.x &&
+         b.max.y <= outer.max.y && b.max.z <= outer.max.z;
+}
+
+TEST(DynamicOctree, SingleReferenceUnderInsertMoveRemove) {
+  DynamicOctree t;
+  OctreeConfig c;
+  c.bounds = cube(glm::dvec3(0.0), 128.0);
+  c.maxDepth = 6;
+  c.maxObjects = 5000;
+  ASSERT_TRUE(t.init(c));
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1.0, 1.0), u01(0.0, 1.0);
+  for (uint32_t i = 0; i < 4000; ++i) ASSERT_TRUE(t.insert(i, cube({120 * u(rng), 120 * u(rng), 120 * u(rng)}, 0.1 + 3 * u01(rng))));
+  EXPECT_FALSE(t.insert(3, cube({0, 0, 0}, 1)));      // already present
+  EXPECT_FALSE(t.insert(6000, cube({0, 0, 0}, 1)));   // out of range
+  EXPECT_FALSE(t.insert(4001, {{0, 0, 0}, {std::nan(""), 1, 1}}));
+  EXPECT_FALSE(t.insert(4001, {{1, 1, 1}, {0, 0, 0}}));  // inverted
+  ASSERT_TRUE(t.insert(4001, cube({1e6, 0, 0}, 1)));       // outside the root: stays in the root
+  EXPECT_EQ(t.nodeOf(4001), 0u);
+  t.refresh();
+  t.clearDirty();
+  for (int step = 0; step < 3000; ++step) {
+    const auto id = static_cast<uint32_t>(rng() % 4000);
+    if (!t.contains(id)) continue;
+    if (step % 10 == 0) {
+      const uint32_t n = t.nodeOf(id);
+      ASSERT_TRUE(t.remove(id));
+      ASSERT_EQ(t.dirtyNodes().size(), 1u);
+      EXPECT_EQ(t.dirtyNodes()[0], n);
+      t.refresh();
+      t.clearDirty();
+      continue;
+    }
+    const uint32_t before = t.nodeOf(id);
+    const Aabb b = step % 2 ? cube({120 * u(rng), 120 * u(rng), 120 * u(rng)}, 0.5) : t.boxOf(id);
+    ASSERT_TRUE(t.move(id, b));
+    const uint32_t after = t.nodeOf(id);
+    // Only the old and the new node are dirty.
+    const auto dirty = t.dirtyNodes();
+    EXPECT_LE(dirty.size(), 2u);
+    for (uint32_t n : dirty) EXPECT_TRUE(n == before || n == after);
+    EXPECT_EQ(dirty.size(), before == after ? 1u : 2u);
+    t.refresh();
+    t.clearDirty();
+  }
+  EXPECT_TRUE(t.checkInvariant());
+  EXPECT_FALSE(t.move(4001, {{0, 0, 0}, {std::nan(""), 0, 0}}));
+  // Every object lies inside its node's cell (the root excepted), and in the deepest such cell
+  // its box fits into: no child of its node contains the box whole.
+  for (uint32_t id = 0; id < 4000; ++id) {
+    if (!t.contains(id)) continue;
+    const auto& node = t.node(t.nodeOf(id));
+    if (t.nodeOf(id) != 0) {
+      EXPECT_TRUE(containedIn(node.cell, t.boxOf(id)));
+    }
+    for (uint32_t ch : node.children) {
+      if (ch != DynamicOctree::kNone) {
+        EXPECT_FALSE(containedIn(t.node(ch).cell, t.boxOf(id)));
+      }
+    }
+    EXPECT_TRUE(containedIn(node.bounds, t.boxOf(id)));  // subtree bounds cover the object
+  }
+}
+
+TEST(DynamicOctree, ExpensiveNodesAndTheHiddenEstimate) {
+  DynamicOctree t;
+  OctreeConfig c;
+  c.bounds = cube(glm::dvec3(0.0), 128.0);
+  c.maxDepth = 5;
+  c.maxObjects = 2000;
+  c.occlusionMaxAge = 4;
+  ASSERT_TRUE(t.init(c));
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  uint32_t id = 0;
+  // Scattered boxes in front of the camera (+y), and a dense cluster of 500 in one leaf.
+  for (; id < 300; ++id) t.insert(id, cube({60 * u(rng), 20 + 100 * std::abs(u(rng)), 40 * u(rng)}, 0.2));
+  for (; id < 800; ++id) t.insert(id, cube({33 + 0.5 * u(rng), 97 + 0.5 * u(rng), 1 + 0.5 * u(rng)}, 0.05));
+  t.refresh();
+  const uint32_t cluster = t.nodeOf(500);
+  EXPECT_TRUE(t.node(cluster).expensive);
+  for (uint32_t a = cluster; a != DynamicOctree::kNone; a = t.node(a).parent) EXPECT_TRUE(t.node(a).expensive);
+  EXPECT_FALSE(t.node(t.nodeOf(0)).expensive);
+
+  Camera cam;
+  cam.aspect = 16.0 / 9.0;
+  cam.fovY_deg = 90.0;
+  const Frustum f = makeFrustum(cam);
+  std::vector<uint32_t> draw(t.nodes().size()), test(t.nodes().size());
+  DynamicOctree::Traversal tr;
+  tr.frame = 10;
+  auto r = t.traverse(f, tr, draw, test);
+  const uint64_t inView = r.objectsDrawn;
+  EXPECT_GT(inView, 700u);
+  EXPECT_EQ(r.hiddenObjects, 0u);
+  ASSERT_GT(r.candidates, 0u);
+  // Expensive nodes come first in the test list, top-down.
+  EXPECT_TRUE(t.node(test[0]).expensive);
+  bool sawCheap = false;
+  for (uint32_t i = 0; i < r.candidates; ++i) {
+    if (!t.node(test[i]).expensive) {
+      sawCheap = true;
+    } else {
+      EXPECT_FALSE(sawCheap) << "expensive node after a cheap one";
+    }
+  }
+  // The cluster's node is found hidden: estimate only (octree mode) keeps drawing it.
+  t.setQueryPending(cluster, true);
+  t.setOcclusionResult(cluster, false, 9);
+  EXPECT_FALSE(t.node(cluster).queryPending);
+  r = t.traverse(f, tr, draw, test);
+  EXPECT_EQ(r.hiddenObjects, t.node(cluster).subtreeCount);
+  bool drawn = false;
+  for (uint32_t i = 0; i < r.drawn; ++i) drawn = drawn || draw[i] == cluster;
+  EXPECT_TRUE(drawn);
+  // With occlusion culling it is skipped, and re-tested first.
+  tr.useOcclusion = true;
+  r = t.traverse(f, tr, draw, test);
+  drawn = false;
+  for (uint32_t i = 0; i < r.drawn; ++i) drawn = drawn || draw[i] == cluster;
+  EXPECT_FALSE(drawn);
+  EXPECT_EQ(r.hiddenObjects, t.node(cluster).subtreeCount);
+  bool retested = false;
+  for (uint32_t i = 0; i < r.candidates; ++i) retested = retested || test[i] == cluster;
+  EXPECT_TRUE(retested);
+  EXPECT_EQ(r.objectsDrawn + r.hiddenObjects, inView);
+  // An older result does not override a newer one; a stale one is ignored.
+  t.setOcclusionResult(cluster, true, 5);
+  EXPECT_TRUE(t.node(cluster).occluded);
+  tr.frame = 9 + c.occlusionMaxAge + 1;
+  r = t.traverse(f, tr, draw, test);
+  EXPECT_EQ(r.hiddenObjects, 0u);
+  EXPECT_EQ(r.objectsDrawn, inView);
+  // The camera inside a node's box: that node is not a test candidate.
+  Camera inside = cam;
+  inside.eye_m = t.node(cluster).bounds.min + glm::dvec3(0.01);
+  tr.eye_m = inside.eye_m;
+  r = t.traverse(makeFrustum(inside), tr, draw, test);
+  for (uint32_t i = 0; i < r.candidates; ++i) EXPECT_NE(test[i], cluster);
+}
+
+TEST(DynamicOctree, RejectsBadConfig) {
+  DynamicOctree t;
+  OctreeConfig c;
+  c.bounds = {{0, 0, 0}, {0, 1, 1}};
+  EXPECT_FALSE(t.init(c));
+  c.bounds = {{0, 0, 0}, {1, std::nan(""), 1}};
+  EXPECT_FALSE(t.init(c));
+  c.bounds = cube({0, 0, 0}, 1);
+  c.maxDepth = 40;
+  EXPECT_FALSE(t.init(c));
+  c.maxDepth = 4;
+  c.maxObjects = 0;
+  EXPECT_FALSE(t.init(c));
+  // Empty tree: traversal is empty.
+  c.maxObjects = 10;
+  ASSERT_TRUE(t.init(c));
+  std::vector<uint32_t> d(4), q(4);
+  const auto r = t.traverse(makeFrustum(Camera{}), {}, d, q);
+  EXPECT_EQ(r.drawn, 0u);
+  EXPECT_EQ(r.candidates, 0u);
+}
+
+}  // namespace
