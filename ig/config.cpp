@@ -455,7 +455,7 @@ bool parseService(const std::string& text, const std::string& name, const std::s
   ServiceConfig cfg;
   cfg.path = name;
   Reader r(text, name);
-  const Table root = r.parse({"frame", "output", "stats", "host", "scene", "budget", "service"});
+  const Table root = r.parse({"frame", "output", "stats", "host", "scene", "budget", "governor", "service"});
 
   const Table frame = r.table(root, "frame", {"rate_hz", "frames", "free_run"});
   r.get(frame, "rate_hz", cfg.rate_hz, openClosed(0.0, 1000.0));
@@ -534,6 +534,35 @@ bool parseService(const std::string& text, const std::string& name, const std::s
   const Table budget = r.table(root, "budget", {"frame_ms", "triangles"});
   r.get(budget, "frame_ms", cfg.budgetFrame_ms, atLeast(0.0));
   r.get(budget, "triangles", cfg.budgetTriangles, IntRange{1000});
+
+  const Table gov = r.table(root, "governor", {"enabled", "decrease_above", "increase_below", "margin_sigmas",
+                                              "max_decrease", "max_increase", "raise_interval_frames",
+                                              "hold_after_decrease_frames", "terrain"});
+  GovernorSettings& g = cfg.governor;
+  r.get(gov, "enabled", g.enabled);
+  r.get(gov, "decrease_above", g.decreaseAbove, openClosed(0.0, 1.5));
+  r.get(gov, "increase_below", g.increaseBelow, openClosed(0.0, 1.5));
+  r.get(gov, "margin_sigmas", g.marginSigmas, closed(0.0, 10.0));
+  r.get(gov, "max_decrease", g.maxDecrease, closed(0.01, 0.99));
+  r.get(gov, "max_increase", g.maxIncrease, closed(1.001, 4.0));
+  r.get(gov, "raise_interval_frames", g.raiseInterval_frames, IntRange{1, 100000});
+  r.get(gov, "hold_after_decrease_frames", g.holdAfterDecrease_frames, IntRange{0, 100000});
+  const Table govTerrain = r.table(gov, "terrain", {"min_px", "max_px", "load_exponent"});
+  r.get(govTerrain, "min_px", g.terrainMin_px, closed(0.0, 1000.0));
+  r.get(govTerrain, "max_px", g.terrainMax_px, openClosed(0.0, 1000.0));
+  r.get(govTerrain, "load_exponent", g.terrainLoadExponent, closed(-10.0, -0.1));
+  if (r.ok() && g.increaseBelow >= g.decreaseAbove) {
+    const std::string message = cat("must be below governor.decrease_above (", formatNumber(g.decreaseAbove), ")");
+    if (const toml::node* node = r.find(gov, "increase_below")) {
+      r.fail(*node, gov.keyOf("increase_below"), message);
+    } else {
+      r.fail(gov.line_, gov.keyOf("increase_below"), formatNumber(g.increaseBelow), message);
+    }
+  }
+  if (r.ok() && g.terrainMin_px > 0.0 && g.terrainMin_px >= g.terrainMax_px) {
+    const std::string message = cat("must be below governor.terrain.max_px (", formatNumber(g.terrainMax_px), ")");
+    if (const toml::node* node = r.find(govTerrain, "min_px")) r.fail(*node, govTerrain.keyOf("min_px"), message);
+  }
 
   const Table service = r.table(root, "service", {"watchdog_interval_s", "realtime_priority", "cpu_affinity",
                                                   "lock_memory", "status_file", "status_interval_s"});

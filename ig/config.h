@@ -34,6 +34,23 @@ struct ConfigError {
   std::string what() const;
 };
 
+// [governor]: keeps the frame rate by steering LOD tolerances from a prediction of the next
+// frame's work (lod/governor.h, docs/governor.md).
+struct GovernorSettings {
+  bool enabled = false;
+  double decreaseAbove = 0.85;        // less detail when predicted + margin > this * budget
+  double increaseBelow = 0.65;        // more detail when below this * budget
+  double marginSigmas = 2.0;
+  double maxDecrease = 0.5;           // smallest load multiplier of one decrease
+  double maxIncrease = 1.1;           // largest load multiplier of one raise
+  int raiseInterval_frames = 6;
+  int holdAfterDecrease_frames = 30;
+  double terrainMin_px = 0.0;         // [governor.terrain] min_px; 0 = the scene's tolerance_px
+  double terrainMax_px = 32.0;
+  double terrainLoadExponent = -1.5;
+  bool operator==(const GovernorSettings&) const = default;
+};
+
 // Service config (config/igd.toml): how the service runs, independent of what it draws.
 struct ServiceConfig {
   std::string path;                          // file this was loaded from ("" = defaults)
@@ -65,6 +82,7 @@ struct ServiceConfig {
   // [budget]
   double budgetFrame_ms = 0.0;               // work budget per frame, 0 = the whole period
   int64_t budgetTriangles = 2'000'000;       // triangles per frame for all layers together
+  GovernorSettings governor;                 // [governor]
   // [service]
   double watchdogInterval_s = 0.0;           // 0 = half of systemd's WatchdogSec, if any
   int realtimePriority = 0;                  // 0 = normal scheduling; 1..99 = SCHED_FIFO (render thread)

@@ -35,6 +35,12 @@ ReloadPlan planReload(const ServiceConfig& runC, const SceneConfig& runS, const 
   take(mergedC, newC, &ServiceConfig::budgetFrame_ms, "budget.frame_ms", a);
   take(mergedC, newC, &ServiceConfig::statusFile, "service.status_file", a);
   take(mergedC, newC, &ServiceConfig::statusInterval_s, "service.status_interval_s", a);
+  take(mergedC, newC, &ServiceConfig::governor, "governor", a);
+  if (runC.governor.enabled != newC.governor.enabled) {
+    mergedC.governor.enabled = runC.governor.enabled;
+    r.emplace_back("governor.enabled");
+    if (mergedC.governor == runC.governor) std::erase(a, std::string("governor"));
+  }
   // The snapshot thread exists only if the start-up config asked for snapshots.
   const bool hadSnapshots = runC.snapshotEvery > 0 || !runC.snapshotFrames.empty();
   const bool wantsSnapshots = newC.snapshotEvery > 0 || !newC.snapshotFrames.empty();

@@ -25,6 +25,7 @@
 #include "lod/geo.h"
 #include "lod/terrain_grid.h"
 #include "lod/geomorph.h"
+#include "lod/governor.h"
 #include "lod/triangle_slots.h"
 #include "lod/view.h"
 #include "render/context.h"
@@ -80,6 +81,7 @@ struct TerrainMeshLayer {
   std::vector<uint32_t> addedTriangles, addedSlots, freedSlots;
   std::span<lod::TerrainVertex> gpu;          // the renderer's mapped vertex buffer
   uint64_t uploadedTriangles = 0;             // written into `gpu` this frame
+  size_t emitted = 0;                         // triangles of this frame's mesh (the governor's load)
   double tolerance_px = 1.0;
   double budget_ms = 0.0;
   double nsPerOperation = 2000.0;  // measured, smoothed: turns the time budget into operations
@@ -131,6 +133,7 @@ struct TerrainMeshLayer {
       block->update(view);
       n = block->emitTriangles(triangles);
     }
+    emitted = n;
     // Write only what changed: freed slots become degenerate, new triangles take slots. The
     // GPU is idle here (the previous frame ended with glFinish).
     const lod::TriangleSlots::Changes c =
@@ -271,6 +274,33 @@ struct Service::Impl {
   int64_t loopStart_ns = 0;
   std::unique_ptr<SnapshotWriter> snapshots;  // only when the config asks for snapshots
   int generation = 1;                         // config generation: +1 per applied reload
+  std::optional<lod::Governor> governor;      // [governor] enabled and a layer with a knob
+  double terrainSelect_ms = 0.0;              // this frame's terrain selection (governor phase)
+
+  // The governor's config from [governor] and the layers this scene has.
+  lod::GovernorConfig governorConfig() const {
+    const GovernorSettings& g = config.governor;
+    lod::GovernorConfig c;
+    c.rate_hz = config.rate_hz;
+    c.frameBudget_ms = config.budgetFrame_ms;
+    c.decreaseAbove = g.decreaseAbove;
+    c.increaseBelow = g.increaseBelow;
+    c.marginSigmas = g.marginSigmas;
+    c.maxDecrease = g.maxDecrease;
+    c.maxIncrease = g.maxIncrease;
+    c.raiseInterval_frames = g.raiseInterval_frames;
+    c.holdAfterDecrease_frames = g.holdAfterDecrease_frames;
+    if (terrainMesh && scene.terrain) {
+      lod::GovKnob& k = c.knobs[static_cast<size_t>(lod::GovLayer::Terrain)];
+      k.present = true;
+      k.initial = scene.terrain->tolerance_px;
+      k.min = g.terrainMin_px > 0.0 ? g.terrainMin_px : scene.terrain->tolerance_px;
+      k.max = std::max(g.terrainMax_px, k.min * 1.01);
+      k.loadExponent = g.terrainLoadExponent;
+      k.loadUnit = 1e5;
+    }
+    return c;
+  }
   std::string lastReloadError;
 
   // The scene's sun and fog (start-up and reload).
@@ -301,7 +331,18 @@ struct Service::Impl {
   // lod phase: every layer the scene has selects what to draw. `clock` (the frame loop's)
   // lets layers keep to their time budgets; without it they converge fully.
   void select(const lod::Camera& cam, Clock* clock, double now_s, double simTime_s) {
-    if (terrainMesh) terrainMesh->select(cam, config.height_px, clock, now_s);
+    if (terrainMesh) {
+      const int64_t t0 = clock ? clock->now_ns() : 0;
+      if (governor) {
+        terrainMesh->tolerance_px = governor->knob(lod::GovLayer::Terrain);
+        // Deferrable refinement yields at the terrain phase's budget (or the scene's, if smaller).
+        const double phase_ms = governor->phaseBudget_ms(lod::GovPhase::Terrain);
+        const double own_ms = scene.terrain ? scene.terrain->lodBudget_ms : 0.0;
+        terrainMesh->budget_ms = own_ms > 0.0 ? std::min(own_ms, phase_ms) : phase_ms;
+      }
+      terrainMesh->select(cam, config.height_px, clock, now_s);
+      terrainSelect_ms = clock ? static_cast<double>(clock->now_ns() - t0) * 1e-6 : 0.0;
+    }
     if (hdlod) hdlod->select(cam, simTime_s, config.height_px);
     if (terrain) {
       const lod::Frustum fr = lod::makeFrustum(cam);
@@ -451,6 +492,20 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
   // Until the host speaks: above the scene origin, looking north and slightly down.
   s->host_.eyeEnu_m = {0.0, 0.0, 1000.0};
   s->host_.pitch_deg = -10.0;
+  if (config.governor.enabled) {
+    if (!m.terrainMesh) {
+      std::fprintf(stderr, "igd: governor: the scene has no layer with a tolerance it can steer (terrain lod = "
+                           "\"roam\" or \"block\"); governor off\n");
+    } else {
+      const lod::GovernorConfig g = m.governorConfig();
+      if (const std::string why = lod::Governor::validate(g); !why.empty()) {
+        error = "governor." + why;
+        return nullptr;
+      }
+      m.governor.emplace(g);
+      s->info_.layers.push_back("governor");
+    }
+  }
   // Real-time scheduling for this (the render) thread only: every thread started above keeps
   // normal scheduling; threads started later reset themselves (ig/realtime.h).
   RealtimeSettings rt;
@@ -581,6 +636,7 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
       m.terrainMesh->budget_ms = m.scene.terrain->lodBudget_ms;
     }
     if (statusChanged) makeStatus();
+    if (m.governor) m.governor->reconfigure(m.governorConfig());
     std::fprintf(stderr,
                  "igd: config reloaded after frame %lld (#%d): applied: %s; needs a restart (running value kept): %s\n",
                  static_cast<long long>(frame), m.generation, joinKeys(plan.applied).c_str(),
@@ -665,6 +721,16 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
     r.hostLost = lost;
     r.timing = pacer.endFrame();
     prevOverrun = r.timing.overrun;
+    if (m.governor) {
+      lod::GovSample gs;
+      gs.phase_ms[static_cast<size_t>(lod::GovPhase::Input)] = r.timing.phase_ms[static_cast<size_t>(Phase::Input)];
+      gs.phase_ms[static_cast<size_t>(lod::GovPhase::Terrain)] = m.terrainSelect_ms;
+      gs.phase_ms[static_cast<size_t>(lod::GovPhase::Submit)] = r.timing.phase_ms[static_cast<size_t>(Phase::Submit)];
+      gs.phase_ms[static_cast<size_t>(lod::GovPhase::Gpu)] = r.timing.phase_ms[static_cast<size_t>(Phase::GpuFinish)];
+      gs.load[static_cast<size_t>(lod::GovLayer::Terrain)] = static_cast<double>(m.terrainMesh->emitted);
+      gs.frame_ms = r.timing.work_ms;
+      m.governor->update(gs);
+    }
     r.period_ms = pacer.period_s() * 1e3;
     stats.write(r);
     m.summary.add(r);
@@ -717,6 +783,16 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
                    static_cast<unsigned long long>(m.snapshots->written()),
                    static_cast<unsigned long long>(m.snapshots->dropped()),
                    static_cast<unsigned long long>(m.snapshots->failed()), m.snapshots->firstError().c_str());
+  }
+  if (m.governor) {
+    const lod::GovStats& g = m.governor->stats();
+    std::fprintf(stderr,
+                 "igd: governor: terrain tolerance now %.2f px; %lld decreases, %lld increases, %lld emergencies, "
+                 "%lld direction changes, prediction error scale %.2f ms, %lld bad measurements ignored\n",
+                 m.governor->knob(lod::GovLayer::Terrain), static_cast<long long>(g.decreases),
+                 static_cast<long long>(g.increases), static_cast<long long>(g.emergencies),
+                 static_cast<long long>(g.directionChanges[static_cast<size_t>(lod::GovLayer::Terrain)]), g.errorScale_ms,
+                 static_cast<long long>(g.ignored));
   }
   m.overruns = pacer.overruns();
   m.missed = pacer.missedSlots();

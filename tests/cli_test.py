@@ -523,6 +523,22 @@ class Control(Tmp):
         self.assertEqual(final["state"], "stopping", "the last report at exit says stopping")
         self.assertFalse(os.path.exists(os.path.join(self.tmp, "status.json.tmp")), "temporary file left behind")
 
+    def test_governor_lowers_detail_under_a_tight_budget(self):
+        config, scene = self.configs()
+        write(scene, open(scene, encoding="utf-8").read().replace('lod = "grid"', 'lod = "roam"'))
+        text = open(config, encoding="utf-8").read()
+        text = re.sub(r"(?m)^frame_ms = 0$", "frame_ms = 1", text)   # far below what a frame takes
+        text = re.sub(r"(?m)^enabled = false$", "enabled = true", text)
+        write(config, text)
+        p = run([IGD, "--config", config, "--frames", "40", "--free-run", "--width", "160", "--height", "90",
+                 "--stats", os.path.join(self.tmp, "s.csv")], timeout=RUN, cwd=self.tmp)
+        self.assertExit(p, 0)
+        m = re.search(r"governor: terrain tolerance now ([0-9.]+) px; (\d+) decreases, (\d+) increases", p.stderr)
+        self.assertIsNotNone(m, describe(p))
+        self.assertGreater(float(m.group(1)), 1.0, "the tolerance should have been raised from the scene's 1 px")
+        self.assertGreater(int(m.group(2)) + 0, 0, describe(p))
+        self.assertEqual(int(m.group(3)), 0, "no raise while every frame overruns")
+
     def test_cpu_affinity_and_realtime(self):
         config, _ = self.configs(cpu_affinity="[0]", realtime_priority="10")
         p = run([IGD, "--config", config, "--frames", "3", "--free-run", "--width", "64", "--height", "36"],

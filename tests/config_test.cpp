@@ -269,7 +269,7 @@ TEST(ConfigErrors, UnknownTable) {
   EXPECT_EQ(e.value, "");  // a [table] header has no value text
   EXPECT_EQ(e.what().rfind("svc.toml:6: graphics: unknown table (known keys: ", 0), 0u) << e.what();
   EXPECT_NE(e.message.find("unknown table"), std::string::npos) << e.message;
-  EXPECT_NE(e.message.find("frame, output, stats, host, scene, budget, service"), std::string::npos)
+  EXPECT_NE(e.message.find("frame, output, stats, host, scene, budget, governor, service"), std::string::npos)
       << e.message;
 }
 
@@ -695,5 +695,33 @@ TEST(ConfigHostLinks, BadLinkValuesAreNamed) {
   e = serviceError("[host]\nsource = \"cigi\"\n[host.cigi]\nprot = 1\n[scene]\nfile = \"s\"\n");
   EXPECT_EQ(e.key, "host.cigi.prot");
 }
+}  // namespace
+}  // namespace ig
+
+namespace ig {
+namespace {
+
+TEST(ConfigGovernor, KeysAreReadAndCrossChecked) {
+  const ServiceConfig cfg = parseServiceOk(std::string(kMinimalService) +
+                                           "[governor]\nenabled = true\ndecrease_above = 0.9\nincrease_below = 0.5\n"
+                                           "[governor.terrain]\nmin_px = 0.5\nmax_px = 16\nload_exponent = -2\n",
+                                           "/cfg");
+  EXPECT_TRUE(cfg.governor.enabled);
+  EXPECT_EQ(cfg.governor.decreaseAbove, 0.9);
+  EXPECT_EQ(cfg.governor.increaseBelow, 0.5);
+  EXPECT_EQ(cfg.governor.terrainMin_px, 0.5);
+  EXPECT_EQ(cfg.governor.terrainMax_px, 16.0);
+  EXPECT_EQ(cfg.governor.terrainLoadExponent, -2.0);
+  ConfigError e = serviceError(std::string(kMinimalService) + "[governor]\ndecrease_above = 0.6\nincrease_below = 0.7\n");
+  EXPECT_EQ(e.key, "governor.increase_below");
+  EXPECT_NE(e.message.find("decrease_above"), std::string::npos) << e.what();
+  e = serviceError(std::string(kMinimalService) + "[governor.terrain]\nmin_px = 40\nmax_px = 32\n");
+  EXPECT_EQ(e.key, "governor.terrain.min_px");
+  e = serviceError(std::string(kMinimalService) + "[governor]\nmax_increase = 0.9\n");
+  EXPECT_EQ(e.key, "governor.max_increase");
+  e = serviceError(std::string(kMinimalService) + "[governor.terrain]\nload_exponent = 2\n");
+  EXPECT_EQ(e.key, "governor.terrain.load_exponent");
+}
+
 }  // namespace
 }  // namespace ig
