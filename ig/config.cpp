@@ -255,20 +255,21 @@ class Reader {
     }
   }
 
-  void get(const Table& t, std::string_view key, std::array<double, 3>& field, Range range) {
+  template <size_t N>
+  void get(const Table& t, std::string_view key, std::array<double, N>& field, Range range) {
     const toml::node* node = find(t, key);
     if (node == nullptr) return;
     const std::string name = t.keyOf(key);
     const auto* arr = node->as_array();
     if (arr == nullptr) {
-      failType(*node, name, "an array of exactly 3 numbers");
+      failType(*node, name, cat("an array of exactly ", std::to_string(N), " numbers"));
       return;
     }
     if (arr->size() != field.size()) {
-      fail(*node, name, cat("expected an array of exactly 3 numbers, got ", std::to_string(arr->size()), " elements"));
+      fail(*node, name, cat("expected an array of exactly ", std::to_string(N), " numbers, got ", std::to_string(arr->size()), " elements"));
       return;
     }
-    std::array<double, 3> v{};
+    std::array<double, N> v{};
     for (size_t i = 0; i < v.size(); ++i) {
       if (!readNumber(*arr->get(i), cat(name, "[", std::to_string(i), "]"), range, v[i])) return;
     }
@@ -649,10 +650,46 @@ bool parseScene(const std::string& text, const std::string& name, const std::str
     checkTerrainGrid(r, terrain, t);
   }
 
-  const Table forest = r.table(root, "forest", {"file"});
+  const Table forest = r.table(root, "forest", {"assets", "map", "seed", "cell_m", "glade_fraction",
+                                                "feature_size_m", "area_m", "spacing_m", "layers",
+                                                "near_fade_start_m", "near_fade_end_m", "fade_out_m",
+                                                "far_plane_m", "fins", "critical_angle_deg",
+                                                "fin_alpha_threshold", "leaf_size_m", "max_trees"});
   if (forest.present()) {
-    r.get(forest, "file", cfg.forest.emplace().file, false);
-    r.require(forest, "file", "a [forest] table needs the tree placement data file");
+    ForestLayerConfig& f = cfg.forest.emplace();
+    r.get(forest, "assets", f.assets);
+    r.get(forest, "map", f.map);
+    r.get(forest, "seed", f.seed, IntRange{0, 0xFFFFFFFFll});
+    r.get(forest, "cell_m", f.cell_m, closed(1.0, 10000.0));
+    r.get(forest, "glade_fraction", f.gladeFraction, closed(0.0, 1.0));
+    r.get(forest, "feature_size_m", f.featureSize_m, closed(10.0, 100000.0));
+    r.get(forest, "area_m", f.area_m, closed(-1e8, 1e8));
+    r.get(forest, "spacing_m", f.spacing_m, closed(1.0, 1000.0));
+    r.get(forest, "layers", f.layers, IntRange{1, 32});
+    r.get(forest, "near_fade_start_m", f.nearFadeStart_m, openClosed(0.0, 1e6));
+    r.get(forest, "near_fade_end_m", f.nearFadeEnd_m, openClosed(0.0, 1e6));
+    r.get(forest, "fade_out_m", f.fadeOut_m, openClosed(0.0, 1e7));
+    r.get(forest, "far_plane_m", f.farPlane_m, openClosed(0.0, 1e7));
+    r.get(forest, "fins", f.fins);
+    r.get(forest, "critical_angle_deg", f.criticalAngle_deg, closed(90.0, 180.0));
+    r.get(forest, "fin_alpha_threshold", f.finAlphaThreshold, closed(0.0, 1.0));
+    r.get(forest, "leaf_size_m", f.leafSize_m, closed(16.0, 10000.0));
+    r.get(forest, "max_trees", f.maxTrees, IntRange{1, 4194304});
+    // The fade bands must be ordered: near start < near end < fade out < far plane.
+    const std::pair<const char*, double> bands[] = {{"near_fade_start_m", f.nearFadeStart_m},
+                                                    {"near_fade_end_m", f.nearFadeEnd_m},
+                                                    {"fade_out_m", f.fadeOut_m},
+                                                    {"far_plane_m", f.farPlane_m}};
+    for (size_t i = 1; r.ok() && i < std::size(bands); ++i) {
+      if (bands[i].second > bands[i - 1].second) continue;
+      const std::string message = cat("must be greater than forest.", bands[i - 1].first, " (",
+                                      formatNumber(bands[i - 1].second), ")");
+      if (const toml::node* node = r.find(forest, bands[i].first)) {
+        r.fail(*node, forest.keyOf(bands[i].first), message);
+      } else {
+        r.fail(forest.line_, forest.keyOf(bands[i].first), formatNumber(bands[i].second), message);
+      }
+    }
   }
 
   const Table hdlod = r.table(root, "hdlod", {"schedule", "site_scale", "site_seed", "site_origin_m", "cache",
@@ -694,7 +731,10 @@ bool parseScene(const std::string& text, const std::string& name, const std::str
     return false;
   }
   if (cfg.terrain && !cfg.terrain->file.empty()) cfg.terrain->file = resolvePath(cfg.terrain->file, baseDir);
-  if (cfg.forest) cfg.forest->file = resolvePath(cfg.forest->file, baseDir);
+  if (cfg.forest) {
+    if (!cfg.forest->assets.empty()) cfg.forest->assets = resolvePath(cfg.forest->assets, baseDir);
+    if (!cfg.forest->map.empty()) cfg.forest->map = resolvePath(cfg.forest->map, baseDir);
+  }
   if (cfg.hdlod) {
     if (!cfg.hdlod->schedule.empty()) cfg.hdlod->schedule = resolvePath(cfg.hdlod->schedule, baseDir);
     if (!cfg.hdlod->cache.empty()) cfg.hdlod->cache = resolvePath(cfg.hdlod->cache, baseDir);

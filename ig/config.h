@@ -116,8 +116,33 @@ struct TerrainLayerConfig {
   bool operator==(const TerrainLayerConfig&) const = default;
 };
 
+// [forest]: a large forest (paper 004) on the terrain mesh (ig/forest_layer.h).
 struct ForestLayerConfig {
-  std::string file;                          // tree placement data (forest issue)
+  // Folder written by igtool forest-textures (tree LOD models, layers.png, fins.png,
+  // forest_textures.txt). "" = procedural models, textures rendered at start-up.
+  std::string assets;
+  // Distribution map: RGBA PNG, rgb = tint Gr.rgb, a = density (0 = glade), row 0 = north,
+  // one pixel per cell_m, south-west corner at the forest area's south-west corner.
+  // "" = generated from `seed`.
+  std::string map;
+  uint32_t seed = 1;
+  double cell_m = 32.0;          // map cell
+  double gladeFraction = 0.15;   // generated map: share of glades
+  double featureSize_m = 600.0;  // generated map: size of density / glade blobs
+  // Forest area [east0, north0, east1, north1] in scene ENU metres; all zero = the terrain's
+  // extent. At most 2e8 placement slots.
+  std::array<double, 4> area_m{0.0, 0.0, 0.0, 0.0};
+  double spacing_m = 6.0;        // one placement slot per spacing^2 (kept with prob. density)
+  int layers = 8;                // shell layers (procedural textures; assets carry their own)
+  double nearFadeStart_m = 300.0;  // 3D trees opaque up to here; layers start fading in
+  double nearFadeEnd_m = 500.0;    // 3D trees gone, layers fully in
+  double fadeOut_m = 6000.0;       // layers and fins start fading out
+  double farPlane_m = 8000.0;      // ... gone
+  bool fins = true;
+  double criticalAngle_deg = 175.0;  // fins on edges with a dihedral angle (through the ground) below
+  double finAlphaThreshold = 0.05;   // fin groups whose view alpha stays below are skipped
+  double leafSize_m = 256.0;         // kd-tree leaf size
+  int maxTrees = 131072;             // 3D trees drawn per frame at most (instance buffer)
   bool operator==(const ForestLayerConfig&) const = default;
 };
 

@@ -228,15 +228,32 @@ int main(int argc, char** argv) {
   ig::ForestBenchOptions forestOptions;
   CLI::App* forest = app.add_subcommand(
       "forest",
-      "Near forest and fins of paper 004 on a procedural 7.68 km terrain with >= 1 M trees: times\n"
-      "kd-tree cull + gather + far-to-near sort along a low flight (one core), fins after tangent-cone\n"
-      "rejection, and a sweep over near ranges. No rendering yet (layers, frame_ms, popping_max and\n"
-      "psnr_db come with the forest render pass). Exit 1 if any tree was dropped. JSON fields:\n"
-      "trees, area_km2, leaves, cull_ms_p50, cull_ms_p99, cull_cpu_ms_p99, trees_drawn_p50, fins,\n"
-      "fin_groups, fins_drawn_p50, sweep [{near_m, cull_ms_p50, cull_ms_p99, trees_drawn_p50}] and\n"
-      "more (docs/forest.md).");
-  forest->add_option("--posts", forestOptions.posts, "Terrain posts per side (32 m spacing)")
+      "Forest of paper 004 on a 7.68 km window of a real DEM (the SRTM tile scripts/fetch-data\n"
+      "fetches; procedural relief without it) with >= 1 M trees and the real Scopia pine and cypress\n"
+      "models (scripts/fetch-forest; procedural models without them): times kd-tree cull + gather +\n"
+      "far-to-near sort along a low flight (one core), renders a flight (frame_ms), a slow approach\n"
+      "through the near/far transition band (popping, against the same flight without the forest),\n"
+      "and a sweep over layer counts and near distances against a reference drawing every tree in 3D.\n"
+      "Exit 1 if any tree was dropped. JSON fields: trees, area_km2, cull_ms_p50, cull_ms_p99,\n"
+      "trees_drawn_p50, layers, fins_drawn_p50, frame_ms_p50/p99, popping_max,\n"
+      "popping_max_no_forest, popping_steady_excess, popping_spike, popping_max_hard_switch,\n"
+      "sweep [{layers, near_m, frame_ms, psnr_db}], cull_sweep and more (docs/forest.md).");
+  forest->add_option("--posts", forestOptions.posts, "Terrain posts per side, 32 m apart (241 = 7.68 km)")
       ->capture_default_str()->check(CLI::Range(2, 16385));
+  forest->add_option("--dem", forestOptions.dem, "DEM file; missing = procedural relief")->capture_default_str();
+  forest->add_option("--models", forestOptions.models, "Scopia OBJ folder from scripts/fetch-forest; missing = procedural models")
+      ->capture_default_str();
+  forest->add_option("--layers", forestOptions.layers, "Shell layers of the main run")->capture_default_str()->check(CLI::Range(1, 32));
+  forest->add_option("--render-frames", forestOptions.renderFrames, "Rendered flight frames (frame_ms)")
+      ->capture_default_str()->check(CLI::Range(1, 100000));
+  forest->add_option("--pop-frames", forestOptions.popFrames, "Slow-approach frames (popping)")
+      ->capture_default_str()->check(CLI::Range(2, 100000));
+  forest->add_option("--width", forestOptions.width, "Render width in pixels")->capture_default_str()->check(CLI::Range(16, 8192));
+  forest->add_option("--height", forestOptions.height, "Render height in pixels")->capture_default_str()->check(CLI::Range(16, 8192));
+  forest->add_flag("--quick", forestOptions.quick, "CI mode, ~10 s: 2 km forest, 256x144, small sweep");
+  bool forestNoSweep = false;
+  forest->add_flag("--no-render-sweep", forestNoSweep, "Skip the 3D reference and the layers/near sweep");
+  forest->add_option("--images", forestOptions.images, "Write sample frames into this folder");
   forest->add_option("--tree-spacing", forestOptions.treeSpacing_m,
                      "Metres between placement slots; the density map decides which are kept")
       ->capture_default_str()->check(CLI::PositiveNumber);
@@ -247,7 +264,7 @@ int main(int argc, char** argv) {
   forest->add_option("--near-fade-end", forestOptions.nearFadeEnd_m, "Near trees are gone from here (m)")
       ->capture_default_str()->check(CLI::PositiveNumber);
   forest->add_option("--critical-angle", forestOptions.criticalAngle_deg,
-                     "Fins where the dihedral angle through the ground is below this (degrees)")
+                     "Fins where the dihedral angle through the ground is below this (degrees; 178 suits gentle relief)")
       ->capture_default_str()->check(CLI::Range(0.001, 359.999));
   forest->add_option("--fin-alpha-threshold", forestOptions.finAlphaThreshold,
                      "Reject fin groups whose view alpha is below this everywhere")
@@ -342,7 +359,10 @@ int main(int argc, char** argv) {
   }
   if (adaptive->parsed()) return ig::runAdaptiveBench(adaptiveOptions);
   if (gov->parsed()) return ig::runGovernorBench(govOptions);
-  if (forest->parsed()) return ig::runForestBench(forestOptions);
+  if (forest->parsed()) {
+    forestOptions.renderSweep = !forestNoSweep;
+    return ig::runForestBench(forestOptions);
+  }
   if (cells->parsed()) return ig::runCellsBench(cellsOptions);
   if (hdlod->parsed()) {
     hdlodOptions.compareSimplifiers = !noSimplifierCompare;

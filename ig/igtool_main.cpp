@@ -18,6 +18,7 @@
 #endif
 #include "io/replay.h"
 #include "render/image.h"
+#include "ig/forest_tool.h"
 #include "ig/hdlod_tool.h"
 
 namespace {
@@ -221,7 +222,26 @@ int main(int argc, char** argv) {
   site->add_option("--simplifier", siteOptions.simplifier, "Parent-cluster simplifier")
       ->capture_default_str()->check(CLI::IsMember({"meshoptimizer", "openmesh", "clustering"}));
   site->add_flag("--progress", siteOptions.progress, "Build progress bar on stderr even when it is not a terminal");
+  ig::ForestTexturesOptions ftOptions;
+  CLI::App* forestTex = app.add_subcommand(
+      "forest-textures",
+      "Builds the forest assets igd's [forest] assets key points at (docs/forest.md): near LOD models\n"
+      "of the pine and cypress (meshoptimizer), and, rendered offline from a denser LOD on a tile of\n"
+      "forest, the layer texture T (horizontal slices, lower layers darker) and the fin texture S\n"
+      "(vertical slices) as PNG. Run scripts/fetch-forest first for the real models.");
+  forestTex->add_option("--source", ftOptions.source, "Folder with pine.obj and cypress.obj")->capture_default_str();
+  forestTex->add_option("--out", ftOptions.out, "Assets folder to write")->capture_default_str();
+  forestTex->add_option("--layers", ftOptions.layers, "Shell layers in T")->capture_default_str()->check(CLI::Range(1, 32));
+  forestTex->add_option("--size", ftOptions.size_px, "Texture size per layer in pixels")->capture_default_str()->check(CLI::Range(8, 4096));
+  forestTex->add_option("--tile", ftOptions.tile_m, "Forest tile side in metres")->capture_default_str()->check(CLI::PositiveNumber);
+  forestTex->add_option("--spacing", ftOptions.spacing_m, "Placement slot; the tile gets tile^2 / spacing^2 trees")
+      ->capture_default_str()->check(CLI::PositiveNumber);
+  forestTex->add_option("--triangles", ftOptions.triangles, "Near LOD triangles per model")->capture_default_str()->check(CLI::Range(4, 10000000));
+  forestTex->add_option("--bake-triangles", ftOptions.bakeTriangles, "LOD the textures are rendered from")
+      ->capture_default_str()->check(CLI::Range(4, 100000000));
+  forestTex->add_flag("--procedural", ftOptions.procedural, "Use the procedural models (no download)");
   if (const auto rc = ig::parseCommandLine(app, argc, argv)) return *rc;
+  if (forestTex->parsed()) return ig::runForestTextures(ftOptions);
   if (site->parsed()) {
     if (siteOrigin.size() == 3) {
       siteOptions.originX_m = siteOrigin[0];

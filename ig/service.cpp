@@ -17,6 +17,7 @@
 #include "io/dem.h"
 #include "io/replay.h"
 #include "lod/sun.h"
+#include "ig/forest_layer.h"
 #include "ig/hdlod_layer.h"
 #include "ig/host_input.h"
 #include "ig/host_links.h"
@@ -263,6 +264,7 @@ struct Service::Impl {
   render::Renderer renderer;
   std::unique_ptr<TerrainLayer> terrain;          // lod = "grid"
   std::unique_ptr<TerrainMeshLayer> terrainMesh;  // lod = "roam" | "block"
+  std::unique_ptr<ForestLayer> forest;            // [forest]: on the terrain mesh
   std::unique_ptr<HdlodLayer> hdlod;              // [hdlod]: 4D scene
   std::unique_ptr<io::ReplaySource> replay;
   MonotonicClock startClock;                 // stamps host samples until run() hands over its clock
@@ -343,6 +345,7 @@ struct Service::Impl {
       terrainMesh->select(cam, config.height_px, clock, now_s);
       terrainSelect_ms = clock ? static_cast<double>(clock->now_ns() - t0) * 1e-6 : 0.0;
     }
+    if (forest) forest->select(cam);
     if (hdlod) hdlod->select(cam, simTime_s, config.height_px);
     if (terrain) {
       const lod::Frustum fr = lod::makeFrustum(cam);
@@ -373,9 +376,10 @@ struct Service::Impl {
     if (terrain) renderer.drawTerrain(std::span(terrain->selected.data(), terrain->selectedCount));
     if (terrainMesh)
       renderer.drawTerrainMesh(terrainMesh->origin_m, terrainMesh->vertexCount());
+    if (forest) forest->draw(renderer, terrainMesh->origin_m, terrainMesh->vertexCount());
     if (hdlod) hdlod->draw(renderer);
     render::RenderStats st = renderer.endFrame();
-    if (hdlod) ++st.passes;  // passes in their own files
+    st.passes += (forest ? 1u : 0u) + (hdlod ? 1u : 0u);  // passes in their own files
     return st;
   }
 
@@ -404,13 +408,6 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
   m.config = config;
   m.scene = scene;
   m.summary = SummaryCollector(config.frames > 0 ? static_cast<size_t>(config.frames) : 36000);
-
-  // Layers that exist only in later work: refuse clearly rather than silently draw nothing.
-  if (scene.forest) {
-    error = "scene '" + scene.path + "': [forest] (file '" + scene.forest->file +
-            "') is not supported by this build yet; remove the table to run without a forest";
-    return nullptr;
-  }
 
   if (config.host == HostSource::Replay) {
     io::Recording rec;
@@ -446,6 +443,21 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
     s->info_.terrainSource = (scene.terrain->source == TerrainLayerConfig::Source::Dem ? scene.terrain->file
                                                                                         : std::string("procedural")) +
                              " " + std::to_string(w) + "x" + std::to_string(h);
+  }
+  if (scene.forest) {
+    if (!m.terrainMesh) {
+      error = "scene '" + scene.path + "': [forest] needs [terrain] with lod = \"roam\" or \"block\" (the shell "
+              "layers are drawn from the terrain mesh)";
+      return nullptr;
+    }
+    const TerrainMeshLayer& t = *m.terrainMesh;
+    m.forest = ForestLayer::create(*scene.forest, ForestGround{t.heights_m, t.width, t.height, t.spacing_m, t.origin_m},
+                                   error);
+    if (!m.forest) {
+      error = "scene '" + scene.path + "' [forest]: " + error;
+      return nullptr;
+    }
+    s->info_.layers.push_back("forest");
   }
   if (scene.hdlod) {
     const auto t0 = std::chrono::steady_clock::now();
@@ -483,8 +495,9 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
     s->info_.threads += m.hostInput->threads();
   }
   s->info_.passes = m.renderer.passCount();
-  s->info_.gpuBufferBytes = m.renderer.bufferBytes() + (m.hdlod ? m.hdlod->gpuBytes() : 0);
-  if (m.hdlod) ++s->info_.passes;
+  s->info_.gpuBufferBytes = m.renderer.bufferBytes() + (m.hdlod ? m.hdlod->gpuBytes() : 0) +
+                            (m.forest ? m.forest->bufferBytes() : 0);
+  s->info_.passes += (m.hdlod ? 1u : 0u) + (m.forest ? 1u : 0u);
 
   m.enu.emplace(origin);
   m.setLighting();

@@ -139,8 +139,27 @@ bool validateForestMap(const ForestMap& m, std::string& error) {
   return true;
 }
 
-bool placeTrees(const ForestMap& map, const TerrainGrid& terrain, const TreePlacementDesc& d,
-                std::vector<TreeInstance>& out, std::string& error) {
+double ForestHeightField::heightAt(double east_m, double north_m) const {
+  const double fx = std::clamp((east_m - origin_m.x) / spacing_m, 0.0, width - 1.0);
+  const double fy = std::clamp((north_m - origin_m.y) / spacing_m, 0.0, height - 1.0);
+  if (!std::isfinite(fx) || !std::isfinite(fy) || width < 2 || height < 2) return origin_m.z;
+  const int x0 = std::min(static_cast<int>(fx), width - 2), y0 = std::min(static_cast<int>(fy), height - 2);
+  const double tx = fx - x0, ty = fy - y0;
+  auto h = [&](int x, int y) {
+    return static_cast<double>(heights_m[static_cast<size_t>(y) * static_cast<size_t>(width) + static_cast<size_t>(x)]);
+  };
+  const double h00 = h(x0, y0), h11 = h(x0 + 1, y0 + 1);
+  // Triangles (x,y) (x+1,y) (x+1,y+1) below the diagonal (tx >= ty) and (x,y) (x+1,y+1) (x,y+1).
+  const double z = tx >= ty ? h00 + (h(x0 + 1, y0) - h00) * tx + (h11 - h(x0 + 1, y0)) * ty
+                            : h00 + (h11 - h(x0, y0 + 1)) * tx + (h(x0, y0 + 1) - h00) * ty;
+  return origin_m.z + z;
+}
+
+namespace {
+
+template <class Ground>
+bool placeTreesOn(const ForestMap& map, const Ground& terrain, const TreePlacementDesc& d,
+                  std::vector<TreeInstance>& out, std::string& error) {
   out.clear();
   if (!validateForestMap(map, error)) return false;
   if (!(d.spacing_m > 0.0) || !std::isfinite(d.spacing_m)) {
@@ -190,6 +209,30 @@ bool placeTrees(const ForestMap& map, const TerrainGrid& terrain, const TreePlac
     }
   }
   return true;
+}
+
+}  // namespace
+
+bool placeTrees(const ForestMap& map, const TerrainGrid& terrain, const TreePlacementDesc& d,
+                std::vector<TreeInstance>& out, std::string& error) {
+  return placeTreesOn(map, terrain, d, out, error);
+}
+
+bool placeTrees(const ForestMap& map, const ForestHeightField& ground, const TreePlacementDesc& d,
+                std::vector<TreeInstance>& out, std::string& error) {
+  if (ground.width < 2 || ground.height < 2 ||
+      ground.heights_m.size() < static_cast<size_t>(ground.width) * static_cast<size_t>(ground.height)) {
+    out.clear();
+    error = "tree placement: height field " + std::to_string(ground.width) + " x " + std::to_string(ground.height) +
+            " with " + std::to_string(ground.heights_m.size()) + " samples: needs at least 2 x 2 posts, all present";
+    return false;
+  }
+  if (!(ground.spacing_m > 0.0) || !std::isfinite(ground.spacing_m)) {
+    out.clear();
+    error = "tree placement: height field spacing_m = " + std::to_string(ground.spacing_m) + ": must be finite and > 0";
+    return false;
+  }
+  return placeTreesOn(map, ground, d, out, error);
 }
 
 double farAlpha(const FarFade& f, double d) {

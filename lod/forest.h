@@ -24,6 +24,7 @@
 #pragma once
 
 #include <cstdint>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -76,6 +77,18 @@ struct TreeInstance {
   uint8_t model = 0;       // index of the 3D model
 };
 
+// A regular height field (e.g. a DEM) as the ground for placement: posts row-major (row =
+// north), sample (x, y) at origin + (x * spacing, y * spacing, h). heightAt interpolates on the
+// two triangles of each quad exactly as lod::makeGridMesh splits it ((x,y)-(x+1,y+1) diagonal),
+// so a tree stands on the rendered full-resolution surface; clamps outside, NaN gives origin.z.
+struct ForestHeightField {
+  std::span<const float> heights_m;
+  int width = 0, height = 0;
+  double spacing_m = 1.0;
+  glm::dvec3 origin_m{0.0};
+  double heightAt(double east_m, double north_m) const;
+};
+
 struct TreePlacementDesc {
   uint32_t seed = 7;
   double spacing_m = 6.0;   // one candidate per spacing x spacing slot
@@ -88,6 +101,10 @@ struct TreePlacementDesc {
 // bad description (spacing <= 0 or NaN, jitter outside [0, 1], modelCount outside 1..256) or
 // an invalid map.
 bool placeTrees(const ForestMap& map, const TerrainGrid& terrain, const TreePlacementDesc& desc,
+                std::vector<TreeInstance>& out, std::string& error);
+// The same on a height field (a DEM); also fails for a field smaller than 2 x 2 posts or with a
+// spacing that is not finite and positive.
+bool placeTrees(const ForestMap& map, const ForestHeightField& ground, const TreePlacementDesc& desc,
                 std::vector<TreeInstance>& out, std::string& error);
 
 struct FarFade {

@@ -539,6 +539,21 @@ class Control(Tmp):
         self.assertGreater(int(m.group(2)) + 0, 0, describe(p))
         self.assertEqual(int(m.group(3)), 0, "no raise while every frame overruns")
 
+    def test_example_scenes_with_forest_and_hdlod_run(self):
+        for name, layer in (("forest_roam.toml", "forest"), ("construction_site.toml", "hdlod")):
+            with self.subTest(scene=name):
+                scene = os.path.join(SRC, "config", "scenes", name)
+                text = open(scene, encoding="utf-8").read().replace("../../out/", self.tmp + "/")
+                local = write(os.path.join(self.tmp, name), text)
+                config, _ = self.configs()
+                p = run([IGD, "--config", config, "--scene", local, "--frames", "5", "--free-run", "--width", "160",
+                         "--height", "90", "--stats", os.path.join(self.tmp, "s.csv")], timeout=RUN, cwd=self.tmp)
+                self.assertExit(p, 0)
+                self.assertRegex(p.stderr, rf"layers:.*\b{layer}\b", describe(p))
+                rows = [dict(zip(STATS_COLUMNS, l.split(","))) for l in complete_lines(os.path.join(self.tmp, "s.csv"))[1:]]
+                self.assertEqual(len(rows), 5)
+                self.assertGreaterEqual(int(rows[-1]["passes"]), 1)
+
     def test_cpu_affinity_and_realtime(self):
         config, _ = self.configs(cpu_affinity="[0]", realtime_priority="10")
         p = run([IGD, "--config", config, "--frames", "3", "--free-run", "--width", "64", "--height", "36"],

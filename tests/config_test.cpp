@@ -226,10 +226,11 @@ TEST(ConfigPaths, EmptyStatsFileMeansNoStatsFile) {
 
 TEST(ConfigPaths, LayerFilesResolvedButNotRequiredToExist) {
   const SceneConfig cfg = parseSceneOk(
-      "[forest]\nfile = \"trees/a.trees\"\n[hdlod]\nschedule = \"/abs/h.sched\"\ncache = \"cache/h.bin\"\n", "/scenes");
+      "[forest]\nmap = \"trees/a.png\"\n[hdlod]\nschedule = \"/abs/h.sched\"\ncache = \"cache/h.bin\"\n", "/scenes");
   ASSERT_TRUE(cfg.forest.has_value());
   ASSERT_TRUE(cfg.hdlod.has_value());
-  EXPECT_EQ(cfg.forest->file, "/scenes/trees/a.trees");
+  EXPECT_EQ(cfg.forest->map, "/scenes/trees/a.png");
+  EXPECT_EQ(cfg.forest->assets, "");
   EXPECT_EQ(cfg.hdlod->schedule, "/abs/h.sched");
   EXPECT_EQ(cfg.hdlod->cache, "/scenes/cache/h.bin");
 }
@@ -240,13 +241,13 @@ TEST(ConfigPaths, LoadResolvesAgainstTheFilesFolder) {
   const fs::path file = dir / "scene.toml";
   {
     std::ofstream out(file);
-    out << "name = \"tmp\"\n[forest]\nfile = \"trees.dat\"\n";
+    out << "name = \"tmp\"\n[forest]\nmap = \"trees.png\"\n";
   }
   SceneConfig cfg;
   ConfigError error;
   ASSERT_TRUE(loadSceneConfig(file.string(), cfg, error)) << error.what();
   ASSERT_TRUE(cfg.forest.has_value());
-  EXPECT_EQ(cfg.forest->file, normal(dir / "trees.dat"));
+  EXPECT_EQ(cfg.forest->map, normal(dir / "trees.png"));
   fs::remove_all(dir);
 }
 
@@ -441,10 +442,14 @@ TEST(ConfigErrors, ReplayFileRequiredForReplaySource) {
   EXPECT_EQ(e.line, 0);
 }
 
-TEST(ConfigErrors, LayerTableWithoutFile) {
-  ConfigError e = sceneError("name = \"a\"\n[forest]\n");
-  EXPECT_EQ(e.key, "forest.file");
-  EXPECT_EQ(e.line, 2);
+TEST(ConfigErrors, LayerTablesAreChecked) {
+  ConfigError e = sceneError("name = \"a\"\n[forest]\nnear_fade_end_m = 200\n");
+  EXPECT_EQ(e.key, "forest.near_fade_end_m");  // not beyond near_fade_start_m (300)
+  EXPECT_EQ(e.line, 3);
+  e = sceneError("[forest]\narea_m = [0, 0, 1]\n");
+  EXPECT_EQ(e.key, "forest.area_m");
+  e = sceneError("[forest]\nlayers = 0\n");
+  EXPECT_EQ(e.key, "forest.layers");
   e = sceneError("[hdlod]\nfiles = \"x\"\n");
   EXPECT_EQ(e.key, "hdlod.files");  // unknown key is reported before the missing one
   e = sceneError("[hdlod]\nsimplifier = \"qslim\"\n");
@@ -614,10 +619,13 @@ TEST(ConfigShipped, EverySceneInConfigScenesLoads) {
     SceneConfig cfg;
     ConfigError error;
     EXPECT_TRUE(loadSceneConfig(entry.path().string(), cfg, error)) << error.what();
-    EXPECT_TRUE(cfg.terrain) << entry.path();
+    EXPECT_TRUE(cfg.terrain || cfg.hdlod) << entry.path() << " draws nothing";
+    if (cfg.forest) {
+      EXPECT_TRUE(cfg.terrain && cfg.terrain->lod != TerrainLayerConfig::Lod::Grid) << entry.path();
+    }
     ++n;
   }
-  EXPECT_GE(n, 3);
+  EXPECT_GE(n, 5);
 }
 }  // namespace
 }  // namespace ig

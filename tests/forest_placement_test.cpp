@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "lod/forest.h"
+#include "lod/forest_model.h"
 
 namespace {
 using namespace ig::lod;
@@ -162,6 +163,74 @@ TEST(ForestFades, ValidationRejectsBadBands) {
   EXPECT_FALSE(validateForestFades({std::numeric_limits<double>::quiet_NaN(), 600, 6000, 8000}, {300, 500}, err));
   EXPECT_NE(err.find("FadeInStart"), std::string::npos) << err;
   EXPECT_TRUE(validateForestFades({400, 600, 600, 8000}, {300, 500}, err)) << err;
+}
+
+}  // namespace
+
+namespace {
+
+TEST(ForestHeightField, OnTheGridTrianglesAndPlacement) {
+  // 3 x 3 posts at 10 m, a saddle so bilinear and triangle interpolation differ.
+  const std::vector<float> h = {0, 10, 0, 10, 0, 10, 0, 10, 0};
+  const ForestHeightField f{h, 3, 3, 10.0, glm::dvec3(100.0, 200.0, 5.0)};
+  EXPECT_DOUBLE_EQ(f.heightAt(100.0, 200.0), 5.0);  // post (0, 0)
+  EXPECT_DOUBLE_EQ(f.heightAt(110.0, 200.0), 15.0); // post (1, 0)
+  EXPECT_DOUBLE_EQ(f.heightAt(120.0, 220.0), 5.0);  // post (2, 2)
+  // Quad (0, 0): diagonal (0,0)-(1,1) with both ends 0 -> 0 on it (bilinear would give 5).
+  EXPECT_DOUBLE_EQ(f.heightAt(105.0, 205.0), 5.0);
+  // Below the diagonal: plane through (0,0,0) (10,0,10) (10,10,0): z = x - y.
+  EXPECT_NEAR(f.heightAt(108.0, 202.0), 5.0 + 8.0 - 2.0, 1e-12);
+  // Above: plane through (0,0,0) (10,10,0) (0,10,10): z = y - x.
+  EXPECT_NEAR(f.heightAt(102.0, 208.0), 5.0 + 8.0 - 2.0, 1e-12);
+  // Outside clamps; NaN gives the origin height.
+  EXPECT_DOUBLE_EQ(f.heightAt(-1e9, 200.0), 5.0);
+  EXPECT_DOUBLE_EQ(f.heightAt(std::nan(""), 200.0), 5.0);
+
+  ForestMap map;
+  map.width = map.height = 2;
+  map.cell_m = 10.0;
+  map.origin_m = {100.0, 200.0};
+  map.density.assign(4, 1.0f);
+  map.gr.assign(4, 0xFF406030u);
+  TreePlacementDesc pd;
+  pd.spacing_m = 2.0;
+  std::vector<TreeInstance> trees;
+  std::string error;
+  ASSERT_TRUE(placeTrees(map, f, pd, trees, error)) << error;
+  ASSERT_EQ(trees.size(), 100u);  // density 1: every slot
+  for (const TreeInstance& t : trees) EXPECT_DOUBLE_EQ(t.base_m.z, f.heightAt(t.base_m.x, t.base_m.y));
+
+  const ForestHeightField tiny{h, 1, 1, 10.0, glm::dvec3(0.0)};
+  EXPECT_FALSE(placeTrees(map, tiny, pd, trees, error));
+  EXPECT_NE(error.find("1 x 1"), std::string::npos) << error;
+  EXPECT_TRUE(trees.empty());
+  const ForestHeightField flat{h, 3, 3, 0.0, glm::dvec3(0.0)};
+  EXPECT_FALSE(placeTrees(map, flat, pd, trees, error));
+  EXPECT_NE(error.find("spacing_m = 0"), std::string::npos) << error;
+}
+
+TEST(ForestModel, ProceduralTreesAreValidAndSized) {
+  for (ProceduralTree kind : {ProceduralTree::Pine, ProceduralTree::Cypress}) {
+    TreeMesh m = makeProceduralTree(kind, 20.0, 6);
+    std::string error;
+    EXPECT_TRUE(validateTreeMesh(m, error)) << error;
+    EXPECT_NEAR(m.height_m, 20.0f, 1e-4f);
+    EXPECT_GT(m.radius_m, 1.0f);
+    EXPECT_LT(m.radius_m, 5.0f);
+    m.indices.push_back(static_cast<uint32_t>(m.vertices.size()));  // not a whole triangle
+    EXPECT_FALSE(validateTreeMesh(m, error));
+    m.indices.push_back(0);
+    m.indices.push_back(0);
+    EXPECT_FALSE(validateTreeMesh(m, error));
+    EXPECT_NE(error.find(">= vertex count"), std::string::npos) << error;
+    m.indices.resize(m.indices.size() - 3);
+    m.vertices[0].position[2] = std::numeric_limits<float>::quiet_NaN();
+    EXPECT_FALSE(validateTreeMesh(m, error));
+    EXPECT_NE(error.find("vertex 0"), std::string::npos) << error;
+  }
+  TreeMesh empty;
+  std::string error;
+  EXPECT_FALSE(validateTreeMesh(empty, error));
 }
 
 }  // namespace

@@ -49,15 +49,29 @@ TEST(ServiceGL, SceneWithTerrainBuildsExactlyOnePass) {
   EXPECT_EQ(service->info().terrainTriangles, 2u * 256u * 256u);
 }
 
-TEST(ServiceGL, LayersOfLaterWorkAreRefusedByName) {
+TEST(ServiceGL, ForestNeedsAMeshTerrainAndBadForestInputIsNamed) {
   ServiceConfig cfg;
   SceneConfig scene;
   test::defaultConfigs(cfg, scene);
-  scene.forest = ForestLayerConfig{"trees.dat"};
+  scene.forest = ForestLayerConfig{};  // the default scene's terrain is lod = "grid"
   std::string error;
   EXPECT_FALSE(Service::create(cfg, scene, error));
-  EXPECT_NE(error.find("[forest]"), std::string::npos) << error;
-  EXPECT_NE(error.find("trees.dat"), std::string::npos) << error;
+  EXPECT_NE(error.find("[forest] needs [terrain] with lod = \"roam\""), std::string::npos) << error;
+  scene.terrain->lod = TerrainLayerConfig::Lod::Roam;
+  scene.forest->map = "/nonexistent/forest_map.png";
+  EXPECT_FALSE(Service::create(cfg, scene, error));
+  EXPECT_NE(error.find("/nonexistent/forest_map.png"), std::string::npos) << error;
+}
+
+TEST(ServiceGL, MissingHdlodScheduleIsNamed) {
+  ServiceConfig cfg;
+  SceneConfig scene;
+  test::defaultConfigs(cfg, scene);
+  scene.hdlod.emplace();
+  scene.hdlod->schedule = "/nonexistent/site.sched";
+  std::string error;
+  EXPECT_FALSE(Service::create(cfg, scene, error));
+  EXPECT_NE(error.find("/nonexistent/site.sched"), std::string::npos) << error;
 }
 
 TEST(ServiceGL, MissingReplayFileIsNamed) {

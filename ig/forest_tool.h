@@ -1,0 +1,74 @@
+// igtool forest-textures and the forest's asset files (paper 004, shared/SEEDS.md section 004).
+//
+// Source models: Wavefront OBJ (y up, centimetres, as in Sweet Home 3D's libraries: Scopia's
+// pine and cypress in Debian's sweethome3d-furniture, CC-BY; scripts/fetch-forest extracts
+// them). A material whose name contains "trunk" or "bark" (any case) gets bark colour, every
+// other material foliage colour (the models' textures are JPEG, which igd does not decode).
+// Faces with more than three vertices are fanned.
+//
+// igtool forest-textures writes into the output folder (the [forest] assets folder):
+//   <model>.obj          the near LOD (meshoptimizer sloppy simplification to --triangles),
+//                        z up, metres, foot at the origin, vertex colours ("v x y z r g b")
+//   layers.png           T: n square horizontal slices side by side (lower layers darker)
+//   fins.png             S: vertical slices side by side (top row = tree top)
+//   forest_textures.txt  "layers N", "fin_slices N", "tile_m X", "height_m X", "models a b"
+// The textures are rendered from the high LOD (--bake-triangles) with render/forest_pass.h.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "lod/forest_model.h"
+#include "render/forest_pass.h"
+
+namespace ig {
+
+struct TreeObjOptions {
+  double height_m = 18.0;       // scaled to this height
+  double radius_m = 0.0;        // crown radius; 0 = keep proportions
+  uint8_t foliage[3] = {52, 86, 44};
+  uint8_t bark[3] = {96, 70, 48};
+};
+
+// Reads an OBJ (source model or one written by writeTreeObj: vertex colours win over
+// materials). `sourceUnits`: true for y-up centimetre source files (converted to z-up metres,
+// recentred on the trunk foot and scaled by `o`); false for our own files (read as is).
+bool loadTreeObj(const std::string& file, bool sourceUnits, const TreeObjOptions& o, lod::TreeMesh& out,
+                 std::string& error);
+bool writeTreeObj(const std::string& file, const lod::TreeMesh& mesh, std::string& error);
+
+// Simplifies to about `targetTriangles` (meshoptimizer: simplify, then sloppy if still above),
+// optimises for the vertex cache and fetch. A mesh already small enough is copied.
+lod::TreeMesh simplifyTree(const lod::TreeMesh& mesh, size_t targetTriangles);
+
+// The forest assets folder (see above).
+bool writeForestAssets(const std::string& dir, const std::vector<lod::TreeMesh>& models,
+                       const render::ForestTextures& textures, std::string& error);
+bool readForestAssets(const std::string& dir, std::vector<lod::TreeMesh>& models, render::ForestTextures& textures,
+                      std::string& error);
+
+// The two Scopia models (pine, cypress) from `sourceDir` (scripts/fetch-forest's
+// data/forest/src), simplified to `triangles` (0 = full), or false with an error naming the
+// missing file.
+bool loadScopiaTrees(const std::string& sourceDir, size_t triangles, std::vector<lod::TreeMesh>& out,
+                     std::string& error);
+// Procedural pine and cypress (lod/forest_model.h), the fallback.
+std::vector<lod::TreeMesh> proceduralTrees();
+
+struct ForestTexturesOptions {
+  std::string source = "data/forest/src";  // scripts/fetch-forest output
+  std::string out = "data/forest";
+  int layers = 8;
+  int size_px = 256;
+  double tile_m = 24.0;
+  double spacing_m = 6.0;       // forest placement slot: the tile gets tile^2 / spacing^2 trees
+  int triangles = 300;          // near LOD per model
+  int bakeTriangles = 20000;    // LOD the textures are rendered from
+  bool procedural = false;      // use the procedural models (no download needed)
+};
+
+// igtool forest-textures: 0 on success, 1 on failure (message on stderr), 2 bad options.
+int runForestTextures(const ForestTexturesOptions& options);
+
+}  // namespace ig

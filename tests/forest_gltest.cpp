@@ -1,0 +1,299 @@
+// The forest pass on a real headless context (paper 004): trees and layers appear where the
+// distribution map has density and nothing is drawn in glades (read back pixels, against the
+// same frame without the forest); near (3D trees) and far (layers) each on their own; the
+// offline textures T and S (coverage, lower layers darker); bad input named.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+
+#include <unistd.h>
+
+#include "ig/forest_layer.h"
+#include "ig/forest_tool.h"
+#include "lod/heightfield.h"
+#include "lod/terrain_grid.h"
+#include "render/context.h"
+#include "render/image.h"
+#include "render/renderer.h"
+
+using namespace ig;
+
+namespace {
+
+constexpr int kW = 160, kH = 120;
+constexpr int kPosts = 33;  // 1024 m at 32 m
+constexpr double kSpacing = 32.0;
+
+struct World {
+  std::unique_ptr<render::GlContext> ctx;
+  render::Renderer renderer;
+  render::Lighting lighting;
+  std::vector<float> heights;
+  size_t vertexCount = 0;
+  std::string mapFile;
+
+  void setUp() {
+    std::string error;
+    ctx = render::createContext(render::ContextKind::Headless, kW, kH, error);
+    ASSERT_TRUE(ctx) << error;
+    ASSERT_TRUE(renderer.init(kW, kH, error)) << error;
+    lod::HeightfieldDesc hd;
+    hd.postsX = hd.postsY = kPosts;
+    hd.postSpacing_m = kSpacing;
+    hd.heightScale_m = 40.0;
+    heights.resize(static_cast<size_t>(kPosts) * kPosts);
+    lod::generateHeightfield(hd, heights);
+    const size_t quads = static_cast<size_t>(kPosts - 1) * (kPosts - 1);
+    ASSERT_TRUE(renderer.addTerrainMesh(quads * 6, 40.0, error)) << error;
+    auto dst = renderer.terrainMeshVertices();
+    const auto v = [&](int x, int y) { return lod::heightFieldVertex(heights, kPosts, kPosts, kSpacing, x, y); };
+    for (int y = 0; y + 1 < kPosts; ++y)
+      for (int x = 0; x + 1 < kPosts; ++x) {
+        dst[vertexCount++] = v(x, y), dst[vertexCount++] = v(x + 1, y), dst[vertexCount++] = v(x + 1, y + 1);
+        dst[vertexCount++] = v(x, y), dst[vertexCount++] = v(x + 1, y + 1), dst[vertexCount++] = v(x, y + 1);
+      }
+    // Map: 32 x 32 cells of 32 m; the western half (x < 16) is a glade, the east full density.
+    render::Image map;
+    map.width = map.height = 32;
+    map.rgba.resize(32 * 32 * 4);
+    for (int y = 0; y < 32; ++y)
+      for (int x = 0; x < 32; ++x) {
+        uint8_t* p = map.rgba.data() + (static_cast<size_t>(y) * 32 + static_cast<size_t>(x)) * 4;
+        p[0] = 110, p[1] = 140, p[2] = 90, p[3] = x < 16 ? 0 : 255;
+      }
+    mapFile = (std::filesystem::temp_directory_path() / ("forest_gltest_map_" + std::to_string(getpid()) + ".png")).string();
+    ASSERT_TRUE(render::writePng(mapFile, map, error)) << error;
+  }
+  ~World() {
+    if (!mapFile.empty()) std::filesystem::remove(mapFile);
+  }
+
+  ForestGround ground() const { return {heights, kPosts, kPosts, kSpacing, glm::dvec3(0.0)}; }
+
+  ForestLayerConfig config() const {
+    ForestLayerConfig c;
+    c.map = mapFile;
+    c.layers = 4;
+    c.spacing_m = 6.0;
+    c.nearFadeStart_m = 300.0;
+    c.nearFadeEnd_m = 500.0;
+    return c;
+  }
+
+  render::Image frame(const lod::Camera& cam, ForestLayer* forest) {
+    if (forest) forest->select(cam);
+    renderer.beginFrame(cam, lighting);
+    renderer.drawTerrainMesh(glm::dvec3(0.0), vertexCount);
+    if (forest) forest->draw(renderer, glm::dvec3(0.0), vertexCount);
+    renderer.endFrame();
+    renderer.finish();
+    render::Image img;
+    renderer.readPixels(img);
+    return img;
+  }
+};
+
+// Straight down over the glade / forest border (x = 512 m), which is the image's vertical
+// centre line: west (glade) on the left.
+lod::Camera downCamera(double height_m) {
+  lod::Camera c;
+  c.eye_m = {512.0, 512.0, height_m};
+  c.pitch_deg = -90.0;
+  c.fovY_deg = 60.0;
+  c.aspect = static_cast<double>(kW) / kH;
+  c.near_m = 1.0;
+  c.far_m = 20000.0;
+  return c;
+}
+
+int channelDiff(const render::Image& a, const render::Image& b, int x, int y) {
+  const size_t i = (static_cast<size_t>(y) * kW + static_cast<size_t>(x)) * 4;
+  int d = 0;
+  for (size_t k = 0; k < 3; ++k) d = std::max(d, std::abs(int{a.rgba[i + k]} - int{b.rgba[i + k]}));
+  return d;
+}
+
+bool isSky(const render::Image& a, const render::Image& sky, int x, int y) { return channelDiff(a, sky, x, y) == 0; }
+
+// Largest change in the glade half (left of x0) and the share of changed pixels (> 8 levels)
+// in the forest half (right of x1), counting only pixels that show terrain.
+void compareHalves(const render::Image& without, const render::Image& with, const render::Image& sky, int x0, int x1,
+                   int& gladeMax, double& forestChanged) {
+  gladeMax = 0;
+  size_t changed = 0, total = 0;
+  for (int y = 0; y < kH; ++y) {
+    for (int x = 0; x < kW; ++x) {
+      if (isSky(without, sky, x, y)) continue;
+      const int d = channelDiff(without, with, x, y);
+      if (x < x0) gladeMax = std::max(gladeMax, d);
+      if (x >= x1) {
+        ++total;
+        changed += d > 8;
+      }
+    }
+  }
+  forestChanged = total ? static_cast<double>(changed) / static_cast<double>(total) : 0.0;
+}
+
+}  // namespace
+
+TEST(ForestGL, NearTreesWhereTheMapHasDensityNothingInGlades) {
+  World w;
+  ASSERT_NO_FATAL_FAILURE(w.setUp());
+  std::string error;
+  auto forest = ForestLayer::create(w.config(), w.ground(), error);
+  ASSERT_TRUE(forest) << error;
+  EXPECT_GT(forest->stats().trees, 10000u);
+  const lod::Camera cam = downCamera(250.0);
+  const render::Image without = w.frame(cam, nullptr);
+  const render::Image with = w.frame(cam, forest.get());
+  const ForestLayerStats st = forest->stats();
+  EXPECT_GT(st.treesDrawn, 500u);  // 3D trees under the camera (all nearer than 500 m)
+  EXPECT_EQ(st.treesDropped, 0u);
+  lod::Camera skyCam = cam;
+  skyCam.pitch_deg = 90.0;
+  const render::Image sky = w.frame(skyCam, nullptr);
+  int gladeMax = 0;
+  double forestChanged = 0.0;
+  // The border column is x = 80; crowns (4 m) lean outwards by perspective: 10 px margin.
+  compareHalves(without, with, sky, kW / 2 - 10, kW / 2 + 10, gladeMax, forestChanged);
+  EXPECT_EQ(gladeMax, 0) << "something was drawn in the glade";
+  EXPECT_GT(forestChanged, 0.5) << "trees should cover most of the forest half";
+  EXPECT_EQ(w.renderer.errors(), "");
+}
+
+TEST(ForestGL, FarLayersWhereTheMapHasDensityNothingInGlades) {
+  World w;
+  ASSERT_NO_FATAL_FAILURE(w.setUp());
+  std::string error;
+  auto forest = ForestLayer::create(w.config(), w.ground(), error);
+  ASSERT_TRUE(forest) << error;
+  const lod::Camera cam = downCamera(2500.0);  // beyond the near range: layers only
+  const render::Image without = w.frame(cam, nullptr);
+  const render::Image with = w.frame(cam, forest.get());
+  const ForestLayerStats st = forest->stats();
+  EXPECT_EQ(st.treesDrawn, 0u);
+  EXPECT_EQ(st.layers, 4);
+  lod::Camera skyCam = cam;
+  skyCam.pitch_deg = 90.0;
+  const render::Image sky = w.frame(skyCam, nullptr);
+  int gladeMax = 0;
+  double forestChanged = 0.0;
+  // 1 px is ~25 m here; Gr is filtered over half a cell (16 m) at the border: 2 px margin.
+  compareHalves(without, with, sky, kW / 2 - 2, kW / 2 + 2, gladeMax, forestChanged);
+  EXPECT_EQ(gladeMax, 0) << "layers drawn in the glade";
+  EXPECT_GT(forestChanged, 0.5) << "layers should tint the forest half";
+
+  // Beyond the far plane (8 km) the forest is gone: the frame equals the one without it.
+  forest->enableParts(true, true, true);
+  const lod::Camera farCam = downCamera(9000.0);
+  const render::Image farWithout = w.frame(farCam, nullptr);
+  const render::Image farWith = w.frame(farCam, forest.get());
+  EXPECT_EQ(render::rmse(farWithout, farWith), 0.0);
+  EXPECT_EQ(w.renderer.errors(), "");
+}
+
+TEST(ForestGL, TexturesCoverageAndLowerLayersDarker) {
+  World w;
+  ASSERT_NO_FATAL_FAILURE(w.setUp());
+  const std::vector<lod::TreeMesh> models = proceduralTrees();
+  render::ForestTextureDesc d;
+  d.layers = 4;
+  d.size_px = 64;
+  d.treesPerTile = 16;
+  render::ForestTextures t;
+  std::string error;
+  ASSERT_TRUE(render::renderForestTextures(models, d, t, error)) << error;
+  ASSERT_TRUE(render::validateForestTextures(t, error)) << error;
+  EXPECT_EQ(t.layers.width, 64 * 4);
+  EXPECT_EQ(t.layers.height, 64);
+  EXPECT_NEAR(t.height_m, 18.0 * 1.1, 0.1);
+  // Per layer: coverage and mean brightness of the covered texels.
+  std::vector<double> coverage, brightness;
+  for (int l = 0; l < 4; ++l) {
+    double a = 0, b = 0;
+    for (int y = 0; y < 64; ++y)
+      for (int x = 0; x < 64; ++x) {
+        const uint8_t* p = t.layers.rgba.data() + (static_cast<size_t>(y) * 256 + static_cast<size_t>(l * 64 + x)) * 4;
+        a += p[3] / 255.0;
+        b += p[3] / 255.0 * (p[0] + p[1] + p[2]);
+      }
+    coverage.push_back(a / (64 * 64));
+    brightness.push_back(a > 0 ? b / a : 0.0);
+  }
+  for (int l = 0; l < 4; ++l) EXPECT_GT(coverage[static_cast<size_t>(l)], 0.02) << "layer " << l;
+  EXPECT_LT(coverage[3], 0.9);  // the tops leave gaps
+  for (int l = 1; l < 4; ++l) EXPECT_GT(brightness[static_cast<size_t>(l)], brightness[static_cast<size_t>(l - 1)]) << l;
+  // Fins: the bottom row (trunks and lowest branches) is partly covered, above the crowns nothing.
+  double top = 0, lowHalf = 0;
+  for (int x = 0; x < t.fins.width; ++x) {
+    top += t.fins.rgba[static_cast<size_t>(x) * 4 + 3];
+    for (int y = t.fins.height / 2; y < t.fins.height; ++y)
+      lowHalf += t.fins.rgba[(static_cast<size_t>(y) * static_cast<size_t>(t.fins.width) + static_cast<size_t>(x)) * 4 + 3];
+  }
+  EXPECT_EQ(top, 0.0);
+  EXPECT_GT(lowHalf, 0.0);
+
+  // Bad input is named.
+  d.layers = 0;
+  EXPECT_FALSE(render::renderForestTextures(models, d, t, error));
+  EXPECT_NE(error.find("layers = 0"), std::string::npos) << error;
+  EXPECT_EQ(w.renderer.errors(), "");
+}
+
+TEST(ForestGL, BadConfigIsNamed) {
+  World w;
+  ASSERT_NO_FATAL_FAILURE(w.setUp());
+  std::string error;
+  ForestLayerConfig c = w.config();
+  c.nearFadeEnd_m = c.nearFadeStart_m;  // a step
+  EXPECT_FALSE(ForestLayer::create(c, w.ground(), error));
+  EXPECT_NE(error.find("forest fades"), std::string::npos) << error;
+  c = w.config();
+  c.map = "/nonexistent/map.png";
+  EXPECT_FALSE(ForestLayer::create(c, w.ground(), error));
+  EXPECT_NE(error.find("forest.map"), std::string::npos) << error;
+  c = w.config();
+  c.assets = "/nonexistent";
+  EXPECT_FALSE(ForestLayer::create(c, w.ground(), error));
+  EXPECT_NE(error.find("forest.assets"), std::string::npos) << error;
+  c = w.config();
+  c.area_m = {5000, 5000, 6000, 6000};  // outside the terrain
+  EXPECT_FALSE(ForestLayer::create(c, w.ground(), error));
+  EXPECT_NE(error.find("forest.area_m"), std::string::npos) << error;
+}
+
+TEST(ForestGL, AssetsRoundTrip) {
+  World w;
+  ASSERT_NO_FATAL_FAILURE(w.setUp());
+  const std::vector<lod::TreeMesh> models = proceduralTrees();
+  render::ForestTextureDesc d;
+  d.layers = 3;
+  d.size_px = 32;
+  render::ForestTextures t;
+  std::string error;
+  ASSERT_TRUE(render::renderForestTextures(models, d, t, error)) << error;
+  const std::string dir = (std::filesystem::temp_directory_path() / ("forest_assets_" + std::to_string(getpid()))).string();
+  ASSERT_TRUE(writeForestAssets(dir, models, t, error)) << error;
+  std::vector<lod::TreeMesh> m2;
+  render::ForestTextures t2;
+  ASSERT_TRUE(readForestAssets(dir, m2, t2, error)) << error;
+  std::filesystem::remove_all(dir);
+  ASSERT_EQ(m2.size(), models.size());
+  // Same triangles (vertices are renumbered in first-use order on reading).
+  ASSERT_EQ(m2[0].indices.size(), models[0].indices.size());
+  float worst = 0.0f;
+  for (size_t i = 0; i < m2[0].indices.size(); ++i)
+    for (int k = 0; k < 3; ++k)
+      worst = std::max(worst, std::abs(m2[0].vertices[m2[0].indices[i]].position[k] -
+                                       models[0].vertices[models[0].indices[i]].position[k]));
+  EXPECT_LT(worst, 1e-3f);
+  EXPECT_NEAR(m2[0].height_m, models[0].height_m, 1e-3);
+  EXPECT_EQ(t2.layerCount, 3);
+  EXPECT_EQ(t2.layers.rgba, t.layers.rgba);
+  EXPECT_EQ(t2.fins.rgba, t.fins.rgba);
+  EXPECT_NEAR(t2.tile_m, t.tile_m, 1e-9);
+}
