@@ -5,7 +5,10 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <ctime>
+#include <filesystem>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -14,6 +17,8 @@
 #include "lod/block_lod.h"
 #include "lod/heightfield.h"
 #include "lod/roam.h"
+#include "lod/terrain_grid.h"
+#include "lod/triangle_slots.h"
 #include "render/context.h"
 #include "render/image.h"
 #include "render/renderer.h"
@@ -23,6 +28,23 @@ namespace {
 
 using BenchClock = std::chrono::steady_clock;
 double msSince(BenchClock::time_point t0) { return std::chrono::duration<double, std::milli>(BenchClock::now() - t0).count(); }
+// CPU time of this thread: what the work itself cost, without the time other processes on a
+// shared machine took the core away (wall-clock times are reported too).
+double threadCpuMs() {
+  timespec t{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) * 1e3 + static_cast<double>(t.tv_nsec) * 1e-6;
+}
+
+// The height field the bench runs on: decoded into memory, or mapped from the raw cache.
+struct Field {
+  io::Dem decoded;     // when not mapped (rows already flipped: south first)
+  io::MappedDem mapped;
+  std::span<const float> heights;
+  int width = 0, height = 0;
+  double spacing_m = 0.0;
+  float lo = 0.0f, hi = 0.0f;
+};
 
 struct PathFrame {
   lod::Camera camera;
@@ -31,33 +53,31 @@ struct PathFrame {
 
 // Flies north-north-east 120 m above the DEM's highest point, turns hard (90 deg/s) in the
 // middle third, teleports to the north-east corner at 2/3 and flies on.
-std::vector<PathFrame> flightPath(const io::Dem& dem, double spacing_m, int frames, double aspect) {
+std::vector<PathFrame> flightPath(const Field& f, int frames, double aspect) {
   std::vector<PathFrame> path;
-  float top = dem.heights_m[0];
-  for (float h : dem.heights_m) top = std::max(top, h);
-  const double extentX = (dem.width - 1) * spacing_m, extentY = (dem.height - 1) * spacing_m;
-  glm::dvec3 eye{0.55 * extentX, 0.3 * extentY, static_cast<double>(top) + 120.0};
+  const double extentX = (f.width - 1) * f.spacing_m, extentY = (f.height - 1) * f.spacing_m;
+  glm::dvec3 eye{0.55 * extentX, 0.3 * extentY, static_cast<double>(f.hi) + 120.0};
   double heading = 20.0;
   constexpr double kDt = 1.0 / 60.0, kSpeed = 250.0;
   for (int i = 0; i < frames; ++i) {
-    PathFrame f;
+    PathFrame p;
     if (i == 2 * frames / 3) {
       eye = {0.9 * extentX, 0.85 * extentY, eye.z};
       heading = 200.0;
-      f.teleport = true;
+      p.teleport = true;
     } else if (i > frames / 3 && i < 2 * frames / 3) {
       heading += 90.0 * kDt;
     }
     const double h = heading * 3.14159265358979323846 / 180.0;
     eye += glm::dvec3(std::sin(h), std::cos(h), 0.0) * (kSpeed * kDt);
-    f.camera.eye_m = eye;
-    f.camera.heading_deg = heading;
-    f.camera.pitch_deg = -8.0;
-    f.camera.fovY_deg = 45.0;
-    f.camera.aspect = aspect;
-    f.camera.near_m = 0.5;
-    f.camera.far_m = 100000.0;
-    path.push_back(f);
+    p.camera.eye_m = eye;
+    p.camera.heading_deg = heading;
+    p.camera.pitch_deg = -8.0;
+    p.camera.fovY_deg = 45.0;
+    p.camera.aspect = aspect;
+    p.camera.near_m = 0.5;
+    p.camera.far_m = 100000.0;
+    path.push_back(p);
   }
   return path;
 }
@@ -70,7 +90,7 @@ uint64_t triangleKey(const lod::RoamTriangle& t) {
   std::sort(k, k + 3);
   return (k[0] * 0x9E3779B97F4A7C15ull) ^ (k[1] * 0xC2B2AE3D27D4EB4Full) ^ (k[2] * 0x165667B19E3779F9ull);
 }
-uint64_t changedTriangles(std::vector<uint64_t>& prev, std::vector<uint64_t>& cur) {
+uint64_t changedTriangles(const std::vector<uint64_t>& prev, std::vector<uint64_t>& cur) {
   std::sort(cur.begin(), cur.end());
   uint64_t added = 0;
   size_t i = 0, j = 0;
@@ -79,103 +99,212 @@ uint64_t changedTriangles(std::vector<uint64_t>& prev, std::vector<uint64_t>& cu
     else if (i < prev.size() && prev[i] == cur[j]) ++i, ++j;
     else ++added, ++j;
   }
-  prev.swap(cur);
   return added;
 }
 
 struct MethodResult {
   std::string name;
-  double updateP50 = 0, updateP99 = 0, teleport = 0, maxErrorPx = 0;
+  bool ran = false;
+  double updateP50 = 0, updateP99 = 0, teleport = 0, maxErrorPx = 0, emitP50 = 0, startupMs = 0;
+  double cpuP50 = 0, cpuP99 = 0;  // thread CPU time of the update
   uint64_t trianglesP50 = 0, uploadsP50 = 0;
   uint64_t visibleP50 = 0;  // triangles in the view frustum (what is drawn)
+  // Deferred under a visit budget.
+  double visitsP50 = 0, pendingP99 = 0, maxErrorUnfinishedPx = 0;
+  int unfinishedFrames = 0;
+  size_t boundsBytes = 0, poolBytes = 0;
 };
 
-lod::RoamView viewFor(const lod::Camera& cam, int height_px, double tolerance_px) {
+lod::RoamView viewFor(const lod::Camera& cam, int height_px, double tolerance_px, uint32_t maxVisits = 0) {
   lod::RoamView v;
   v.camera = cam;
   v.viewportHeight_px = height_px;
   v.tolerance_px = tolerance_px;
+  v.maxVisits = maxVisits;
   return v;
-}
-
-// Flies the path with one method. `update(view)` runs the method's LOD step (timed) and
-// returns {triangles, maxErrorPx}; `emit(out)` writes its mesh for the upload count.
-template <class Update, class Emit, class Visible>
-MethodResult fly(const char* name, const std::vector<PathFrame>& path, int height_px, double tolerance_px,
-                 Update update, Emit emit, Visible visible) {
-  std::vector<double> ms, tris, uploads, visibleTris;
-  std::vector<lod::RoamTriangle> out;
-  std::vector<uint64_t> prev, cur;
-  MethodResult r;
-  r.name = name;
-  for (const PathFrame& f : path) {
-    const auto t0 = BenchClock::now();
-    const auto [triangles, maxErrorPx] = update(viewFor(f.camera, height_px, tolerance_px));
-    const double t = msSince(t0);
-    ms.push_back(t);
-    if (f.teleport) r.teleport = t;
-    tris.push_back(static_cast<double>(triangles));
-    r.maxErrorPx = std::max(r.maxErrorPx, maxErrorPx);
-    emit(out);
-    visibleTris.push_back(static_cast<double>(visible(f.camera, out)));
-    cur.clear();
-    for (const auto& tri : out) cur.push_back(triangleKey(tri));
-    uploads.push_back(static_cast<double>(changedTriangles(prev, cur)));
-  }
-  r.updateP50 = percentile(ms, 50);
-  r.updateP99 = percentile(ms, 99);
-  r.trianglesP50 = static_cast<uint64_t>(percentile(tris, 50));
-  r.uploadsP50 = static_cast<uint64_t>(percentile(uploads, 50));
-  r.visibleP50 = static_cast<uint64_t>(percentile(visibleTris, 50));
-  return r;
 }
 
 struct UpdateResult {
   uint64_t triangles;
   double maxErrorPx;
+  bool finished = true;
+  double visits = 0, pending = 0;
 };
 
-MethodResult flyRoam(const io::Dem& dem, double spacing_m, const std::vector<PathFrame>& path, lod::RoamMode mode,
-                     const char* name, int height_px, double tolerance_px) {
-  // Deferred refines the whole surroundings (4-7x the triangles of the view-culled mesh),
-  // so it gets room for 8 M; the view-culled modes stay well under the default 1 M.
-  lod::RoamConfig config;
-  if (mode == lod::RoamMode::Deferred) config.maxTriangles = 8u << 20;
-  lod::Roam roam(dem.heights_m, dem.width, dem.height, spacing_m, {0, 0, 0}, config);
-  return fly(
-      name, path, height_px, tolerance_px,
-      [&](const lod::RoamView& v) {
-        const lod::RoamStats st = roam.update(v, mode);
-        return UpdateResult{st.triangles, st.maxErrorPx};
-      },
-      [&](std::vector<lod::RoamTriangle>& out) {
-        out.resize(roam.triangleCount());
-        out.resize(roam.emitTriangles(out));
-      },
-      [&](const lod::Camera& cam, std::vector<lod::RoamTriangle>& scratch) {
-        scratch.resize(roam.triangleCount());
-        return roam.emitVisible(cam, scratch);
-      });
+// Flies the path with one method. `update(view, frame)` runs the method's LOD step (timed);
+// `visible(camera, out)` writes what is drawn (timed as the emit). Uploads (triangles new
+// since the previous frame) are counted on every fourth frame, from the drawn lists.
+template <class Update, class Visible, class ExactError>
+MethodResult fly(const char* name, const std::vector<PathFrame>& path, int height_px, double tolerance_px,
+                 Update update, Visible visible, ExactError exactError) {
+  std::vector<double> ms, cpu, tris, uploads, visibleTris, emitMs, visits, pending;
+  std::vector<lod::RoamTriangle> out;
+  std::vector<uint64_t> prev, cur;
+  MethodResult r;
+  r.name = name;
+  r.ran = true;
+  for (size_t i = 0; i < path.size(); ++i) {
+    const PathFrame& f = path[i];
+    const lod::RoamView view = viewFor(f.camera, height_px, tolerance_px);
+    const double c0 = threadCpuMs();
+    const auto t0 = BenchClock::now();
+    const UpdateResult u = update(view, i);
+    const double t = msSince(t0);
+    // The first frame builds the mesh from the base triangles (the start-up): reported apart.
+    if (i == 0) {
+      r.startupMs = t;
+    } else {
+      ms.push_back(t);
+      cpu.push_back(threadCpuMs() - c0);
+    }
+    if (f.teleport) r.teleport = t;
+    tris.push_back(static_cast<double>(u.triangles));
+    visits.push_back(u.visits);
+    pending.push_back(u.pending);
+    if (u.finished) {
+      r.maxErrorPx = std::max(r.maxErrorPx, u.maxErrorPx);
+    } else {
+      ++r.unfinishedFrames;
+      if (i % 8 == 0) r.maxErrorUnfinishedPx = std::max(r.maxErrorUnfinishedPx, exactError(view));
+    }
+    const auto t1 = BenchClock::now();
+    const size_t n = visible(f.camera, out);
+    emitMs.push_back(msSince(t1));
+    visibleTris.push_back(static_cast<double>(n));
+    if (i % 8 == 7 || (i % 8 == 0 && i > 0)) {
+      cur.clear();
+      for (size_t k = 0; k < n; ++k) cur.push_back(triangleKey(out[k]));
+      if (i % 8 == 0) uploads.push_back(static_cast<double>(changedTriangles(prev, cur)));
+      else std::sort(cur.begin(), cur.end());
+      prev.swap(cur);
+    }
+  }
+  r.updateP50 = percentile(ms, 50);
+  r.updateP99 = percentile(ms, 99);
+  r.cpuP50 = percentile(cpu, 50);
+  r.cpuP99 = percentile(cpu, 99);
+  r.emitP50 = percentile(emitMs, 50);
+  r.trianglesP50 = static_cast<uint64_t>(percentile(tris, 50));
+  r.uploadsP50 = uploads.empty() ? 0 : static_cast<uint64_t>(percentile(uploads, 50));
+  r.visibleP50 = static_cast<uint64_t>(percentile(visibleTris, 50));
+  r.visitsP50 = percentile(visits, 50);
+  r.pendingP99 = percentile(pending, 99);
+  return r;
 }
 
-MethodResult flyBlock(const io::Dem& dem, double spacing_m, const std::vector<PathFrame>& path, int height_px,
-                      double tolerance_px) {
-  lod::BlockLod block(dem.heights_m, dem.width, dem.height, spacing_m, {0, 0, 0});
+lod::RoamConfig roamConfig(lod::RoamMode mode) {
+  // Deferred refines the whole surroundings (4-7x the triangles of the view-culled mesh), so
+  // it gets room for 8 M; the view-culled modes stay well under the default 1 M.
+  lod::RoamConfig config;
+  if (mode == lod::RoamMode::Deferred) config.maxTriangles = 8u << 20;
+  return config;
+}
+
+MethodResult flyRoam(const lod::Roam& bounds, const std::vector<PathFrame>& path, lod::RoamMode mode, const char* name,
+                     int height_px, double tolerance_px, uint32_t visits, double lateness = 0.0) {
+  lod::Roam roam(bounds, roamConfig(mode));
+  MethodResult r = fly(
+      name, path, height_px, tolerance_px,
+      [&](lod::RoamView v, size_t frame) {
+        // The first frame is the start-up (the IG positions before running in real time):
+        // unbudgeted. Later frames run under the visit budget.
+        if (frame > 0) v.maxVisits = visits;
+        v.lateness = lateness;
+        const lod::RoamStats st = roam.update(v, mode);
+        return UpdateResult{st.triangles, st.maxErrorPx, st.finished, static_cast<double>(st.visits),
+                            static_cast<double>(st.pending)};
+      },
+      [&](const lod::Camera& cam, std::vector<lod::RoamTriangle>& out) {
+        out.resize(roam.triangleCount());
+        return roam.emitVisible(cam, out);
+      },
+      [&](const lod::RoamView& v) { return roam.maxErrorPx(v); });
+  r.boundsBytes = roam.boundsBytes();
+  r.poolBytes = roam.poolBytes();
+  return r;
+}
+
+MethodResult flyBlock(const Field& dem, const std::vector<PathFrame>& path, int height_px, double tolerance_px) {
+  lod::BlockLod block(dem.heights, dem.width, dem.height, dem.spacing_m, {0, 0, 0});
   return fly(
       "block", path, height_px, tolerance_px,
-      [&](const lod::RoamView& v) {
+      [&](const lod::RoamView& v, size_t) {
         const lod::BlockLodStats st = block.update(v);
         return UpdateResult{st.triangles, st.maxErrorPx};
       },
-      [&](std::vector<lod::RoamTriangle>& out) {
+      [&](const lod::Camera&, std::vector<lod::RoamTriangle>& out) {
         out.resize(block.triangleBound());
         out.resize(block.emitTriangles(out));
+        return out.size();
       },
-      [&](const lod::Camera&, std::vector<lod::RoamTriangle>& out) { return out.size(); });
+      [&](const lod::RoamView&) { return 0.0; });
+}
+
+// Teleport: converged at the eye before the jump, then at the new eye. Merges alone
+// (MergeQueue) and enhMerge (EnhMerge) do it in one unbudgeted update; Deferred under a visit
+// budget restarts from the base triangles and converges over several updates, visible leaves
+// first. The exact visible error is measured after each update (not timed).
+struct TeleportResult {
+  double jump_km = 0, mergeMs = 0, enhMergeMs = 0, firstFrameMs = 0, frameMsMax = 0, visibleMs = 0, finishedMs = 0;
+  int framesToVisible = -1, framesToFinished = -1;
+  uint64_t mergeOps = 0, enhMergeOps = 0;
+};
+
+TeleportResult teleport(const lod::Roam& bounds, const std::vector<PathFrame>& path, int height_px, uint32_t visits,
+                        double lateness, int maxFrames) {
+  TeleportResult r;
+  size_t at = 0;
+  while (at < path.size() && !path[at].teleport) ++at;
+  if (at == 0 || at >= path.size()) return r;
+  const lod::RoamView before = viewFor(path[at - 1].camera, height_px, 1.0);
+  const lod::RoamView after = viewFor(path[at].camera, height_px, 1.0);
+  r.jump_km = glm::length(after.camera.eye_m - before.camera.eye_m) / 1000.0;
+  for (const lod::RoamMode mode : {lod::RoamMode::MergeQueue, lod::RoamMode::EnhMerge}) {
+    lod::Roam roam(bounds, roamConfig(mode));
+    roam.update(before, mode);
+    const auto t0 = BenchClock::now();
+    const lod::RoamStats st = roam.update(after, mode);
+    (mode == lod::RoamMode::MergeQueue ? r.mergeMs : r.enhMergeMs) = msSince(t0);
+    (mode == lod::RoamMode::MergeQueue ? r.mergeOps : r.enhMergeOps) = st.merges + st.enhMerges;
+  }
+  lod::Roam roam(bounds, roamConfig(lod::RoamMode::Deferred));
+  lod::RoamView v0 = before;
+  v0.lateness = lateness;
+  roam.update(v0, lod::RoamMode::Deferred);
+  lod::RoamView v = after;
+  v.maxVisits = visits;
+  v.lateness = lateness;
+  double total = 0;
+  for (int f = 1; f <= maxFrames; ++f) {
+    const auto t0 = BenchClock::now();
+    const lod::RoamStats st = roam.update(v, lod::RoamMode::Deferred);
+    const double t = msSince(t0);
+    total += t;
+    if (f == 1) r.firstFrameMs = t;
+    r.frameMsMax = std::max(r.frameMsMax, t);
+    if (r.framesToVisible < 0 && roam.maxErrorPx(after) <= v.tolerance_px + 1e-9) {
+      r.framesToVisible = f;
+      r.visibleMs = total;
+    }
+    if (st.finished) {
+      r.framesToFinished = f;
+      r.finishedMs = total;
+      if (r.framesToVisible < 0) r.framesToVisible = f, r.visibleMs = total;
+      break;
+    }
+  }
+  return r;
 }
 
 struct SweepRow {
   double tolerance = 0, updateMs = 0, renderMs = 0, rmse = 0, psnr = 0;
+  uint64_t triangles = 0;
+};
+
+struct RasterResult {
+  bool ran = false;
+  double rasterMs = 0, trianglesPerS = 0, frameMsP50 = 0, updateMsP50 = 0, emitMsP50 = 0, uploadMsP50 = 0,
+         drawMsP50 = 0, ratio = 0;
   uint64_t triangles = 0;
 };
 
@@ -188,58 +317,131 @@ std::string jsonEscape(const std::string& s) {
   return o;
 }
 
-}  // namespace
+std::string num(double v, int decimals = 4) {
+  if (!std::isfinite(v)) return "null";
+  char b[64];
+  std::snprintf(b, sizeof b, "%.*f", decimals, v);
+  return b;
+}
 
-int runTerrainBench(const TerrainBenchOptions& o) {
-  io::Dem dem;
-  std::string error;
-  const auto tLoad = BenchClock::now();
-  std::string demName = o.demFile;
+bool loadField(const TerrainBenchOptions& o, Field& f, std::string& demName, bool& fromCache, std::string& cacheFile,
+               std::string& error) {
   if (o.syntheticSamples > 0) {
     // Stress case: a mountainous procedural field of the size asked for (the real SRTM tile
-    // is 1201 wide and mostly flat coast).
+    // is 1201 wide and mostly flat coast), 2500 m of relief at 30 m.
     lod::HeightfieldDesc d;
     d.seed = 20261123;
     d.postsX = d.postsY = o.syntheticSamples;
     d.postSpacing_m = 30.0;
     d.heightScale_m = 2500.0;
-    dem.width = dem.height = o.syntheticSamples;
-    dem.spacing_m = 30.0;
-    dem.heights_m.resize(static_cast<size_t>(dem.width) * static_cast<size_t>(dem.height));
-    lod::generateHeightfield(d, dem.heights_m);
     demName = "procedural:" + std::to_string(o.syntheticSamples);
-  } else {
-    if (!io::loadDem(o.demFile, {}, dem, error)) {
-      std::fprintf(stderr, "igbench terrain: %s (scripts/fetch-data fetches the default DEM)\n", error.c_str());
-      return 2;
+    if (!o.cacheDir.empty()) {
+      std::error_code ec;
+      std::filesystem::create_directories(o.cacheDir, ec);
+      cacheFile = (std::filesystem::path(o.cacheDir) / ("synthetic-" + std::to_string(o.syntheticSamples) + "-" +
+                                                        std::to_string(d.seed) + ".igdem")).string();
+      std::string why;
+      if (io::mapDemCache(cacheFile, f.mapped, why)) {
+        fromCache = true;
+      } else {
+        std::vector<float> h(static_cast<size_t>(d.postsX) * static_cast<size_t>(d.postsY));
+        lod::generateHeightfield(d, h);
+        if (!io::writeDemCache(cacheFile, h, d.postsX, d.postsY, 30.0, 0, 0, error) ||
+            !io::mapDemCache(cacheFile, f.mapped, error))
+          return false;
+      }
+      f.heights = f.mapped.heights_m();
+      f.width = f.height = o.syntheticSamples;
+      f.spacing_m = 30.0;
+      return true;
     }
-    io::flipRows(dem);  // files store north first; the LOD grids want y northwards
+    f.decoded.width = f.decoded.height = o.syntheticSamples;
+    f.decoded.spacing_m = 30.0;
+    f.decoded.heights_m.resize(static_cast<size_t>(d.postsX) * static_cast<size_t>(d.postsY));
+    lod::generateHeightfield(d, f.decoded.heights_m);
+  } else if (!o.cacheDir.empty()) {
+    io::DemCacheInfo info;
+    if (!io::loadDemCached(o.demFile, o.cacheDir, {}, f.mapped, info, error)) return false;
+    fromCache = info.fromCache;
+    cacheFile = info.cacheFile;
+    f.heights = f.mapped.heights_m();
+    f.width = f.mapped.width();
+    f.height = f.mapped.height();
+    f.spacing_m = o.demSpacing_m > 0 ? o.demSpacing_m : f.mapped.spacing_m() > 0 ? f.mapped.spacing_m() : 30.0;
+    return true;
+  } else {
+    if (!io::loadDem(o.demFile, {}, f.decoded, error)) return false;
+    io::flipRows(f.decoded);  // files store north first; the LOD grids want y northwards
+  }
+  f.heights = f.decoded.heights_m;
+  f.width = f.decoded.width;
+  f.height = f.decoded.height;
+  f.spacing_m = o.demSpacing_m > 0 ? o.demSpacing_m : f.decoded.spacing_m > 0 ? f.decoded.spacing_m : 30.0;
+  return true;
+}
+
+}  // namespace
+
+int runTerrainBench(const TerrainBenchOptions& o) {
+  Field dem;
+  std::string error, demName = o.demFile, cacheFile;
+  bool fromCache = false;
+  const auto tLoad = BenchClock::now();
+  if (!loadField(o, dem, demName, fromCache, cacheFile, error)) {
+    std::fprintf(stderr, "igbench terrain: %s (scripts/fetch-data fetches the default DEM)\n", error.c_str());
+    return 2;
   }
   const double loadMs = msSince(tLoad);
-  const double spacing = dem.spacing_m > 0 ? dem.spacing_m : 30.0;
+  {
+    const auto [lo, hi] = std::minmax_element(dem.heights.begin(), dem.heights.end());
+    dem.lo = *lo;
+    dem.hi = *hi;
+  }
+  const uint64_t samples = static_cast<uint64_t>(dem.width) * static_cast<uint64_t>(dem.height);
+  const uint64_t full = 2ull * static_cast<uint64_t>(dem.width - 1) * static_cast<uint64_t>(dem.height - 1);
+  // Above 4097^2 the slow baselines (a rebuild per frame; block LOD's finest-level buffers) are
+  // left out; above 2049^2 the full-resolution reference render is (it would not fit).
+  const bool large = samples > 4097ull * 4097ull;
+  const bool renderSweep = o.render && o.baselines && full <= 8400000ull;
   const double aspect = static_cast<double>(o.width_px) / o.height_px;
-  const auto path = flightPath(dem, spacing, o.frames, aspect);
+  const auto path = flightPath(dem, o.frames, aspect);
+
+  // The bounds are precomputed once; every mesh below shares them.
+  const auto tBounds = BenchClock::now();
+  const lod::Roam bounds(dem.heights, dem.width, dem.height, dem.spacing_m, {0, 0, 0}, lod::RoamConfig{.maxTriangles = 1024});
+  const double boundsMs = msSince(tBounds);
 
   std::vector<MethodResult> methods;
-  methods.push_back(flyRoam(dem, spacing, path, lod::RoamMode::EnhMerge, "roam_enhmerge", o.height_px, 1.0));
-  methods.push_back(flyRoam(dem, spacing, path, lod::RoamMode::MergeQueue, "roam_merge", o.height_px, 1.0));
-  methods.push_back(flyRoam(dem, spacing, path, lod::RoamMode::Rebuild, "roam_rebuild", o.height_px, 1.0));
-  methods.push_back(flyBlock(dem, spacing, path, o.height_px, 1.0));
-  methods.push_back(flyRoam(dem, spacing, path, lod::RoamMode::Deferred, "roam_deferred", o.height_px, 1.0));
+  std::vector<std::string> skipped;
+  if (o.baselines) {
+    methods.push_back(flyRoam(bounds, path, lod::RoamMode::EnhMerge, "roam_enhmerge", o.height_px, 1.0, 0));
+    methods.push_back(flyRoam(bounds, path, lod::RoamMode::MergeQueue, "roam_merge", o.height_px, 1.0, 0));
+  } else {
+    skipped.insert(skipped.end(), {"roam_enhmerge", "roam_merge"});
+  }
+  if (!large && o.baselines) methods.push_back(flyRoam(bounds, path, lod::RoamMode::Rebuild, "roam_rebuild", o.height_px, 1.0, 0));
+  else skipped.push_back("roam_rebuild");
+  if (!large && o.baselines) methods.push_back(flyBlock(dem, path, o.height_px, 1.0));
+  else skipped.push_back("block");
+  methods.push_back(flyRoam(bounds, path, lod::RoamMode::Deferred, "roam_deferred", o.height_px, 1.0, o.deferredVisits, o.lateness));
+  const MethodResult& deferred = methods.back();
+
+  const TeleportResult tp = teleport(bounds, path, o.height_px, o.teleportVisits, o.lateness, o.teleportMaxFrames);
 
   // Equal error (1 px) at the reference view: triangles each method needs.
   const lod::Camera refCam = path[static_cast<size_t>(o.frames / 4)].camera;
-  lod::Roam refRoam(dem.heights_m, dem.width, dem.height, spacing, {0, 0, 0});
-  refRoam.update(viewFor(refCam, o.height_px, 1.0), lod::RoamMode::Rebuild);
-  lod::BlockLod refBlock(dem.heights_m, dem.width, dem.height, spacing, {0, 0, 0});
-  const lod::BlockLodStats blockStats = refBlock.update(viewFor(refCam, o.height_px, 1.0));
-  std::vector<lod::RoamTriangle> tris(refRoam.triangleCount());
-  const uint64_t roamEqual = refRoam.emitTriangles(tris);
-  const uint64_t blockEqual = blockStats.triangles;
+  uint64_t roamEqual = 0, blockEqual = 0;
+  {
+    lod::Roam refRoam(bounds, lod::RoamConfig{});
+    refRoam.update(viewFor(refCam, o.height_px, 1.0), lod::RoamMode::Rebuild);
+    std::vector<lod::RoamTriangle> tris(refRoam.triangleCount());
+    roamEqual = refRoam.emitTriangles(tris);
+    if (!large) {
+      lod::BlockLod refBlock(dem.heights, dem.width, dem.height, dem.spacing_m, {0, 0, 0});
+      blockEqual = refBlock.update(viewFor(refCam, o.height_px, 1.0)).triangles;
+    }
+  }
 
-  // Sweep: what accuracy costs in time.
-  const double tolerances[] = {0.5, 1.0, 2.0, 4.0, 8.0};
-  std::vector<SweepRow> sweep;
   std::unique_ptr<render::GlContext> context;
   std::unique_ptr<render::Renderer> renderer;
   render::Image reference, image;
@@ -248,11 +450,13 @@ int runTerrainBench(const TerrainBenchOptions& o) {
   light.fogVisibility_m = 60000.0;
   std::vector<lod::TerrainVertex> vertices;
   std::string contextName = "none";
+  constexpr size_t kRasterCapacity = 3u << 20;  // triangles the frame experiment may draw
+  auto vertexAt = [&](int x, int y) { return lod::heightFieldVertex(dem.heights, dem.width, dem.height, dem.spacing_m, x, y); };
+  // Median of 5 draws (upload + draw + glFinish): one frame alone is too noisy here.
   auto renderMesh = [&](std::span<const lod::RoamTriangle> list, render::Image& out) {
     vertices.clear();
     for (const auto& t : list)
-      for (const auto& v : t.v) vertices.push_back(lod::heightFieldVertex(dem.heights_m, dem.width, dem.height, spacing, v.x, v.y));
-    // Median of 5 draws (upload + draw + glFinish): one frame alone is too noisy here.
+      for (const auto& v : t.v) vertices.push_back(vertexAt(v.x, v.y));
     std::vector<double> times;
     for (int i = 0; i < 5; ++i) {
       renderer->beginFrame(refCam, light);
@@ -268,15 +472,15 @@ int runTerrainBench(const TerrainBenchOptions& o) {
   if (o.render) {
     context = render::createContext(render::ContextKind::Headless, o.width_px, o.height_px, error);
     renderer = std::make_unique<render::Renderer>();
-    const size_t full = 2ull * (dem.width - 1) * (dem.height - 1);
-    float lo = dem.heights_m[0], hi = lo;
-    for (float h : dem.heights_m) lo = std::min(lo, h), hi = std::max(hi, h);
+    const size_t capacity = std::max<size_t>(renderSweep ? full : 0, kRasterCapacity);
     if (!context || !renderer->init(o.width_px, o.height_px, error) ||
-        !renderer->addTerrainMesh(full * 3, static_cast<double>(hi - lo), error)) {
+        !renderer->addTerrainMesh(capacity * 3, static_cast<double>(dem.hi - dem.lo), error)) {
       std::fprintf(stderr, "igbench terrain: %s\n", error.c_str());
       return 3;
     }
     contextName = context->description();
+  }
+  if (renderSweep) {
     // Reference: every DEM sample (full resolution).
     std::vector<lod::RoamTriangle> all;
     all.reserve(full);
@@ -288,10 +492,15 @@ int runTerrainBench(const TerrainBenchOptions& o) {
     renderMesh(all, reference);
     if (const char* dump = std::getenv("IGBENCH_DUMP_REFERENCE")) render::writePng(dump, reference, error);
   }
+
+  // Sweep: what accuracy costs in time.
+  const double tolerances[] = {0.5, 1.0, 2.0, 4.0, 8.0};
+  std::vector<SweepRow> sweep;
   for (double tol : tolerances) {
+    if (!o.baselines) break;
     SweepRow row;
     row.tolerance = tol;
-    lod::Roam roam(dem.heights_m, dem.width, dem.height, spacing, {0, 0, 0});
+    lod::Roam roam(bounds, lod::RoamConfig{});
     std::vector<double> ms;
     for (size_t i = 0; i <= static_cast<size_t>(o.frames / 4); ++i) {  // fly to the reference view
       const auto t0 = BenchClock::now();
@@ -302,7 +511,7 @@ int runTerrainBench(const TerrainBenchOptions& o) {
     std::vector<lod::RoamTriangle> list(roam.triangleCount());
     list.resize(roam.emitTriangles(list));
     row.triangles = list.size();
-    if (o.render) {
+    if (renderSweep) {
       row.renderMs = renderMesh(list, image);
       row.rmse = render::rmse(image, reference);
       row.psnr = row.rmse > 0 ? 20.0 * std::log10(255.0 / row.rmse) : 99.0;
@@ -310,39 +519,169 @@ int runTerrainBench(const TerrainBenchOptions& o) {
     sweep.push_back(row);
   }
 
+  // The terrain frame (Deferred under its budget: update, emit the visible leaves, write what
+  // changed into the mapped buffer, draw, glFinish) against the rasterizer's limit: the same
+  // number of triangles, static in the buffer, drawn with glFinish.
+  RasterResult raster;
+  if (o.render && o.rasterFrames > 0) {
+    const size_t start = static_cast<size_t>(o.frames / 4);
+    const size_t count = std::min<size_t>(static_cast<size_t>(o.rasterFrames), path.size() - start - 1);
+    lod::Roam roam(bounds, roamConfig(lod::RoamMode::Deferred));
+    lod::RoamView startView = viewFor(path[start].camera, o.height_px, 1.0);
+    startView.lateness = o.lateness;
+    roam.update(startView, lod::RoamMode::Deferred);  // start-up
+    lod::TriangleSlots slots(kRasterCapacity);
+    std::vector<lod::RoamTriangle> tris(roam.nodeCapacity() / 2 + 16);
+    std::vector<uint32_t> added(kRasterCapacity), addedSlots(kRasterCapacity), freed(kRasterCapacity);
+    const std::span<lod::TerrainVertex> gpu = renderer->terrainMeshVertices();
+    std::vector<double> frameMs, updateMs, emitMs, uploadMs, drawMs;
+    size_t lastN = 0;
+    for (size_t k = 1; k <= count; ++k) {
+      const lod::Camera& cam = path[start + k].camera;
+      const auto t0 = BenchClock::now();
+      lod::RoamView fv = viewFor(cam, o.height_px, 1.0, o.deferredVisits);
+      fv.lateness = o.lateness;
+      roam.update(fv, lod::RoamMode::Deferred);
+      const auto t1 = BenchClock::now();
+      const size_t n = roam.emitVisible(cam, tris);
+      const auto t2 = BenchClock::now();
+      const lod::TriangleSlots::Changes c = slots.update(std::span(tris.data(), std::min(n, kRasterCapacity)), added, addedSlots, freed);
+      for (size_t i = 0; i < c.freed; ++i)
+        for (size_t v = 0; v < 3; ++v) gpu[freed[i] * 3 + v] = lod::TerrainVertex{};
+      for (size_t i = 0; i < c.added; ++i)
+        for (size_t v = 0; v < 3; ++v) gpu[addedSlots[i] * 3 + v] = vertexAt(tris[added[i]].v[v].x, tris[added[i]].v[v].y);
+      const auto t3 = BenchClock::now();
+      renderer->beginFrame(cam, light);
+      renderer->drawTerrainMesh({0, 0, 0}, static_cast<size_t>(slots.highWater()) * 3);
+      renderer->endFrame();
+      renderer->finish();
+      const auto t4 = BenchClock::now();
+      auto d = [](auto a, auto b) { return std::chrono::duration<double, std::milli>(b - a).count(); };
+      frameMs.push_back(d(t0, t4));
+      updateMs.push_back(d(t0, t1));
+      emitMs.push_back(d(t1, t2));
+      uploadMs.push_back(d(t2, t3));
+      drawMs.push_back(d(t3, t4));
+      lastN = std::min(n, kRasterCapacity);
+    }
+    if (count > 0 && lastN > 0) {
+      // Static: the last frame's visible triangles packed at the front of the buffer.
+      for (size_t i = 0; i < lastN; ++i)
+        for (size_t v = 0; v < 3; ++v) gpu[i * 3 + v] = vertexAt(tris[i].v[v].x, tris[i].v[v].y);
+      const lod::Camera& cam = path[start + count].camera;
+      std::vector<double> times;
+      for (int i = 0; i < 5; ++i) {
+        renderer->beginFrame(cam, light);
+        const auto t0 = BenchClock::now();
+        renderer->drawTerrainMesh({0, 0, 0}, lastN * 3);
+        renderer->endFrame();
+        renderer->finish();
+        times.push_back(msSince(t0));
+      }
+      raster.ran = true;
+      raster.rasterMs = percentile(times, 50);
+      raster.triangles = lastN;
+      raster.trianglesPerS = raster.rasterMs > 0 ? static_cast<double>(lastN) / (raster.rasterMs / 1000.0) : 0.0;
+      // Frames and the static draw have nearly the same triangle count (consecutive frames).
+      raster.ratio = raster.rasterMs > 0 ? percentile(frameMs, 50) / raster.rasterMs : 0.0;
+      raster.frameMsP50 = percentile(frameMs, 50);
+      raster.updateMsP50 = percentile(updateMs, 50);
+      raster.emitMsP50 = percentile(emitMs, 50);
+      raster.uploadMsP50 = percentile(uploadMs, 50);
+      raster.drawMsP50 = percentile(drawMs, 50);
+    }
+  }
+
   if (o.json) {
-    std::printf("{\"suite\":\"terrain\",\"dem\":\"%s\",\"samples\":%lld,\"width\":%d,\"height\":%d,\"spacing_m\":%.3f,"
-                "\"load_ms\":%.1f,\"frames\":%d,\"renderer\":\"%s\",\"tolerance_px\":1.0,\"methods\":{",
-                jsonEscape(demName).c_str(), static_cast<long long>(dem.width) * dem.height, dem.width, dem.height,
-                spacing, loadMs, o.frames, jsonEscape(contextName).c_str());
+    std::string j;
+    char b[512];
+    std::snprintf(b, sizeof b,
+                  "{\"suite\":\"terrain\",\"dem\":\"%s\",\"samples\":%llu,\"width\":%d,\"height\":%d,\"spacing_m\":%.3f,"
+                  "\"relief_m\":%.1f,\"load_ms\":%.1f,\"dem_mapped\":%s,\"dem_from_cache\":%s,\"dem_cache\":\"%s\",",
+                  jsonEscape(demName).c_str(), static_cast<unsigned long long>(samples), dem.width, dem.height,
+                  dem.spacing_m, static_cast<double>(dem.hi - dem.lo), loadMs, o.cacheDir.empty() ? "false" : "true",
+                  fromCache ? "true" : "false", jsonEscape(cacheFile).c_str());
+    j += b;
+    std::snprintf(b, sizeof b, "\"bounds_ms\":%.1f,\"bounds_bytes\":%zu,", boundsMs, bounds.boundsBytes());
+    j += b;
+    std::snprintf(b, sizeof b, "\"frames\":%d,\"renderer\":\"%s\",\"tolerance_px\":1.0,\"deferred_visits\":%u,\"deferred_lateness\":%.3f,\"methods\":{",
+                  o.frames, jsonEscape(contextName).c_str(), o.deferredVisits, o.lateness);
+    j += b;
     for (size_t i = 0; i < methods.size(); ++i) {
       const MethodResult& m = methods[i];
-      std::printf("%s\"%s\":{\"update_ms_p50\":%.4f,\"update_ms_p99\":%.4f,\"teleport_update_ms\":%.4f,"
-                  "\"triangles_p50\":%llu,\"visible_triangles_p50\":%llu,\"max_error_px\":%.4f,\"uploads_p50\":%llu}",
-                  i ? "," : "", m.name.c_str(), m.updateP50, m.updateP99, m.teleport,
-                  static_cast<unsigned long long>(m.trianglesP50), static_cast<unsigned long long>(m.visibleP50),
-                  m.maxErrorPx, static_cast<unsigned long long>(m.uploadsP50));
+      j += (i ? ",\"" : "\"") + m.name + "\":{";
+      j += "\"update_ms_p50\":" + num(m.updateP50) + ",\"update_ms_p99\":" + num(m.updateP99) +
+           ",\"update_cpu_ms_p50\":" + num(m.cpuP50) + ",\"update_cpu_ms_p99\":" + num(m.cpuP99) +
+           ",\"startup_update_ms\":" + num(m.startupMs, 2) +
+           ",\"teleport_update_ms\":" + num(m.teleport) + ",\"emit_visible_ms_p50\":" + num(m.emitP50) +
+           ",\"triangles_p50\":" + std::to_string(m.trianglesP50) + ",\"visible_triangles_p50\":" +
+           std::to_string(m.visibleP50) + ",\"max_error_px\":" + num(m.maxErrorPx) +
+           ",\"uploads_p50\":" + std::to_string(m.uploadsP50) + ",\"unfinished_frames\":" + std::to_string(m.unfinishedFrames);
+      if (m.name == "roam_deferred") {
+        j += ",\"visits_p50\":" + num(m.visitsP50, 0) + ",\"pending_p99\":" + num(m.pendingP99, 0) +
+             ",\"max_error_px_unfinished\":" + num(m.maxErrorUnfinishedPx);
+      }
+      if (m.name != "block") {
+        j += ",\"bounds_bytes\":" + std::to_string(m.boundsBytes) +
+             ",\"pool_bytes\":" + std::to_string(m.poolBytes);
+      }
+      j += "}";
     }
-    std::printf("},\"block_triangles_at_equal_error\":%llu,\"roam_triangles_at_equal_error\":%llu,\"sweep\":[",
-                static_cast<unsigned long long>(blockEqual), static_cast<unsigned long long>(roamEqual));
+    j += "},\"methods_skipped\":[";
+    for (size_t i = 0; i < skipped.size(); ++i) j += (i ? ",\"" : "\"") + skipped[i] + "\"";
+    j += "],\"teleport\":{\"jump_km\":" + num(tp.jump_km, 3) + ",\"merge_ms\":" + num(tp.mergeMs) +
+         ",\"enhmerge_ms\":" + num(tp.enhMergeMs) + ",\"merge_ops\":" + std::to_string(tp.mergeOps) +
+         ",\"enhmerge_ops\":" + std::to_string(tp.enhMergeOps) + ",\"deferred_visits\":" + std::to_string(o.teleportVisits) +
+         ",\"deferred_first_frame_ms\":" + num(tp.firstFrameMs) + ",\"deferred_frame_ms_max\":" + num(tp.frameMsMax) +
+         ",\"deferred_frames_to_visible\":" + std::to_string(tp.framesToVisible) +
+         ",\"deferred_visible_ms\":" + num(tp.visibleMs) + ",\"deferred_frames_to_finished\":" +
+         std::to_string(tp.framesToFinished) + ",\"deferred_finished_ms\":" + num(tp.finishedMs) +
+         ",\"first_frame_speedup_vs_merge\":" + num(tp.firstFrameMs > 0 ? tp.mergeMs / tp.firstFrameMs : 0.0, 2) +
+         ",\"visible_speedup_vs_merge\":" + num(tp.visibleMs > 0 ? tp.mergeMs / tp.visibleMs : 0.0, 2) + "}";
+    j += ",\"raster\":{\"ran\":" + std::string(raster.ran ? "true" : "false") + ",\"triangles\":" +
+         std::to_string(raster.triangles) + ",\"raster_ms\":" + num(raster.rasterMs) + ",\"triangles_per_s\":" +
+         num(raster.trianglesPerS, 0) + ",\"frame_ms_p50\":" + num(raster.frameMsP50) + ",\"update_ms_p50\":" +
+         num(raster.updateMsP50) + ",\"emit_ms_p50\":" + num(raster.emitMsP50) + ",\"upload_ms_p50\":" +
+         num(raster.uploadMsP50) + ",\"draw_ms_p50\":" + num(raster.drawMsP50) + "},\"frame_vs_raster_ratio\":" +
+         num(raster.ratio, 3);
+    std::snprintf(b, sizeof b, ",\"block_triangles_at_equal_error\":%llu,\"roam_triangles_at_equal_error\":%llu,"
+                  "\"sweep_rendered\":%s,\"sweep\":[",
+                  static_cast<unsigned long long>(blockEqual), static_cast<unsigned long long>(roamEqual),
+                  renderSweep ? "true" : "false");
+    j += b;
     for (size_t i = 0; i < sweep.size(); ++i) {
       const SweepRow& s = sweep[i];
-      std::printf("%s{\"tolerance_px\":%.2f,\"triangles\":%llu,\"update_ms\":%.4f,\"render_ms\":%.3f,\"rmse\":%.4f,"
-                  "\"psnr_db\":%.3f}",
-                  i ? "," : "", s.tolerance, static_cast<unsigned long long>(s.triangles), s.updateMs, s.renderMs,
-                  s.rmse, s.psnr);
+      std::snprintf(b, sizeof b, "%s{\"tolerance_px\":%.2f,\"triangles\":%llu,\"update_ms\":%.4f,\"render_ms\":%.3f,"
+                    "\"rmse\":%.4f,\"psnr_db\":%.3f}",
+                    i ? "," : "", s.tolerance, static_cast<unsigned long long>(s.triangles), s.updateMs, s.renderMs,
+                    s.rmse, s.psnr);
+      j += b;
     }
-    std::printf("]}\n");
+    j += "]}";
+    std::printf("%s\n", j.c_str());
   } else {
-    std::printf("terrain suite: %s (%dx%d samples, %.1f m, loaded in %.0f ms), %d-frame flight with a teleport\n",
-                demName.c_str(), dem.width, dem.height, spacing, loadMs, o.frames);
-    std::printf("  %-14s %10s %10s %12s %10s %10s %9s %10s\n", "method", "upd p50", "upd p99", "teleport ms",
-                "tris p50", "visible", "max err", "uploads");
+    std::printf("terrain suite: %s (%dx%d samples, %.1f m, %.0f m relief, loaded in %.0f ms%s), %d-frame flight with a teleport\n",
+                demName.c_str(), dem.width, dem.height, dem.spacing_m, static_cast<double>(dem.hi - dem.lo), loadMs,
+                fromCache ? ", mapped from cache" : "", o.frames);
+    std::printf("  %-14s %9s %9s %9s %11s %9s %10s %9s %8s %8s %10s\n", "method", "upd p50", "upd p99", "cpu p99",
+                "teleport ms", "emit p50", "tris p50", "visible", "max err", "uploads", "unfinished");
     for (const auto& m : methods)
-      std::printf("  %-14s %10.3f %10.3f %12.3f %10llu %10llu %9.2f %10llu\n", m.name.c_str(), m.updateP50,
-                  m.updateP99, m.teleport, static_cast<unsigned long long>(m.trianglesP50),
+      std::printf("  %-14s %9.3f %9.3f %9.3f %11.3f %9.3f %10llu %9llu %8.2f %8llu %10d\n", m.name.c_str(), m.updateP50,
+                  m.updateP99, m.cpuP99, m.teleport, m.emitP50, static_cast<unsigned long long>(m.trianglesP50),
                   static_cast<unsigned long long>(m.visibleP50), m.maxErrorPx,
-                  static_cast<unsigned long long>(m.uploadsP50));
+                  static_cast<unsigned long long>(m.uploadsP50), m.unfinishedFrames);
+    std::printf("  roam_deferred: %u visits an update (p50 %.0f), pending p99 %.0f, bounds %.0f ms / %.0f MB, pool %.0f MB reserved\n",
+                o.deferredVisits, deferred.visitsP50, deferred.pendingP99, boundsMs,
+                static_cast<double>(deferred.boundsBytes) / 1e6, static_cast<double>(deferred.poolBytes) / 1e6);
+    std::printf("  teleport %.1f km: merges alone %.1f ms, enhMerge %.1f ms; Deferred (%u visits): first frame %.2f ms, "
+                "max %.2f ms, visible converged after %d frames (%.1f ms), finished after %d (%.1f ms)\n",
+                tp.jump_km, tp.mergeMs, tp.enhMergeMs, o.teleportVisits, tp.firstFrameMs, tp.frameMsMax,
+                tp.framesToVisible, tp.visibleMs, tp.framesToFinished, tp.finishedMs);
+    if (raster.ran)
+      std::printf("  frame vs raster: frame p50 %.2f ms (update %.2f, emit %.2f, upload %.2f, draw %.2f) for %llu "
+                  "triangles; static draw %.2f ms (%.1f M triangles/s): ratio %.2f\n",
+                  raster.frameMsP50, raster.updateMsP50, raster.emitMsP50, raster.uploadMsP50, raster.drawMsP50,
+                  static_cast<unsigned long long>(raster.triangles), raster.rasterMs, raster.trianglesPerS / 1e6, raster.ratio);
     std::printf("  at 1 px: block LOD %llu triangles, ROAM %llu (%.2fx)\n", static_cast<unsigned long long>(blockEqual),
                 static_cast<unsigned long long>(roamEqual),
                 blockEqual ? static_cast<double>(roamEqual) / static_cast<double>(blockEqual) : 0.0);

@@ -1,20 +1,32 @@
 // igbench terrain: ROAM with enhMerge against its baselines (ROAM with diamond merges only,
-// ROAM rebuilt every frame, block LOD) on a real DEM and a flight path that flies, turns hard
-// and teleports; plus a tolerance sweep (what accuracy costs in time) rendered headless and
-// compared with a full-resolution reference render of the same view.
+// ROAM rebuilt every frame, block LOD) and ROAM Deferred under a per-update visit budget, on a
+// real DEM (or a synthetic mountainous one up to 16385 x 16385) and a flight path that flies,
+// turns hard and teleports; a teleport experiment (frames and time to converge at the new
+// eye); the terrain frame against the rasterizer's triangle-rate limit; and a tolerance sweep
+// (what accuracy costs in time) rendered headless against a full-resolution reference render.
+// docs/terrain.md explains every field.
 #pragma once
 
+#include <cstdint>
 #include <string>
 
 namespace ig {
 
 struct TerrainBenchOptions {
   std::string demFile = "data/N57E011.hgt";  // scripts/fetch-data fetches it
-  int syntheticSamples = 0;                  // > 0: a procedural N x N field (30 m) instead of the file
+  int syntheticSamples = 0;                  // > 0: a procedural N x N mountainous field (30 m) instead of the file
+  double demSpacing_m = 0.0;                 // > 0: sample spacing of the DEM file (PNGs carry none; default 30 m)
   int frames = 240;                          // flight path length (60 Hz path time)
   int width_px = 1280, height_px = 720;
-  bool render = true;                        // the sweep's render_ms / rmse / psnr (needs GL)
+  bool render = true;                        // sweep render_ms / rmse / psnr and the raster comparison (needs GL)
   bool json = false;
+  uint32_t deferredVisits = 2000;            // roam_deferred: node visits per update (0 = unlimited)
+  uint32_t teleportVisits = 9000;            // roam_deferred: node visits per update while converging after a teleport
+  double lateness = 0.05;                    // roam_deferred: RoamView::lateness (0 = exact, the fresh-walk mesh)
+  int teleportMaxFrames = 400;               // give up converging after this many updates
+  std::string cacheDir = "out/dem-cache";    // memory-mapped raw DEM cache ("" = decode every time, no mmap)
+  int rasterFrames = 24;                     // frames timed for frame_vs_raster_ratio (0 = skip)
+  bool baselines = true;                     // false: only roam_deferred, the teleport and the raster comparison
 };
 
 int runTerrainBench(const TerrainBenchOptions& options);

@@ -111,7 +111,11 @@ int main(int argc, char** argv) {
       "update_ms_p50, update_ms_p99, teleport_update_ms, triangles_p50 (the whole mesh),\n"
       "visible_triangles_p50 (in the view frustum), max_error_px, uploads_p50 (triangles new since\n"
       "the last frame)}, block_triangles_at_equal_error, roam_triangles_at_equal_error, sweep [{tolerance_px,\n"
-      "triangles, update_ms, render_ms, rmse, psnr_db}]. Run scripts/fetch-data first.");
+      "triangles, update_ms, render_ms, rmse, psnr_db}], and (docs/terrain.md) per method\n"
+      "update_cpu_ms_p50/p99, startup_update_ms, unfinished_frames; teleport {...} (time to a valid\n"
+      "mesh and to convergence, against merges alone), raster {...} and frame_vs_raster_ratio (the\n"
+      "terrain frame against a static mesh of the same size), bounds_ms, dem_mapped.\n"
+      "Run scripts/fetch-data first.");
   terrain->add_option("--dem", terrainOptions.demFile, "DEM file (.hgt, .tif, 16-bit .png)")->capture_default_str();
   terrain->add_option("--synthetic", terrainOptions.syntheticSamples,
                       "Use a procedural N x N mountainous field (30 m spacing) instead of --dem, e.g. 4097")
@@ -120,6 +124,26 @@ int main(int argc, char** argv) {
   terrain->add_option("--width", terrainOptions.width_px, "Viewport width in pixels")->capture_default_str();
   terrain->add_option("--height", terrainOptions.height_px, "Viewport height in pixels")->capture_default_str();
   terrain->add_flag("--no-render", noRender, "Skip the sweep's rendering (render_ms, rmse, psnr_db = 0)");
+  terrain->add_option("--dem-spacing", terrainOptions.demSpacing_m,
+                      "Sample spacing of the DEM file in metres (PNGs carry none; default: the file's, else 30)")
+      ->check(CLI::PositiveNumber);
+  terrain->add_option("--visits", terrainOptions.deferredVisits, "roam_deferred: node visits per update (0 = unlimited)")
+      ->capture_default_str();
+  terrain->add_option("--teleport-visits", terrainOptions.teleportVisits,
+                      "roam_deferred: node visits per update while converging after the teleport")
+      ->capture_default_str();
+  terrain->add_option("--lateness", terrainOptions.lateness,
+                      "roam_deferred: decision lateness (0 = exact; more = fewer re-examinations, more triangles)")
+      ->capture_default_str()->check(CLI::Range(0.0, 0.5));
+  terrain->add_option("--teleport-max-frames", terrainOptions.teleportMaxFrames, "Give up converging after this many updates")
+      ->capture_default_str()->check(CLI::Range(1, 100000));
+  terrain->add_option("--cache-dir", terrainOptions.cacheDir,
+                      "Memory-mapped raw DEM cache folder (\"\" = decode every run, no mmap)")
+      ->capture_default_str();
+  terrain->add_option("--raster-frames", terrainOptions.rasterFrames, "Frames timed for frame_vs_raster_ratio (0 = skip)")
+      ->capture_default_str()->check(CLI::Range(0, 100000));
+  bool noBaselines = false;
+  terrain->add_flag("--no-baselines", noBaselines, "Only roam_deferred, the teleport and the raster comparison (large DEMs)");
   terrain->add_flag("--json", terrainOptions.json, "Print one JSON object instead of the human summary");
   ig::LatencyBenchOptions latencyOptions;
   CLI::App* latency = app.add_subcommand(
@@ -372,6 +396,7 @@ int main(int argc, char** argv) {
   if (latency->parsed()) return ig::runLatencyBench(latencyOptions);
   if (terrain->parsed()) {
     terrainOptions.render = !noRender;
+    terrainOptions.baselines = !noBaselines;
     return ig::runTerrainBench(terrainOptions);
   }
 

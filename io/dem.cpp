@@ -1,7 +1,11 @@
 #include "io/dem.h"
 
+#include <fcntl.h>
 #include <png.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
 #include <tiffio.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
@@ -158,7 +162,11 @@ bool loadGeoTiff(const std::string& file, const DemLoadOptions& o, Dem& dem, std
   static thread_local std::string tiffError;
   TIFFSetErrorHandler([](const char* module, const char* fmt, va_list ap) {
     char buf[512];
+    // libtiff hands its own printf format here.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wformat-nonliteral"
     std::vsnprintf(buf, sizeof buf, fmt, ap);
+#pragma GCC diagnostic pop
     tiffError = std::string(module ? module : "tiff") + ": " + buf;
   });
   tiffError.clear();
@@ -326,6 +334,161 @@ bool loadDem(const std::string& file, const DemLoadOptions& options, Dem& out, s
   if (!ok) return false;
   out = std::move(dem);
   return true;
+}
+
+// ---- memory-mapped cache ----------------------------------------------------------------
+
+namespace {
+
+struct CacheHeader {
+  char magic[8];        // "IGDEMRAW"
+  uint32_t version;     // 1
+  int32_t width, height;
+  uint32_t pad;
+  double spacing_m;
+  uint64_t sourceBytes;
+  int64_t sourceMtime;
+  uint8_t reserved[16];
+};
+static_assert(sizeof(CacheHeader) == 64, "cache header is 64 bytes");
+constexpr char kCacheMagic[8] = {'I', 'G', 'D', 'E', 'M', 'R', 'A', 'W'};
+
+}  // namespace
+
+MappedDem::MappedDem(MappedDem&& o) noexcept { *this = std::move(o); }
+
+MappedDem& MappedDem::operator=(MappedDem&& o) noexcept {
+  if (this != &o) {
+    if (base_) munmap(base_, bytes_);
+    base_ = o.base_;
+    bytes_ = o.bytes_;
+    heights_ = o.heights_;
+    width_ = o.width_;
+    height_ = o.height_;
+    spacing_m_ = o.spacing_m_;
+    o.base_ = nullptr;
+    o.bytes_ = 0;
+    o.heights_ = nullptr;
+    o.width_ = o.height_ = 0;
+  }
+  return *this;
+}
+
+MappedDem::~MappedDem() {
+  if (base_) munmap(base_, bytes_);
+}
+
+bool writeDemCache(const std::string& path, std::span<const float> heights_m, int width, int height, double spacing_m,
+                   uint64_t sourceBytes, int64_t sourceMtime, std::string& error) {
+  if (width < 2 || height < 2 || heights_m.size() < static_cast<size_t>(width) * static_cast<size_t>(height)) {
+    error = path + ": bad DEM size " + std::to_string(width) + "x" + std::to_string(height) + " for a cache";
+    return false;
+  }
+  CacheHeader h{};
+  std::memcpy(h.magic, kCacheMagic, 8);
+  h.version = 1;
+  h.width = width;
+  h.height = height;
+  h.spacing_m = spacing_m;
+  h.sourceBytes = sourceBytes;
+  h.sourceMtime = sourceMtime;
+  const std::string tmp = path + ".tmp" + std::to_string(getpid());
+  std::FILE* f = std::fopen(tmp.c_str(), "wb");
+  if (!f) {
+    error = path + ": cannot write the DEM cache: " + std::strerror(errno);
+    return false;
+  }
+  const size_t n = static_cast<size_t>(width) * static_cast<size_t>(height);
+  bool ok = std::fwrite(&h, sizeof h, 1, f) == 1 && std::fwrite(heights_m.data(), sizeof(float), n, f) == n;
+  ok = std::fclose(f) == 0 && ok;
+  if (!ok || std::rename(tmp.c_str(), path.c_str()) != 0) {
+    error = path + ": cannot write the DEM cache: " + std::strerror(errno);
+    std::remove(tmp.c_str());
+    return false;
+  }
+  return true;
+}
+
+bool mapDemCache(const std::string& path, MappedDem& out, std::string& error, uint64_t sourceBytes, int64_t sourceMtime) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) {
+    error = path + ": cannot open the DEM cache: " + std::strerror(errno);
+    return false;
+  }
+  struct stat st {};
+  if (fstat(fd, &st) != 0 || st.st_size < static_cast<off_t>(sizeof(CacheHeader))) {
+    error = path + ": not a DEM cache (" + std::to_string(st.st_size) + " bytes)";
+    ::close(fd);
+    return false;
+  }
+  const auto bytes = static_cast<size_t>(st.st_size);
+  void* base = mmap(nullptr, bytes, PROT_READ, MAP_SHARED, fd, 0);
+  ::close(fd);
+  if (base == MAP_FAILED) {
+    error = path + ": mmap failed: " + std::strerror(errno);
+    return false;
+  }
+  CacheHeader h;
+  std::memcpy(&h, base, sizeof h);
+  auto fail = [&](const std::string& why) {
+    munmap(base, bytes);
+    error = path + ": " + why;
+    return false;
+  };
+  if (std::memcmp(h.magic, kCacheMagic, 8) != 0 || h.version != 1) return fail("not a DEM cache (bad magic or version)");
+  if (h.width < 2 || h.height < 2) return fail("bad size " + std::to_string(h.width) + "x" + std::to_string(h.height));
+  const size_t need = sizeof h + static_cast<size_t>(h.width) * static_cast<size_t>(h.height) * sizeof(float);
+  if (bytes != need) return fail(std::to_string(bytes) + " bytes, expected " + std::to_string(need) + " (truncated?)");
+  if (!(h.spacing_m >= 0.0) || !std::isfinite(h.spacing_m)) return fail("bad spacing " + std::to_string(h.spacing_m));
+  if (sourceBytes != 0 && (h.sourceBytes != sourceBytes || h.sourceMtime != sourceMtime))
+    return fail("made from another version of the source (size or time differs)");
+  // The LOD walks the DEM locally but not in file order; the kernel's read-ahead still helps.
+  madvise(base, bytes, MADV_WILLNEED);
+  MappedDem m;
+  m.base_ = base;
+  m.bytes_ = bytes;
+  m.heights_ = reinterpret_cast<const float*>(static_cast<const char*>(base) + sizeof h);
+  m.width_ = h.width;
+  m.height_ = h.height;
+  m.spacing_m_ = h.spacing_m;
+  out = std::move(m);
+  return true;
+}
+
+bool loadDemCached(const std::string& file, const std::string& cacheDir, const DemLoadOptions& options, MappedDem& out,
+                   DemCacheInfo& info, std::string& error) {
+  struct stat st {};
+  if (::stat(file.c_str(), &st) != 0) {
+    error = file + ": cannot stat: " + std::strerror(errno);
+    return false;
+  }
+  std::error_code ec;
+  std::filesystem::create_directories(cacheDir, ec);
+  if (ec) {
+    error = cacheDir + ": cannot create the DEM cache folder: " + ec.message();
+    return false;
+  }
+  const auto bytes = static_cast<uint64_t>(st.st_size);
+  const auto mtime = static_cast<int64_t>(st.st_mtim.tv_sec) * 1000000000LL + st.st_mtim.tv_nsec;
+  // One cache file per source path (and scale options): a readable name plus a hash.
+  const std::string key = std::filesystem::absolute(file, ec).string() + "|" + std::to_string(options.pngScale_m) + "|" +
+                          std::to_string(options.pngOffset_m) + "|" + std::to_string(options.hasNoData ? options.noData : -1e300);
+  uint64_t hash = 1469598103934665603ull;
+  for (unsigned char c : key) hash = (hash ^ c) * 1099511628211ull;
+  char hex[17];
+  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(hash));
+  info.cacheFile = (std::filesystem::path(cacheDir) / (std::filesystem::path(file).filename().string() + "." + hex + ".igdem")).string();
+  std::string why;
+  if (mapDemCache(info.cacheFile, out, why, bytes, mtime)) {
+    info.fromCache = true;
+    return true;
+  }
+  Dem dem;
+  if (!loadDem(file, options, dem, error)) return false;
+  flipRows(dem);
+  if (!writeDemCache(info.cacheFile, dem.heights_m, dem.width, dem.height, dem.spacing_m, bytes, mtime, error)) return false;
+  info.fromCache = false;
+  return mapDemCache(info.cacheFile, out, error, bytes, mtime);
 }
 
 }  // namespace ig::io

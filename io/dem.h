@@ -9,7 +9,9 @@
 // void share exceeds DemLoadOptions::maxVoidFraction, or that has no valid sample, is rejected.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -47,5 +49,55 @@ bool loadDem(const std::string& file, const DemLoadOptions& options, Dem& out, s
 // The void rule above, exposed for tests and for readers of other formats. `isVoid` marks
 // the samples to fill. Returns false if no sample is valid.
 bool fillVoids(std::vector<float>& heights, int width, int height, std::vector<uint8_t>& isVoid);
+
+// Large DEMs (up to 16385 x 16385 and beyond): a raw cache file, memory-mapped read-only, so
+// start-up after the first load costs a page-table set-up instead of a decode (pages are
+// read as the LOD touches them). Layout: a 64-byte header ("IGDEMRAW", version, width,
+// height, spacing_m, size and modification time of the source) then width * height float32
+// heights, row-major, rows SOUTH first (already flipped for the LOD grids, unlike Dem).
+class MappedDem {
+ public:
+  MappedDem() = default;
+  MappedDem(const MappedDem&) = delete;
+  MappedDem& operator=(const MappedDem&) = delete;
+  MappedDem(MappedDem&& o) noexcept;
+  MappedDem& operator=(MappedDem&& o) noexcept;
+  ~MappedDem();
+
+  int width() const { return width_; }
+  int height() const { return height_; }
+  double spacing_m() const { return spacing_m_; }
+  std::span<const float> heights_m() const { return {heights_, static_cast<size_t>(width_) * static_cast<size_t>(height_)}; }
+  size_t mappedBytes() const { return bytes_; }
+
+ private:
+  friend bool mapDemCache(const std::string&, MappedDem&, std::string&, uint64_t, int64_t);
+  void* base_ = nullptr;
+  size_t bytes_ = 0;
+  const float* heights_ = nullptr;
+  int width_ = 0, height_ = 0;
+  double spacing_m_ = 0.0;
+};
+
+// Writes a cache file (heights south row first, as the LOD wants them) atomically (a temporary
+// file renamed into place). sourceBytes / sourceMtime identify what it was made from.
+bool writeDemCache(const std::string& path, std::span<const float> heights_m, int width, int height, double spacing_m,
+                   uint64_t sourceBytes, int64_t sourceMtime, std::string& error);
+// Maps a cache file. With sourceBytes != 0, a cache made from another source version is
+// refused (error names the mismatch). Checks the header and the file size against the grid.
+bool mapDemCache(const std::string& path, MappedDem& out, std::string& error, uint64_t sourceBytes = 0,
+                 int64_t sourceMtime = 0);
+
+struct DemCacheInfo {
+  std::string cacheFile;
+  bool fromCache = false;  // true: mapped an existing cache; false: decoded and wrote it
+  double loadMs = 0.0;     // filled by callers that time it (io/ has no clock)
+};
+// loadDem + flipRows through a cache in cacheDir (created if missing): maps the cache when it
+// exists and matches the file's size and modification time, else decodes the file, writes the
+// cache and maps it. Falls back to an error (never to a silent decode) when the cache cannot be
+// written.
+bool loadDemCached(const std::string& file, const std::string& cacheDir, const DemLoadOptions& options, MappedDem& out,
+                   DemCacheInfo& info, std::string& error);
 
 }  // namespace ig::io

@@ -7,8 +7,8 @@ namespace ig::lod {
 Geomorph::Geomorph(size_t capacity, double morph_s) : morph_s_(morph_s), capacity_(capacity) {
   size_t n = 16;
   while (n < 2 * capacity) n <<= 1;
-  table_.assign(n, Entry{0, 0.0, 0.0f});
-  scratch_.assign(n, Entry{0, 0.0, 0.0f});
+  table_.assign(n, Entry{0, 0.0, 0.0f, false});
+  scratch_.assign(n, Entry{0, 0.0, 0.0f, false});
 }
 
 size_t Geomorph::slot(uint64_t k) const {
@@ -23,8 +23,20 @@ void Geomorph::start(int x, int y, float startHeight_m, double now_s) {
   const uint64_t k = key(x, y);
   const size_t i = slot(k);
   if (table_[i].key == k) return;
-  table_[i] = Entry{k, now_s, startHeight_m};
+  table_[i] = Entry{k, now_s, startHeight_m, false};
   ++live_;
+  lastEnd_s_ = std::max(lastEnd_s_, now_s + morph_s_);
+}
+
+void Geomorph::startOut(int x, int y, float targetHeight_m, double now_s) {
+  if (morph_s_ <= 0.0) return;
+  const uint64_t k = key(x, y);
+  const size_t i = slot(k);
+  if (table_[i].key != k) {
+    if (live_ >= capacity_) return;  // full: the vertex pops
+    ++live_;
+  }
+  table_[i] = Entry{k, now_s, targetHeight_m, true};
   lastEnd_s_ = std::max(lastEnd_s_, now_s + morph_s_);
 }
 
@@ -33,6 +45,9 @@ float Geomorph::height(int x, int y, float trueHeight_m, double now_s) const {
   const Entry& e = table_[slot(key(x, y))];
   if (e.key == 0) return trueHeight_m;
   const double t = std::clamp((now_s - e.start_s) / morph_s_, 0.0, 1.0);
+  if (e.out)
+    return static_cast<float>(static_cast<double>(trueHeight_m) +
+                              (static_cast<double>(e.startHeight_m) - static_cast<double>(trueHeight_m)) * t);
   return static_cast<float>(static_cast<double>(e.startHeight_m) +
                             (static_cast<double>(trueHeight_m) - static_cast<double>(e.startHeight_m)) * t);
 }
@@ -43,7 +58,7 @@ void Geomorph::expire(double now_s) {
   for (const Entry& e : table_) any = any || (e.key != 0 && now_s >= e.start_s + morph_s_);
   if (!any) return;
   // Rebuild without the finished entries (keeps linear probing valid without tombstones).
-  std::fill(scratch_.begin(), scratch_.end(), Entry{0, 0.0, 0.0f});
+  std::fill(scratch_.begin(), scratch_.end(), Entry{0, 0.0, 0.0f, false});
   table_.swap(scratch_);
   live_ = 0;
   for (const Entry& e : scratch_) {
@@ -51,6 +66,129 @@ void Geomorph::expire(double now_s) {
     table_[slot(e.key)] = e;
     ++live_;
   }
+}
+
+// ---- MorphOut -----------------------------------------------------------------------------
+
+namespace {
+
+bool same(const RoamTriangle& a, const RoamTriangle& b) {
+  for (int i = 0; i < 3; ++i)
+    if (a.v[i].x != b.v[i].x || a.v[i].y != b.v[i].y) return false;
+  return true;
+}
+
+}  // namespace
+
+MorphOut::MorphOut(size_t capacityTriangles, double morph_s)
+    : morph_s_(morph_s),
+      capacity_(capacityTriangles),
+      ghosts_(capacityTriangles),
+      ghostCover_(capacityTriangles),
+      covers_(capacityTriangles),
+      released_(capacityTriangles),
+      remap_(capacityTriangles),
+      vertices_(capacityTriangles, morph_s) {}
+
+size_t MorphOut::findCover(const RoamTriangle& t) const {
+  for (size_t i = 0; i < coverCount_; ++i)
+    if (same(covers_[i].tri, t)) return i;
+  return coverCount_;
+}
+
+bool MorphOut::hidden(const RoamTriangle& t) const { return findCover(t) < coverCount_; }
+
+float MorphOut::height(int x, int y, float trueHeight_m, double now_s) const {
+  return vertices_.height(x, y, trueHeight_m, now_s);
+}
+
+MorphOut::Stats MorphOut::update(std::span<const RoamTriangle> left, std::span<const RoamTriangle> coverOf,
+                                 std::span<const RoamVertex> removedVertices, std::span<const float> targetHeights_m,
+                                 double now_s) {
+  Stats st;
+  // Covers that left the mesh (the region changed again): their ghosts go now.
+  if (coverCount_ > 0 && left.size() * coverCount_ <= kMaxPairTests) {
+    for (const RoamTriangle& t : left) {
+      const size_t c = findCover(t);
+      if (c == coverCount_) continue;
+      covers_[c].end_s = -1e300;  // dropped below
+    }
+    size_t keepC = 0;
+    for (size_t c = 0; c < coverCount_; ++c) {
+      remap_[c] = covers_[c].end_s == -1e300 ? UINT32_MAX : static_cast<uint32_t>(keepC);
+      if (remap_[c] != UINT32_MAX) covers_[keepC++] = covers_[c];
+    }
+    size_t keepG = 0;
+    for (size_t g = 0; g < ghostCount_; ++g) {
+      const uint32_t c = remap_[ghostCover_[g]];
+      if (c == UINT32_MAX) {
+        ++st.ghostsDropped;
+        continue;
+      }
+      ghosts_[keepG] = ghosts_[g];
+      ghostCover_[keepG++] = c;
+    }
+    coverCount_ = keepC;
+    ghostCount_ = keepG;
+  }
+  if (morph_s_ <= 0.0 || removedVertices.empty()) return st;
+  if (left.size() * (coverCount_ + 1) > kMaxPairTests || coverOf.size() < left.size()) {
+    st.popped = left.size();
+    return st;
+  }
+  for (size_t i = 0; i < removedVertices.size() && i < targetHeights_m.size(); ++i)
+    vertices_.startOut(removedVertices[i].x, removedVertices[i].y, targetHeights_m[i], now_s);
+  // Ghosts: the triangles that left with a vertex removed by a merge (now morphing out).
+  size_t lastCover = coverCount_;
+  for (size_t i = 0; i < left.size(); ++i) {
+    const RoamTriangle& t = left[i];
+    bool merged = false;
+    for (const RoamVertex& v : t.v) merged = merged || vertices_.contains(v.x, v.y);
+    if (!merged) continue;
+    if (ghostCount_ == capacity_) {
+      ++st.popped;
+      continue;
+    }
+    size_t c = lastCover < coverCount_ && same(covers_[lastCover].tri, coverOf[i]) ? lastCover : findCover(coverOf[i]);
+    if (c == coverCount_) {
+      if (coverCount_ == capacity_) {
+        ++st.popped;
+        continue;
+      }
+      covers_[coverCount_++] = Cover{coverOf[i], now_s + morph_s_};
+    }
+    lastCover = c;
+    ghosts_[ghostCount_] = t;
+    ghostCover_[ghostCount_++] = static_cast<uint32_t>(c);
+    ++st.ghostsAdded;
+  }
+  return st;
+}
+
+std::span<const RoamTriangle> MorphOut::expire(double now_s) {
+  size_t released = 0, keepC = 0;
+  for (size_t c = 0; c < coverCount_; ++c) {
+    if (now_s >= covers_[c].end_s) {
+      released_[released++] = covers_[c].tri;
+      remap_[c] = UINT32_MAX;
+    } else {
+      remap_[c] = static_cast<uint32_t>(keepC);
+      covers_[keepC++] = covers_[c];
+    }
+  }
+  if (released > 0) {
+    size_t keepG = 0;
+    for (size_t g = 0; g < ghostCount_; ++g) {
+      const uint32_t c = remap_[ghostCover_[g]];
+      if (c == UINT32_MAX) continue;
+      ghosts_[keepG] = ghosts_[g];
+      ghostCover_[keepG++] = c;
+    }
+    ghostCount_ = keepG;
+    coverCount_ = keepC;
+  }
+  vertices_.expire(now_s);
+  return {released_.data(), released};
 }
 
 }  // namespace ig::lod

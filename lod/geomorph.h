@@ -1,7 +1,8 @@
 // Geomorphing against popping: a vertex that a split adds starts at the height the coarser
 // mesh had there (the midpoint of its diamond's hypotenuse, lod/roam.h splitEnds) and moves to
-// its true height over morph_s seconds of simulation time. Vertices removed by merges pop (no
-// morph-out).
+// its true height over morph_s seconds of simulation time (Geomorph). Merges morph out
+// (MorphOut, below): the fine triangles stay drawn while each removed vertex moves onto the
+// coarse surface, then the coarse triangles replace them.
 //
 // Fixed-capacity open-addressing table keyed by grid vertex, allocated at construction; no
 // allocation per frame. When it is full a new vertex simply pops.
@@ -9,7 +10,10 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <span>
 #include <vector>
+
+#include "lod/roam.h"
 
 namespace ig::lod {
 
@@ -20,6 +24,9 @@ class Geomorph {
   // Starts morphing vertex (x, y) from startHeight_m at time now_s (ignored if it is already
   // morphing or the table is full).
   void start(int x, int y, float startHeight_m, double now_s);
+  // Morph-out: vertex (x, y) moves from its true height to targetHeight_m over morph_s
+  // (replaces a running morph of the vertex).
+  void startOut(int x, int y, float targetHeight_m, double now_s);
   // The height to draw vertex (x, y) with at now_s.
   float height(int x, int y, float trueHeight_m, double now_s) const;
   // True if (x, y) has a morph entry (running, or finished but not yet expired).
@@ -35,7 +42,8 @@ class Geomorph {
   struct Entry {
     uint64_t key;       // 0 = empty
     double start_s;
-    float startHeight_m;
+    float startHeight_m;  // in: the height it starts from; out: the height it ends at
+    bool out;
   };
   static uint64_t key(int x, int y) {
     return ((static_cast<uint64_t>(static_cast<uint32_t>(x)) << 32) | static_cast<uint32_t>(y)) + 1;
@@ -47,6 +55,64 @@ class Geomorph {
   std::vector<Entry> table_, scratch_;
   size_t live_ = 0;
   double lastEnd_s_ = -1e300;
+};
+
+// Morph-out on merges. A merge replaces fine triangles by coarse ones and removes vertices;
+// drawn at once, each removed vertex would jump from its true height onto the coarse surface
+// (a pop). MorphOut keeps the removed fine triangles (ghosts) drawn for morph_s seconds while
+// every removed vertex moves linearly from its true height to the coarse surface's height at
+// that point, and hides the coarse triangles that replace them until then. At the end the
+// ghosts lie exactly on the coarse triangles, so the swap does not show.
+//
+// Use, once a frame after the LOD update, with the triangles that left the mesh (e.g. from
+// lod/triangle_slots.h), the triangle of the new mesh over each (Roam::leafAt) and the
+// merge-removed vertices with their target heights (Roam::removedVertices, Roam::meshHeight):
+//   morph.update(left, coverOf, removedVertices, targets, now);
+//   draw morph.ghosts() (vertex heights from morph.height) and the mesh without the
+//   triangles for which morph.hidden(t) is true; call morph.expire(now) at the end of a frame.
+// A ghost whose cover leaves the mesh before the morph ends (the eye came back) is dropped
+// (it pops, rarely). Fixed capacity, allocated at construction; when full, new merges pop.
+// Cover look-ups are linear in the live covers; above kMaxPairTests tests a frame's merges pop.
+class MorphOut {
+ public:
+  static constexpr size_t kMaxPairTests = 1u << 20;
+  MorphOut(size_t capacityTriangles, double morph_s);
+
+  struct Stats {
+    size_t ghostsAdded = 0, ghostsDropped = 0, popped = 0;
+  };
+  // left: triangles that left the mesh; coverOf[i]: the new mesh's triangle holding left[i]'s
+  // centroid (Roam::leafAt(sum of its x, sum of its y)); removedVertices / targetHeights_m:
+  // Roam::removedVertices() and Roam::meshHeight() there.
+  Stats update(std::span<const RoamTriangle> left, std::span<const RoamTriangle> coverOf,
+               std::span<const RoamVertex> removedVertices, std::span<const float> targetHeights_m, double now_s);
+  // Ghost triangles to draw now (counter-clockwise seen from above, as Roam emits them).
+  std::span<const RoamTriangle> ghosts() const { return {ghosts_.data(), ghostCount_}; }
+  // True for a mesh triangle that ghosts still stand in for (draw it degenerate).
+  bool hidden(const RoamTriangle& t) const;
+  // Height to draw a ghost vertex with at now_s (true height for vertices that stay).
+  float height(int x, int y, float trueHeight_m, double now_s) const;
+  // Ends finished morphs: their ghosts go, their covers show. Returns the covers released
+  // (a renderer writes them into their slots again); valid until the next call.
+  std::span<const RoamTriangle> expire(double now_s);
+  bool active() const { return ghostCount_ > 0; }
+  size_t coverCount() const { return coverCount_; }
+
+ private:
+  struct Cover {
+    RoamTriangle tri;
+    double end_s;
+  };
+  size_t findCover(const RoamTriangle& t) const;  // index or coverCount_
+  double morph_s_;
+  size_t capacity_;
+  std::vector<RoamTriangle> ghosts_;
+  std::vector<uint32_t> ghostCover_;  // per ghost: index into covers_
+  std::vector<Cover> covers_;
+  std::vector<RoamTriangle> released_;
+  std::vector<uint32_t> remap_;
+  size_t ghostCount_ = 0, coverCount_ = 0;
+  Geomorph vertices_;  // removed vertices: start height and the target, as an out-morph
 };
 
 }  // namespace ig::lod

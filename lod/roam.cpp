@@ -17,8 +17,11 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
 #include <map>
+#include <new>
+#include <type_traits>
 #include <utility>
 
 namespace ig::lod {
@@ -26,6 +29,8 @@ namespace {
 
 constexpr double kDeg = 3.14159265358979323846 / 180.0;
 constexpr double kInf = std::numeric_limits<double>::infinity();
+
+uint64_t centimetres(double m) { return m < 1.8e16 ? static_cast<uint64_t>(m * 100.0) : uint64_t{1} << 62; }
 
 bool finite3(const glm::dvec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 
@@ -65,13 +70,38 @@ Roam::Roam(std::span<const float> heights_m, int width, int height, double spaci
   maxLevel_ = 2 * k;
   assert(maxLevel_ < 250 && "Roam: grid too large");
   computeBounds();
+  setUpPool(config);
+}
 
+Roam::Roam(const Roam& other, const RoamConfig& config)
+    : heights_m_(other.heights_m_),
+      width_(other.width_),
+      height_(other.height_),
+      spacing_m_(other.spacing_m_),
+      origin_m_(other.origin_m_),
+      configMaxTriangles_(config.maxTriangles),
+      rootSide_(other.rootSide_),
+      rootsX_(other.rootsX_),
+      rootsY_(other.rootsY_),
+      px_(other.px_),
+      py_(other.py_),
+      maxLevel_(other.maxLevel_),
+      zMin_m_(other.zMin_m_),
+      zStep_m_(other.zStep_m_),
+      bounds_(other.bounds_) {
+  setUpPool(config);
+}
+
+void Roam::setUpPool(const RoamConfig& config) {
   const size_t base = baseTriangles();
   size_t capacity = config.nodeCapacity != 0 ? config.nodeCapacity : static_cast<size_t>(2 * config.maxTriangles) + base;
   capacity = std::max(capacity, 2 * base);
   capacity = std::min<size_t>(capacity, 0xFFFFFFF0u);
   capacity += capacity & 1u;
-  nodes_.assign(capacity, Node{});
+  nodes_.reset(static_cast<Node*>(std::calloc(capacity, sizeof(Node))));
+  static_assert(std::is_trivially_copyable_v<Node>, "calloc'd pool: Node must be an implicit-lifetime type");
+  if (!nodes_) throw std::bad_alloc();
+  nodeCap_ = capacity;
   freePairs_.reserve(capacity / 2);
   // Live queue entries are bounded by the leaves / diamonds (<= capacity / 2 + base); stale
   // ones are compacted away when a queue fills up.
@@ -112,6 +142,8 @@ Roam::Roam(std::span<const float> heights_m, int width, int height, double spaci
   }
 }
 
+void Roam::FreeDeleter::operator()(Node* p) const { std::free(p); }
+
 float Roam::heightAt(int x, int y) const {
   const int cx = std::clamp(x, 0, width_ - 1), cy = std::clamp(y, 0, height_ - 1);
   return heights_m_[static_cast<size_t>(cy) * static_cast<size_t>(width_) + static_cast<size_t>(cx)];
@@ -120,7 +152,7 @@ float Roam::heightAt(int x, int y) const {
 Roam::Bound Roam::diamondBound(const Node& n) const {
   if (n.level >= maxLevel_) return Bound{0.0f, 0, 0};
   const int cx = (n.lx + n.rx) / 2, cy = (n.ly + n.ry) / 2;
-  return bounds_[static_cast<size_t>(cy) * static_cast<size_t>(px_) + static_cast<size_t>(cx)];
+  return (*bounds_)[static_cast<size_t>(cy) * static_cast<size_t>(px_) + static_cast<size_t>(cx)];
 }
 
 glm::dvec3 Roam::vertexPosition(int x, int y) const {
@@ -141,9 +173,9 @@ void Roam::computeBounds() {
   }
   zMin_m_ = lo;
   zStep_m_ = hi > lo ? (static_cast<double>(hi) - static_cast<double>(lo)) / 65535.0 : 1.0;
-  bounds_.assign(static_cast<size_t>(px_) * static_cast<size_t>(py_), Bound{0.0f, 0, 0});
-
-  auto at = [&](int x, int y) -> Bound& { return bounds_[static_cast<size_t>(y) * static_cast<size_t>(px_) + static_cast<size_t>(x)]; };
+  bounds_ = std::make_shared<std::vector<Bound>>(static_cast<size_t>(px_) * static_cast<size_t>(py_), Bound{0.0f, 0, 0});
+  std::vector<Bound>& bounds = *bounds_;
+  auto at = [&](int x, int y) -> Bound& { return bounds[static_cast<size_t>(y) * static_cast<size_t>(px_) + static_cast<size_t>(x)]; };
   auto inGrid = [&](int x, int y) { return x >= 0 && y >= 0 && x < px_ && y < py_; };
   auto qLo = [&](double z) {
     return static_cast<uint16_t>(std::clamp(std::floor((z - static_cast<double>(zMin_m_)) / zStep_m_), 0.0, 65535.0));
@@ -255,8 +287,10 @@ void Roam::resetToBase() {
         nd->children = kNone;
         nd->level = 0;
         nd->free = 0;
+        nd->queued = 0;
         nd->bound = diamondBound(*nd);
         ++nd->gen;
+        ++nd->sched;
       }
       a.partner = n1;
       b.partner = n0;
@@ -297,17 +331,16 @@ uint32_t Roam::allocPair() {
     freePairs_.pop_back();
     return p;
   }
-  assert(2 * static_cast<size_t>(highPairs_) + 2 <= nodes_.size());
+  assert(2 * static_cast<size_t>(highPairs_) + 2 <= nodeCap_);
   return highPairs_++;
 }
 
 void Roam::freePair(uint32_t firstChild) {
   nodes_[firstChild].free = 1;
   nodes_[firstChild + 1].free = 1;
-  if (!schedTag_.empty()) {  // Deferred: their queued entries become stale
-    ++schedTag_[firstChild];
-    ++schedTag_[firstChild + 1];
-  }
+  ++nodes_[firstChild].sched;  // Deferred: their scheduled entries become stale
+  ++nodes_[firstChild + 1].sched;
+  visitsUsed_ += 2;
   freePairs_.push_back(firstChild / 2);  // capacity reserved for every pair
   liveNodes_ -= 2;
   stats_.nodesFreed += 2;
@@ -317,6 +350,9 @@ void Roam::splitNode(uint32_t n) {
   assert(isLeaf(n) && nodes_[n].level < maxLevel_);
   const uint32_t c0 = 2 * allocPair(), c1 = c0 + 1;
   Node& nd = nodes_[n];
+  ++nd.gen;  // its split-queue entries (as a leaf) become stale
+  nd.queued = 0;
+  visitsUsed_ += 2;
   const int mx = (nd.lx + nd.rx) / 2, my = (nd.ly + nd.ry) / 2;
   if (createdCount_ < created_.size()) created_[createdCount_++] = RoamVertex{mx, my};
   Node& a = nodes_[c0];
@@ -329,6 +365,7 @@ void Roam::splitNode(uint32_t n) {
     c->partner = kNone;
     c->level = static_cast<uint8_t>(nd.level + 1);
     c->free = 0;
+    c->queued = 0;
     c->bound = diamondBound(*c);
     ++c->gen;
   }
@@ -379,7 +416,7 @@ Roam::SplitResult Roam::forcedSplit(uint32_t n) {
   }
   const uint64_t added = 2 * (chain_.size() - 1) + (nodes_[chain_.back()].partner != kNone ? 2 : 1);
   if (triangles_ + added > capTriangles_) return SplitResult::Capped;
-  if (liveNodes_ + 2 * added > nodes_.size()) return SplitResult::PoolFull;
+  if (liveNodes_ + 2 * added > nodeCap_) return SplitResult::PoolFull;
   for (size_t i = chain_.size(); i-- > 0;) {
     if (!takeOp()) return SplitResult::Budget;
     splitDiamond(chain_[i]);
@@ -390,6 +427,8 @@ Roam::SplitResult Roam::forcedSplit(uint32_t n) {
 void Roam::mergeDiamond(uint32_t n) {
   assert(mergeable(n));
   const uint32_t b = nodes_[n].partner;
+  if (removedCount_ < removed_.size())
+    removed_[removedCount_++] = RoamVertex{(nodes_[n].lx + nodes_[n].rx) / 2, (nodes_[n].ly + nodes_[n].ry) / 2};
   for (const uint32_t z : {n, b}) {
     if (z == kNone) continue;
     const uint32_t first = nodes_[z].children;
@@ -482,22 +521,24 @@ struct MergeGreater {
 }  // namespace
 
 bool Roam::takeOp() {
-  if (opsLeft_ == 0) return false;
+  if (opsLeft_ == 0 || visitsUsed_ >= visitBudget_) return false;
   --opsLeft_;
   return true;
 }
 
 void Roam::considerLeaf(uint32_t n, double p) {
   if (p > vs_.tolerance_px && nodes_[n].level < maxLevel_) {
-    pushSplit(n, p);
+    pushSplit(n, vs_.cullFrustum ? p : splitKey(nodes_[n], p));
   } else {
     maxSmallPx_ = std::max(maxSmallPx_, p);
   }
 }
 
 void Roam::pushSplit(uint32_t n, double p) {
+  if (nodes_[n].queued) return;  // already queued (the entry's key may be older: fine)
   if (splitQ_.size() == splitQ_.capacity()) compactSplit();
   if (splitQ_.size() == splitQ_.capacity()) return;  // full of live entries: found next frame
+  nodes_[n].queued = 1;
   splitQ_.push_back({p, n, nodes_[n].gen});
   if (splitHeap_) std::push_heap(splitQ_.begin(), splitQ_.end(), SplitLess{});
 }
@@ -541,10 +582,44 @@ bool topValid(std::vector<Entry>& q, bool& heapified, Compare cmp, Valid valid, 
 }  // namespace
 
 bool Roam::topSplit(QueueEntry* e) {
-  return topValid(splitQ_, splitHeap_, SplitLess{}, [&](const QueueEntry& t) {
+  if (!splitHeap_) {
+    std::make_heap(splitQ_.begin(), splitQ_.end(), SplitLess{});
+    splitHeap_ = true;
+  }
+  while (!splitQ_.empty()) {
+    const QueueEntry& t = splitQ_.front();
     const Node& nd = nodes_[t.node];
-    return !nd.free && nd.gen == t.gen && nd.children == kNone;
-  }, e);
+    if (!nd.free && nd.gen == t.gen && nd.children == kNone) {
+      *e = t;
+      return true;
+    }
+    popSplit();
+  }
+  return false;
+}
+
+void Roam::popSplit() {
+  const QueueEntry& t = splitQ_.front();
+  if (nodes_[t.node].gen == t.gen) nodes_[t.node].queued = 0;
+  std::pop_heap(splitQ_.begin(), splitQ_.end(), SplitLess{});
+  splitQ_.pop_back();
+}
+
+void Roam::clearSplitQueue() {
+  for (const QueueEntry& t : splitQ_)
+    if (nodes_[t.node].gen == t.gen) nodes_[t.node].queued = 0;
+  splitQ_.clear();
+  splitHeap_ = true;
+}
+
+// Deferred orders its (persistent) split queue by errorPx, leaves in the view frustum first:
+// after a restart the drawn part converges first. The decision itself ignores the frustum.
+double Roam::splitKey(const Node& n, double p) const {
+  if (!vs_.valid) return p;
+  Aabb box = diamondBox(n);
+  box.min -= vs_.eye_m;
+  box.max -= vs_.eye_m;
+  return vs_.frustum.intersects(box) ? p : p * (1.0 / 64.0);
 }
 
 bool Roam::topMerge(QueueEntry* e) {
@@ -653,9 +728,21 @@ bool Roam::mergeUnneeded() {
 // the triangle cap or the pool is in the way, merge a diamond of lower priority to make room
 // (Duchaineau's dual-queue rule); otherwise stop.
 bool Roam::splitPhase() {
-  size_t swapsLeft = nodes_.size();  // guard against cycling through forced splits
+  size_t swapsLeft = nodeCap_;  // guard against cycling through forced splits
   QueueEntry s, m;
   while (topSplit(&s)) {
+    if (!vs_.cullFrustum) {  // Deferred: the queue persists, its keys may be stale
+      if (visitsUsed_ >= visitBudget_) return false;
+      ++visitsUsed_;
+      ++stats_.nodesExamined;
+      const double p = priority(nodes_[s.node], vs_);
+      if (!(p > vs_.tolerance_px)) {  // no longer needed: back to the schedule
+        popSplit();
+        if (trackTouched_) recheck_.push_back(s.node);
+        maxSmallPx_ = std::max(maxSmallPx_, p);
+        continue;
+      }
+    }
     const SplitResult r = forcedSplit(s.node);
     if (r == SplitResult::Done) continue;  // s is no longer a leaf: popped as stale
     if (r == SplitResult::Budget) return false;
@@ -704,12 +791,21 @@ RoamStats Roam::update(const RoamView& view, RoamMode mode) {
   assert(view.tolerance_px >= 0.0 && "Roam::update: tolerance_px must be >= 0");
   stats_ = RoamStats{};
   createdCount_ = 0;
+  removedCount_ = 0;
   vs_ = makeViewState(view);
   opsLeft_ = view.maxOperations != 0 ? view.maxOperations : std::numeric_limits<uint64_t>::max();
   maxSmallPx_ = 0.0;
-  splitQ_.clear();
+  visitsUsed_ = 0;
+  visitBudget_ = mode == RoamMode::Deferred && view.maxVisits != 0 ? view.maxVisits : std::numeric_limits<uint64_t>::max();
+  // Deferred keeps its split queue from update to update (leaves waiting for a split are not
+  // scheduled); the other modes collect it afresh.
+  if (mode != RoamMode::Deferred || !deferredQueue_) {
+    clearSplitQueue();
+    splitHeap_ = false;  // the collection walks append; heapified on first use
+  }
+  deferredQueue_ = mode == RoamMode::Deferred;
   mergeQ_.clear();
-  splitHeap_ = mergeHeap_ = false;  // the collection walks append; heapified on first use
+  mergeHeap_ = false;
   mergesCollected_ = false;
   capTriangles_ = view.maxTriangles != 0 ? std::min(view.maxTriangles, configMaxTriangles_) : configMaxTriangles_;
 
@@ -722,6 +818,8 @@ RoamStats Roam::update(const RoamView& view, RoamMode mode) {
       ok = collectQueues() && mergeUnneeded() && splitPhase() && capPhase();
       break;
     case RoamMode::Deferred:
+      vs_.lateness = std::clamp(std::isfinite(view.lateness) ? view.lateness : 0.0, 0.0, 0.5);
+      vs_.tolerance_px *= 1.0 - vs_.lateness;
       ok = deferredUpdate();
       break;
     case RoamMode::Rebuild:
@@ -736,12 +834,25 @@ RoamStats Roam::update(const RoamView& view, RoamMode mode) {
   if (mode != RoamMode::Deferred) scheduleValid_ = false;  // other modes do not keep it
   stats_.finished = ok;
   stats_.triangles = triangles_;
+  stats_.visits = static_cast<uint32_t>(std::min<uint64_t>(visitsUsed_, 0xFFFFFFFFu));
   QueueEntry s;
+  if (mode == RoamMode::Deferred) {
+    stats_.pending = splitQ_.size() + dueQ_.countDue(centimetres(travel_m_), dueQ_.size());
+    if (!ok) {
+      // Interrupted: leaves were not all seen. Under a visit budget the exact bound would cost
+      // a walk over every leaf, which the budget forbids: unknown.
+      stats_.maxErrorPx = visitBudget_ != std::numeric_limits<uint64_t>::max() ? kInf : maxErrorPx(view);
+    } else if (topSplit(&s)) {
+      stats_.maxErrorPx = maxErrorPx(view);  // the cap or the pool bound: keys are not errors
+    } else {
+      // Unseen leaves are within tolerance (their decision cannot have changed); with
+      // nothing scheduled every leaf has zero error.
+      stats_.maxErrorPx = maxSmallPx_;
+      if (dueQ_.size() > 0) stats_.maxErrorPx = std::max(stats_.maxErrorPx, view.tolerance_px);
+    }
+    return stats_;
+  }
   stats_.maxErrorPx = topSplit(&s) ? std::max(maxSmallPx_, s.priority) : maxSmallPx_;
-  // Deferred: unseen leaves are within tolerance (their decision cannot have changed); with
-  // nothing scheduled every leaf has zero error.
-  if (mode == RoamMode::Deferred && ok && dueQ_.size() > 0)
-    stats_.maxErrorPx = std::max(stats_.maxErrorPx, vs_.tolerance_px);
   if (!ok) stats_.maxErrorPx = maxErrorPx(view);  // interrupted: leaves were not all seen
   return stats_;
 }
@@ -765,7 +876,9 @@ double Roam::slack(uint32_t n) const {
   const double threshold = e * vs_.scale / vs_.tolerance_px;
   // Split if d < threshold (errorPx > tolerance); merge if d >= threshold.
   const double s = nd.children == kNone ? d - threshold : threshold - d;
-  return s > 0.0 ? s : 0.0;
+  // With lateness, a decision that is right now is looked at again no sooner than
+  // lateness * threshold later (the tolerance was tightened by as much: still within it).
+  return s > 0.0 ? std::max(s, vs_.lateness * threshold) : 0.0;
 }
 
 void Roam::DueQueue::clear(uint64_t now_cm) {
@@ -813,76 +926,118 @@ size_t Roam::DueQueue::popDue(uint64_t limit_cm, std::vector<DueEntry>& out, siz
   return n;
 }
 
-namespace {
-uint64_t centimetres(double m) { return m < 1.8e16 ? static_cast<uint64_t>(m * 100.0) : uint64_t{1} << 62; }
-}  // namespace
+size_t Roam::DueQueue::countDue(uint64_t limit_cm, size_t max) const {
+  const uint64_t limitBucket = limit_cm / kBucket_cm;
+  size_t n = 0;
+  for (uint64_t b = cursor_; b <= limitBucket && b < cursor_ + kBuckets && n <= max; ++b) n += ring_[b % kBuckets].size();
+  return n;
+}
 
-void Roam::schedule(uint32_t n) {
-  if (nodes_[n].free) return;
+// Puts n where it belongs: a leaf over tolerance into the split queue, anything else into
+// the schedule at the eye travel where its decision may change (or nowhere: never changes).
+void Roam::scheduleOne(uint32_t n) {
+  Node& nd = nodes_[n];
+  if (nd.free) return;
+  if (nd.children == kNone && nd.queued) return;  // waits in the split queue
   const double s = slack(n);
   if (s == kInf) return;
+  if (s == 0.0 && nd.children == kNone) {
+    const double p = priority(nd, vs_);
+    if (p > vs_.tolerance_px) {
+      pushSplit(n, splitKey(nd, p));
+      if (nd.queued) return;
+    }
+  }
+  dueQ_.push({centimetres(travel_m_ + s), n, ++nd.sched});
+}
+
+void Roam::schedule(uint32_t n) {
   if (dueQ_.size() >= dueCapacity_) {  // full of stale entries: rebuild from the live nodes
     scheduleAll();
     return;
   }
-  dueQ_.push({centimetres(travel_m_ + s), n, ++schedTag_[n]});
+  scheduleOne(n);
 }
 
 void Roam::scheduleAll() {
   dueQ_.clear(centimetres(travel_m_));
   const uint32_t end = 2 * highPairs_;
-  for (uint32_t n = 0; n < end; ++n) {
-    if (nodes_[n].free) continue;
-    const double s = slack(n);
-    if (s == kInf) continue;
-    dueQ_.push({centimetres(travel_m_ + s), n, ++schedTag_[n]});
-  }
+  for (uint32_t n = 0; n < end; ++n) scheduleOne(n);
+}
+
+// A teleport under a visit budget: drop the whole mesh in O(base triangles) (the pool is
+// handed back wholesale, the schedule emptied) and refine from the base triangles again,
+// over as many updates as the budget needs, visible leaves first.
+void Roam::restartFromBase() {
+  clearSplitQueue();
+  stats_.nodesFreed += static_cast<uint32_t>(liveNodes_ - baseTriangles());
+  resetToBase();
+  dueQ_.clear(centimetres(travel_m_));
+  stats_.restarted = true;
+  for (uint32_t n = 0; n < baseTriangles(); ++n) scheduleOne(n);
 }
 
 bool Roam::deferredUpdate() {
   vs_.cullFrustum = false;
   if (dueCapacity_ == 0) {  // first Deferred update: the schedule's storage
-    dueCapacity_ = nodes_.size() + nodes_.size() / 2 + 64;
-    schedTag_.assign(nodes_.size(), 0);
-    touched_.reserve(2 * nodes_.size() + 64);
-    recheck_.reserve(nodes_.size() + 64);
-    due_.reserve(nodes_.size() / 8 + 1024 + 1);
+    dueCapacity_ = nodeCap_ + nodeCap_ / 2 + 64;
+    touched_.reserve(2 * nodeCap_ + 64);
+    recheck_.reserve(nodeCap_ + 64);
+    due_.reserve(nodeCap_ / 8 + 1024 + 1);
   }
-  const bool sameView = scheduleValid_ && vs_.valid && vs_.scale == lastScale_ && vs_.tolerance_px == lastTolerance_px_;
+  const bool budgeted = visitBudget_ != std::numeric_limits<uint64_t>::max();
+  const bool sameView = scheduleValid_ && vs_.valid && vs_.scale == lastScale_ && vs_.tolerance_px == lastTolerance_px_ &&
+                        vs_.lateness == lastLateness_;
   if (vs_.valid) {
     if (scheduleValid_) travel_m_ += glm::length(vs_.eye_m - lastEye_m_);
     lastEye_m_ = vs_.eye_m;
     lastScale_ = vs_.scale;
     lastTolerance_px_ = vs_.tolerance_px;
+    lastLateness_ = vs_.lateness;
   }
+  const uint64_t now_cm = centimetres(travel_m_);
   bool full = !sameView;
   touched_.clear();
   recheck_.clear();
   touchedOverflow_ = false;
   bool ok = true;
+  // A jump that makes most of the mesh due (a teleport) is cheaper as one linear walk, or,
+  // under a visit budget, as a restart from the base triangles.
+  const size_t walkInstead = liveNodes_ / 8 + 1024;
+  if (!full && dueQ_.countDue(now_cm, walkInstead) > walkInstead) full = true;
+  if (budgeted && full) {
+    restartFromBase();
+    scheduleValid_ = vs_.valid;
+    full = false;
+  }
   if (!full) {
     trackTouched_ = true;
-    // A jump that makes most of the mesh due (a teleport) is cheaper as one linear walk.
-    const size_t walkInstead = liveNodes_ / 8 + 1024;
     due_.clear();
-    if (dueQ_.popDue(centimetres(travel_m_), due_, walkInstead) > walkInstead) full = true;
+    // Under a budget, leave room for the splits the queue holds.
+    size_t maxPop = due_.capacity() - 1;
+    if (budgeted) {
+      const uint64_t left = visitBudget_ > visitsUsed_ ? visitBudget_ - visitsUsed_ : 0;
+      maxPop = std::min<uint64_t>(maxPop, splitQ_.empty() ? left : left / 2);
+    }
+    dueQ_.popDue(now_cm, due_, maxPop);
     for (size_t i = 0; i < due_.size() && !full; ++i) {
       const DueEntry& e = due_[i];
-      if (e.tag != schedTag_[e.node]) continue;  // rescheduled or freed since
       const Node& nd = nodes_[e.node];
+      if (e.tag != nd.sched) continue;  // rescheduled or freed since
       ++stats_.nodesExamined;
+      ++visitsUsed_;
       const double p = priority(nd, vs_);
       // Rescheduling happens after the loop: a node exactly at its threshold has slack 0 and
       // would be due again at once.
       if (nd.children == kNone) {
-        if (p > vs_.tolerance_px && nd.level < maxLevel_) pushSplit(e.node, p);
-        recheck_.push_back(e.node);  // split below (then touched), or rescheduled
+        if (p > vs_.tolerance_px && nd.level < maxLevel_) pushSplit(e.node, splitKey(nd, p));
+        else recheck_.push_back(e.node);
       } else if (p > vs_.tolerance_px) {
         recheck_.push_back(e.node);
       } else if (nd.parent == kNone || priority(nodes_[nd.parent], vs_) > vs_.tolerance_px) {
-        if (!takeOp()) {  // out of budget: this and the remaining due nodes are looked at next time
+        if (!takeOp()) {  // out of budget: this and the remaining due entries stay due
           for (size_t j = i; j < due_.size(); ++j)
-            if (due_[j].tag == schedTag_[due_[j].node]) recheck_.push_back(due_[j].node);
+            if (due_[j].tag == nodes_[due_[j].node].sched) dueQ_.push(due_[j]);
           ok = false;
           break;
         }
@@ -894,6 +1049,8 @@ bool Roam::deferredUpdate() {
       }
     }
     if (ok && !full) ok = splitPhase() && capPhase();
+    // The pop was limited by the budget and entries remain due: not finished.
+    if (ok && budgeted && due_.size() == maxPop && dueQ_.countDue(now_cm, 0) > 0) ok = false;
     trackTouched_ = false;
   }
   if (full) {
@@ -940,23 +1097,91 @@ size_t Roam::emitVisible(const Camera& camera, std::span<RoamTriangle> out) cons
   const Frustum frustum = makeFrustum(camera);
   const glm::dvec3 eye = camera.eye_m - origin_m_;
   size_t count = 0;
-  const uint32_t end = 2 * highPairs_;
-  for (uint32_t n = 0; n < end; ++n) {
-    const Node& nd = nodes_[n];
-    ClampedCorners c;
-    if (!emittableLeaf(nd, c)) continue;
-    const auto [ax, ay, lx, ly, rx, ry] = c;
-    Aabb box;
-    box.min = glm::dvec3(std::min({ax, lx, rx}) * spacing_m_, std::min({ay, ly, ry}) * spacing_m_,
-                         static_cast<double>(std::min({heightAt(ax, ay), heightAt(lx, ly), heightAt(rx, ry)})));
-    box.max = glm::dvec3(std::max({ax, lx, rx}) * spacing_m_, std::max({ay, ly, ry}) * spacing_m_,
-                         static_cast<double>(std::max({heightAt(ax, ay), heightAt(lx, ly), heightAt(rx, ry)})));
-    box.min -= eye;
-    box.max -= eye;
-    if (!frustum.intersects(box)) continue;
-    out[count++] = RoamTriangle{{{nd.ax, nd.ay}, {nd.rx, nd.ry}, {nd.lx, nd.ly}}};
+  // Depth-first from the base triangles. An inner node's diamond box holds all its
+  // descendants' geometry (nested boxes), so a subtree whose box is outside is skipped whole.
+  // The stack holds at most (levels + 1) pending siblings plus the base triangles.
+  uint32_t stack[512];
+  const uint32_t base = static_cast<uint32_t>(baseTriangles());
+  for (uint32_t r = 0; r < base; ++r) {
+    size_t top = 0;
+    stack[top++] = r;
+    while (top > 0) {
+      const uint32_t n = stack[--top];
+      const Node& nd = nodes_[n];
+      if (nd.children != kNone) {
+        Aabb box = diamondBox(nd);
+        box.min -= eye;
+        box.max -= eye;
+        if (!frustum.intersects(box)) continue;
+        stack[top++] = nd.children + 1;
+        stack[top++] = nd.children;
+        continue;
+      }
+      ClampedCorners c;
+      if (!emittableLeaf(nd, c)) continue;
+      const auto [ax, ay, lx, ly, rx, ry] = c;
+      // The leaf's own xy extent; its heights lie in the parent diamond's nested range (the
+      // leaf's corners are the parent's apex, hypotenuse end and split vertex), already in
+      // cache: no height look-ups (a large DEM's heights are far apart in memory).
+      Aabb box;
+      box.min = glm::dvec3(std::min({ax, lx, rx}) * spacing_m_, std::min({ay, ly, ry}) * spacing_m_, 0.0);
+      box.max = glm::dvec3(std::max({ax, lx, rx}) * spacing_m_, std::max({ay, ly, ry}) * spacing_m_, 0.0);
+      if (nd.parent != kNone) {
+        const Bound& b = nodes_[nd.parent].bound;
+        box.min.z = static_cast<double>(zMin_m_) + (b.zLo - 0.5) * zStep_m_;
+        box.max.z = static_cast<double>(zMin_m_) + (b.zHi + 0.5) * zStep_m_;
+      } else {
+        box.min.z = static_cast<double>(std::min({heightAt(ax, ay), heightAt(lx, ly), heightAt(rx, ry)}));
+        box.max.z = static_cast<double>(std::max({heightAt(ax, ay), heightAt(lx, ly), heightAt(rx, ry)}));
+      }
+      box.min -= eye;
+      box.max -= eye;
+      if (!frustum.intersects(box)) continue;
+      out[count++] = RoamTriangle{{{nd.ax, nd.ay}, {nd.rx, nd.ry}, {nd.lx, nd.ly}}};
+    }
   }
   return count;
+}
+
+namespace {
+int64_t cross64(int64_t ax, int64_t ay, int64_t bx, int64_t by, int64_t cx, int64_t cy) {
+  return (bx - ax) * (cy - ay) - (by - ay) * (cx - ax);
+}
+}  // namespace
+
+uint32_t Roam::leafNodeAt(int64_t x3, int64_t y3) const {
+  x3 = std::clamp<int64_t>(x3, 0, 3 * static_cast<int64_t>(px_ - 1));
+  y3 = std::clamp<int64_t>(y3, 0, 3 * static_cast<int64_t>(py_ - 1));
+  auto inside = [&](const Node& nd) {  // counter-clockwise (a, r, l), coordinates in thirds
+    return cross64(3 * nd.ax, 3 * nd.ay, 3 * nd.rx, 3 * nd.ry, x3, y3) >= 0 &&
+           cross64(3 * nd.rx, 3 * nd.ry, 3 * nd.lx, 3 * nd.ly, x3, y3) >= 0 &&
+           cross64(3 * nd.lx, 3 * nd.ly, 3 * nd.ax, 3 * nd.ay, x3, y3) >= 0;
+  };
+  // The base square, then down the tree: the child whose triangle holds the point.
+  const int64_t side3 = 3 * static_cast<int64_t>(rootSide_);
+  const int qi = static_cast<int>(std::min<int64_t>(x3 / side3, rootsX_ - 1));
+  const int qj = static_cast<int>(std::min<int64_t>(y3 / side3, rootsY_ - 1));
+  uint32_t n = 2u * static_cast<uint32_t>(qj * rootsX_ + qi);
+  if (!inside(nodes_[n])) ++n;
+  while (nodes_[n].children != kNone) n = inside(nodes_[nodes_[n].children]) ? nodes_[n].children : nodes_[n].children + 1;
+  return n;
+}
+
+RoamTriangle Roam::leafAt(int64_t x3, int64_t y3) const {
+  const Node& nd = nodes_[leafNodeAt(x3, y3)];
+  return RoamTriangle{{{nd.ax, nd.ay}, {nd.rx, nd.ry}, {nd.lx, nd.ly}}};
+}
+
+double Roam::meshHeight(int x, int y) const {
+  const Node& nd = nodes_[leafNodeAt(3 * static_cast<int64_t>(x), 3 * static_cast<int64_t>(y))];
+  x = std::clamp(x, 0, px_ - 1);
+  y = std::clamp(y, 0, py_ - 1);
+  const double area = static_cast<double>(cross64(nd.ax, nd.ay, nd.rx, nd.ry, nd.lx, nd.ly));
+  const double wa = static_cast<double>(cross64(nd.rx, nd.ry, nd.lx, nd.ly, x, y)) / area;
+  const double wr = static_cast<double>(cross64(nd.lx, nd.ly, nd.ax, nd.ay, x, y)) / area;
+  const double wl = 1.0 - wa - wr;
+  return wa * static_cast<double>(heightAt(nd.ax, nd.ay)) + wr * static_cast<double>(heightAt(nd.rx, nd.ry)) +
+         wl * static_cast<double>(heightAt(nd.lx, nd.ly));
 }
 
 double Roam::maxErrorPx(const RoamView& view) const {

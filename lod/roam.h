@@ -38,16 +38,21 @@
 // Cost. EnhMerge, MergeQueue and Rebuild scan the live nodes once per update in pool order
 // (O(nodes), a priority each), plus O(log n) per split / merge: the scan dominates for large
 // meshes (a 1 px view of a 16385^2 DEM, ~580k triangles: ~30 ms). Deferred re-examines only
-// the nodes whose decision may have changed (a schedule keyed by eye travel), O(due log n).
+// the nodes whose decision may have changed (a schedule keyed by eye travel), O(due log n),
+// and can run under a budget of node visits (RoamView::maxVisits) with a bounded lateness
+// (RoamView::lateness) that keeps nodes near their threshold from being looked at every frame.
+// docs/terrain.md describes the modes and the benchmark.
 //
 // Memory. The Roam object keeps a pointer to the caller's heights: they must stay alive and
 // unchanged while the object lives. Every buffer (node pool, queues, stacks) is allocated in
-// the constructor; update() (but see RoamMode::Deferred) and emit*() do not allocate.
+// the constructor (the pool is calloc'd: pages are committed as the mesh first grows into
+// them); update() (but see RoamMode::Deferred) and emit*() do not allocate.
 // validate() is a debug tool and allocates.
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -73,6 +78,19 @@ struct RoamView {
   double tolerance_px = 1.0;        // screen-space error target (> 0 for any coarsening)
   uint64_t maxTriangles = 0;        // triangle target for this frame; 0 = RoamConfig::maxTriangles
   uint32_t maxOperations = 0;       // work budget: splits + merges + enhMerges; 0 = unlimited
+  // Deferred only: work budget in node visits (nodes examined + nodes created + nodes freed);
+  // 0 = unlimited. An operation is started only while visits are left, so one update may
+  // overshoot by one operation (a forced-split chain, or an enhMerge of a subtree). What is not
+  // done stays queued and is done first by the next update; the mesh is valid at every stop.
+  // With a budget, a jump that makes most of the mesh due (a teleport) restarts from the base
+  // triangles and refines over several updates, visible leaves first.
+  uint32_t maxVisits = 0;
+  // Deferred only, in [0, 0.5]: trades a few more triangles for fewer re-examinations. Split
+  // and merge decisions are taken against tolerance_px * (1 - lateness), and a node is looked
+  // at again after at least lateness * D metres of eye travel (D: the distance at which its
+  // decision flips), so a decision may come up to that much travel late; errorPx of every
+  // leaf still stays <= tolerance_px. 0 = exact (the mesh equals a fresh walk).
+  double lateness = 0.0;
 };
 
 enum class RoamMode {
@@ -84,8 +102,10 @@ enum class RoamMode {
                // have changed (distance to a box is 1-Lipschitz in the eye position). Priorities
                // ignore the frustum, so turning the view costs nothing; the whole surroundings
                // are refined and emitVisible() culls what is drawn. The first Deferred update
-               // (and one after the tolerance, viewport or field of view changed) walks every
-               // node and allocates the schedule; later ones touch only the due nodes. The
+               // (and one after the tolerance, viewport, field of view or lateness changed)
+               // walks every node (under a visit budget: restarts from the base triangles) and
+               // allocates the schedule; later ones touch only the due nodes, within
+               // RoamView::maxVisits. The split queue persists between Deferred updates. The
                // schedule's buckets keep their capacity, but one that receives more entries than
                // ever before grows (amortised; the other modes never allocate in update()).
 };
@@ -96,12 +116,16 @@ struct RoamStats {
   uint32_t enhMerges = 0;    // enhMerge operations (each may free a whole subtree)
   uint32_t nodesFreed = 0;   // nodes returned to the pool by merges, enhMerges and rebuilds
   uint32_t nodesExamined = 0;  // nodes whose priority the update's walk or schedule looked at
+  uint32_t visits = 0;       // Deferred: node visits spent (see RoamView::maxVisits)
+  uint64_t pending = 0;      // Deferred: split-queue entries and due schedule entries left over
+  bool restarted = false;    // Deferred with a visit budget: a teleport restarted from the base
   uint64_t triangles = 0;    // leaf triangles after the update
   bool finished = true;      // false: the work budget stopped it; the mesh is valid, and the
                              // next update resumes (Rebuild then continues instead of restarting)
   bool poolExhausted = false;  // a wanted split did not fit in the node pool
   bool triangleCapped = false; // a wanted split did not fit under maxTriangles
   double maxErrorPx = 0.0;   // upper bound on errorPx of the emitted leaves for this view
+                             // (Deferred, unfinished: +infinity; use Roam::maxErrorPx)
 };
 
 struct RoamVertex {
@@ -119,6 +143,11 @@ class Roam {
   // Heights must be finite. Start-up work: O(samples) time, 8 bytes per padded grid vertex.
   Roam(std::span<const float> heights_m, int width, int height, double spacing_m, const glm::dvec3& origin_m,
        const RoamConfig& config = {});
+  // A second, independent mesh over the same heights, sharing `other`'s precomputed bounds
+  // (no start-up work beyond the pool; the bounds live as long as any Roam using them).
+  Roam(const Roam& other, const RoamConfig& config);
+  Roam(const Roam&) = delete;
+  Roam& operator=(const Roam&) = delete;
 
   // One frame of LOD work (see the selection rule above). No allocation (Deferred: see RoamMode).
   RoamStats update(const RoamView& view, RoamMode mode);
@@ -129,7 +158,10 @@ class Roam {
   // Writes the leaf triangles with non-zero area after clamping; returns the number written.
   // out.size() must be >= triangleCount().
   size_t emitTriangles(std::span<RoamTriangle> out) const;
-  // As emitTriangles, but only leaves whose bounding box intersects the camera's frustum.
+  // As emitTriangles, but only leaves whose box intersects the camera's frustum (xy: the
+  // leaf's own extent; z: its parent diamond's nested height range, so no height look-ups).
+  // A top-down walk that skips every subtree whose nested diamond box is outside the frustum:
+  // the cost follows the visible part of the mesh, not all leaves.
   size_t emitVisible(const Camera& camera, std::span<RoamTriangle> out) const;
   // ENU position of grid vertex (x, y), with the clamping rule. Double precision.
   glm::dvec3 vertexPosition(int x, int y) const;
@@ -146,6 +178,18 @@ class Roam {
   // once per half; at most kCreatedCapacity, the rest are not listed). For geomorphing.
   static constexpr size_t kCreatedCapacity = 1u << 16;
   std::span<const RoamVertex> createdVertices() const { return {created_.data(), createdCount_}; }
+  // Vertices removed by merges and enhMerges during the last update() (one per merged
+  // diamond; at most kCreatedCapacity). For morph-out (lod/geomorph.h MorphOut): such a vertex
+  // pops from its true height onto the coarser surface unless the old triangles are kept
+  // while it moves there.
+  std::span<const RoamVertex> removedVertices() const { return {removed_.data(), removedCount_}; }
+  // Height of the current mesh (the leaf triangle over grid point (x, y), interpolated
+  // linearly) at grid point (x, y) of the padded grid; O(levels). Where a vertex removed by a
+  // merge now lies on the coarse surface.
+  double meshHeight(int x, int y) const;
+  // The leaf triangle of the current mesh holding point (x3 / 3, y3 / 3) of the padded grid
+  // (thirds, so that triangle centroids are exact), as emitTriangles writes it; O(levels).
+  RoamTriangle leafAt(int64_t x3, int64_t y3) const;
 
   // The hypotenuse ends of the diamond whose split creates grid vertex (x, y): the vertex
   // first appears at their midpoint height, which geomorphing starts from. False for
@@ -157,7 +201,11 @@ class Roam {
   int gridHeight() const { return py_; }
   size_t baseTriangles() const { return 2u * static_cast<size_t>(rootsX_) * static_cast<size_t>(rootsY_); }
   size_t nodeCount() const { return liveNodes_; }
-  size_t nodeCapacity() const { return nodes_.size(); }
+  size_t nodeCapacity() const { return nodeCap_; }
+  // Memory: the precomputed bounds (8 bytes a padded grid vertex, touched at start-up) and the
+  // node pool (reserved address space; pages are committed as the mesh first grows into them).
+  size_t boundsBytes() const { return bounds_->size() * sizeof(Bound); }
+  size_t poolBytes() const { return nodeCap_ * sizeof(Node); }
 
  private:
   static constexpr uint32_t kNone = 0xFFFFFFFFu;
@@ -176,9 +224,11 @@ class Roam {
     int32_t rx, ry;     // right end of the hypotenuse
     Bound bound;        // copy of the diamond's bound (zero at the finest level): the
                         // per-frame walk then touches only the pool
+    uint32_t sched;     // Deferred: bumped when (re)scheduled or freed; stale due entries differ
     uint8_t level;
     uint8_t free;       // 1 while in the free list
-    uint16_t pad;
+    uint8_t queued;     // 1 while the split queue holds an entry with this gen
+    uint8_t pad;
   };
   struct QueueEntry {
     double priority;
@@ -191,6 +241,7 @@ class Roam {
     bool cullFrustum = true;  // false (Deferred): priorities by distance only
     double scale = 0.0;  // viewportHeight_px / (2 tan(fovY / 2))
     double tolerance_px = 0.0;
+    double lateness = 0.0;  // Deferred (RoamView::lateness)
     bool valid = false;  // false for non-finite input: every priority is 0
   };
   enum class SplitResult { Done, Capped, PoolFull, Budget };
@@ -200,6 +251,7 @@ class Roam {
     int ax, ay, lx, ly, rx, ry;
   };
   bool emittableLeaf(const Node& nd, ClampedCorners& c) const;
+  uint32_t leafNodeAt(int64_t x3, int64_t y3) const;
   // Set-up.
   float heightAt(int x, int y) const;
   Bound diamondBound(const Node& n) const;
@@ -228,6 +280,8 @@ class Roam {
   void considerLeaf(uint32_t n, double p);
   void pushParentMerges(uint32_t n);
   bool topSplit(QueueEntry* e);
+  void popSplit();
+  void clearSplitQueue();
   bool topMerge(QueueEntry* e);
   void compactSplit();
   void compactMerge();
@@ -242,7 +296,7 @@ class Roam {
   struct DueEntry {
     uint64_t due_cm;  // eye travel (centimetres) at which the node must be re-examined
     uint32_t node;
-    uint32_t tag;     // schedTag_[node] when pushed; stale otherwise
+    uint32_t tag;     // Node::sched when pushed; stale otherwise
   };
   // The schedule: a ring of 1 m buckets over the next 16 km of eye travel (a calendar queue).
   // The travel only grows, so the buckets behind it are drained in order; a node whose
@@ -259,6 +313,9 @@ class Roam {
     // Moves the entries due at `limit_cm` into `out`, at most `max` of them (more: returns
     // max + 1 and leaves the rest queued); returns how many.
     size_t popDue(uint64_t limit_cm, std::vector<DueEntry>& out, size_t max);
+    // Entries (stale ones included) in the buckets up to the one holding limit_cm; stops
+    // counting above max. Touches only the bucket sizes.
+    size_t countDue(uint64_t limit_cm, size_t max) const;
 
    private:
     std::vector<std::vector<DueEntry>> ring_ = std::vector<std::vector<DueEntry>>(kBuckets);
@@ -266,8 +323,11 @@ class Roam {
     size_t size_ = 0;
   };
   bool deferredUpdate();
+  void restartFromBase();
+  double splitKey(const Node& n, double p) const;  // queue order: visible leaves first
   double slack(uint32_t n) const;  // eye travel before n's decision can change; 0 = act now
   void schedule(uint32_t n);
+  void scheduleOne(uint32_t n);
   void scheduleAll();
   void touch(uint32_t n) {
     if (trackTouched_) {
@@ -284,8 +344,16 @@ class Roam {
   int rootSide_ = 1, rootsX_ = 1, rootsY_ = 1, px_ = 2, py_ = 2, maxLevel_ = 0;
   float zMin_m_ = 0.0f;
   double zStep_m_ = 1.0;
-  std::vector<Bound> bounds_;      // per padded grid vertex
-  std::vector<Node> nodes_;        // pool; pairs (2i, 2i+1); the first pairs are base squares
+  std::shared_ptr<std::vector<Bound>> bounds_;  // per padded grid vertex; shared by copies
+  void setUpPool(const RoamConfig& config);
+  // The pool: pairs (2i, 2i+1); the first pairs are base squares. calloc'd: the operating
+  // system hands out zero pages as they are first touched, so a large pool costs nothing
+  // until the mesh grows into it.
+  struct FreeDeleter {
+    void operator()(Node* p) const;
+  };
+  std::unique_ptr<Node[], FreeDeleter> nodes_;
+  size_t nodeCap_ = 0;
   std::vector<uint32_t> freePairs_;
   std::vector<uint32_t> rootLeg_;  // per base triangle and leg side: same-level node or kNone
   uint32_t highPairs_ = 0;         // pairs ever handed out (bump allocator above the free list)
@@ -294,6 +362,8 @@ class Roam {
   std::vector<QueueEntry> splitQ_, mergeQ_;
   std::vector<RoamVertex> created_ = std::vector<RoamVertex>(kCreatedCapacity);
   size_t createdCount_ = 0;
+  std::vector<RoamVertex> removed_ = std::vector<RoamVertex>(kCreatedCapacity);
+  size_t removedCount_ = 0;
   bool splitHeap_ = true, mergeHeap_ = true;  // false while filled unordered (heapified lazily)
   bool mergesCollected_ = false;              // mergeQ_ holds every mergeable diamond
   std::vector<uint32_t> chain_;  // forced-split chain (at most maxLevel + 1 nodes)
@@ -304,10 +374,12 @@ class Roam {
   uint64_t capTriangles_ = 0;  // triangle cap of this update
   double maxSmallPx_ = 0.0;  // largest errorPx among leaves not queued for splitting
   bool resumeRebuild_ = false;
+  uint64_t visitBudget_ = 0;   // Deferred visit budget of this update (max: none)
+  uint64_t visitsUsed_ = 0;
+  bool deferredQueue_ = false; // the split queue persists across Deferred updates
   // Deferred schedule (allocated by the first Deferred update).
   DueQueue dueQ_;
   size_t dueCapacity_ = 0;          // entries before the schedule is rebuilt (stale ones pile up)
-  std::vector<uint32_t> schedTag_;  // per node
   std::vector<uint32_t> touched_;   // nodes whose state changed during this update
   std::vector<uint32_t> recheck_;   // due nodes to look at again next update
   std::vector<DueEntry> due_;       // entries due this update
@@ -315,7 +387,7 @@ class Roam {
   bool scheduleValid_ = false;
   double travel_m_ = 0.0;           // eye travel summed over Deferred updates
   glm::dvec3 lastEye_m_{0.0};
-  double lastScale_ = 0.0, lastTolerance_px_ = 0.0;
+  double lastScale_ = 0.0, lastTolerance_px_ = 0.0, lastLateness_ = 0.0;
 };
 
 }  // namespace ig::lod

@@ -5,7 +5,8 @@
     scripts/plot_terrain_sweep.py out/terrain.json out/terrain_sweep.png
 
 Left: triangles and update time against the screen-space tolerance. Right: image error
-(PSNR against the full-resolution render) against render time.
+(PSNR against the full-resolution render) against render time (when the sweep was rendered).
+A note under the plots gives Deferred's update, teleport and frame-vs-raster figures.
 """
 import json
 import sys
@@ -38,8 +39,21 @@ def main():
         b.annotate(f"{s['tolerance_px']:g} px", (s["render_ms"], s["psnr_db"]), textcoords="offset points", xytext=(4, 4))
     b.set_xlabel("render ms (glFinish)")
     b.set_ylabel("PSNR vs full resolution (dB)")
-    b.set_title("image error against render time")
-    fig.tight_layout()
+    b.set_title("image error against render time" if d.get("sweep_rendered", True) else "(sweep not rendered at this size)")
+    notes = []
+    m = d.get("methods", {}).get("roam_deferred")
+    if m:
+        notes.append(f"Deferred update p50/p99 {m['update_ms_p50']:.2f}/{m['update_ms_p99']:.2f} ms "
+                     f"({d.get('deferred_visits', '?')} visits), {m['triangles_p50']} triangles")
+    t = d.get("teleport")
+    if t:
+        notes.append(f"teleport {t['jump_km']:.0f} km: merges alone {t['merge_ms']:.1f} ms, Deferred first frame "
+                     f"{t['deferred_first_frame_ms']:.2f} ms, visible in {t['deferred_frames_to_visible']} frames")
+    if d.get("raster", {}).get("ran"):
+        notes.append(f"frame vs raster limit: {d['frame_vs_raster_ratio']:.2f}x")
+    if notes:
+        fig.text(0.01, 0.01, "; ".join(notes), fontsize=8)
+    fig.tight_layout(rect=(0, 0.05, 1, 1))
     fig.savefig(sys.argv[2], dpi=100)
     print(f"plot: {sys.argv[2]}")
 

@@ -234,3 +234,62 @@ TEST(Dem, CorruptAndTruncatedFilesFailCleanlyNamingTheFile) {
   EXPECT_FALSE(loadDem(tmp / "x.asc", {}, d, e));
   EXPECT_NE(e.find("'.asc'"), std::string::npos) << e;
 }
+
+// The memory-mapped cache: the first load decodes and writes it, the second maps it (same
+// heights, rows south first), a changed source is decoded again, and a corrupt or truncated
+// cache is refused with a message naming it.
+TEST(Dem, MappedCacheRoundTripAndInvalidation) {
+  TempDir tmp;
+  const std::string file = tmp / "N46E007.hgt";
+  writeHgt(file, 121);
+  Dem direct;
+  std::string error;
+  ASSERT_TRUE(loadDem(file, {}, direct, error)) << error;
+  flipRows(direct);
+  MappedDem a, b;
+  DemCacheInfo ia, ib;
+  ASSERT_TRUE(loadDemCached(file, tmp / "cache", {}, a, ia, error)) << error;
+  EXPECT_FALSE(ia.fromCache);
+  ASSERT_TRUE(loadDemCached(file, tmp / "cache", {}, b, ib, error)) << error;
+  EXPECT_TRUE(ib.fromCache);
+  EXPECT_EQ(ia.cacheFile, ib.cacheFile);
+  ASSERT_EQ(b.width(), 121);
+  ASSERT_EQ(b.height(), 121);
+  EXPECT_NEAR(b.spacing_m(), direct.spacing_m, 1e-9);
+  ASSERT_EQ(b.heights_m().size(), direct.heights_m.size());
+  EXPECT_TRUE(std::equal(direct.heights_m.begin(), direct.heights_m.end(), b.heights_m().begin()));
+  EXPECT_GE(b.mappedBytes(), 121u * 121u * 4u);
+  MappedDem moved = std::move(b);
+  EXPECT_EQ(moved.width(), 121);
+  EXPECT_EQ(b.width(), 0);
+
+  // A changed source (another size) is not served from the stale cache.
+  writeHgt(file, 61);
+  MappedDem c;
+  DemCacheInfo ic;
+  ASSERT_TRUE(loadDemCached(file, tmp / "cache", {}, c, ic, error)) << error;
+  EXPECT_FALSE(ic.fromCache);
+  EXPECT_EQ(c.width(), 61);
+
+  // Truncated and foreign files are refused, naming the file.
+  const std::string bad = tmp / "bad.igdem";
+  {
+    std::ifstream in(ic.cacheFile, std::ios::binary);
+    std::vector<char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    std::ofstream out(bad, std::ios::binary);
+    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size() - 10));
+  }
+  MappedDem d;
+  EXPECT_FALSE(mapDemCache(bad, d, error));
+  EXPECT_NE(error.find(bad), std::string::npos) << error;
+  EXPECT_NE(error.find("truncated"), std::string::npos) << error;
+  EXPECT_FALSE(mapDemCache(file, d, error));  // an .hgt is not a cache
+  EXPECT_NE(error.find("not a DEM cache"), std::string::npos) << error;
+  EXPECT_FALSE(mapDemCache(tmp / "missing.igdem", d, error));
+  EXPECT_NE(error.find("missing.igdem"), std::string::npos) << error;
+  // A cache folder that cannot be created is an error naming it, not a silent decode.
+  MappedDem e;
+  DemCacheInfo ie;
+  EXPECT_FALSE(loadDemCached(file, file + "/sub", {}, e, ie, error));
+  EXPECT_NE(error.find("cache"), std::string::npos) << error;
+}

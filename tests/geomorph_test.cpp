@@ -2,7 +2,15 @@
 // finished morphs expire, a full table lets vertices pop instead of failing, 0 s is off.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <span>
+#include <vector>
+
 #include "lod/geomorph.h"
+#include "lod/heightfield.h"
+#include "lod/roam.h"
 
 using namespace ig::lod;
 
@@ -44,4 +52,149 @@ TEST(Geomorph, ZeroTimeIsOff) {
   g.start(1, 1, 5.0f, 0.0);
   EXPECT_EQ(g.size(), 0u);
   EXPECT_FLOAT_EQ(g.height(1, 1, 9.0f, 0.0), 9.0f);
+}
+
+TEST(Geomorph, OutMorphMovesFromTheTrueHeightToTheTarget) {
+  Geomorph g(16, 1.0);
+  g.startOut(3, 4, 10.0f, 5.0);
+  EXPECT_FLOAT_EQ(g.height(3, 4, 30.0f, 5.0), 30.0f);   // starts at the true height
+  EXPECT_FLOAT_EQ(g.height(3, 4, 30.0f, 5.5), 20.0f);
+  EXPECT_FLOAT_EQ(g.height(3, 4, 30.0f, 6.0), 10.0f);   // ends on the target
+  g.start(3, 4, 0.0f, 5.2);                              // already morphing: unchanged
+  EXPECT_FLOAT_EQ(g.height(3, 4, 30.0f, 6.0), 10.0f);
+}
+
+namespace {
+
+std::vector<RoamTriangle> meshOf(const Roam& roam) {
+  std::vector<RoamTriangle> t(roam.triangleCount());
+  t.resize(roam.emitTriangles(t));
+  return t;
+}
+bool sameTri(const RoamTriangle& a, const RoamTriangle& b) {
+  for (int i = 0; i < 3; ++i)
+    if (a.v[i].x != b.v[i].x || a.v[i].y != b.v[i].y) return false;
+  return true;
+}
+// a \ b (small meshes: quadratic is fine).
+std::vector<RoamTriangle> minus(const std::vector<RoamTriangle>& a, const std::vector<RoamTriangle>& b) {
+  std::vector<RoamTriangle> out;
+  for (const auto& t : a) {
+    bool found = false;
+    for (const auto& u : b) found = found || sameTri(t, u);
+    if (!found) out.push_back(t);
+  }
+  return out;
+}
+// Height of the triangle set at (x, y) (first triangle holding the point), vertex heights
+// from `h`; NaN if none holds it.
+template <class H>
+double surfaceAt(std::span<const RoamTriangle> tris, double x, double y, H h) {
+  for (const auto& t : tris) {
+    const double ax = t.v[0].x, ay = t.v[0].y, bx = t.v[1].x, by = t.v[1].y, cx = t.v[2].x, cy = t.v[2].y;
+    const double area = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax);
+    const double wa = ((bx - x) * (cy - y) - (by - y) * (cx - x)) / area;
+    const double wb = ((cx - x) * (ay - y) - (cy - y) * (ax - x)) / area;
+    const double wc = 1.0 - wa - wb;
+    if (wa < -1e-9 || wb < -1e-9 || wc < -1e-9) continue;
+    return wa * h(t.v[0]) + wb * h(t.v[1]) + wc * h(t.v[2]);
+  }
+  return std::numeric_limits<double>::quiet_NaN();
+}
+
+}  // namespace
+
+// Merges morph out: right after the update the drawn surface (ghosts + the new mesh less the
+// hidden covers) is the old surface at every removed vertex and ghost centroid (no pop),
+// halfway it is the average, at the end the new coarse surface; then the covers are released.
+TEST(MorphOut, MergesDoNotPop) {
+  const int n = 33;
+  HeightfieldDesc d;
+  d.seed = 4;
+  d.postsX = d.postsY = n;
+  d.postSpacing_m = 30.0;
+  d.heightScale_m = 600.0;
+  std::vector<float> hts(static_cast<size_t>(n) * n);
+  generateHeightfield(d, hts);
+  auto trueH = [&](const RoamVertex& v) {
+    return static_cast<double>(hts[static_cast<size_t>(std::clamp(v.y, 0, n - 1)) * n + static_cast<size_t>(std::clamp(v.x, 0, n - 1))]);
+  };
+  Roam roam(hts, n, n, 30.0, {0, 0, 0});
+  RoamView v;
+  v.camera.eye_m = {480, 480, 700};
+  v.camera.pitch_deg = -89.0;
+  v.camera.fovY_deg = 60.0;
+  v.camera.aspect = 1.0;
+  v.viewportHeight_px = 1080;
+  v.tolerance_px = 1.0;
+  // Deferred decides by distance alone: climbing straight up only coarsens (merges only).
+  roam.update(v, RoamMode::Deferred);
+  const auto before = meshOf(roam);
+  v.camera.eye_m.z = 2500.0;
+  const RoamStats st = roam.update(v, RoamMode::Deferred);
+  ASSERT_EQ(st.splits, 0u);
+  ASSERT_GT(st.enhMerges, 0u);
+  const auto after = meshOf(roam);
+  const auto left = minus(before, after), entered = minus(after, before);
+  std::vector<float> targets;
+  for (const RoamVertex& r : roam.removedVertices()) targets.push_back(static_cast<float>(roam.meshHeight(r.x, r.y)));
+  ASSERT_GT(roam.removedVertices().size(), 10u);
+
+  const double t0 = 10.0, morph = 0.5;
+  MorphOut morphOut(4096, morph);
+  std::vector<RoamTriangle> coverOf;
+  for (const auto& t : left) coverOf.push_back(roam.leafAt(t.v[0].x + t.v[1].x + t.v[2].x, t.v[0].y + t.v[1].y + t.v[2].y));
+  const MorphOut::Stats ms = morphOut.update(left, coverOf, roam.removedVertices(), targets, t0);
+  EXPECT_EQ(ms.popped, 0u);
+  EXPECT_EQ(ms.ghostsAdded, left.size());  // every triangle that left had a removed vertex
+  ASSERT_TRUE(morphOut.active());
+  std::vector<RoamTriangle> shown;
+  for (const auto& t : after)
+    if (!morphOut.hidden(t)) shown.push_back(t);
+  EXPECT_EQ(shown.size(), after.size() - entered.size());  // every entered triangle is a cover
+  auto drawnAt = [&](double x, double y, double now) {
+    const double g = surfaceAt(morphOut.ghosts(), x, y, [&](const RoamVertex& w) {
+      return static_cast<double>(morphOut.height(w.x, w.y, static_cast<float>(trueH(w)), now));
+    });
+    return std::isnan(g) ? surfaceAt(std::span<const RoamTriangle>(shown), x, y, trueH) : g;
+  };
+  double maxPop = 0.0;
+  size_t samples = 0;
+  auto check = [&](double x, double y) {
+    const double oldH = surfaceAt(std::span<const RoamTriangle>(before), x, y, trueH);
+    const double newH = surfaceAt(std::span<const RoamTriangle>(after), x, y, trueH);
+    ASSERT_FALSE(std::isnan(oldH));
+    maxPop = std::max(maxPop, std::abs(newH - oldH));
+    EXPECT_NEAR(drawnAt(x, y, t0), oldH, 1e-3) << x << "," << y;
+    EXPECT_NEAR(drawnAt(x, y, t0 + 0.5 * morph), 0.5 * (oldH + newH), 1e-3) << x << "," << y;
+    EXPECT_NEAR(drawnAt(x, y, t0 + morph), newH, 1e-3) << x << "," << y;
+    ++samples;
+  };
+  for (const RoamVertex& r : roam.removedVertices()) check(r.x, r.y);
+  for (const auto& t : left) check((t.v[0].x + t.v[1].x + t.v[2].x) / 3.0, (t.v[0].y + t.v[1].y + t.v[2].y) / 3.0);
+  EXPECT_GT(maxPop, 1.0) << "the merges must change the surface, or the test proves nothing";
+  EXPECT_GT(samples, 20u);
+  // The end: ghosts go, the covers are released for drawing.
+  EXPECT_TRUE(morphOut.expire(t0 + 0.5 * morph).empty());
+  const auto released = morphOut.expire(t0 + morph);
+  EXPECT_EQ(released.size(), entered.size());
+  EXPECT_FALSE(morphOut.active());
+  for (const auto& t : after) EXPECT_FALSE(morphOut.hidden(t));
+}
+
+// A cover that leaves the mesh before its morph ends (the eye came back) drops its ghosts.
+TEST(MorphOut, ACoverThatLeavesDropsItsGhosts) {
+  MorphOut m(64, 1.0);
+  const RoamTriangle coarse{{{0, 0}, {4, 0}, {0, 4}}};
+  const RoamTriangle fine[2] = {{{{2, 2}, {0, 4}, {0, 0}}}, {{{2, 2}, {0, 0}, {4, 0}}}};
+  const RoamVertex removed[1] = {{2, 2}};
+  const float target[1] = {5.0f};
+  const RoamTriangle covers[2] = {coarse, coarse};
+  const auto st = m.update(fine, covers, removed, target, 0.0);
+  EXPECT_EQ(st.ghostsAdded, 2u);
+  EXPECT_TRUE(m.hidden(coarse));
+  const auto st2 = m.update(std::span(&coarse, 1), fine, {}, {}, 0.3);
+  EXPECT_EQ(st2.ghostsDropped, 2u);
+  EXPECT_FALSE(m.active());
+  EXPECT_FALSE(m.hidden(coarse));
 }

@@ -19,8 +19,7 @@ using namespace ig::lod;
 
 namespace {
 
-// Modes that refine to the same (frustum-culled) mesh; Deferred refines the surroundings too.
-constexpr RoamMode kModes[] = {RoamMode::EnhMerge, RoamMode::MergeQueue, RoamMode::Rebuild};
+// Every mode; Deferred refines the surroundings too (the others only the frustum).
 constexpr RoamMode kAllModes[] = {RoamMode::EnhMerge, RoamMode::MergeQueue, RoamMode::Rebuild, RoamMode::Deferred};
 const char* modeName(RoamMode m) {
   switch (m) {
@@ -226,7 +225,9 @@ TEST(Roam, InterruptedAtAnyPointStaysValidAndConverges) {
   const RoamView views[] = {makeView({600, 450, 500}, 30, -20, 1.0), makeView({1500, 1600, 400}, 200, -25, 1.0),
                             makeView({150, 1750, 700}, 120, -10, 3.0)};
   for (RoamMode mode : kAllModes) {
-    for (uint32_t budget : {1u, 2u, 5u}) {
+    // (Budgets 1 and 6: every single-operation stop, and stops between multi-operation steps.
+    // Validating every 53rd call keeps this test a few seconds under ASAN.)
+    for (uint32_t budget : {1u, 6u}) {
       Roam roam(hts, n, n, 30.0, {0, 0, 0}, smallConfig());
       Roam reference(hts, n, n, 30.0, {0, 0, 0}, smallConfig());
       for (const RoamView& full : views) {
@@ -240,7 +241,7 @@ TEST(Roam, InterruptedAtAnyPointStaysValidAndConverges) {
           EXPECT_LE(st.splits + st.merges + st.enhMerges, budget);
           finished = st.finished;
           ++calls;
-          if (calls % 37 == 1) {
+          if (calls % 53 == 1) {
             std::string why;
             ASSERT_TRUE(roam.validate(&why)) << modeName(mode) << " budget " << budget << " call " << calls << ": " << why;
           }
@@ -575,4 +576,122 @@ TEST(Roam, DeferredMatchesAFreshWalkAndExaminesFewNodes) {
   Roam fresh(hts, n, n, 30.0, {0, 0, 0}, smallConfig(400000));
   fresh.update(turn, RoamMode::Deferred);
   EXPECT_EQ(sortedTriangles(roam), sortedTriangles(fresh));
+}
+
+// emitVisible walks the tree and skips subtrees whose nested box is outside the frustum, and
+// tests a leaf with its parent's height range: it must keep every leaf a flat filter (every
+// leaf's own exact box against the frustum) keeps, and cull most of what that filter culls.
+TEST(Roam, HierarchicalEmitVisibleKeepsWhatTheFlatFilterKeeps) {
+  const int n = 129;
+  const auto hts = fractal(n, n, 12, 900.0);
+  Roam roam(hts, n, n, 30.0, {100.0, -50.0, 0.0}, smallConfig());
+  const auto path = flightPath();
+  for (size_t f = 0; f < path.size(); f += 5) {
+    RoamView v = path[f];
+    v.camera.eye_m = v.camera.eye_m * 0.5 + glm::dvec3(100.0, -50.0, 0.0);
+    roam.update(v, RoamMode::Deferred);  // the whole surroundings: much to cull
+    std::vector<RoamTriangle> all(roam.triangleCount()), vis(roam.triangleCount());
+    all.resize(roam.emitTriangles(all));
+    vis.resize(roam.emitVisible(v.camera, vis));
+    const Frustum fr = makeFrustum(v.camera);
+    std::vector<std::tuple<int, int, int, int, int, int>> flat, hier;
+    for (const auto& t : all) {
+      Aabb box{glm::dvec3(1e300), glm::dvec3(-1e300)};
+      for (const auto& p : t.v) {
+        const glm::dvec3 q = roam.vertexPosition(p.x, p.y) - v.camera.eye_m;
+        box.min = glm::min(box.min, q);
+        box.max = glm::max(box.max, q);
+      }
+      if (fr.intersects(box)) flat.emplace_back(t.v[0].x, t.v[0].y, t.v[1].x, t.v[1].y, t.v[2].x, t.v[2].y);
+    }
+    for (const auto& t : vis) hier.emplace_back(t.v[0].x, t.v[0].y, t.v[1].x, t.v[1].y, t.v[2].x, t.v[2].y);
+    std::sort(flat.begin(), flat.end());
+    std::sort(hier.begin(), hier.end());
+    EXPECT_TRUE(std::includes(hier.begin(), hier.end(), flat.begin(), flat.end())) << "frame " << f;
+    EXPECT_LE(hier.size(), flat.size() + (all.size() - flat.size()) / 10) << "frame " << f;  // culls >= 90 %
+    EXPECT_LT(hier.size(), all.size()) << "frame " << f;
+  }
+}
+
+// Deferred under a visit budget: every update stays within the budget (plus one operation),
+// the mesh is valid at every stop, and once finished it is exactly the unbudgeted mesh. A
+// teleport restarts from the base triangles and converges over several updates.
+TEST(Roam, DeferredVisitBudgetIsRespectedAndConverges) {
+  const int n = 129;
+  const auto hts = fractal(n, n, 3, 900.0);
+  Roam roam(hts, n, n, 30.0, {0, 0, 0}, smallConfig(400000));
+  Roam fresh(roam, smallConfig(400000));  // shares roam's bounds
+  RoamView v = makeView({1900, 1900, 1000}, 30.0, -20.0, 1.0);
+  v.maxVisits = 400;
+  const uint32_t maxOp = 4 * static_cast<uint32_t>(roam.maxLevel() + 1) + 8;  // the longest forced-split chain
+  int updates = 0;
+  bool finished = false;
+  uint64_t maxVisits = 0;
+  while (!finished && updates < 2000) {
+    const RoamStats st = roam.update(v, RoamMode::Deferred);
+    finished = st.finished;
+    maxVisits = std::max<uint64_t>(maxVisits, st.visits);
+    EXPECT_LE(st.visits, v.maxVisits + maxOp) << "update " << updates;
+    if (!st.finished) {
+      EXPECT_TRUE(std::isinf(st.maxErrorPx));
+    }
+    if (updates % 7 == 0) {
+      std::string why;
+      ASSERT_TRUE(roam.validate(&why)) << "update " << updates << ": " << why;
+    }
+    ++updates;
+  }
+  ASSERT_TRUE(finished);
+  EXPECT_GT(updates, 3);  // the budget really splits the work
+  EXPECT_GT(maxVisits, 300u);
+  RoamView u = v;
+  u.maxVisits = 0;
+  fresh.update(u, RoamMode::Deferred);
+  EXPECT_EQ(sortedTriangles(roam), sortedTriangles(fresh));
+  EXPECT_LE(roam.maxErrorPx(v), 1.0);
+  // Fly on a little: the budget keeps up with smooth flight (finished again within a few updates).
+  for (int i = 0; i < 10; ++i) {
+    v.camera.eye_m += glm::dvec3(20.0, 10.0, 0.0);
+    const RoamStats st = roam.update(v, RoamMode::Deferred);
+    EXPECT_FALSE(st.restarted);
+    EXPECT_LE(st.visits, v.maxVisits + maxOp);
+  }
+  // Teleport: restart from the base (valid at once), then converge.
+  v.camera.eye_m = {300, 300, 1000};
+  RoamStats st = roam.update(v, RoamMode::Deferred);
+  EXPECT_TRUE(st.restarted);
+  EXPECT_VALID(roam);
+  int frames = 1;
+  while (!st.finished && frames < 2000) {
+    st = roam.update(v, RoamMode::Deferred);
+    EXPECT_FALSE(st.restarted);
+    ++frames;
+  }
+  ASSERT_TRUE(st.finished);
+  EXPECT_GT(frames, 1);
+  EXPECT_VALID(roam);
+  fresh.update(u, RoamMode::Deferred);
+  u.camera = v.camera;
+  fresh.update(u, RoamMode::Deferred);
+  EXPECT_EQ(sortedTriangles(roam), sortedTriangles(fresh));
+}
+
+// meshHeight and leafAt: on a mesh vertex the true height; inside a leaf the plane of that leaf.
+TEST(Roam, MeshHeightAndLeafAt) {
+  const int n = 65;
+  const auto hts = fractal(n, n, 8, 700.0);
+  Roam roam(hts, n, n, 30.0, {0, 0, 0}, smallConfig());
+  roam.update(makeView({900, 900, 900}, 0.0, -30.0, 2.0), RoamMode::EnhMerge);
+  std::vector<RoamTriangle> tris(roam.triangleCount());
+  tris.resize(roam.emitTriangles(tris));
+  ASSERT_GT(tris.size(), 50u);
+  for (size_t i = 0; i < tris.size(); i += 7) {
+    const RoamTriangle& t = tris[i];
+    for (const auto& p : t.v) EXPECT_NEAR(roam.meshHeight(p.x, p.y), roam.vertexPosition(p.x, p.y).z, 1e-4);
+    const RoamTriangle l = roam.leafAt(t.v[0].x + t.v[1].x + t.v[2].x, t.v[0].y + t.v[1].y + t.v[2].y);
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_EQ(l.v[k].x, t.v[k].x);
+      EXPECT_EQ(l.v[k].y, t.v[k].y);
+    }
+  }
 }
