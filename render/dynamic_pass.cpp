@@ -2,8 +2,6 @@
 // dynamic_pass.h.
 #include "render/dynamic_pass.h"
 
-#include <EGL/egl.h>
-#include <GL/osmesa.h>
 
 #include <algorithm>
 #include <bit>
@@ -19,52 +17,6 @@
 namespace ig::render {
 namespace {
 
-// Entry points beyond render/gl.h's table, loaded from whichever API made the current context.
-#define IG_DYN_GL(X)                                                    \
-  X(PFNGLMULTIDRAWELEMENTSINDIRECTPROC, MultiDrawElementsIndirect)      \
-  X(PFNGLDRAWELEMENTSINSTANCEDBASEINSTANCEPROC, DrawElementsInstancedBaseInstance) \
-  X(PFNGLVERTEXARRAYBINDINGDIVISORPROC, VertexArrayBindingDivisor)      \
-  X(PFNGLBINDBUFFERPROC, BindBuffer)                                    \
-  X(PFNGLCREATEQUERIESPROC, CreateQueries)                              \
-  X(PFNGLDELETEQUERIESPROC, DeleteQueries)                              \
-  X(PFNGLBEGINQUERYPROC, BeginQuery)                                    \
-  X(PFNGLENDQUERYPROC, EndQuery)                                        \
-  X(PFNGLGETQUERYOBJECTUIVPROC, GetQueryObjectuiv)                      \
-  X(PFNGLCOLORMASKPROC, ColorMask)                                      \
-  X(PFNGLPROGRAMUNIFORM1IPROC, ProgramUniform1i)
-
-struct DynGl {
-#define IG_DYN_DECLARE(type, name) type name = nullptr;
-  IG_DYN_GL(IG_DYN_DECLARE)
-#undef IG_DYN_DECLARE
-};
-DynGl dgl;
-
-bool loadDynGl(std::string& error) {
-  using Proc = void (*)();
-  Proc (*getProc)(const char*) = nullptr;
-  if (eglGetCurrentContext() != EGL_NO_CONTEXT) {
-    getProc = [](const char* n) { return reinterpret_cast<Proc>(eglGetProcAddress(n)); };
-  } else if (OSMesaGetCurrentContext() != nullptr) {
-    getProc = [](const char* n) { return reinterpret_cast<Proc>(OSMesaGetProcAddress(n)); };
-  } else {
-    error = "dynamic pass: no current GL context";
-    return false;
-  }
-  DynGl api;
-  std::string missing;
-#define IG_DYN_LOAD(type, name)                                      \
-  api.name = reinterpret_cast<type>(getProc("gl" #name));             \
-  if (api.name == nullptr) missing += (missing.empty() ? "gl" : ", gl") + std::string(#name);
-  IG_DYN_GL(IG_DYN_LOAD)
-#undef IG_DYN_LOAD
-  if (!missing.empty()) {
-    error = "dynamic pass: OpenGL entry points missing: " + missing;
-    return false;
-  }
-  dgl = api;
-  return true;
-}
 
 const char* kBoxVs = R"(#version 450 core
 layout(location = 0) in vec3 aPosition;   // unit box [-1, 1]^3
@@ -183,8 +135,8 @@ struct DynamicPass::Gpu {
   GLint uVp = -1, uOrigin = -1, uSun = -1, uSunColor = -1, uAmbient = -1, uFogColor = -1, uFogDensity = -1,
         uWork = -1, uStateTag = -1, qVp = -1, qCentre = -1, qHalf = -1;
   ~Gpu() {
-    if (!queries.empty()) dgl.DeleteQueries(static_cast<GLsizei>(queries.size()), queries.data());
-    if (samplesQuery[0]) dgl.DeleteQueries(2, samplesQuery);
+    if (!queries.empty()) gl.DeleteQueries(static_cast<GLsizei>(queries.size()), queries.data());
+    if (samplesQuery[0]) gl.DeleteQueries(2, samplesQuery);
   }
 };
 
@@ -196,7 +148,6 @@ bool DynamicPass::init(const DynamicPassConfig& config, std::string& error) {
     error = "dynamic pass: maxObjects = " + std::to_string(config.maxObjects) + ": out of range (1 .. 16777216)";
     return false;
   }
-  if (!loadDynGl(error)) return false;
   config_ = config;
   lod::OctreeConfig oc;
   oc.bounds = config.bounds;
@@ -277,7 +228,7 @@ bool DynamicPass::init(const DynamicPassConfig& config, std::string& error) {
   g->vao = GlVertexArray::wrap(vao);
   gl.VertexArrayVertexBuffer(vao, 0, ids[0], 0, 6 * sizeof(float));
   gl.VertexArrayVertexBuffer(vao, 1, ids[2], 0, sizeof(Instance));
-  dgl.VertexArrayBindingDivisor(vao, 1, 1);
+  gl.VertexArrayBindingDivisor(vao, 1, 1);
   gl.VertexArrayElementBuffer(vao, ids[1]);
   for (GLuint a = 0; a < 6; ++a) {
     gl.EnableVertexArrayAttrib(vao, a);
@@ -287,8 +238,8 @@ bool DynamicPass::init(const DynamicPassConfig& config, std::string& error) {
     gl.VertexArrayAttribBinding(vao, a, binding);
   }
   g->queries.resize(config.maxQueries);
-  if (config.maxQueries) dgl.CreateQueries(GL_ANY_SAMPLES_PASSED_CONSERVATIVE, static_cast<GLsizei>(config.maxQueries), g->queries.data());
-  dgl.CreateQueries(GL_SAMPLES_PASSED, 2, g->samplesQuery);
+  if (config.maxQueries) gl.CreateQueries(GL_ANY_SAMPLES_PASSED_CONSERVATIVE, static_cast<GLsizei>(config.maxQueries), g->queries.data());
+  gl.CreateQueries(GL_SAMPLES_PASSED, 2, g->samplesQuery);
   g->cache.resize(config.maxObjects);
   const std::string e = glErrors();
   if (!e.empty()) {
@@ -430,10 +381,10 @@ namespace {
 void bindBoxState(GLuint program, GLuint vao, GLuint commands) {
   gl.UseProgram(program);
   gl.BindVertexArray(vao);
-  dgl.BindBuffer(GL_DRAW_INDIRECT_BUFFER, commands);
+  gl.BindBuffer(GL_DRAW_INDIRECT_BUFFER, commands);
 }
 void unbindBoxState() {
-  dgl.BindBuffer(GL_DRAW_INDIRECT_BUFFER, 0);
+  gl.BindBuffer(GL_DRAW_INDIRECT_BUFFER, 0);
   gl.BindVertexArray(0);
   gl.UseProgram(0);
 }
@@ -459,7 +410,7 @@ void DynamicPass::drawPerCommand(Renderer& r) {
   stats_.draws += k;
   stats_.triangles += uint64_t{k} * kBoxTriangles;
   if (k == 0) return;
-  dgl.MultiDrawElementsIndirect(GL_TRIANGLES, GL_UNSIGNED_SHORT, nullptr, static_cast<GLsizei>(k), 0);
+  gl.MultiDrawElementsIndirect(GL_TRIANGLES, GL_UNSIGNED_SHORT, nullptr, static_cast<GLsizei>(k), 0);
   ++stats_.submissions;
 }
 
@@ -468,13 +419,13 @@ void DynamicPass::pollQueries() {
   for (size_t i = 0; i < pending_.size(); ++i) {
     const Pending p = pending_[i];
     GLuint available = 0;
-    dgl.GetQueryObjectuiv(p.query, GL_QUERY_RESULT_AVAILABLE, &available);
+    gl.GetQueryObjectuiv(p.query, GL_QUERY_RESULT_AVAILABLE, &available);
     if (!available) {
       pending_[keep++] = p;
       continue;
     }
     GLuint passed = 0;
-    dgl.GetQueryObjectuiv(p.query, GL_QUERY_RESULT, &passed);  // available: does not wait
+    gl.GetQueryObjectuiv(p.query, GL_QUERY_RESULT, &passed);  // available: does not wait
     octree_.setOcclusionResult(p.node, passed != 0, p.frame);
     freeQueries_.push_back(p.query);
     ++stats_.resultsRead;
@@ -493,7 +444,7 @@ void DynamicPass::issueQueries(Renderer& r, uint64_t frame, uint32_t q) {
   const glm::mat4 vp = viewProjection(r.camera());
   gl.ProgramUniformMatrix4fv(qp, g.qVp, 1, GL_FALSE, glm::value_ptr(vp));
   gl.UseProgram(qp);
-  dgl.ColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+  gl.ColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
   gl.DepthMask(GL_FALSE);
   uint32_t issued = 0;
   for (uint32_t i = 0; i < candidates && !freeQueries_.empty(); ++i) {
@@ -505,15 +456,15 @@ void DynamicPass::issueQueries(Renderer& r, uint64_t frame, uint32_t q) {
     gl.ProgramUniform3fv(qp, g.qHalf, 1, glm::value_ptr(half));
     const GLuint query = freeQueries_.back();
     freeQueries_.pop_back();
-    dgl.BeginQuery(GL_ANY_SAMPLES_PASSED_CONSERVATIVE, query);
+    gl.BeginQuery(GL_ANY_SAMPLES_PASSED_CONSERVATIVE, query);
     gl.DrawElementsBaseVertex(GL_TRIANGLES, kBoxIndices, GL_UNSIGNED_SHORT, nullptr, 0);
-    dgl.EndQuery(GL_ANY_SAMPLES_PASSED_CONSERVATIVE);
+    gl.EndQuery(GL_ANY_SAMPLES_PASSED_CONSERVATIVE);
     pending_.push_back({query, n, frame});
     octree_.setQueryPending(n, true);
     ++issued;
   }
   gl.DepthMask(GL_TRUE);
-  dgl.ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+  gl.ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
   stats_.occlusionTests = issued;
   stats_.triangles += uint64_t{issued} * kBoxTriangles;
 }
@@ -531,7 +482,7 @@ void DynamicPass::drawNodes(Renderer& r, bool occlusion, uint64_t frame, uint32_
   stats_.triangles += tr.objectsDrawn * kBoxTriangles;
   for (uint32_t i = 0; i < tr.drawn; ++i) {
     const uintptr_t offset = (size_t{config_.maxObjects} + drawList_[i]) * sizeof(DrawCommand);
-    dgl.MultiDrawElementsIndirect(GL_TRIANGLES, GL_UNSIGNED_SHORT, reinterpret_cast<const void*>(offset), 1, 0);
+    gl.MultiDrawElementsIndirect(GL_TRIANGLES, GL_UNSIGNED_SHORT, reinterpret_cast<const void*>(offset), 1, 0);
   }
   stats_.submissions += tr.drawn;
   stats_.commands += tr.drawn;  // one pre-built command per node range (all objects are boxes)
@@ -548,7 +499,7 @@ void DynamicPass::drawNodes(Renderer& r, bool occlusion, uint64_t frame, uint32_
 }
 
 void DynamicPass::endSamples() {
-  if (samplesActive_) dgl.EndQuery(GL_SAMPLES_PASSED);
+  if (samplesActive_) gl.EndQuery(GL_SAMPLES_PASSED);
   samplesActive_ = false;
 }
 
@@ -566,7 +517,7 @@ void DynamicPass::drawStateChanges(Renderer& r, uint32_t count) {
   bindBoxState(p, g.vao.id(), g.commands.id());
   for (uint32_t i = 0; i < count; ++i) {
     gl.ProgramUniform1f(p, g.uStateTag, static_cast<float>(i & 1u));
-    dgl.DrawElementsInstancedBaseInstance(GL_TRIANGLES, kBoxIndices, GL_UNSIGNED_SHORT, nullptr, 1, 0);
+    gl.DrawElementsInstancedBaseInstance(GL_TRIANGLES, kBoxIndices, GL_UNSIGNED_SHORT, nullptr, 1, 0);
   }
   unbindBoxState();
   r.addStats(uint64_t{count} * kBoxTriangles, count);
@@ -580,7 +531,7 @@ void DynamicPass::drawDepthBoxes(Renderer& r, std::span<const lod::Aabb> boxes) 
   gl.ProgramUniformMatrix4fv(qp, g.qVp, 1, GL_FALSE, glm::value_ptr(vp));
   gl.UseProgram(qp);
   gl.BindVertexArray(g.vao.id());
-  dgl.ColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+  gl.ColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
   gl.DepthMask(GL_FALSE);
   for (const lod::Aabb& b : boxes) {
     const glm::vec3 centre(0.5 * (b.min + b.max) - r.camera().eye_m);
@@ -590,7 +541,7 @@ void DynamicPass::drawDepthBoxes(Renderer& r, std::span<const lod::Aabb> boxes) 
     gl.DrawElementsBaseVertex(GL_TRIANGLES, kBoxIndices, GL_UNSIGNED_SHORT, nullptr, 0);
   }
   gl.DepthMask(GL_TRUE);
-  dgl.ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+  gl.ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
   gl.BindVertexArray(0);
   gl.UseProgram(0);
 }
@@ -644,10 +595,10 @@ void DynamicPass::draw(Renderer& r, uint64_t frame) {
   for (int i = 0; i < 2; ++i) {
     if (!g.samplesPending[i]) continue;
     GLuint available = 0;
-    dgl.GetQueryObjectuiv(g.samplesQuery[i], GL_QUERY_RESULT_AVAILABLE, &available);
+    gl.GetQueryObjectuiv(g.samplesQuery[i], GL_QUERY_RESULT_AVAILABLE, &available);
     if (available) {
       GLuint s = 0;
-      dgl.GetQueryObjectuiv(g.samplesQuery[i], GL_QUERY_RESULT, &s);
+      gl.GetQueryObjectuiv(g.samplesQuery[i], GL_QUERY_RESULT, &s);
       lastSamples_ = s;
       g.samplesPending[i] = false;
     }
@@ -698,12 +649,12 @@ void DynamicPass::draw(Renderer& r, uint64_t frame) {
   gl.ProgramUniform1f(p, g.uAmbient, static_cast<float>(l.ambient));
   gl.ProgramUniform3fv(p, g.uFogColor, 1, glm::value_ptr(fogColor));
   gl.ProgramUniform1f(p, g.uFogDensity, l.fog ? static_cast<float>(3.912 / l.fogVisibility_m) : 0.0f);
-  dgl.ProgramUniform1i(p, g.uWork, static_cast<GLint>(config_.fragmentWork));
+  gl.ProgramUniform1i(p, g.uWork, static_cast<GLint>(config_.fragmentWork));
   bindBoxState(p, g.vao.id(), g.commands.id());
   const int sq = static_cast<int>(frame & 1u);
   samplesActive_ = strategy_ == DynamicStrategy::Adaptive && !g.samplesPending[sq];
   if (samplesActive_) {
-    dgl.BeginQuery(GL_SAMPLES_PASSED, g.samplesQuery[sq]);
+    gl.BeginQuery(GL_SAMPLES_PASSED, g.samplesQuery[sq]);
     g.samplesPending[sq] = true;
   }
   if (mode == lod::DynamicMode::PerCommand) {

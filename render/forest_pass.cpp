@@ -2,8 +2,6 @@
 // far away, instanced 3D trees near, and the offline textures T and S. See forest_pass.h.
 #include "render/forest_pass.h"
 
-#include <EGL/egl.h>
-#include <GL/osmesa.h>
 
 #include <algorithm>
 #include <cmath>
@@ -20,63 +18,7 @@
 namespace ig::render {
 namespace {
 
-// glcorearb.h of this Mesa version has no pointer type for glDeleteTextures (GL 1.1).
-using PFNIGDELETETEXTURESPROC = void(APIENTRYP)(GLsizei n, const GLuint* textures);
 
-// Entry points the forest needs beyond render/gl.h's table, loaded from whichever API made the
-// current context (EGL, also under GLFW's EGL context API, or OSMesa).
-#define IG_FOREST_GL(X)                                                                    \
-  X(PFNGLBLENDFUNCSEPARATEPROC, BlendFuncSeparate)                                         \
-  X(PFNGLMULTIDRAWARRAYSPROC, MultiDrawArrays)                                             \
-  X(PFNGLDRAWARRAYSINSTANCEDPROC, DrawArraysInstanced)                                     \
-  X(PFNGLDRAWELEMENTSINSTANCEDBASEVERTEXBASEINSTANCEPROC, DrawElementsInstancedBaseVertexBaseInstance) \
-  X(PFNGLPROGRAMUNIFORM1IPROC, ProgramUniform1i)                                           \
-  X(PFNGLPROGRAMUNIFORM4FVPROC, ProgramUniform4fv)                                         \
-  X(PFNGLCREATETEXTURESPROC, CreateTextures)                                               \
-  X(PFNIGDELETETEXTURESPROC, DeleteTextures)                                               \
-  X(PFNGLTEXTURESTORAGE2DPROC, TextureStorage2D)                                           \
-  X(PFNGLTEXTURESTORAGE3DPROC, TextureStorage3D)                                           \
-  X(PFNGLTEXTURESUBIMAGE2DPROC, TextureSubImage2D)                                         \
-  X(PFNGLTEXTURESUBIMAGE3DPROC, TextureSubImage3D)                                         \
-  X(PFNGLTEXTUREPARAMETERIPROC, TextureParameteri)                                         \
-  X(PFNGLGENERATETEXTUREMIPMAPPROC, GenerateTextureMipmap)                                 \
-  X(PFNGLBINDTEXTUREUNITPROC, BindTextureUnit)                                             \
-  X(PFNGLVERTEXARRAYBINDINGDIVISORPROC, VertexArrayBindingDivisor)                         \
-  X(PFNGLVERTEXARRAYATTRIBIFORMATPROC, VertexArrayAttribIFormat)                           \
-  X(PFNGLGETBOOLEANVPROC, GetBooleanv)
-
-struct ForestGl {
-#define IG_FOREST_DECLARE(type, name) type name = nullptr;
-  IG_FOREST_GL(IG_FOREST_DECLARE)
-#undef IG_FOREST_DECLARE
-};
-ForestGl fgl;
-
-bool loadForestGl(std::string& error) {
-  using Proc = void (*)();
-  Proc (*getProc)(const char*) = nullptr;
-  if (eglGetCurrentContext() != EGL_NO_CONTEXT) {
-    getProc = [](const char* n) { return reinterpret_cast<Proc>(eglGetProcAddress(n)); };
-  } else if (OSMesaGetCurrentContext() != nullptr) {
-    getProc = [](const char* n) { return reinterpret_cast<Proc>(OSMesaGetProcAddress(n)); };
-  } else {
-    error = "forest pass: no current GL context";
-    return false;
-  }
-  ForestGl api;
-  std::string missing;
-#define IG_FOREST_LOAD(type, name)                                  \
-  api.name = reinterpret_cast<type>(getProc("gl" #name));            \
-  if (api.name == nullptr) missing += (missing.empty() ? "gl" : ", gl") + std::string(#name);
-  IG_FOREST_GL(IG_FOREST_LOAD)
-#undef IG_FOREST_LOAD
-  if (!missing.empty()) {
-    error = "forest pass: OpenGL entry points missing: " + missing;
-    return false;
-  }
-  fgl = api;
-  return true;
-}
 
 // Move-only texture name (render/gl.h's GlObject has no texture kind).
 class GlTexture {
@@ -95,7 +37,7 @@ class GlTexture {
   GlTexture& operator=(const GlTexture&) = delete;
   ~GlTexture() { reset(); }
   void reset() {
-    if (id_) fgl.DeleteTextures(1, &id_);
+    if (id_) gl.DeleteTextures(1, &id_);
     id_ = 0;
   }
   GLuint id() const { return id_; }
@@ -309,7 +251,7 @@ struct Locations {
     gl.ProgramUniformMatrix4fv(p, viewProjection, 1, GL_FALSE, glm::value_ptr(vp));
     const glm::vec4 fade(static_cast<float>(f.fadeInStart_m), static_cast<float>(f.fadeInEnd_m),
                          static_cast<float>(f.fadeOut_m), static_cast<float>(f.farPlane_m));
-    fgl.ProgramUniform4fv(p, farFade, 1, glm::value_ptr(fade));
+    gl.ProgramUniform4fv(p, farFade, 1, glm::value_ptr(fade));
     const glm::vec3 sunDir(l.sunDirection), sunRgb(l.sunColor), fog(l.fogColor);
     gl.ProgramUniform3fv(p, sun, 1, glm::value_ptr(sunDir));
     gl.ProgramUniform3fv(p, sunColor, 1, glm::value_ptr(sunRgb));
@@ -375,7 +317,7 @@ struct TreeDrawer {
     vao = GlVertexArray::wrap(a);
     gl.VertexArrayVertexBuffer(a, 0, ids[0], 0, sizeof(lod::TreeVertex));
     gl.VertexArrayVertexBuffer(a, 1, ids[2], 0, sizeof(lod::ForestInstance));
-    fgl.VertexArrayBindingDivisor(a, 1, 1);
+    gl.VertexArrayBindingDivisor(a, 1, 1);
     gl.VertexArrayElementBuffer(a, ids[1]);
     const auto attrib = [&](GLuint i, GLuint binding, GLint n, GLenum type, GLboolean norm, size_t offset) {
       gl.EnableVertexArrayAttrib(a, i);
@@ -388,13 +330,13 @@ struct TreeDrawer {
     attrib(3, 1, 4, GL_FLOAT, GL_FALSE, offsetof(lod::ForestInstance, offset_m));
     attrib(4, 1, 4, GL_UNSIGNED_BYTE, GL_TRUE, offsetof(lod::ForestInstance, rgba));
     gl.EnableVertexArrayAttrib(a, 5);
-    fgl.VertexArrayAttribIFormat(a, 5, 1, GL_UNSIGNED_INT, offsetof(lod::ForestInstance, tree));
+    gl.VertexArrayAttribIFormat(a, 5, 1, GL_UNSIGNED_INT, offsetof(lod::ForestInstance, tree));
     gl.VertexArrayAttribBinding(a, 5, 1);
     attrib(6, 1, 2, GL_BYTE, GL_TRUE, offsetof(lod::ForestInstance, normal));
     const glm::vec4 noClip(0.0f, 0.0f, 0.0f, 1.0f);
-    fgl.ProgramUniform4fv(p, uClip0, 1, glm::value_ptr(noClip));
-    fgl.ProgramUniform4fv(p, uClip1, 1, glm::value_ptr(noClip));
-    fgl.ProgramUniform1i(p, uBake, 0);
+    gl.ProgramUniform4fv(p, uClip0, 1, glm::value_ptr(noClip));
+    gl.ProgramUniform4fv(p, uClip1, 1, glm::value_ptr(noClip));
+    gl.ProgramUniform1i(p, uBake, 0);
     gl.ProgramUniform1f(p, uYawJitter, 1.0f);
     return true;
   }
@@ -413,7 +355,7 @@ struct TreeDrawer {
       const auto count = static_cast<GLsizei>(std::min<size_t>(r.count, n - r.first));
       const ModelRange& mr = models[m];
       gl.ProgramUniform1f(program.id(), uModelHeight, mr.height_m);
-      fgl.DrawElementsInstancedBaseVertexBaseInstance(
+      gl.DrawElementsInstancedBaseVertexBaseInstance(
           GL_TRIANGLES, static_cast<GLsizei>(mr.indexCount), GL_UNSIGNED_INT,
           reinterpret_cast<const void*>(static_cast<uintptr_t>(mr.firstIndex) * sizeof(uint32_t)), count, mr.baseVertex,
           r.first);
@@ -427,11 +369,11 @@ struct TreeDrawer {
 
 GlTexture makeArrayTexture(const Image& img, int tileW, int layers, GLenum wrapT) {
   GLuint id = 0;
-  fgl.CreateTextures(GL_TEXTURE_2D_ARRAY, 1, &id);
+  gl.CreateTextures(GL_TEXTURE_2D_ARRAY, 1, &id);
   GlTexture t(id);
   const int h = img.height;
   const int levels = 1 + static_cast<int>(std::floor(std::log2(std::max(tileW, h))));
-  fgl.TextureStorage3D(id, levels, GL_RGBA8, tileW, h, layers);
+  gl.TextureStorage3D(id, levels, GL_RGBA8, tileW, h, layers);
   std::vector<uint8_t> layer(static_cast<size_t>(tileW) * static_cast<size_t>(h) * 4);
   for (int l = 0; l < layers; ++l) {
     // Image row 0 is the top; texture row 0 is v = 0 (bottom): flip so v grows upwards/north.
@@ -442,13 +384,13 @@ GlTexture makeArrayTexture(const Image& img, int tileW, int layers, GLenum wrapT
                   static_cast<size_t>(tileW) * 4);
     }
     gl.PixelStorei(GL_UNPACK_ALIGNMENT, 1);
-    fgl.TextureSubImage3D(id, 0, 0, 0, l, tileW, h, 1, GL_RGBA, GL_UNSIGNED_BYTE, layer.data());
+    gl.TextureSubImage3D(id, 0, 0, 0, l, tileW, h, 1, GL_RGBA, GL_UNSIGNED_BYTE, layer.data());
   }
-  fgl.GenerateTextureMipmap(id);
-  fgl.TextureParameteri(id, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
-  fgl.TextureParameteri(id, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-  fgl.TextureParameteri(id, GL_TEXTURE_WRAP_S, GL_REPEAT);
-  fgl.TextureParameteri(id, GL_TEXTURE_WRAP_T, static_cast<GLint>(wrapT));
+  gl.GenerateTextureMipmap(id);
+  gl.TextureParameteri(id, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
+  gl.TextureParameteri(id, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+  gl.TextureParameteri(id, GL_TEXTURE_WRAP_S, GL_REPEAT);
+  gl.TextureParameteri(id, GL_TEXTURE_WRAP_T, static_cast<GLint>(wrapT));
   return t;
 }
 
@@ -485,7 +427,6 @@ bool renderForestTextures(std::span<const lod::TreeMesh> models, const ForestTex
             ": need layers 1..32, size 8..2048, slices 1..16, supersample 1..8, trees >= 1, tile > 0";
     return false;
   }
-  if (!loadForestGl(error)) return false;
   // Plant the tile: a jittered grid, nine copies (wrap-around) so both textures tile.
   const int g = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(d.treesPerTile))));
   std::vector<lod::ForestInstance> base;
@@ -525,7 +466,7 @@ bool renderForestTextures(std::span<const lod::TreeMesh> models, const ForestTex
   TreeDrawer drawer;
   if (!drawer.init(models, inst.size(), error)) return false;
   const GLuint p = drawer.program.id();
-  fgl.ProgramUniform1i(p, drawer.uBake, 1);
+  gl.ProgramUniform1i(p, drawer.uBake, 1);
 
   // Saved state.
   GLint prevFbo = 0, prevViewport[4] = {0, 0, 0, 0}, prevDepthFunc = GL_LESS;
@@ -533,8 +474,8 @@ bool renderForestTextures(std::span<const lod::TreeMesh> models, const ForestTex
   gl.GetIntegerv(GL_VIEWPORT, prevViewport);
   gl.GetIntegerv(GL_DEPTH_FUNC, &prevDepthFunc);
   GLboolean depthTest = GL_FALSE, cull = GL_FALSE;
-  fgl.GetBooleanv(GL_DEPTH_TEST, &depthTest);
-  fgl.GetBooleanv(GL_CULL_FACE, &cull);
+  gl.GetBooleanv(GL_DEPTH_TEST, &depthTest);
+  gl.GetBooleanv(GL_CULL_FACE, &cull);
 
   const int ss = d.supersample;
   const int layerPx = d.size_px, finH = std::max(8, static_cast<int>(std::lround(d.size_px * height / d.tile_m)));
@@ -571,8 +512,8 @@ bool renderForestTextures(std::span<const lod::TreeMesh> models, const ForestTex
     gl.ClearNamedFramebufferfv(fbo, GL_COLOR, 0, clear);
     gl.ClearNamedFramebufferfv(fbo, GL_DEPTH, 0, &far);
     gl.ProgramUniformMatrix4fv(p, drawer.loc.viewProjection, 1, GL_FALSE, glm::value_ptr(vp));
-    fgl.ProgramUniform4fv(p, drawer.uClip0, 1, glm::value_ptr(c0));
-    fgl.ProgramUniform4fv(p, drawer.uClip1, 1, glm::value_ptr(c1));
+    gl.ProgramUniform4fv(p, drawer.uClip0, 1, glm::value_ptr(c0));
+    gl.ProgramUniform4fv(p, drawer.uClip1, 1, glm::value_ptr(c1));
     ForestDrawStats st;
     drawer.draw(inst, ranges, st);
     gl.PixelStorei(GL_PACK_ALIGNMENT, 1);
@@ -701,7 +642,6 @@ bool ForestPass::init(const ForestPassDesc& desc, const lod::ForestMap& map, con
   if (!lod::validateForestMap(map, error) || !validateForestTextures(textures, error) ||
       !lod::validateForestFades(desc.farFade, desc.nearFade, error))
     return false;
-  if (!loadForestGl(error)) return false;
   auto m = std::make_unique<Impl>();
   m->desc = desc;
   if (!m->trees.init(models, desc.maxInstances, error)) return false;
@@ -732,17 +672,17 @@ bool ForestPass::init(const ForestPassDesc& desc, const lod::ForestMap& map, con
     gr[i] = (map.gr[i] & 0xFFFFFFu) | a << 24;
   }
   GLuint tex = 0;
-  fgl.CreateTextures(GL_TEXTURE_2D, 1, &tex);
+  gl.CreateTextures(GL_TEXTURE_2D, 1, &tex);
   m->grTex = GlTexture(tex);
   const int levels = 1 + static_cast<int>(std::floor(std::log2(std::max(map.width, map.height))));
-  fgl.TextureStorage2D(tex, levels, GL_RGBA8, map.width, map.height);
+  gl.TextureStorage2D(tex, levels, GL_RGBA8, map.width, map.height);
   gl.PixelStorei(GL_UNPACK_ALIGNMENT, 4);
-  fgl.TextureSubImage2D(tex, 0, 0, 0, map.width, map.height, GL_RGBA, GL_UNSIGNED_BYTE, gr.data());
-  fgl.GenerateTextureMipmap(tex);
-  fgl.TextureParameteri(tex, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
-  fgl.TextureParameteri(tex, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-  fgl.TextureParameteri(tex, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
-  fgl.TextureParameteri(tex, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+  gl.TextureSubImage2D(tex, 0, 0, 0, map.width, map.height, GL_RGBA, GL_UNSIGNED_BYTE, gr.data());
+  gl.GenerateTextureMipmap(tex);
+  gl.TextureParameteri(tex, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
+  gl.TextureParameteri(tex, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+  gl.TextureParameteri(tex, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+  gl.TextureParameteri(tex, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
   m->finBytes = gr.size() * 4 * 4 / 3;
 
   // Layer VAO: the terrain vertex layout; the buffer is bound at draw time.
@@ -815,7 +755,7 @@ void ForestPass::drawTrees(Renderer& r, std::span<const lod::ForestInstance> ins
   m.trees.loc.set(m.trees.program.id(), viewProjection(r.camera()), r.lighting(), m.desc.farFade);
   gl.Disable(GL_CULL_FACE);  // leaf cards are single-sided in the models
   gl.Enable(GL_BLEND);
-  fgl.BlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
+  gl.BlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
   ForestDrawStats st;
   m.trees.draw(instances, models, st);
   gl.Disable(GL_BLEND);
@@ -850,15 +790,15 @@ void ForestPass::drawLayers(Renderer& r, const glm::dvec3& origin, size_t vertex
   const auto fract = [&](double v) { return static_cast<float>(v / m.tile_m - std::floor(v / m.tile_m)); };
   const glm::vec2 tileBias(fract(origin.x), fract(origin.y));
   gl.ProgramUniform2fv(p, m.lTileBias, 1, glm::value_ptr(tileBias));
-  fgl.BindTextureUnit(0, m.layerTex.id());
-  fgl.BindTextureUnit(1, m.grTex.id());
+  gl.BindTextureUnit(0, m.layerTex.id());
+  gl.BindTextureUnit(1, m.grTex.id());
   gl.UseProgram(p);
   gl.BindVertexArray(m.layerVao.id());
   gl.Enable(GL_BLEND);
-  fgl.BlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
+  gl.BlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
   gl.DepthMask(GL_FALSE);
   gl.Disable(GL_CULL_FACE);  // seen from below inside valleys too
-  fgl.DrawArraysInstanced(GL_TRIANGLES, 0, static_cast<GLsizei>(count), n);
+  gl.DrawArraysInstanced(GL_TRIANGLES, 0, static_cast<GLsizei>(count), n);
   gl.Enable(GL_CULL_FACE);
   gl.DepthMask(GL_TRUE);
   gl.Disable(GL_BLEND);
@@ -891,15 +831,15 @@ void ForestPass::drawFins(Renderer& r, std::span<const uint32_t> groups) {
   const glm::vec2 mapScale(1.0 / m.mapExtent.x, 1.0 / m.mapExtent.y);
   gl.ProgramUniform2fv(p, m.fMapScale, 1, glm::value_ptr(mapScale));
   gl.ProgramUniform1f(p, m.fTileScale, static_cast<float>(1.0 / m.tile_m));
-  fgl.BindTextureUnit(0, m.finTex.id());
-  fgl.BindTextureUnit(1, m.grTex.id());
+  gl.BindTextureUnit(0, m.finTex.id());
+  gl.BindTextureUnit(1, m.grTex.id());
   gl.UseProgram(p);
   gl.BindVertexArray(m.finVao.id());
   gl.Enable(GL_BLEND);
-  fgl.BlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
+  gl.BlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
   gl.DepthMask(GL_FALSE);
   gl.Disable(GL_CULL_FACE);  // two-sided
-  fgl.MultiDrawArrays(GL_TRIANGLES, m.firsts.data(), m.counts.data(), k);
+  gl.MultiDrawArrays(GL_TRIANGLES, m.firsts.data(), m.counts.data(), k);
   gl.Enable(GL_CULL_FACE);
   gl.DepthMask(GL_TRUE);
   gl.Disable(GL_BLEND);

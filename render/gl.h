@@ -10,8 +10,9 @@
 
 namespace ig::render {
 
-// glcorearb.h of this Mesa version has no pointer type for glDrawArrays.
+// glcorearb.h of this Mesa version has no pointer types for glDrawArrays and glDeleteTextures.
 using PFNIGDRAWARRAYSPROC = void(APIENTRYP)(GLenum mode, GLint first, GLsizei count);
+using PFNIGDELETETEXTURESPROC = void(APIENTRYP)(GLsizei n, const GLuint* textures);
 
 // X-macro list: (pointer type, name without the "gl" prefix).
 #define IG_GL_FUNCTIONS(X)                                                                            \
@@ -72,7 +73,35 @@ using PFNIGDRAWARRAYSPROC = void(APIENTRYP)(GLenum mode, GLint first, GLsizei co
   X(PFNGLDRAWELEMENTSBASEVERTEXPROC, DrawElementsBaseVertex)                                          \
   X(PFNIGDRAWARRAYSPROC, DrawArrays)                                                                    \
   X(PFNGLNAMEDBUFFERSUBDATAPROC, NamedBufferSubData)                                                  \
-  X(PFNGLMAPNAMEDBUFFERRANGEPROC, MapNamedBufferRange)
+  X(PFNGLMAPNAMEDBUFFERRANGEPROC, MapNamedBufferRange)                                               \
+  X(PFNGLMULTIDRAWELEMENTSINDIRECTPROC, MultiDrawElementsIndirect)                                   \
+  X(PFNGLDRAWELEMENTSINSTANCEDBASEINSTANCEPROC, DrawElementsInstancedBaseInstance)                   \
+  X(PFNGLVERTEXARRAYBINDINGDIVISORPROC, VertexArrayBindingDivisor)                                   \
+  X(PFNGLBINDBUFFERPROC, BindBuffer)                                                                 \
+  X(PFNGLCREATEQUERIESPROC, CreateQueries)                                                           \
+  X(PFNGLDELETEQUERIESPROC, DeleteQueries)                                                           \
+  X(PFNGLBEGINQUERYPROC, BeginQuery)                                                                 \
+  X(PFNGLENDQUERYPROC, EndQuery)                                                                     \
+  X(PFNGLGETQUERYOBJECTUIVPROC, GetQueryObjectuiv)                                                   \
+  X(PFNGLCOLORMASKPROC, ColorMask)                                                                   \
+  X(PFNGLPROGRAMUNIFORM1IPROC, ProgramUniform1i)                                                     \
+  X(PFNGLBLENDFUNCSEPARATEPROC, BlendFuncSeparate)                                                   \
+  X(PFNGLMULTIDRAWARRAYSPROC, MultiDrawArrays)                                                       \
+  X(PFNGLDRAWARRAYSINSTANCEDPROC, DrawArraysInstanced)                                               \
+  X(PFNGLDRAWELEMENTSINSTANCEDBASEVERTEXBASEINSTANCEPROC, DrawElementsInstancedBaseVertexBaseInstance) \
+  X(PFNGLPROGRAMUNIFORM4FVPROC, ProgramUniform4fv)                                                   \
+  X(PFNGLCREATETEXTURESPROC, CreateTextures)                                                         \
+  X(PFNIGDELETETEXTURESPROC, DeleteTextures)                                                         \
+  X(PFNGLTEXTURESTORAGE2DPROC, TextureStorage2D)                                                     \
+  X(PFNGLTEXTURESTORAGE3DPROC, TextureStorage3D)                                                     \
+  X(PFNGLTEXTURESUBIMAGE2DPROC, TextureSubImage2D)                                                   \
+  X(PFNGLTEXTURESUBIMAGE3DPROC, TextureSubImage3D)                                                   \
+  X(PFNGLTEXTUREPARAMETERIPROC, TextureParameteri)                                                   \
+  X(PFNGLGENERATETEXTUREMIPMAPPROC, GenerateTextureMipmap)                                           \
+  X(PFNGLBINDTEXTUREUNITPROC, BindTextureUnit)                                                       \
+  X(PFNGLVERTEXARRAYATTRIBIFORMATPROC, VertexArrayAttribIFormat)                                     \
+  X(PFNGLGETBOOLEANVPROC, GetBooleanv)                                                               \
+  X(PFNGLBINDBUFFERBASEPROC, BindBufferBase)
 
 struct GlApi {
 #define IG_GL_DECLARE(type, name) type name = nullptr;

@@ -1,8 +1,6 @@
 // HDLOD render pass: see hdlod_pass.h.
 #include "render/hdlod_pass.h"
 
-#include <EGL/egl.h>
-#include <GL/osmesa.h>
 
 #include <algorithm>
 #include <cstring>
@@ -19,36 +17,6 @@ namespace {
 
 namespace hd = lod::hdlod;
 
-// Entry points the pass needs beyond render/gl.h's table, loaded from whichever API made the
-// current context (EGL, or OSMesa).
-struct ExtraGl {
-  PFNGLMULTIDRAWELEMENTSINDIRECTPROC MultiDrawElementsIndirect = nullptr;
-  PFNGLBINDBUFFERPROC BindBuffer = nullptr;
-  PFNGLBINDBUFFERBASEPROC BindBufferBase = nullptr;
-  PFNGLVERTEXARRAYBINDINGDIVISORPROC VertexArrayBindingDivisor = nullptr;
-  PFNGLVERTEXARRAYATTRIBIFORMATPROC VertexArrayAttribIFormat = nullptr;
-};
-
-void* currentProc(const char* name) {
-  if (eglGetCurrentContext() != EGL_NO_CONTEXT) return reinterpret_cast<void*>(eglGetProcAddress(name));
-  if (OSMesaGetCurrentContext() != nullptr) return reinterpret_cast<void*>(OSMesaGetProcAddress(name));
-  return reinterpret_cast<void*>(eglGetProcAddress(name));
-}
-
-bool loadExtra(ExtraGl& x, std::string& error) {
-  std::string missing;
-  auto get = [&](auto& fn, const char* name) {
-    fn = reinterpret_cast<std::remove_reference_t<decltype(fn)>>(currentProc(name));
-    if (!fn) missing += (missing.empty() ? "" : ", ") + std::string(name);
-  };
-  get(x.MultiDrawElementsIndirect, "glMultiDrawElementsIndirect");
-  get(x.BindBuffer, "glBindBuffer");
-  get(x.BindBufferBase, "glBindBufferBase");
-  get(x.VertexArrayBindingDivisor, "glVertexArrayBindingDivisor");
-  get(x.VertexArrayAttribIFormat, "glVertexArrayAttribIFormat");
-  if (!missing.empty()) error = "hdlod pass: OpenGL entry points missing: " + missing;
-  return missing.empty();
-}
 
 const char* kVs = R"(#version 450 core
 layout(location = 0) in vec3 aPosition;   // model space, or relative to a merged mesh's origin
@@ -128,7 +96,6 @@ struct Node {
 struct HdlodPass::Impl {
   const hd::HdlodTree* tree = nullptr;
   const hd::Scene* scene = nullptr;
-  ExtraGl x;
   GlProgram program;
   GlBuffer vertexBuffer, indexBuffer, slotBuffer, materialBuffer;
   GlVertexArray vertexArray;
@@ -346,7 +313,6 @@ bool HdlodPass::init(const hd::HdlodTree& tree, const hd::Scene& scene, int octr
     error = "hdlod pass: octree depth " + std::to_string(octreeDepth) + ": must be 0..6";
     return false;
   }
-  if (!loadExtra(m.x, error)) return false;
   m.tree = &tree;
   m.scene = &scene;
   m.depth = octreeDepth;
@@ -430,15 +396,15 @@ bool HdlodPass::init(const hd::HdlodTree& tree, const hd::Scene& scene, int octr
   m.vertexArray = GlVertexArray::wrap(vao);
   gl.VertexArrayVertexBuffer(vao, 0, ids[0], 0, sizeof(Vertex));
   gl.VertexArrayVertexBuffer(vao, 1, ids[2], 0, sizeof(uint32_t));
-  m.x.VertexArrayBindingDivisor(vao, 1, 1);
+  gl.VertexArrayBindingDivisor(vao, 1, 1);
   gl.EnableVertexArrayAttrib(vao, 0);
   gl.VertexArrayAttribFormat(vao, 0, 3, GL_FLOAT, GL_FALSE, 0);
   gl.VertexArrayAttribBinding(vao, 0, 0);
   gl.EnableVertexArrayAttrib(vao, 1);
-  m.x.VertexArrayAttribIFormat(vao, 1, 1, GL_UNSIGNED_INT, offsetof(Vertex, material));
+  gl.VertexArrayAttribIFormat(vao, 1, 1, GL_UNSIGNED_INT, offsetof(Vertex, material));
   gl.VertexArrayAttribBinding(vao, 1, 0);
   gl.EnableVertexArrayAttrib(vao, 2);
-  m.x.VertexArrayAttribIFormat(vao, 2, 1, GL_UNSIGNED_INT, 0);
+  gl.VertexArrayAttribIFormat(vao, 2, 1, GL_UNSIGNED_INT, 0);
   gl.VertexArrayAttribBinding(vao, 2, 1);
   gl.VertexArrayElementBuffer(vao, ids[1]);
 
@@ -491,21 +457,21 @@ void HdlodPass::draw(Renderer& renderer, std::span<const hd::Draw> draws) {
   gl.ProgramUniform1f(p, m.uFogDensity, lighting.fog ? static_cast<float>(3.912 / lighting.fogVisibility_m) : 0.0f);
   gl.UseProgram(p);
   gl.BindVertexArray(m.vertexArray.id());
-  m.x.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m.materialBuffer.id());
+  gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m.materialBuffer.id());
   for (uint32_t nodeId : m.active) {
     const Node& n = m.nodes[nodeId];
     const glm::vec3 offset(n.centre - camera.eye_m);
     gl.ProgramUniform3fv(p, m.uOctantOffset, 1, glm::value_ptr(offset));
-    m.x.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, n.matrixBuffer.id());
-    m.x.BindBuffer(GL_DRAW_INDIRECT_BUFFER, n.commandBuffer.id());
-    m.x.MultiDrawElementsIndirect(GL_TRIANGLES, GL_UNSIGNED_INT, nullptr, static_cast<GLsizei>(n.keys.size()), 0);
+    gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, n.matrixBuffer.id());
+    gl.BindBuffer(GL_DRAW_INDIRECT_BUFFER, n.commandBuffer.id());
+    gl.MultiDrawElementsIndirect(GL_TRIANGLES, GL_UNSIGNED_INT, nullptr, static_cast<GLsizei>(n.keys.size()), 0);
     ++m.stats.multiDraws;
     m.stats.draws += static_cast<uint32_t>(n.keys.size());
     m.stats.triangles += n.triangleSum;
   }
-  m.x.BindBuffer(GL_DRAW_INDIRECT_BUFFER, 0);
-  m.x.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, 0);
-  m.x.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, 0);
+  gl.BindBuffer(GL_DRAW_INDIRECT_BUFFER, 0);
+  gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, 0);
+  gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, 0);
   gl.BindVertexArray(0);
   gl.UseProgram(0);
   renderer.addStats(m.stats.triangles, m.stats.multiDraws);
