@@ -191,11 +191,6 @@ double meanChange(const render::Image& a, const render::Image& b) {
   return static_cast<double>(sum) / (3.0 * static_cast<double>(a.rgba.size() / 4));
 }
 
-double psnr(const render::Image& a, const render::Image& b) {
-  const double e = render::rmse(a, b);
-  return e <= 0.0 ? 99.0 : 20.0 * std::log10(255.0 / e);
-}
-
 struct Scene {
   render::Renderer renderer;
   render::Lighting lighting;
@@ -507,7 +502,7 @@ int runForestBench(const ForestBenchOptions& in) {
         p.treesDrawn = percentile(drawn, 50);
         for (int v = 0; v < views; ++v) {
           scene.frame(viewCams[static_cast<size_t>(v)], true, &img);
-          p.psnr += psnr(img, reference[static_cast<size_t>(v)]) / views;
+          p.psnr += render::psnrDb(img, reference[static_cast<size_t>(v)]) / views;
           if (v == 0 && n == o.layers && nearEnd == 500.0) saveImage(o.images, "forest_view.png", img);
         }
         sweep.push_back(p);

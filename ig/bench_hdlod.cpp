@@ -74,11 +74,6 @@ lod::Camera cameraFor(const lod::Aabb& box, double linear, const HdlodBenchOptio
   return cam;
 }
 
-double psnrOf(const render::Image& a, const render::Image& b) {
-  const double e = render::rmse(a, b);
-  return e > 0.0 ? 20.0 * std::log10(255.0 / e) : 99.0;
-}
-
 // Selection, and optionally rendering, of one side (HDLOD or full) through its own pass.
 class Runner {
  public:
@@ -268,7 +263,7 @@ int runHdlodBench(const HdlodBenchOptions& in) {
     fm.erase(fm.begin());
     h.frameMs = median(hm);
     f.frameMs = median(fm);
-    psnr = psnrOf(hdlodImage, fullImage);
+    psnr = render::psnrDb(hdlodImage, fullImage);
   };
 
   const char* timeNames[] = {"start", "1/3", "2/3", "end"};
@@ -320,7 +315,7 @@ int runHdlodBench(const HdlodBenchOptions& in) {
       ff.push_back(fullRun.frame(v, light));
       if (check) {
         renderer->readPixels(fullImage);
-        c.psnr = std::min(c.psnr, psnrOf(hdlodImage, fullImage));
+        c.psnr = std::min(c.psnr, render::psnrDb(hdlodImage, fullImage));
       }
     }
     c.hdlod.selectMs = median(hs);
@@ -356,7 +351,7 @@ int runHdlodBench(const HdlodBenchOptions& in) {
         ms.erase(ms.begin());
         row.side.frameMs = median(ms);
         renderer->readPixels(hdlodImage);
-        row.psnr = psnrOf(hdlodImage, reference);
+        row.psnr = render::psnrDb(hdlodImage, reference);
       }
       sweep.push_back(row);
     }

@@ -70,6 +70,12 @@ double rmse(const Image& a, const Image& b) {
   return std::sqrt(sum / static_cast<double>(a.rgba.size() / 4 * 3));
 }
 
+double psnrDb(const Image& a, const Image& b) {
+  const double e = rmse(a, b);
+  if (e < 0.0) return -1.0;
+  return e > 0.0 ? 20.0 * std::log10(255.0 / e) : 99.0;
+}
+
 double fractionDifferent(const Image& a, const Image& b, int threshold) {
   if (a.width != b.width || a.height != b.height || a.rgba.size() != b.rgba.size()) return 1.0;
   if (a.rgba.empty()) return 0.0;

@@ -28,11 +28,6 @@ namespace {
 
 constexpr int kW = 320, kH = 180;
 
-double psnr(const render::Image& a, const render::Image& b) {
-  const double e = render::rmse(a, b);
-  return e > 0.0 ? 20.0 * std::log10(255.0 / e) : 99.0;
-}
-
 struct Gl {
   std::unique_ptr<render::GlContext> context;
   render::Renderer renderer;
@@ -117,18 +112,18 @@ TEST(HdlodPass, ImageAtOnePixelIsCloseToFullDetail) {
     b.resize(drawBound(t));
     b.resize(selectAll(t, s, v, b, &full));
     const render::Image fullImage = renderOnce(gl, fullPass, cam, b);
-    EXPECT_LT(psnr(fullImage, background), 25.0) << "the site must cover part of the picture";
+    EXPECT_LT(render::psnrDb(fullImage, background), 25.0) << "the site must cover part of the picture";
     // r = 0: the same objects at full detail.
     a.resize(drawBound(t));
     a.resize(selectHdlod(t, s, v, a, &exact));
     EXPECT_EQ(exact.triangles, full.triangles);
-    EXPECT_GT(psnr(renderOnce(gl, hdlodPass, cam, a), fullImage), 45.0) << tf;
+    EXPECT_GT(render::psnrDb(renderOnce(gl, hdlodPass, cam, a), fullImage), 45.0) << tf;
     // r = 1 px: far fewer triangles, within tolerance of the full image.
     v.tolerance_rad = toleranceFromPixels(1.0, cam.fovY_deg, kH);
     a.resize(drawBound(t));
     a.resize(selectHdlod(t, s, v, a, &hd));
     EXPECT_LT(hd.triangles * 5, full.triangles) << tf;
-    const double p1 = psnr(renderOnce(gl, hdlodPass, cam, a), fullImage);
+    const double p1 = render::psnrDb(renderOnce(gl, hdlodPass, cam, a), fullImage);
     std::printf("t = %.2f T: full %llu triangles, HDLOD at 1 px %llu, PSNR %.2f dB\n", tf, static_cast<unsigned long long>(full.triangles),
                 static_cast<unsigned long long>(hd.triangles), p1);
     EXPECT_GT(p1, 30.0) << tf;
@@ -136,7 +131,7 @@ TEST(HdlodPass, ImageAtOnePixelIsCloseToFullDetail) {
     v.tolerance_rad = toleranceFromPixels(32.0, cam.fovY_deg, kH);
     a.resize(drawBound(t));
     a.resize(selectHdlod(t, s, v, a, &hd));
-    EXPECT_LT(psnr(renderOnce(gl, hdlodPass, cam, a), fullImage), p1) << tf;
+    EXPECT_LT(render::psnrDb(renderOnce(gl, hdlodPass, cam, a), fullImage), p1) << tf;
   }
 }
 
@@ -238,5 +233,5 @@ TEST(HdlodPass, FarFromTheOriginRendersTheSamePicture) {
   std::vector<Draw> e(drawBound(ta));
   e.resize(selectHdlod(ta, away, v, e));
   EXPECT_EQ(d.size(), e.size());
-  EXPECT_GT(psnr(renderOnce(gl, pa, cam, e), a), 40.0);
+  EXPECT_GT(render::psnrDb(renderOnce(gl, pa, cam, e), a), 40.0);
 }
