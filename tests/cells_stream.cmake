@@ -1,0 +1,5 @@
+# Hierarchical cells streaming (paper 003): the HTTP byte-range fetcher against real nginx
+# (scripts/cells-server) and a fault-injecting python server, and the LRU cell cache.
+find_package(ZLIB REQUIRED)
+ig_add_test(range_fetch_test range_fetch_test.cpp LIBS ig_io ZLIB::ZLIB)
+ig_add_test(cells_cache_test cells_cache_test.cpp LIBS ig_lod)

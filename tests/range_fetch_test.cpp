@@ -1,0 +1,632 @@
+// io/range_fetch: the asynchronous byte-range fetcher against real servers started as child
+// processes: nginx through scripts/cells-server (normal path, rate limit, 416, server down at
+// start, server killed mid-run) and tests/fake_range_server.py (corrupt responses, connections
+// closed mid-body, 503, delays, a server that ignores Range). Also: local-file mode gives the
+// same results, bad URLs and options are refused by open(), the pure URL and response-head
+// parsers, poll() and submit() never block.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <random>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <arpa/inet.h>
+#include <fcntl.h>
+#include <netinet/in.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <zlib.h>
+
+#include "io/range_fetch.h"
+
+extern char** environ;
+
+namespace {
+
+using ig::io::RangeFetcher;
+using ig::io::RangeFetcherOptions;
+using ig::io::RangeRequest;
+using ig::io::RangeResult;
+using Clock = std::chrono::steady_clock;
+
+double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+uint32_t crcOf(const uint8_t* p, size_t n) {
+  return static_cast<uint32_t>(crc32(crc32(0L, Z_NULL, 0), p, static_cast<uInt>(n)));
+}
+
+struct TempDir {
+  std::filesystem::path path;
+  TempDir() {
+    char tmpl[] = "/tmp/range_fetch_test.XXXXXX";
+    char* p = mkdtemp(tmpl);
+    if (!p) std::abort();
+    path = p;
+  }
+  ~TempDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(path, ec);
+  }
+};
+
+std::vector<uint8_t> writeData(const std::filesystem::path& file, size_t n, uint32_t seed) {
+  std::vector<uint8_t> d(n);
+  std::mt19937 rng(seed);
+  for (auto& b : d) b = static_cast<uint8_t>(rng());
+  std::ofstream(file, std::ios::binary).write(reinterpret_cast<const char*>(d.data()), static_cast<std::streamsize>(n));
+  return d;
+}
+
+int freePort() {
+  int s = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  a.sin_port = 0;
+  EXPECT_EQ(::bind(s, reinterpret_cast<sockaddr*>(&a), sizeof a), 0);
+  socklen_t len = sizeof a;
+  ::getsockname(s, reinterpret_cast<sockaddr*>(&a), &len);
+  ::close(s);
+  return ntohs(a.sin_port);
+}
+
+// Runs a shell command, returns its exit status and stdout.
+int run(const std::string& cmd, std::string& out) {
+  out.clear();
+  FILE* f = ::popen(cmd.c_str(), "r");
+  if (!f) return -1;
+  char buf[512];
+  while (std::fgets(buf, sizeof buf, f)) out += buf;
+  int st = ::pclose(f);
+  return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+}
+
+// nginx through scripts/cells-server.
+struct Nginx {
+  std::string rundir, url;
+  bool running = false;
+  Nginx(const std::filesystem::path& dir) : rundir((dir / "run").string()) {}
+  ~Nginx() { stop(); }
+  void start(const std::filesystem::path& root, int port, uint64_t rate) {
+    std::string out;
+    std::string cmd = std::string(IG_SOURCE_DIR) + "/scripts/cells-server start --root '" + root.string() +
+                      "' --port " + std::to_string(port) + " --rate " + std::to_string(rate) + " --dir '" + rundir +
+                      "' 2>&1";
+    int rc = run(cmd, out);
+    ASSERT_EQ(rc, 0) << cmd << "\n" << out;
+    ASSERT_EQ(out.rfind("http://127.0.0.1:", 0), 0u) << out;
+    url = out.substr(0, out.find('\n'));
+    running = true;
+  }
+  void stop() {
+    if (!running) return;
+    std::string out;
+    run(std::string(IG_SOURCE_DIR) + "/scripts/cells-server stop --dir '" + rundir + "' 2>&1", out);
+    running = false;
+  }
+};
+
+// tests/fake_range_server.py as a child process.
+struct FakeServer {
+  pid_t pid = -1;
+  int outFd = -1;
+  std::string url;
+  explicit FakeServer(std::vector<std::string> args) {
+    const char* py = ::access("/usr/bin/python3", X_OK) == 0 ? "/usr/bin/python3" : "python3";
+    std::string script = std::string(IG_SOURCE_DIR) + "/tests/fake_range_server.py";
+    args.insert(args.begin(), {py, script});
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    int fds[2];
+    if (::pipe2(fds, O_CLOEXEC) != 0) std::abort();
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_adddup2(&fa, fds[1], 1);
+    int rc = posix_spawnp(&pid, py, &fa, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&fa);
+    ::close(fds[1]);
+    outFd = fds[0];
+    if (rc != 0) {
+      pid = -1;
+      return;
+    }
+    // First line: the URL.
+    char c;
+    while (::read(outFd, &c, 1) == 1 && c != '\n') url += c;
+  }
+  ~FakeServer() {
+    if (pid > 0) {
+      ::kill(pid, SIGTERM);
+      int st;
+      ::waitpid(pid, &st, 0);
+    }
+    if (outFd >= 0) ::close(outFd);
+  }
+};
+
+RangeFetcherOptions fastOptions() {
+  RangeFetcherOptions o;
+  o.retryMin_ms = 20;
+  o.retryMax_ms = 200;
+  o.connectTimeout_s = 1.0;
+  o.ioTimeout_s = 3.0;
+  return o;
+}
+
+// Polls until `n` results arrived or `timeout_s` passed; records the longest poll() call.
+std::vector<RangeResult> waitResults(RangeFetcher& f, size_t n, double timeout_s, double* maxPoll_s = nullptr) {
+  std::vector<RangeResult> out;
+  out.reserve(n);
+  auto t0 = Clock::now();
+  double worst = 0.0;
+  while (out.size() < n && since(t0) < timeout_s) {
+    auto p0 = Clock::now();
+    f.poll(out);
+    worst = std::max(worst, since(p0));
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  if (maxPoll_s) *maxPoll_s = worst;
+  return out;
+}
+
+std::vector<RangeRequest> randomRequests(const std::vector<uint8_t>& data, size_t n, uint32_t seed, uint32_t maxSize) {
+  std::mt19937 rng(seed);
+  std::vector<RangeRequest> r;
+  for (size_t i = 0; i < n; ++i) {
+    uint32_t size = 1 + static_cast<uint32_t>(rng() % maxSize);
+    uint64_t off = rng() % (data.size() - size + 1);
+    r.push_back({static_cast<uint32_t>(i), off, size, crcOf(data.data() + off, size), true});
+  }
+  return r;
+}
+
+void expectBytes(const std::vector<RangeResult>& results, const std::vector<RangeRequest>& reqs,
+                 const std::vector<uint8_t>& data) {
+  ASSERT_EQ(results.size(), reqs.size());
+  std::map<uint32_t, const RangeRequest*> byKey;
+  for (auto& q : reqs) byKey[q.key] = &q;
+  for (auto& r : results) {
+    ASSERT_TRUE(r.ok) << "key " << r.key << ": " << r.error;
+    const RangeRequest* q = byKey.at(r.key);
+    ASSERT_EQ(r.data.size(), q->size) << "key " << r.key;
+    EXPECT_TRUE(std::equal(r.data.begin(), r.data.end(), data.begin() + static_cast<long>(q->offset)))
+        << "key " << r.key;
+  }
+}
+
+}  // namespace
+
+TEST(RangeFetchParse, Urls) {
+  ig::io::HttpUrl u;
+  std::string err;
+  ASSERT_TRUE(ig::io::parseHttpUrl("http://127.0.0.1:8080/cells/db.bin?v=2", u, err)) << err;
+  EXPECT_EQ(u.host, "127.0.0.1");
+  EXPECT_EQ(u.port, 8080);
+  EXPECT_EQ(u.path, "/cells/db.bin?v=2");
+  ASSERT_TRUE(ig::io::parseHttpUrl("http://localhost/x", u, err)) << err;
+  EXPECT_EQ(u.port, 80);
+  ASSERT_TRUE(ig::io::parseHttpUrl("http://[::1]:81/x", u, err)) << err;
+  EXPECT_EQ(u.host, "::1");
+  EXPECT_EQ(u.port, 81);
+
+  struct Bad {
+    const char* source;
+    const char* mention;
+  } bad[] = {
+      {"https://host/x", "scheme 'https'"},       {"ftp://host/x", "scheme 'ftp'"},
+      {"http://", "no host"},                     {"http:///x", "no host"},
+      {"http://:8080/x", "no host"},              {"http://host:abc/x", "port 'abc'"},
+      {"http://host:0/x", "port '0'"},            {"http://host:70000/x", "port '70000'"},
+      {"http://host:/x", "empty port"},           {"http://host:8080", "no path"},
+      {"http://host?x", "no path"},               {"http://user@host/x", "user info 'user'"},
+      {"http://ho st/x", "host 'ho st'"},         {"http://host/a b", "0x20 at position 2"},
+      {"http://[::1/x", "unterminated IPv6"},     {"http://host/x#frag", "0x23"},
+  };
+  RangeFetcherOptions o = fastOptions();
+  for (const Bad& b : bad) {
+    err.clear();
+    EXPECT_FALSE(ig::io::parseHttpUrl(b.source, u, err)) << b.source;
+    EXPECT_NE(err.find(std::string("'") + b.source + "'"), std::string::npos) << err;
+    EXPECT_NE(err.find(b.mention), std::string::npos) << b.source << " -> " << err;
+    // open() refuses the same strings without starting anything.
+    std::string err2;
+    EXPECT_EQ(RangeFetcher::open(b.source, o, err2), nullptr) << b.source;
+    EXPECT_EQ(err2, err);
+  }
+  EXPECT_EQ(RangeFetcher::open("", o, err), nullptr);
+  EXPECT_NE(err.find("empty"), std::string::npos) << err;
+  EXPECT_EQ(RangeFetcher::open("/nonexistent/cells.db", o, err), nullptr);
+  EXPECT_NE(err.find("'/nonexistent/cells.db'"), std::string::npos) << err;
+  EXPECT_NE(err.find("No such file"), std::string::npos) << err;
+  EXPECT_EQ(RangeFetcher::open("/tmp", o, err), nullptr);
+  EXPECT_NE(err.find("not a regular file"), std::string::npos) << err;
+}
+
+TEST(RangeFetchParse, Options) {
+  std::string err;
+  RangeFetcherOptions o;
+  EXPECT_TRUE(ig::io::validRangeFetcherOptions(o, err)) << err;
+  o.pipelineDepth = 0;
+  EXPECT_FALSE(ig::io::validRangeFetcherOptions(o, err));
+  EXPECT_NE(err.find("pipelineDepth = 0"), std::string::npos) << err;
+  o = {};
+  o.retryMax_ms = 10;
+  o.retryMin_ms = 20;
+  EXPECT_FALSE(ig::io::validRangeFetcherOptions(o, err));
+  EXPECT_NE(err.find("retryMax_ms = 10"), std::string::npos) << err;
+  o = {};
+  o.connectTimeout_s = std::nan("");
+  EXPECT_FALSE(ig::io::validRangeFetcherOptions(o, err));
+  EXPECT_NE(err.find("connectTimeout_s = nan"), std::string::npos) << err;
+  EXPECT_EQ(RangeFetcher::open("http://127.0.0.1:1/x", o, err), nullptr);
+  EXPECT_NE(err.find("connectTimeout_s"), std::string::npos) << err;
+}
+
+TEST(RangeFetchParse, ResponseHead) {
+  using ig::io::HeadParse;
+  ig::io::HttpResponseHead h;
+  std::string err;
+  std::string r = "HTTP/1.1 206 Partial Content\r\nContent-Range: bytes 10-19/100\r\ncontent-length: 10\r\n\r\n0123456789";
+  ASSERT_EQ(ig::io::parseHttpResponseHead(r, h, err), HeadParse::Ok) << err;
+  EXPECT_EQ(h.status, 206);
+  EXPECT_EQ(h.contentLength, 10);
+  EXPECT_TRUE(h.hasRange);
+  EXPECT_EQ(h.rangeFirst, 10u);
+  EXPECT_EQ(h.rangeLast, 19u);
+  EXPECT_TRUE(h.totalKnown);
+  EXPECT_EQ(h.total, 100u);
+  EXPECT_FALSE(h.close);
+  EXPECT_EQ(h.headBytes, r.size() - 10);
+  // Every truncation of the head is incomplete, never an error.
+  for (size_t n = 0; n < h.headBytes; ++n)
+    EXPECT_EQ(ig::io::parseHttpResponseHead(std::string_view(r).substr(0, n), h, err), HeadParse::Incomplete) << n;
+  ASSERT_EQ(ig::io::parseHttpResponseHead("HTTP/1.1 416 Range Not Satisfiable\r\nContent-Range: bytes */100\r\n"
+                                          "Content-Length: 5\r\nConnection: close\r\n\r\n",
+                                          h, err),
+            HeadParse::Ok);
+  EXPECT_EQ(h.status, 416);
+  EXPECT_FALSE(h.hasRange);
+  EXPECT_TRUE(h.totalKnown);
+  EXPECT_EQ(h.total, 100u);
+  EXPECT_TRUE(h.close);
+  EXPECT_EQ(ig::io::parseHttpResponseHead("HTTP/1.0 200 OK\r\nContent-Length: 1\r\n\r\n", h, err), HeadParse::Ok);
+  EXPECT_TRUE(h.close);
+  EXPECT_EQ(ig::io::parseHttpResponseHead("HTTP/1.1 200 OK\r\nTransfer-Encoding: chunked\r\n\r\n", h, err), HeadParse::Ok);
+  EXPECT_TRUE(h.chunked);
+  const char* bad[] = {
+      "SSH-2.0-OpenSSH\r\n",
+      "HTTP/1.1 2x6 Partial\r\n\r\n",
+      "HTTP/1.1 206 OK\r\nContent-Length: -4\r\n\r\n",
+      "HTTP/1.1 206 OK\r\nContent-Length: 4\r\nContent-Length: 5\r\n\r\n",
+      "HTTP/1.1 206 OK\r\nContent-Range: bytes 20-10/100\r\n\r\n",
+      "HTTP/1.1 206 OK\r\nContent-Range: bytes 0-100/100\r\n\r\n",
+      "HTTP/1.1 206 OK\r\nContent-Range: items 0-1/100\r\n\r\n",
+      "HTTP/1.1 206 OK\r\nno colon here\r\n\r\n",
+  };
+  for (const char* b : bad) EXPECT_EQ(ig::io::parseHttpResponseHead(b, h, err), HeadParse::Bad) << b;
+  EXPECT_EQ(ig::io::parseHttpResponseHead(std::string(20000, 'x'), h, err), HeadParse::Bad);
+}
+
+// The normal path through nginx: the bytes are right, adjacent ranges are coalesced, and the
+// local-file mode gives the same results.
+TEST(RangeFetch, NginxRangesAndLocalFile) {
+  TempDir dir;
+  std::filesystem::create_directory(dir.path / "root");
+  auto file = dir.path / "root" / "cells.db";
+  auto data = writeData(file, 300000, 1);
+  Nginx nginx(dir.path);
+  ASSERT_NO_FATAL_FAILURE(nginx.start(dir.path / "root", 0, 0));
+
+  std::string err;
+  auto f = RangeFetcher::open(nginx.url + "cells.db", fastOptions(), err);
+  ASSERT_TRUE(f) << err;
+  EXPECT_EQ(f->resourceBytes(), 0u);  // nothing asked yet
+  std::vector<uint8_t> head;
+  ASSERT_TRUE(f->fetchSync(0, 128, head, err, 5.0)) << err;
+  ASSERT_EQ(head.size(), 128u);
+  EXPECT_TRUE(std::equal(head.begin(), head.end(), data.begin()));
+  EXPECT_EQ(f->resourceBytes(), data.size());
+
+  auto reqs = randomRequests(data, 100, 7, 8192);
+  reqs.push_back({100, 0, 1, crcOf(data.data(), 1), true});                                        // first byte
+  reqs.push_back({101, data.size() - 1, 1, crcOf(data.data() + data.size() - 1, 1), true});        // last byte
+  reqs.push_back({102, 0, static_cast<uint32_t>(data.size()), crcOf(data.data(), data.size()), true});  // all
+  ASSERT_TRUE(f->submit(reqs, err)) << err;
+  auto results = waitResults(*f, reqs.size(), 5.0);
+  ASSERT_NO_FATAL_FAILURE(expectBytes(results, reqs, data));
+
+  // 64 adjacent 1 KB ranges, submitted together: coalesced into a few GETs.
+  std::vector<RangeRequest> adj;
+  for (uint32_t i = 0; i < 64; ++i)
+    adj.push_back({1000 + i, 50000 + i * 1024ull, 1024, crcOf(data.data() + 50000 + i * 1024, 1024), true});
+  // Overlapping and duplicate ranges ride along.
+  adj.push_back({2000, 50100, 3000, crcOf(data.data() + 50100, 3000), true});
+  adj.push_back({2001, 50100, 3000, crcOf(data.data() + 50100, 3000), true});
+  uint64_t wire0 = f->stats().wireRequests;
+  ASSERT_TRUE(f->submit(adj, err)) << err;
+  auto adjResults = waitResults(*f, adj.size(), 5.0);
+  ASSERT_NO_FATAL_FAILURE(expectBytes(adjResults, adj, data));
+  uint64_t wires = f->stats().wireRequests - wire0;
+  EXPECT_LE(wires, 8u) << "adjacent ranges were not coalesced";
+  auto s = f->stats();
+  EXPECT_EQ(s.requests, reqs.size() + adj.size());
+  EXPECT_EQ(s.completed, reqs.size() + adj.size());
+  EXPECT_EQ(s.failed, 0u);
+  EXPECT_EQ(s.corrupt, 0u);
+  EXPECT_EQ(s.retries, 0u);
+  EXPECT_EQ(s.connections, 1u);  // keep-alive
+  EXPECT_EQ(f->outstanding(), 0u);
+
+  // Local-file mode: the same API, the same results.
+  auto local = RangeFetcher::open(file.string(), fastOptions(), err);
+  ASSERT_TRUE(local) << err;
+  EXPECT_EQ(local->resourceBytes(), data.size());
+  ASSERT_TRUE(local->submit(reqs, err)) << err;
+  auto localResults = waitResults(*local, reqs.size(), 5.0);
+  ASSERT_NO_FATAL_FAILURE(expectBytes(localResults, reqs, data));
+  std::map<uint32_t, std::vector<uint8_t>> a, b;
+  for (auto& r : results) a[r.key] = r.data;
+  for (auto& r : localResults) b[r.key] = r.data;
+  EXPECT_EQ(a, b);
+  EXPECT_TRUE(local->fetchSync(10, 20, head, err, 1.0)) << err;
+  EXPECT_TRUE(std::equal(head.begin(), head.end(), data.begin() + 10));
+  EXPECT_FALSE(local->fetchSync(data.size() - 5, 10, head, err, 1.0));
+  EXPECT_NE(err.find("beyond the end"), std::string::npos) << err;
+}
+
+// Ranges past the end: refused by the client once the size is known, by nginx (416) otherwise.
+TEST(RangeFetch, PastTheEndRefused) {
+  TempDir dir;
+  std::filesystem::create_directory(dir.path / "root");
+  auto data = writeData(dir.path / "root" / "cells.db", 5000, 2);
+  Nginx nginx(dir.path);
+  ASSERT_NO_FATAL_FAILURE(nginx.start(dir.path / "root", 0, 0));
+  std::string err;
+
+  // Size not known yet: the request goes out and nginx answers 416.
+  auto f = RangeFetcher::open(nginx.url + "cells.db", fastOptions(), err);
+  ASSERT_TRUE(f) << err;
+  ASSERT_TRUE(f->submit({5, 6000, 100, 0, true}, err)) << err;
+  auto res = waitResults(*f, 1, 5.0);
+  ASSERT_EQ(res.size(), 1u);
+  EXPECT_FALSE(res[0].ok);
+  EXPECT_EQ(res[0].key, 5u);
+  EXPECT_NE(res[0].error.find("HTTP 416"), std::string::npos) << res[0].error;
+  EXPECT_NE(res[0].error.find("bytes 6000-6099"), std::string::npos) << res[0].error;
+  EXPECT_NE(res[0].error.find("5000 bytes"), std::string::npos) << res[0].error;
+  EXPECT_EQ(f->resourceBytes(), 5000u);  // learned from Content-Range: bytes */5000
+  EXPECT_EQ(f->stats().refused, 1u);
+
+  // Known now: the client refuses at once.
+  EXPECT_FALSE(f->submit({7, 4990, 20, 0, true}, err));
+  EXPECT_NE(err.find("range key 7 (bytes 4990-5009)"), std::string::npos) << err;
+  EXPECT_NE(err.find("the client refuses"), std::string::npos) << err;
+  EXPECT_FALSE(f->submit({8, 0, 0, 0, true}, err));
+  EXPECT_NE(err.find("range key 8"), std::string::npos) << err;
+  // A batch with one bad request queues nothing.
+  std::vector<RangeRequest> batch = {{9, 0, 10, crcOf(data.data(), 10), true}, {10, 4999, 2, 0, true}};
+  EXPECT_FALSE(f->submit(batch, err));
+  EXPECT_NE(err.find("range key 10"), std::string::npos) << err;
+  EXPECT_EQ(f->stats().requests, 1u);
+
+  // Forced through with fetchSync: nginx refuses with 416, not retried.
+  std::vector<uint8_t> out;
+  EXPECT_FALSE(f->fetchSync(5000, 10, out, err, 5.0));
+  EXPECT_NE(err.find("HTTP 416"), std::string::npos) << err;
+  EXPECT_NE(err.find("bytes 5000-5009"), std::string::npos) << err;
+  EXPECT_EQ(f->stats().refused, 2u);
+  EXPECT_EQ(f->stats().retries, 0u);
+
+  // A missing file: 404.
+  auto g = RangeFetcher::open(nginx.url + "missing.db", fastOptions(), err);
+  ASSERT_TRUE(g) << err;
+  EXPECT_FALSE(g->fetchSync(0, 10, out, err, 5.0));
+  EXPECT_NE(err.find("HTTP 404"), std::string::npos) << err;
+}
+
+// Server down at start: submit() returns at once, nothing arrives, then nginx starts on that
+// port and every request completes. Then nginx is killed mid-run and restarted: the transfer
+// resumes. The rate limit slows the transfer to the configured channel.
+TEST(RangeFetch, ServerDownAtStartAndKilledMidRun) {
+  TempDir dir;
+  std::filesystem::create_directory(dir.path / "root");
+  auto data = writeData(dir.path / "root" / "cells.db", 200000, 3);
+  const int port = freePort();
+  std::string err;
+  auto f = RangeFetcher::open("http://127.0.0.1:" + std::to_string(port) + "/cells.db", fastOptions(), err);
+  ASSERT_TRUE(f) << err;
+
+  auto reqs = randomRequests(data, 10, 11, 4096);
+  double worstSubmit = 0.0;
+  for (auto& q : reqs) {
+    auto t0 = Clock::now();
+    ASSERT_TRUE(f->submit(q, err)) << err;
+    worstSubmit = std::max(worstSubmit, since(t0));
+  }
+  EXPECT_LT(worstSubmit, 0.005);
+  double worstPoll = 0.0;
+  auto none = waitResults(*f, 1, 0.2, &worstPoll);
+  EXPECT_TRUE(none.empty());
+  EXPECT_LT(worstPoll, 0.005);
+  EXPECT_GT(f->stats().connectFailures, 0u);
+
+  Nginx nginx(dir.path);
+  ASSERT_NO_FATAL_FAILURE(nginx.start(dir.path / "root", port, 0));
+  auto res = waitResults(*f, reqs.size(), 5.0);
+  ASSERT_NO_FATAL_FAILURE(expectBytes(res, reqs, data));
+  EXPECT_GT(f->stats().retries, 0u);
+
+  // Rate-limited to 40 KB/s: 12 ranges of 4 KB (~1.3 s with the heads). Kill nginx after the first
+  // results.
+  nginx.stop();
+  ASSERT_NO_FATAL_FAILURE(nginx.start(dir.path / "root", port, 40000));
+  std::vector<RangeRequest> slow;
+  for (uint32_t i = 0; i < 12; ++i)
+    slow.push_back({200 + i, i * 6000ull, 4096, crcOf(data.data() + i * 6000, 4096), true});
+  auto t0 = Clock::now();
+  ASSERT_TRUE(f->submit(slow, err)) << err;
+  auto first = waitResults(*f, 3, 5.0);
+  ASSERT_GE(first.size(), 3u);
+  uint64_t retries0 = f->stats().retries;
+  nginx.stop();
+  EXPECT_GT(f->outstanding(), 0u) << "everything arrived before nginx was stopped";
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  ASSERT_NO_FATAL_FAILURE(nginx.start(dir.path / "root", port, 40000));
+  auto t1 = Clock::now();
+  auto rest = waitResults(*f, slow.size() - first.size(), 8.0);
+  double elapsed = since(t0), afterRestart = since(t1);
+  double restRate = static_cast<double>(rest.size() * 4096) / afterRestart;
+  for (auto& r : rest) first.push_back(std::move(r));
+  ASSERT_NO_FATAL_FAILURE(expectBytes(first, slow, data));
+  EXPECT_GT(f->stats().retries, retries0);
+  // At 40 KB/s (unlimited, the rest takes a few ms).
+  EXPECT_LT(restRate, 40000 * 1.5);  // measured 40 - 46 KB/s (nginx lets a 16 KB buffer through ahead)
+  EXPECT_GT(restRate, 40000 * 0.5);
+  std::printf("12 x 4 KB at 40 KB/s with a restart: %.2f s; after the restart %zu ranges at %.0f B/s\n", elapsed,
+              rest.size(), restRate);
+}
+
+// Injected faults from the python server: a corrupt body is dropped and fetched again; a 503 and
+// a connection closed mid-body are retried; a server that ignores Range is refused.
+TEST(RangeFetch, FaultsFromFakeServer) {
+  TempDir dir;
+  auto file = dir.path / "cells.db";
+  auto data = writeData(file, 100000, 4);
+  std::string err;
+  {
+    FakeServer srv({"--file", file.string(), "--corrupt-first", "1"});
+    ASSERT_FALSE(srv.url.empty());
+    auto f = RangeFetcher::open(srv.url, fastOptions(), err);
+    ASSERT_TRUE(f) << err;
+    std::vector<RangeRequest> one = {{1, 1234, 3000, crcOf(data.data() + 1234, 3000), true}};
+    ASSERT_TRUE(f->submit(one, err)) << err;
+    auto res = waitResults(*f, 1, 5.0);
+    ASSERT_NO_FATAL_FAILURE(expectBytes(res, one, data));
+    EXPECT_EQ(f->stats().corrupt, 1u);
+    EXPECT_EQ(f->stats().retries, 1u);
+  }
+  {
+    FakeServer srv({"--file", file.string(), "--status-first", "1:503", "--close-mid-body", "1"});
+    ASSERT_FALSE(srv.url.empty());
+    auto f = RangeFetcher::open(srv.url, fastOptions(), err);
+    ASSERT_TRUE(f) << err;
+    std::vector<RangeRequest> one = {{2, 50000, 20000, crcOf(data.data() + 50000, 20000), true}};
+    ASSERT_TRUE(f->submit(one, err)) << err;
+    auto res = waitResults(*f, 1, 5.0);
+    ASSERT_NO_FATAL_FAILURE(expectBytes(res, one, data));
+    auto s = f->stats();
+    EXPECT_EQ(s.retries, 2u);  // the 503, then the connection closed mid-body
+    EXPECT_EQ(s.corrupt, 0u);
+    EXPECT_EQ(s.connections, 2u);
+  }
+  {
+    // "Connection: close" on every 3rd response while 4 requests are pipelined: the unanswered
+    // ones are sent again on a new connection, without counting retries.
+    FakeServer srv({"--file", file.string(), "--close-every", "3"});
+    RangeFetcherOptions o = fastOptions();
+    o.maxCoalesce_bytes = 0;
+    auto f = RangeFetcher::open(srv.url, o, err);
+    ASSERT_TRUE(f) << err;
+    auto reqs = randomRequests(data, 20, 9, 3000);
+    ASSERT_TRUE(f->submit(reqs, err)) << err;
+    auto res = waitResults(*f, reqs.size(), 5.0);
+    ASSERT_NO_FATAL_FAILURE(expectBytes(res, reqs, data));
+    EXPECT_EQ(f->stats().retries, 0u);
+    EXPECT_GE(f->stats().connections, 7u);
+  }
+  {
+    FakeServer srv({"--file", file.string(), "--ignore-range"});
+    auto f = RangeFetcher::open(srv.url, fastOptions(), err);
+    ASSERT_TRUE(f) << err;
+    std::vector<uint8_t> out;
+    EXPECT_FALSE(f->fetchSync(0, 10, out, err, 5.0));
+    EXPECT_NE(err.find("HTTP 200"), std::string::npos) << err;
+    EXPECT_NE(err.find("ignored the Range"), std::string::npos) << err;
+  }
+}
+
+// A slow server (100 ms per response): submit() and poll() return at once while the worker waits.
+TEST(RangeFetch, SlowServerNeverBlocksTheCaller) {
+  TempDir dir;
+  auto file = dir.path / "cells.db";
+  auto data = writeData(file, 50000, 5);
+  FakeServer srv({"--file", file.string(), "--delay-ms", "100"});
+  ASSERT_FALSE(srv.url.empty());
+  std::string err;
+  RangeFetcherOptions o = fastOptions();
+  o.maxCoalesce_bytes = 0;  // one response per request
+  auto f = RangeFetcher::open(srv.url, o, err);
+  ASSERT_TRUE(f) << err;
+  auto reqs = randomRequests(data, 4, 5, 2000);
+  double worstSubmit = 0.0;
+  for (auto& q : reqs) {
+    auto t0 = Clock::now();
+    ASSERT_TRUE(f->submit(q, err)) << err;
+    worstSubmit = std::max(worstSubmit, since(t0));
+  }
+  double worstPoll = 0.0;
+  auto res = waitResults(*f, reqs.size(), 5.0, &worstPoll);
+  ASSERT_NO_FATAL_FAILURE(expectBytes(res, reqs, data));
+  EXPECT_LT(worstSubmit, 0.005);
+  EXPECT_LT(worstPoll, 0.005);  // measured ~0.05 ms; a blocking poll would take ~100 ms
+  std::printf("slow server: worst submit %.3f ms, worst poll %.3f ms\n", worstSubmit * 1e3, worstPoll * 1e3);
+}
+
+// Giving up: maxAttempts against a port nobody listens on, and a wrong crc in local mode. The
+// destructor returns promptly with requests still queued.
+TEST(RangeFetch, GivesUpAndStopsPromptly) {
+  TempDir dir;
+  auto file = dir.path / "cells.db";
+  auto data = writeData(file, 10000, 6);
+  std::string err;
+  RangeFetcherOptions o = fastOptions();
+  o.retryMin_ms = 1;
+  o.retryMax_ms = 4;
+  o.maxAttempts = 3;
+  o.maxCorruptAttempts = 2;
+  {
+    auto f = RangeFetcher::open("http://127.0.0.1:" + std::to_string(freePort()) + "/cells.db", o, err);
+    ASSERT_TRUE(f) << err;
+    ASSERT_TRUE(f->submit({1, 0, 10, 0, true}, err));
+    auto res = waitResults(*f, 1, 5.0);
+    ASSERT_EQ(res.size(), 1u);
+    EXPECT_FALSE(res[0].ok);
+    EXPECT_NE(res[0].error.find("gave up after 3 attempts"), std::string::npos) << res[0].error;
+    EXPECT_NE(res[0].error.find("Connection refused"), std::string::npos) << res[0].error;
+    EXPECT_EQ(f->stats().retries, 2u);
+    EXPECT_EQ(f->stats().connectFailures, 3u);
+  }
+  {
+    auto f = RangeFetcher::open(file.string(), o, err);
+    ASSERT_TRUE(f) << err;
+    ASSERT_TRUE(f->submit({2, 100, 50, crcOf(data.data() + 100, 50) ^ 1u, true}, err));
+    auto res = waitResults(*f, 1, 5.0);
+    ASSERT_EQ(res.size(), 1u);
+    EXPECT_FALSE(res[0].ok);
+    EXPECT_NE(res[0].error.find("crc32 mismatch"), std::string::npos) << res[0].error;
+    EXPECT_EQ(f->stats().corrupt, 2u);
+  }
+  {
+    o.maxAttempts = 0;
+    auto f = RangeFetcher::open("http://127.0.0.1:" + std::to_string(freePort()) + "/cells.db", o, err);
+    ASSERT_TRUE(f) << err;
+    for (uint32_t i = 0; i < 100; ++i) ASSERT_TRUE(f->submit({i, i * 10ull, 10, 0, true}, err));
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    auto t0 = Clock::now();
+    f.reset();
+    EXPECT_LT(since(t0), 0.5);
+  }
+}
