@@ -20,6 +20,7 @@
 #include "render/image.h"
 #include "ig/forest_tool.h"
 #include "ig/hdlod_tool.h"
+#include "ig/cells_tool.h"
 
 namespace {
 
@@ -240,7 +241,32 @@ int main(int argc, char** argv) {
   forestTex->add_option("--bake-triangles", ftOptions.bakeTriangles, "LOD the textures are rendered from")
       ->capture_default_str()->check(CLI::Range(4, 100000000));
   forestTex->add_flag("--procedural", ftOptions.procedural, "Use the procedural models (no download)");
+  ig::CellsBuildOptions cbOptions;
+  CLI::App* cellsBuild = app.add_subcommand(
+      "cells-build",
+      "Builds a hierarchical-cells database (paper 003, docs/cells.md): a mesh (OBJ, PLY, glTF; run\n"
+      "scripts/fetch-cells for the Stanford bunny), --copies N scattered copies of it, or --scene\n"
+      "spheres:N -> voxel pyramid -> cell tree -> one packed file of octree images with an index and\n"
+      "crc32s. Prints the box-counting dimension per voxel level (about 2 for surfaces) and the cells\n"
+      "and bytes per level, then reads the file back and checks every cell.");
+  cellsBuild->add_option("input", cbOptions.input, "Mesh file (.obj, .ply, .gltf, .glb)");
+  cellsBuild->add_option("--scene", cbOptions.scene, "Procedural scene instead of a mesh: spheres:N (1,024 m cube)");
+  cellsBuild->add_option("--copies", cbOptions.copies, "Scatter N copies of the mesh (random place, turn, scale)")
+      ->check(CLI::Range(0, 100000));
+  cellsBuild->add_option("--size", cbOptions.size_m, "Scale the mesh so that its largest extent is this many metres (0: as is)")
+      ->capture_default_str()->check(CLI::NonNegativeNumber);
+  cellsBuild->add_flag("--y-up", cbOptions.yUp, "The mesh is y up (the bunny): turn it to z up");
+  cellsBuild->add_flag("!--no-shading", cbOptions.shading, "Do not bake sun shading into the voxel colours");
+  cellsBuild->add_option("--voxel-levels", cbOptions.voxelLevels, "Finest voxel level (0: cell levels - 1 + depth)")
+      ->capture_default_str()->check(CLI::Range(0, 16));
+  cellsBuild->add_option("--cell-levels", cbOptions.cellLevels, "Cell levels L")->capture_default_str()->check(CLI::Range(1, 16));
+  cellsBuild->add_option("--depth", cbOptions.voxelDepth, "Voxel octree depth d per cell")->capture_default_str()->check(CLI::Range(0, 8));
+  cellsBuild->add_flag("--solid", cbOptions.solid, "Fill the inside of closed meshes");
+  cellsBuild->add_option("-o,--out", cbOptions.out, "Database file to write")->capture_default_str();
+  cellsBuild->add_option("--seed", cbOptions.seed, "Seed for spheres and copies")->capture_default_str();
+  cellsBuild->add_flag("--json", cbOptions.json, "Print one JSON object");
   if (const auto rc = ig::parseCommandLine(app, argc, argv)) return *rc;
+  if (cellsBuild->parsed()) return ig::runCellsBuild(cbOptions);
   if (forestTex->parsed()) return ig::runForestTextures(ftOptions);
   if (site->parsed()) {
     if (siteOrigin.size() == 3) {

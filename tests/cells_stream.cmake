@@ -3,3 +3,5 @@
 find_package(ZLIB REQUIRED)
 ig_add_test(range_fetch_test range_fetch_test.cpp LIBS ig_io ZLIB::ZLIB)
 ig_add_test(cells_cache_test cells_cache_test.cpp LIBS ig_lod)
+# The streaming client (ig/cells_stream): local file and nginx, budgets, corrupt cells, server down.
+ig_add_test(cells_stream_client_test cells_stream_client_test.cpp LIBS ig_core)
