@@ -115,7 +115,9 @@ int runCellsBench(const CellsBenchOptions& o) {
   std::vector<int> arrival(tree.size(), 0);
   std::vector<uint32_t> inFlight;
   inFlight.reserve(tree.size());
-  lod::CellSelector selector(tree);
+  lod::CellSelectorConfig selectorConfig;
+  if (o.maxOps > 0) selectorConfig.maxOperations = o.maxOps;
+  lod::CellSelector selector(tree, selectorConfig);
   lod::CellView view;
   view.viewportHeight_px = o.height_px;
   view.minVoxel_px = 1.0;
@@ -123,6 +125,8 @@ int runCellsBench(const CellsBenchOptions& o) {
   view.byteBudget = o.wBytes;
   std::vector<double> selectMs, voxelsDrawn, quality, cutCells;
   uint64_t bytesMax = 0, bytesTotal = 0;
+  // Frames over a budget (drawn voxels > voxel budget or requested bytes > W, path and sweep):
+  // the exit status is 1 if there is any.
   int exceeded = 0, teleportFrame = 2 * o.frames / 3, fullQualityFrame = -1;
   double teleportMs = 0.0;
   uint32_t unfetchable = 0;
@@ -173,6 +177,7 @@ int runCellsBench(const CellsBenchOptions& o) {
       const auto t0 = BenchClock::now();
       const lod::CellSelectStats s = sel.select(v, {}, draw, requests);
       const double dt = msSince(t0);
+      if (!s.valid || s.drawnVoxels > p.budget || s.requestedBytes > v.byteBudget) ++exceeded;
       if (i == 0 || i == ((teleportFrame + 3) / 4) * 4) continue;  // from the root / the teleport: not steady
       ms.push_back(dt);
       q.push_back(static_cast<double>(s.maxVoxel_px));
@@ -188,6 +193,17 @@ int runCellsBench(const CellsBenchOptions& o) {
     sweep.push_back(p);
   }
 
+  // The bunny: PSNR sweep and streaming through nginx.
+  CellsStreamBenchResult bunny;
+  if (o.withMesh) {
+    std::string err;
+    if (!runCellsStreamBench(o.mesh, bunny, err)) {
+      std::fprintf(stderr, "igbench cells: %s\n", err.c_str());
+      return 3;
+    }
+    for (const CellsStreamRun& r : bunny.runs) exceeded += r.budgetExceededFrames;
+  }
+
   const double secondsToFull = fullQualityFrame < 0 ? -1.0 : (fullQualityFrame - teleportFrame) / 60.0;
   if (o.json) {
     std::printf("{\"suite\":\"cells\",\"spheres\":%d,\"cells\":%u,\"levels\":%d,\"cell_voxel_depth\":%d,"
@@ -197,12 +213,12 @@ int runCellsBench(const CellsBenchOptions& o) {
     for (size_t l = 0; l < voxelsPerLevel.size(); ++l) std::printf("%s%zu", l ? "," : "", voxelsPerLevel[l]);
     std::printf("],\"dimension\":[");
     for (size_t l = 0; l < dimension.size(); ++l) std::printf("%s%.4f", l ? "," : "", dimension[l]);
-    std::printf("],\"frames\":%d,\"latency_frames\":%d,\"select_ms_p50\":%.4f,\"select_ms_p99\":%.4f,"
+    std::printf("],\"frames\":%d,\"latency_frames\":%d,\"max_ops\":%u,\"select_ms_p50\":%.4f,\"select_ms_p99\":%.4f,"
                 "\"select_ms_max\":%.4f,\"teleport_select_ms\":%.4f,\"voxels_drawn_p50\":%.0f,\"voxel_budget\":%llu,"
                 "\"budget_exceeded_frames\":%d,\"bytes_per_frame_max\":%llu,\"w_bytes\":%llu,\"bytes_total\":%llu,"
                 "\"unfetchable_cells\":%u,\"frames_to_settle_after_teleport\":%d,\"seconds_to_settle_after_teleport\":%.3f,"
-                "\"max_voxel_px_p50\":%.3f,\"cut_cells_p50\":%.0f,\"sweep\":[",
-                o.frames, o.latencyFrames, percentile(selectMs, 50), percentile(selectMs, 99),
+                "\"max_voxel_px_p50\":%.3f,\"cut_cells_p50\":%.0f,\"select_sweep\":[",
+                o.frames, o.latencyFrames, o.maxOps, percentile(selectMs, 50), percentile(selectMs, 99),
                 *std::max_element(selectMs.begin(), selectMs.end()), teleportMs, percentile(voxelsDrawn, 50),
                 static_cast<unsigned long long>(o.voxelBudget), exceeded, static_cast<unsigned long long>(bytesMax),
                 static_cast<unsigned long long>(o.wBytes), static_cast<unsigned long long>(bytesTotal), unfetchable,
@@ -216,7 +232,14 @@ int runCellsBench(const CellsBenchOptions& o) {
                   p.minQualityP50_px, p.minQualityMax_px, static_cast<unsigned long long>(p.cutCellsP50), p.selectP50_ms,
                   p.selectP99_ms);
     }
-    std::printf("],\"rendering\":\"none (no splat renderer yet: no psnr_db)\"}\n");
+    std::printf("]");
+    if (o.withMesh) {
+      std::printf(",%s,\"seconds_to_full_quality\":{", cellsStreamJson(bunny).c_str());
+      for (size_t k = 0; k < bunny.runs.size(); ++k)
+        std::printf("%s\"%g\":%.3f", k ? "," : "", bunny.runs[k].rate_mbit, bunny.runs[k].secondsToFullQuality);
+      std::printf("},\"gl\":\"%s\"", bunny.context.c_str());
+    }
+    std::printf("}\n");
   } else {
     std::printf("cells suite: %d spheres -> %u cells, %d levels (voxels of %.2f m), built in %.0f ms, %.1f MB\n",
                 o.spheres, tree.size(), tree.levels(), tree.voxelEdge_m(tree.levels() - 1), buildMs,
@@ -235,7 +258,20 @@ int runCellsBench(const CellsBenchOptions& o) {
       std::printf("    %9llu %9llu %8.2f %8.2f %8llu %8.3f %8.3f\n", static_cast<unsigned long long>(p.budget),
                   static_cast<unsigned long long>(p.voxelsP50), p.minQualityP50_px, p.minQualityMax_px,
                   static_cast<unsigned long long>(p.cutCellsP50), p.selectP50_ms, p.selectP99_ms);
-    std::printf("  (no rendering yet: no PSNR)\n");
+    if (o.withMesh) {
+      std::printf("  mesh %s: %u cells, %d levels, %.1f MB; full detail %llu voxels drawn in %.1f ms\n",
+                  o.mesh.mesh.c_str(), bunny.cells, bunny.levels, static_cast<double>(bunny.fileBytes) / 1e6,
+                  static_cast<unsigned long long>(bunny.fullVoxels), bunny.fullRenderMs);
+      std::printf("  sweep (all resident): budget, voxels, largest voxel px, select ms, render ms, PSNR dB vs full detail\n");
+      for (const CellsSweepRow& r : bunny.sweep)
+        std::printf("    %9llu %9llu %8.2f %8.3f %8.1f %7.2f\n", static_cast<unsigned long long>(r.budget),
+                    static_cast<unsigned long long>(r.voxels), r.maxVoxel_px, r.selectMs, r.renderMs, r.psnr_db);
+      for (const CellsStreamRun& r : bunny.runs)
+        std::printf("  nginx at %g Mbit/s (W = %llu B/frame): full quality %.2f s after the teleport (warm-up %.2f s), "
+                    "quality monotonic %s, %llu bytes, %.2f Mbit/s effective\n",
+                    r.rate_mbit, static_cast<unsigned long long>(r.wBytes), r.secondsToFullQuality, r.warmupSeconds,
+                    r.qualityMonotonic ? "yes" : "NO", static_cast<unsigned long long>(r.arrivedBytes), r.effectiveMbit);
+    }
   }
   return exceeded == 0 ? 0 : 1;
 }

@@ -8,6 +8,8 @@
 
 #include <cstdint>
 
+#include "ig/bench_cells_stream.h"
+
 namespace ig {
 
 struct CellsBenchOptions {
@@ -19,8 +21,12 @@ struct CellsBenchOptions {
   uint64_t voxelBudget = 2000000;  // voxels drawn per frame
   uint64_t wBytes = 1 << 20;       // W: bytes requested per frame
   int latencyFrames = 3;        // a requested cell arrives this many frames later
+  uint32_t maxOps = 512;        // splits + merges per frame on the path (CellSelectorConfig::maxOperations; 0: no cap)
   uint32_t seed = 1;
   bool json = false;
+  // The real mesh, the pictures and nginx (ig/bench_cells_stream.h); off: selection only.
+  bool withMesh = true;
+  CellsStreamBenchOptions mesh;
 };
 
 int runCellsBench(const CellsBenchOptions& options);

@@ -226,14 +226,17 @@ int main(int argc, char** argv) {
   ig::CellsBenchOptions cellsOptions;
   CLI::App* cells = app.add_subcommand(
       "cells",
-      "Hierarchical cells (paper 003) on a procedural scene of voxelized spheres: builds the cell\n"
-      "tree, then flies a camera path with a teleport selecting the best cut under a voxel budget and\n"
-      "a byte budget W per frame (requested cells arrive --latency frames later, simulated), then a\n"
-      "voxel-budget sweep. Selection only: splat rendering, psnr_db and streaming through nginx come\n"
-      "later. Exit 1 if any frame went over a budget. JSON fields: cells, levels, dimension (per\n"
-      "voxel level), select_ms_p50, select_ms_p99, voxels_drawn_p50, voxel_budget,\n"
-      "budget_exceeded_frames, bytes_per_frame_max, w_bytes, sweep [{voxel_budget, min_quality_px,\n"
-      "select_ms}] and more (see docs/cells.md).");
+      "Hierarchical cells (paper 003). (1) Selection on ~1 M cells of voxelized spheres: a camera\n"
+      "path with a teleport, the best cut under a voxel budget and a byte budget W per frame\n"
+      "(requested cells arrive --latency frames later, simulated), and a voxel-budget sweep. (2) The\n"
+      "Stanford bunny (scripts/fetch-cells; run from the source tree): its cell database, a PSNR\n"
+      "sweep of splat pictures against full detail, and streaming through a local nginx\n"
+      "(scripts/cells-server) at --rates Mbit/s: seconds until full quality after a teleport. Exit 1\n"
+      "if any frame went over a budget. JSON fields: cells, levels, dimension, select_ms_p99,\n"
+      "voxels_drawn_p50, voxel_budget, budget_exceeded_frames, bytes_per_frame_max, w_bytes,\n"
+      "select_sweep, mesh {cells, levels, dimension}, sweep [{voxel_budget, psnr_db, ...}],\n"
+      "streaming [{rate_mbit, seconds_to_full_quality, quality_monotonic, curve, ...}],\n"
+      "seconds_to_full_quality {rate: s} (docs/cells.md; plot: scripts/plot_cells.py).");
   cells->add_option("--spheres", cellsOptions.spheres, "Procedural spheres in the 1024 m scene")
       ->capture_default_str()->check(CLI::Range(1, 1000000));
   cells->add_option("--levels", cellsOptions.cellLevels, "Cell levels L")->capture_default_str()->check(CLI::Range(1, 16));
@@ -247,8 +250,22 @@ int main(int argc, char** argv) {
   cells->add_option("--w-bytes", cellsOptions.wBytes, "Bytes requested per frame (W)")->capture_default_str();
   cells->add_option("--latency", cellsOptions.latencyFrames, "Frames until a requested cell arrives")
       ->capture_default_str()->check(CLI::Range(0, 100000));
+  cells->add_option("--max-ops", cellsOptions.maxOps, "Splits + merges per frame on the path (0: no cap)")
+      ->capture_default_str();
   cells->add_option("--seed", cellsOptions.seed, "Scene seed")->capture_default_str();
   cells->add_flag("--json", cellsOptions.json, "Print one JSON object instead of the human summary");
+  cells->add_flag("!--no-mesh", cellsOptions.withMesh,
+                  "Selection only: skip the bunny (PSNR sweep with splats, streaming through nginx)");
+  cells->add_option("--mesh", cellsOptions.mesh.mesh, "The real mesh (y-up OBJ; scripts/fetch-cells fetches the bunny)")
+      ->capture_default_str();
+  cells->add_flag("!--no-stream", cellsOptions.mesh.stream, "Skip streaming through nginx (keep the PSNR sweep)");
+  cells->add_option("--rates", cellsOptions.mesh.rates_mbit, "Channel rates to stream at (Mbit/s)")
+      ->capture_default_str()->check(CLI::PositiveNumber);
+  cells->add_option("--stream-timeout", cellsOptions.mesh.timeout_s, "Give up on full quality after this many seconds")
+      ->capture_default_str()->check(CLI::PositiveNumber);
+  cells->add_option("--server-script", cellsOptions.mesh.serverScript, "scripts/cells-server (run from the source tree)")
+      ->capture_default_str();
+  cells->add_flag("--quick", cellsOptions.mesh.quick, "Streaming at 10 and 100 Mbit/s only, 3 sweep points (for tests)");
   ig::ForestBenchOptions forestOptions;
   CLI::App* forest = app.add_subcommand(
       "forest",

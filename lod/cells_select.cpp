@@ -2,40 +2,118 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <limits>
+
+#if defined(__SSE2__) && !defined(IG_CELLS_NO_SIMD)
+#include <emmintrin.h>
+#endif
 
 namespace ig::lod {
 namespace {
 
 constexpr double kDeg = 3.14159265358979323846 / 180.0;
-constexpr uint8_t kAllPlanes = 0x3F;
-constexpr uint8_t kLiveBit = 0x80;
+// Per-frame flags of a cell (set members and per-cell arrays).
+constexpr uint8_t kLive = 1;         // in the frustum and V > 0
+constexpr uint8_t kInside = 2;       // wholly inside the frustum
+constexpr uint8_t kHasChildren = 4;  // static: the cell has children
+constexpr uint8_t kCosted = 8;       // per-cell arrays: mc is this frame's
+constexpr float kInf = std::numeric_limits<float>::infinity();
 
 bool finite3(const glm::dvec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 
-// Frustum test of the eye-relative box [lo, hi] against the planes in `mask`. Returns false when
-// the box is outside one plane; clears from `mask` the planes the box is wholly inside.
-bool frustumTest(const std::array<glm::dvec4, 6>& planes, const glm::dvec3& lo, const glm::dvec3& hi, uint8_t& mask) {
-  for (int i = 0; i < 6; ++i) {
-    if (!(mask & (1u << i))) continue;
-    const glm::dvec4& p = planes[static_cast<size_t>(i)];
-    const double far = p.x * (p.x >= 0 ? hi.x : lo.x) + p.y * (p.y >= 0 ? hi.y : lo.y) + p.z * (p.z >= 0 ? hi.z : lo.z) + p.w;
-    if (far < 0.0) return false;
-    const double near = p.x * (p.x >= 0 ? lo.x : hi.x) + p.y * (p.y >= 0 ? lo.y : hi.y) + p.z * (p.z >= 0 ? lo.z : hi.z) + p.w;
-    if (near >= 0.0) mask = static_cast<uint8_t>(mask & ~(1u << i));
-  }
-  return true;
-}
-
-// e(c): the voxel's on-screen size, from the eye-relative box.
-float voxelPx(const glm::dvec3& lo, const glm::dvec3& hi, double voxelEdge_m, double pxPerM, double near_m) {
-  const double dx = std::max({lo.x, -hi.x, 0.0}), dy = std::max({lo.y, -hi.y, 0.0}), dz = std::max({lo.z, -hi.z, 0.0});
-  const double d = std::sqrt(dx * dx + dy * dy + dz * dz);
-  return static_cast<float>(voxelEdge_m * pxPerM / std::max(d, near_m));
-}
-
 double pixelsPerRadian(const CellView& v) { return v.viewportHeight_px / (2.0 * std::tan(0.5 * v.camera.fovY_deg * kDeg)); }
 
+// Priority order of the greedy: larger e first, ties by smaller cell index.
+bool splitLess(const auto& a, const auto& b) { return a.e < b.e || (a.e == b.e && a.cell > b.cell); }
+bool mergeLess(const auto& a, const auto& b) { return a.e > b.e || (a.e == b.e && a.cell < b.cell); }
+
 }  // namespace
+
+// Four cells at once (x, y, z: lowest corner relative to the root corner; edge; V): e (0 when
+// not live) and the flags kLive and kInside (kHasChildren kept). Every evaluation (the set passes,
+// single cells, evaluateCell) goes through this one function, so all give the same bits.
+[[gnu::noinline]] void CellSelector::evalQuad(const ViewConsts& v, const float* px, const float* py, const float* pz,
+                                              const float* pedge, const uint32_t* pv, float* pe, uint8_t* pflags) {
+#if defined(__SSE2__) && !defined(IG_CELLS_NO_SIMD)
+  const __m128 ed = _mm_loadu_ps(pedge);
+  const __m128 x0 = _mm_add_ps(_mm_loadu_ps(px), _mm_set1_ps(v.rx));
+  const __m128 y0 = _mm_add_ps(_mm_loadu_ps(py), _mm_set1_ps(v.ry));
+  const __m128 z0 = _mm_add_ps(_mm_loadu_ps(pz), _mm_set1_ps(v.rz));
+  const __m128 zero = _mm_setzero_ps(), sign = _mm_set1_ps(-0.0f);
+  const __m128 dx = _mm_max_ps(_mm_max_ps(x0, _mm_xor_ps(_mm_add_ps(x0, ed), sign)), zero);
+  const __m128 dy = _mm_max_ps(_mm_max_ps(y0, _mm_xor_ps(_mm_add_ps(y0, ed), sign)), zero);
+  const __m128 dz = _mm_max_ps(_mm_max_ps(z0, _mm_xor_ps(_mm_add_ps(z0, ed), sign)), zero);
+  const __m128 d2 = _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)), _mm_mul_ps(dz, dz));
+  const __m128 d = _mm_max_ps(_mm_sqrt_ps(d2), _mm_set1_ps(v.near));
+  const __m128 e = _mm_div_ps(_mm_mul_ps(ed, _mm_set1_ps(v.k)), d);
+  __m128 out = _mm_castsi128_ps(_mm_cmpeq_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(pv)), _mm_setzero_si128()));
+  __m128 in = _mm_cmpeq_ps(zero, zero);
+  for (size_t i = 0; i < 6; ++i) {
+    const __m128 t = _mm_add_ps(_mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_set1_ps(v.nx[i]), x0), _mm_mul_ps(_mm_set1_ps(v.ny[i]), y0)),
+                                           _mm_mul_ps(_mm_set1_ps(v.nz[i]), z0)),
+                                _mm_set1_ps(v.w[i]));
+    out = _mm_or_ps(out, _mm_cmplt_ps(_mm_add_ps(t, _mm_mul_ps(ed, _mm_set1_ps(v.pos[i]))), zero));
+    in = _mm_and_ps(in, _mm_cmpge_ps(_mm_add_ps(t, _mm_mul_ps(ed, _mm_set1_ps(v.neg[i]))), zero));
+  }
+  _mm_storeu_ps(pe, _mm_andnot_ps(out, e));
+  const int live = ~_mm_movemask_ps(out) & 15, inside = _mm_movemask_ps(in) & live;
+  // Lane l -> byte l (x86 is little-endian).
+  static constexpr uint32_t kSpread[16] = {0x0, 0x1, 0x100, 0x101, 0x10000, 0x10001, 0x10100, 0x10101,
+                                           0x1000000, 0x1000001, 0x1000100, 0x1000101, 0x1010000, 0x1010001, 0x1010100, 0x1010101};
+  uint32_t f;
+  std::memcpy(&f, pflags, 4);
+  f = (f & 0x04040404u) | kSpread[live] * kLive | kSpread[inside] * kInside;
+  std::memcpy(pflags, &f, 4);
+#else
+  for (int l = 0; l < 4; ++l) {
+    const float ed = pedge[l], x0 = px[l] + v.rx, y0 = py[l] + v.ry, z0 = pz[l] + v.rz;
+    const float dx = std::max(std::max(x0, -(x0 + ed)), 0.0f), dy = std::max(std::max(y0, -(y0 + ed)), 0.0f),
+                dz = std::max(std::max(z0, -(z0 + ed)), 0.0f);
+    const float d = std::max(std::sqrt((dx * dx + dy * dy) + dz * dz), v.near);
+    const float e = (ed * v.k) / d;
+    bool o = pv[l] == 0, n = true;
+    for (size_t i = 0; i < 6; ++i) {
+      const float t = ((v.nx[i] * x0 + v.ny[i] * y0) + v.nz[i] * z0) + v.w[i];
+      o = o || t + ed * v.pos[i] < 0.0f;
+      n = n && t + ed * v.neg[i] >= 0.0f;
+    }
+    pe[l] = o ? 0.0f : e;
+    pflags[l] = static_cast<uint8_t>((pflags[l] & kHasChildren) | (o ? 0 : kLive) | (!o && n ? kInside : 0));
+  }
+#endif
+}
+
+void CellSelector::makeConsts(const CellTree& tree, const CellView& view, ViewConsts& vc) {
+  const Frustum fr = makeFrustum(view.camera);
+  for (size_t i = 0; i < 6; ++i) {
+    const glm::dvec4& p = fr.planes[i];
+    vc.nx[i] = static_cast<float>(p.x);
+    vc.ny[i] = static_cast<float>(p.y);
+    vc.nz[i] = static_cast<float>(p.z);
+    vc.w[i] = static_cast<float>(p.w);
+    vc.pos[i] = (std::max(vc.nx[i], 0.0f) + std::max(vc.ny[i], 0.0f)) + std::max(vc.nz[i], 0.0f);
+    vc.neg[i] = (std::min(vc.nx[i], 0.0f) + std::min(vc.ny[i], 0.0f)) + std::min(vc.nz[i], 0.0f);
+  }
+  const glm::dvec3 r = tree.info().rootMin_m - view.camera.eye_m;
+  vc.rx = static_cast<float>(r.x);
+  vc.ry = static_cast<float>(r.y);
+  vc.rz = static_cast<float>(r.z);
+  vc.k = static_cast<float>(std::ldexp(pixelsPerRadian(view), -tree.info().cellVoxelDepth));
+  vc.near = static_cast<float>(view.camera.near_m);
+}
+
+CellSelector::Ev CellSelector::evalOne(const CellTree& tree, const ViewConsts& vc, float edge, uint32_t c) {
+  const glm::uvec3 k = tree.coord(c);
+  const float x = static_cast<float>(k.x) * edge, y = static_cast<float>(k.y) * edge, z = static_cast<float>(k.z) * edge;
+  const float xs[4] = {x, x, x, x}, ys[4] = {y, y, y, y}, zs[4] = {z, z, z, z}, es[4] = {edge, edge, edge, edge};
+  const uint32_t v = tree.voxels(c), vs[4] = {v, v, v, v};
+  const uint8_t f = tree.childCount(c) > 0 ? kHasChildren : 0;
+  float e[4];
+  uint8_t flags[4] = {f, f, f, f};
+  evalQuad(vc, xs, ys, zs, es, vs, e, flags);
+  return {e[0], flags[0]};
+}
 
 bool validCellView(const CellView& v) {
   const Camera& c = v.camera;
@@ -48,211 +126,516 @@ bool validCellView(const CellView& v) {
 CellEval evaluateCell(const CellTree& tree, uint32_t cell, const CellView& view) {
   CellEval out;
   if (!validCellView(view) || cell >= tree.size()) return out;
-  const Frustum fr = makeFrustum(view.camera);
-  const double edge = tree.cellEdge_m(tree.level(cell));
-  const glm::dvec3 lo = (tree.info().rootMin_m - view.camera.eye_m) + glm::dvec3(tree.coord(cell)) * edge;
-  const glm::dvec3 hi = lo + glm::dvec3(edge);
-  uint8_t mask = kAllPlanes;
-  out.live = !tree.isEmpty(cell) && frustumTest(fr.planes, lo, hi, mask);
-  if (out.live)
-    out.voxel_px = voxelPx(lo, hi, tree.voxelEdge_m(tree.level(cell)), pixelsPerRadian(view), view.camera.near_m);
+  CellSelector::ViewConsts vc;
+  CellSelector::makeConsts(tree, view, vc);
+  const CellSelector::Ev x =
+      CellSelector::evalOne(tree, vc, static_cast<float>(tree.cellEdge_m(tree.level(cell))), cell);
+  out.live = (x.flags & kLive) != 0;
+  out.voxel_px = x.e;
   return out;
+}
+
+void CellSelector::CellSet::allocate(size_t capacity) {
+  const size_t padded = capacity + 4;
+  cell.assign(padded, 0);
+  voxels.assign(padded, 0);
+  mc.assign(padded, 0);
+  x.assign(padded, 0.0f);
+  y.assign(padded, 0.0f);
+  z.assign(padded, 0.0f);
+  edge.assign(padded, 0.0f);
+  e.assign(padded, 0.0f);
+  flags.assign(padded, 0);
+  cert.assign(padded, 0);
+  n = 0;
 }
 
 CellSelector::CellSelector(const CellTree& tree, const CellSelectorConfig& config) : tree_(tree), config_(config) {
   const size_t n = tree.size();
-  state_.assign(n, kBelow);
-  flags_.assign(n, 0);
-  evalStamp_.assign(n, 0);
-  costStamp_.assign(n, 0);
-  e_.assign(n, 0.0f);
-  mc_.assign(n, 0);
-  cutList_.reserve(n);
-  unknownCover_.reserve(n);
+  for (int q = 0; q < tree.levels(); ++q) edgeF_.push_back(static_cast<float>(tree.cellEdge_m(q)));
+  node_.resize(n);
+  size_t leaves = 0;
+  for (uint32_t c = 0; c < n; ++c) {
+    Node& d = node_[c];
+    const float edge = edgeF_[static_cast<size_t>(tree.level(c))];
+    const glm::uvec3 k = tree.coord(c);
+    d.x = static_cast<float>(k.x) * edge;
+    d.y = static_cast<float>(k.y) * edge;
+    d.z = static_cast<float>(k.z) * edge;
+    d.voxels = tree.voxels(c);
+    d.firstChild = tree.firstChild(c);
+    d.childCount = static_cast<uint8_t>(tree.childCount(c));
+    d.level = static_cast<uint8_t>(tree.level(c));
+    leaves += tree.childCount(c) == 0 ? 1 : 0;
+  }
   reqStamp_.assign(n, 0);
+  popStamp_.assign(n, 0);
+  minBytes_ = n > 0 ? tree.bytes(0) : 0;
+  for (uint32_t c = 0; c < n; ++c) minBytes_ = std::min(minBytes_, uint64_t{tree.bytes(c)});
+  cut_.allocate(leaves);           // a cut never holds more cells than there are leaves
+  mergeable_.allocate(n - leaves);  // nor refined cells more than inner cells
+  scratch_.reserve(n);
+  evicted_.reserve(leaves);
+  unknownCover_.reserve(n);
   splitHeap_.reserve(2 * n + 64);
   mergeHeap_.reserve(2 * n + 64);
   reset();
 }
 
 void CellSelector::reset() {
-  std::fill(state_.begin(), state_.end(), kBelow);
-  if (!state_.empty()) state_[0] = kCut;
+  for (Node& d : node_) d.state = kBelow;
+  cut_.n = 0;
+  mergeable_.n = 0;
+  lastT_ = 0.0f;
+  if (tree_.empty()) return;
+  insert(cut_, 0, {0.0f, static_cast<uint8_t>(uint32_t{node_[0].childCount} > 0 ? kHasChildren : 0)}, 0);
+  node_[0].state = kCut;
 }
 
-void CellSelector::evaluate(uint32_t c, uint8_t parentMask) {
-  if (evalStamp_[c] == frame_) return;
-  evalStamp_[c] = frame_;
-  const int level = tree_.level(c);
-  const double edge = tree_.cellEdge_m(level);
-  const glm::dvec3 lo = rootRel_ + glm::dvec3(tree_.coord(c)) * edge;
-  const glm::dvec3 hi = lo + glm::dvec3(edge);
-  uint8_t mask = parentMask;
-  const bool isLive = !tree_.isEmpty(c) && frustumTest(planes_, lo, hi, mask);
-  flags_[c] = static_cast<uint8_t>(mask | (isLive ? kLiveBit : 0));
-  e_[c] = isLive ? voxelPx(lo, hi, tree_.voxelEdge_m(level), pxPerM_, near_m_) : 0.0f;
+uint32_t CellSelector::insert(CellSet& s, uint32_t c, Ev x, uint64_t mc) {
+  const uint32_t i = s.n++;
+  const Node& d = node_[c];
+  s.cell[i] = c;
+  s.voxels[i] = d.voxels;
+  s.mc[i] = static_cast<uint32_t>(mc);
+  s.x[i] = d.x;
+  s.y[i] = d.y;
+  s.z[i] = d.z;
+  s.edge[i] = edgeF_[d.level];
+  s.e[i] = x.e;
+  s.flags[i] = static_cast<uint8_t>(x.flags | (d.childCount > 0 ? kHasChildren : 0));
+  s.cert[i] = 0;
+  node_[c].slot = i;
+  return i;
 }
 
+void CellSelector::remove(CellSet& s, uint32_t c) {
+  const uint32_t i = node_[c].slot, last = --s.n;
+  // Keep this frame's evaluation of c reachable (covers, realization()).
+  node_[c].e = s.e[i];
+  node_[c].flags = static_cast<uint8_t>(s.flags[i] | kCosted);
+  node_[c].mc = s.mc[i];
+  node_[c].stamp = frame_;
+  if (i != last) {
+    s.cell[i] = s.cell[last];
+    s.voxels[i] = s.voxels[last];
+    s.mc[i] = s.mc[last];
+    s.x[i] = s.x[last];
+    s.y[i] = s.y[last];
+    s.z[i] = s.z[last];
+    s.edge[i] = s.edge[last];
+    s.e[i] = s.e[last];
+    s.flags[i] = s.flags[last];
+    s.cert[i] = s.cert[last];
+    node_[s.cell[i]].slot = i;
+  }
+}
+
+void CellSelector::prefetchChildren(uint32_t c) const {
+  const Node* p = &node_[node_[c].firstChild];
+  const uint32_t count = node_[c].childCount;
+  for (uint32_t b = 0; b < count * sizeof(Node); b += 64) __builtin_prefetch(reinterpret_cast<const char*>(p) + b);
+}
+
+// One pass over a set: e and the frustum flags of every member.
+void CellSelector::evaluateSet(CellSet& s) {
+  for (uint32_t i = 0; i < s.n; i += 4) evalQuad(vc_, &s.x[i], &s.y[i], &s.z[i], &s.edge[i], &s.voxels[i], &s.e[i], &s.flags[i]);
+}
+
+// The children of c that are below the cut and not yet evaluated this frame, four at a time.
 void CellSelector::evaluateChildren(uint32_t c) {
-  const uint32_t first = tree_.firstChild(c), count = tree_.childCount(c);
-  const uint8_t mask = live(c) ? static_cast<uint8_t>(flags_[c] & kAllPlanes) : kAllPlanes;
-  for (uint32_t i = 0; i < count; ++i) evaluate(first + i, mask);
+  const uint32_t first = node_[c].firstChild, count = uint32_t{node_[c].childCount};
+  if (count == 0) return;
+  const float edge = edgeF_[node_[first].level];
+  float x[8], y[8], z[8], ed[8], e[8];
+  uint32_t v[8], idx[8];
+  uint8_t fl[8];
+  uint32_t n = 0;
+  for (uint32_t i = 0; i < count; ++i) {
+    const uint32_t ch = first + i;
+    if (node_[ch].state != kBelow || node_[ch].stamp == frame_) continue;
+    const Node& d = node_[ch];
+    x[n] = d.x;
+    y[n] = d.y;
+    z[n] = d.z;
+    ed[n] = edge;
+    v[n] = d.voxels;
+    fl[n] = d.childCount > 0 ? kHasChildren : 0;
+    idx[n++] = ch;
+  }
+  for (uint32_t i = n; i < (n + 3) / 4 * 4; ++i) {
+    x[i] = y[i] = z[i] = 0.0f;
+    ed[i] = edge;
+    v[i] = 0;
+    fl[i] = 0;
+  }
+  for (uint32_t i = 0; i < n; i += 4) evalQuad(vc_, &x[i], &y[i], &z[i], &ed[i], &v[i], &e[i], &fl[i]);
+  for (uint32_t i = 0; i < n; ++i) {
+    Node& d = node_[idx[i]];
+    d.e = e[i];
+    d.flags = fl[i];
+    d.stamp = frame_;
+  }
 }
 
-bool CellSelector::childrenDrawable(uint32_t c) const {
-  const uint32_t first = tree_.firstChild(c), count = tree_.childCount(c);
+CellSelector::Ev CellSelector::ev(uint32_t c) {
+  if (node_[c].state == kCut) return {cut_.e[node_[c].slot], cut_.flags[node_[c].slot]};
+  if (node_[c].state == kMergeable) return {mergeable_.e[node_[c].slot], mergeable_.flags[node_[c].slot]};
+  if (node_[c].stamp != frame_) {
+    const Node& d = node_[c];
+    const float edge = edgeF_[d.level];
+    const float xs[4] = {d.x, d.x, d.x, d.x}, ys[4] = {d.y, d.y, d.y, d.y}, zs[4] = {d.z, d.z, d.z, d.z},
+                es[4] = {edge, edge, edge, edge};
+    const uint32_t vs[4] = {d.voxels, d.voxels, d.voxels, d.voxels};
+    const uint8_t f = d.childCount > 0 ? kHasChildren : 0;
+    float ee[4];
+    uint8_t ff[4] = {f, f, f, f};
+    evalQuad(vc_, xs, ys, zs, es, vs, ee, ff);
+    const Ev x{ee[0], ff[0]};
+    node_[c].e = x.e;
+    node_[c].flags = x.flags;
+    node_[c].stamp = frame_;
+  }
+  return {node_[c].e, node_[c].flags};
+}
+
+CellSelector::Ev CellSelector::evConst(uint32_t c) const {
+  if (node_[c].state == kCut) return {cut_.e[node_[c].slot], cut_.flags[node_[c].slot]};
+  if (node_[c].state == kMergeable) return {mergeable_.e[node_[c].slot], mergeable_.flags[node_[c].slot]};
+  if (node_[c].stamp != frame_) return {0.0f, 0};
+  return {node_[c].e, node_[c].flags};
+}
+
+bool CellSelector::refinable(uint32_t, Ev x) const { return (x.flags & kLive) && (x.flags & kHasChildren) && x.e > alpha_; }
+bool CellSelector::drawable(uint32_t c, Ev x) const { return !(x.flags & kLive) || resident(c); }
+
+bool CellSelector::childrenDrawable(uint32_t c) {
+  const uint32_t first = node_[c].firstChild, count = uint32_t{node_[c].childCount};
   for (uint32_t i = 0; i < count; ++i)
-    if (!drawable(first + i)) return false;
+    if (!drawable(first + i, ev(first + i))) return false;
+  return true;
+}
+
+// mc(c) = min(V, sum mc(children)) for a live refinable cell cut by the frustum boundary (a cell
+// wholly inside has mc = V: every descendant is live and octree images are monotone).
+uint64_t CellSelector::coverCost(uint32_t c, Ev x) {
+  const uint64_t v = node_[c].voxels;
+  if (!(x.flags & kLive)) return 0;
+  if ((x.flags & kInside) || !refinable(c, x)) return v;
+  evaluateChildren(c);
+  const uint32_t first = node_[c].firstChild, count = uint32_t{node_[c].childCount};
+  // Children wholly inside cost their V: when these already reach V(c), no cover is cheaper.
+  uint64_t sum = 0;
+  for (uint32_t i = 0; i < count; ++i)
+    if (ev(first + i).flags & kInside) sum += node_[first + i].voxels;
+  if (sum >= v) return v;
+  if (!childrenDrawable(c)) {
+    if (unknownCover_.size() < unknownCover_.capacity()) unknownCover_.push_back(c);
+    return v;
+  }
+  // The other children: plain ones first (outside: 0, not refinable: V), then those cut by the
+  // frustum boundary while the sum stays below V.
+  uint32_t deferred = 0;
+  for (uint32_t i = 0; i < count; ++i) {
+    const uint32_t ch = first + i;
+    const Ev y = ev(ch);
+    if (y.flags & kInside) continue;
+    if ((y.flags & kLive) && refinable(ch, y) && node_[ch].state == kBelow && !costed(ch)) {
+      prefetchChildren(ch);
+      ++deferred;
+      continue;
+    }
+    sum += cost(ch);
+  }
+  for (uint32_t i = 0; i < count && deferred > 0 && sum < v; ++i) {
+    const uint32_t ch = first + i;
+    const Ev y = ev(ch);
+    if (!(y.flags & kInside) && (y.flags & kLive) && refinable(ch, y) && node_[ch].state == kBelow && !costed(ch)) {
+      sum += cost(ch);
+      --deferred;
+    }
+  }
+  return std::min(v, sum);
+}
+
+// Certificates. A cut cell c cut by the frustum boundary usually costs V. Cells wholly inside
+// the frustum cost their V whatever the cover (covers only grow inside the frustum), so with S a
+// set of wholly inside children and grandchildren,
+//     mc(c) >= sum over children ch of (ch in S ? V(ch) : min(V(ch), sum of V over its grandchildren in S)),
+// and when that reaches V(c), mc(c) = V(c). Such an S (up to 8 boxes, chosen when c's cover was
+// last computed) is kept with c; while its boxes stay wholly inside, mc(c) = V(c) without looking
+// at the tree. A box code: bits 0-2 the child's octant, bits 3-5 the grandchild's, bit 6 set for
+// a grandchild, bit 7 set for a live leaf (costs V: tested live on a shrunk box) rather than a
+// wholly inside cell; up to 7 codes, their count in the top byte; 0: none.
+uint64_t CellSelector::makeCertificate(uint32_t c) {
+  struct Part {
+    uint64_t value;
+    uint32_t boxes;
+    uint8_t code[8];
+  };
+  auto octant = [&](uint32_t cell) {
+    const glm::uvec3 k = tree_.coord(cell);
+    return static_cast<uint8_t>((k.x & 1) | ((k.y & 1) << 1) | ((k.z & 1) << 2));
+  };
+  Part parts[8];
+  uint32_t np = 0;
+  const uint32_t first = node_[c].firstChild, count = node_[c].childCount;
+  for (uint32_t i = 0; i < count; ++i) {
+    const uint32_t ch = first + i;
+    const Ev y = ev(ch);
+    Part& p = parts[np];
+    p.boxes = 0;
+    p.value = 0;
+    if (y.flags & kInside) {
+      p.value = node_[ch].voxels;
+      p.code[p.boxes++] = octant(ch);
+    } else if ((y.flags & kLive) && node_[ch].childCount == 0) {
+      p.value = node_[ch].voxels;  // a live leaf costs V
+      p.code[p.boxes++] = static_cast<uint8_t>(octant(ch) | 0x80);
+    } else if ((y.flags & kLive) && node_[ch].childCount > 0) {
+      // Its wholly inside children evaluated this frame, largest first, up to V(ch).
+      const uint32_t gf = node_[ch].firstChild, gc = node_[ch].childCount;
+      uint32_t used = 0;
+      while (p.value < node_[ch].voxels && p.boxes < 8) {
+        uint32_t best = kNoCell, bestV = 0;
+        for (uint32_t j = 0; j < gc; ++j) {
+          const Node& g = node_[gf + j];
+          if (!(used & (1u << j)) && g.state == kBelow && g.stamp == frame_ &&
+              ((g.flags & kInside) || ((g.flags & kLive) && g.childCount == 0)) && g.voxels > bestV) {
+            best = j;
+            bestV = g.voxels;
+          }
+        }
+        if (best == kNoCell) break;
+        used |= 1u << best;
+        p.code[p.boxes++] = static_cast<uint8_t>(octant(ch) | (octant(gf + best) << 3) | 0x40 |
+                                                 ((node_[gf + best].flags & kInside) ? 0 : 0x80));
+        p.value += bestV;
+      }
+      p.value = std::min<uint64_t>(p.value, node_[ch].voxels);
+    }
+    if (p.value > 0) ++np;
+  }
+  // The parts worth most per box first, until V(c).
+  for (uint32_t k = 1; k < np && k < 9; ++k)
+    for (uint32_t j = k; j > 0 && parts[j].value * parts[j - 1].boxes > parts[j - 1].value * parts[j].boxes; --j)
+      std::swap(parts[j], parts[j - 1]);
+  uint64_t sum = 0, cert = 0;
+  uint32_t boxes = 0;
+  for (uint32_t k = 0; k < np && sum < node_[c].voxels; ++k) {
+    if (boxes + parts[k].boxes > 7) continue;
+    for (uint32_t j = 0; j < parts[k].boxes; ++j) cert |= uint64_t{parts[k].code[j]} << (8 * boxes++);
+    sum += parts[k].value;
+  }
+  return sum >= node_[c].voxels && boxes > 0 ? cert | uint64_t{boxes} << 56 : 0;
+}
+
+// Whether the certificate's boxes are still wholly inside the frustum (tested on boxes grown by
+// 0.1 % of their edge, so that rounding cannot make this differ from the cells' own test).
+bool CellSelector::certificateHolds(const CellSet& s, uint32_t i) const {
+  const float h = 0.5f * s.edge[i], q = 0.5f * h;
+  float x[8], y[8], z[8], ed[8], e[8];
+  uint32_t v[8];
+  uint8_t fl[8];
+  const uint32_t n = static_cast<uint32_t>(s.cert[i] >> 56);
+  if (n == 0 || n > 7) return false;
+  for (uint32_t k = 0; k < n; ++k) {
+    const uint32_t code = static_cast<uint32_t>(s.cert[i] >> (8 * k)) & 0xFF;
+    const uint32_t o = code & 7, g = (code >> 3) & 7;
+    const bool deep = (code & 0x40) != 0;
+    // Wholly inside: tested grown; live (a leaf): tested shrunk.
+    const float size = deep ? q : h, eps = (code & 0x80) ? -1e-3f * size : 1e-3f * size;
+    x[k] = s.x[i] + ((o & 1) ? h : 0.0f) + (deep && (g & 1) ? q : 0.0f) - eps;
+    y[k] = s.y[i] + ((o & 2) ? h : 0.0f) + (deep && (g & 2) ? q : 0.0f) - eps;
+    z[k] = s.z[i] + ((o & 4) ? h : 0.0f) + (deep && (g & 4) ? q : 0.0f) - eps;
+    ed[k] = size + 2.0f * eps;
+    v[k] = 1;
+    fl[k] = 0;
+  }
+  for (uint32_t k = n; k < 8; ++k) {
+    x[k] = x[0];
+    y[k] = y[0];
+    z[k] = z[0];
+    ed[k] = ed[0];
+    v[k] = 1;
+    fl[k] = 0;
+  }
+  evalQuad(vc_, &x[0], &y[0], &z[0], &ed[0], &v[0], &e[0], &fl[0]);
+  if (n > 4) evalQuad(vc_, &x[4], &y[4], &z[4], &ed[4], &v[4], &e[4], &fl[4]);
+  for (uint32_t k = 0; k < n; ++k) {
+    const uint32_t code = static_cast<uint32_t>(s.cert[i] >> (8 * k)) & 0xFF;
+    if (!(fl[k] & ((code & 0x80) ? kLive : kInside))) return false;
+  }
   return true;
 }
 
 uint64_t CellSelector::cost(uint32_t c) {
-  if (costStamp_[c] == frame_) return mc_[c];
-  uint64_t v = live(c) ? tree_.voxels(c) : 0;
-  // Wholly inside the frustum: every descendant is live and octree images are monotone, so no
-  // cover is cheaper than the cell itself.
-  if (live(c) && (flags_[c] & kAllPlanes) != 0 && refinable(c)) {
-    evaluateChildren(c);
-    if (!childrenDrawable(c)) {
-      if (unknownCover_.size() < unknownCover_.capacity()) unknownCover_.push_back(c);
-    } else {
-      uint64_t sum = 0;
-      const uint32_t first = tree_.firstChild(c), count = tree_.childCount(c);
-      for (uint32_t i = 0; i < count && sum < v; ++i) sum += cost(first + i);
-      v = std::min(v, sum);
-    }
-  }
-  costStamp_[c] = frame_;
-  mc_[c] = v;
+  if (node_[c].state == kCut) return cut_.mc[node_[c].slot];
+  if (node_[c].state == kMergeable) return mergeable_.mc[node_[c].slot];
+  if (costed(c)) return node_[c].mc;
+  const uint64_t v = coverCost(c, ev(c));
+  node_[c].flags = static_cast<uint8_t>(node_[c].flags | kCosted);
+  node_[c].mc = static_cast<uint32_t>(v);
   return v;
 }
 
-void CellSelector::collapse(uint32_t c) {
-  if (state_[c] == kRefined) {
-    const uint32_t first = tree_.firstChild(c), count = tree_.childCount(c);
-    for (uint32_t i = 0; i < count; ++i) {
-      collapse(first + i);
-      state_[first + i] = kBelow;
-    }
-  }
-  state_[c] = kCut;
+uint64_t CellSelector::costConst(uint32_t c) const {
+  if (node_[c].state == kCut) return cut_.mc[node_[c].slot];
+  if (node_[c].state == kMergeable) return mergeable_.mc[node_[c].slot];
+  return costed(c) ? node_[c].mc : node_[c].voxels;
 }
 
-bool CellSelector::pushSplit(uint32_t c) {
-  if (splitHeap_.size() == splitHeap_.capacity()) return false;
-  splitHeap_.push_back({e_[c], c});
-  std::push_heap(splitHeap_.begin(), splitHeap_.end(), [](const HeapEntry& a, const HeapEntry& b) { return a.e < b.e; });
-  return true;
-}
-
-bool CellSelector::pushMerge(uint32_t p) {
-  if (mergeHeap_.size() == mergeHeap_.capacity()) return false;
-  mergeHeap_.push_back({e_[p], p});
-  std::push_heap(mergeHeap_.begin(), mergeHeap_.end(), [](const HeapEntry& a, const HeapEntry& b) { return a.e > b.e; });
-  return true;
-}
-
-bool CellSelector::mergeCandidate(uint32_t p) const {
-  if (state_[p] != kRefined) return false;
-  const uint32_t first = tree_.firstChild(p), count = tree_.childCount(p);
+void CellSelector::maybeMergeable(uint32_t p) {
+  if (p == kNoCell || node_[p].state != kRefined) return;
+  const uint32_t first = node_[p].firstChild, count = uint32_t{node_[p].childCount};
   for (uint32_t i = 0; i < count; ++i)
-    if (state_[first + i] != kCut) return false;
-  return true;
+    if (node_[first + i].state != kCut) return;
+  const Ev x = ev(p);
+  const uint64_t mc = coverCost(p, x);  // children in the cut: their costs are known
+  insert(mergeable_, p, x, mc);
+  node_[p].state = kMergeable;
 }
 
-uint64_t CellSelector::mergeSaving(uint32_t p) {
-  uint64_t sum = 0;
-  const uint32_t first = tree_.firstChild(p), count = tree_.childCount(p);
-  for (uint32_t i = 0; i < count; ++i) sum += cost(first + i);
-  const uint64_t own = cost(p);
-  return sum > own ? sum - own : 0;
-}
-
-void CellSelector::merge(uint32_t p) {
-  const uint32_t first = tree_.firstChild(p), count = tree_.childCount(p);
-  for (uint32_t i = 0; i < count; ++i) state_[first + i] = kBelow;
-  state_[p] = kCut;
-}
-
-// Walks the cut from the root: evaluates cells, merges invisible and sub-pixel refined cells,
-// sums the cost and fills the queues. Returns false when a drawn cell was no longer resident and
-// the cut was repaired (walk again).
-bool CellSelector::walkCut() {
-  cutList_.clear();
-  splitHeap_.clear();
-  mergeHeap_.clear();
-  cost_ = 0;
-  bool repaired = false;
-  size_t top = 0;
-  stack_[top++] = 0;
-  evaluate(0, kAllPlanes);
-  while (top > 0) {
-    const uint32_t c = stack_[--top];
-    if (state_[c] == kRefined) {
-      if ((!live(c) || e_[c] <= alpha_) && drawable(c)) {
-        collapse(c);  // invisible or already sub-pixel: minimum quality
-        ++forcedMerges_;
-      } else {
-        evaluateChildren(c);
-        const uint32_t first = tree_.firstChild(c), count = tree_.childCount(c);
-        for (uint32_t i = 0; i < count; ++i) stack_[top++] = first + i;
-        continue;
+// Eviction repair: a's subtree leaves the cut, a joins it.
+void CellSelector::collapse(uint32_t a) {
+  const Ev x = ev(a);
+  if (node_[a].state == kMergeable) remove(mergeable_, a);
+  if (node_[a].state != kCut) {
+    size_t top = 0;
+    scratch_.clear();
+    const uint32_t first = node_[a].firstChild, count = uint32_t{node_[a].childCount};
+    for (uint32_t i = 0; i < count; ++i) scratch_.push_back(first + i);
+    while (top < scratch_.size()) {
+      const uint32_t d = scratch_[top++];
+      if (node_[d].state == kCut) remove(cut_, d);
+      if (node_[d].state == kMergeable) remove(mergeable_, d);
+      if (node_[d].state == kRefined || node_[d].state == kMergeable) {
+        const uint32_t f = node_[d].firstChild, k = uint32_t{node_[d].childCount};
+        for (uint32_t i = 0; i < k; ++i) scratch_.push_back(f + i);
       }
+      node_[d].state = kBelow;
     }
-    if (state_[c] != kCut) continue;
-    if (!drawable(c) && c != 0) {
-      // Evicted: fall back to the nearest drawable ancestor (the root if none).
-      uint32_t a = tree_.parent(c);
-      while (a != 0 && !drawable(a)) a = tree_.parent(a);
-      collapse(a);
-      repaired = true;
-      continue;
-    }
-    cutList_.push_back(c);
-    cost_ += cost(c);
-    if (refinable(c)) splitHeap_.push_back({e_[c], c});  // heapified once after the walk
+    insert(cut_, a, x, 0);  // costed with the rest of the cut
+    node_[a].state = kCut;
   }
-  if (repaired) return false;
-  for (uint32_t c : cutList_) {
-    const uint32_t p = tree_.parent(c);
-    if (p != kNoCell && c == tree_.firstChild(p) && mergeCandidate(p)) mergeHeap_.push_back({e_[p], p});
-  }
-  return true;
+  maybeMergeable(tree_.parent(a));
 }
 
-template <typename Emit>
-void CellSelector::emitCover(uint32_t c, bool liveOnly, Emit&& emit) const {
-  if (!live(c)) {
-    if (!liveOnly) emit(c);
-    return;
+void CellSelector::pushSplit(uint32_t c, float e) {
+  if (e >= splitFloor_ && splitHeap_.size() < splitHeap_.capacity()) {
+    splitHeap_.push_back({e, c});
+    std::push_heap(splitHeap_.begin(), splitHeap_.end(), splitLess<HeapEntry, HeapEntry>);
   }
-  if (costStamp_[c] == frame_ && mc_[c] < tree_.voxels(c)) {
-    const uint32_t first = tree_.firstChild(c), count = tree_.childCount(c);
-    for (uint32_t i = 0; i < count; ++i) emitCover(first + i, liveOnly, emit);
-    return;
-  }
-  emit(c);
 }
 
-size_t CellSelector::realization(std::span<uint32_t> out) const {
-  size_t n = 0;
-  if (tree_.empty()) return 0;
-  std::array<uint32_t, 8 * kMaxCellLevels + 8> stack{};
-  size_t top = 0;
-  stack[top++] = 0;
-  while (top > 0) {
-    const uint32_t c = stack[--top];
-    if (state_[c] == kRefined) {
-      const uint32_t first = tree_.firstChild(c), count = tree_.childCount(c);
-      for (uint32_t i = count; i-- > 0;) stack[top++] = first + i;
-    } else if (state_[c] == kCut) {
-      emitCover(c, false, [&](uint32_t cell) {
-        if (n < out.size()) out[n] = cell;
-        ++n;
-      });
-    }
+void CellSelector::pushMerge(uint32_t p, float e) {
+  if (e <= mergeCeil_ && mergeHeap_.size() < mergeHeap_.capacity()) {
+    mergeHeap_.push_back({e, p});
+    std::push_heap(mergeHeap_.begin(), mergeHeap_.end(), mergeLess<HeapEntry, HeapEntry>);
   }
-  return std::min(n, out.size());
+}
+
+bool CellSelector::splitTop(HeapEntry& top) {
+  for (;;) {
+    while (!splitHeap_.empty() && (node_[splitHeap_.front().cell].state != kCut || popStamp_[splitHeap_.front().cell] == frame_)) {
+      std::pop_heap(splitHeap_.begin(), splitHeap_.end(), splitLess<HeapEntry, HeapEntry>);
+      splitHeap_.pop_back();
+    }
+    if (!splitHeap_.empty() && splitHeap_.front().e >= splitFloor_) {
+      top = splitHeap_.front();
+      return true;
+    }
+    if (splitFloor_ <= 0.0f) return false;
+    // Below the window: queue the next band of the cut.
+    const float hi = splitFloor_;
+    splitFloor_ = splitFloor_ > 1.25f * alpha_ && splitFloor_ > 1e-30f ? 0.8f * splitFloor_ : 0.0f;
+    for (uint32_t i = 0; i < cut_.n; ++i) {
+      const Ev x{cut_.e[i], cut_.flags[i]};
+      if (x.e >= splitFloor_ && x.e < hi && refinable(cut_.cell[i], x) && splitHeap_.size() < splitHeap_.capacity())
+        splitHeap_.push_back({x.e, cut_.cell[i]});
+    }
+    std::make_heap(splitHeap_.begin(), splitHeap_.end(), splitLess<HeapEntry, HeapEntry>);
+  }
+}
+
+bool CellSelector::mergeFront(float limit, HeapEntry& front) {
+  for (;;) {
+    while (!mergeHeap_.empty() && node_[mergeHeap_.front().cell].state != kMergeable) {
+      std::pop_heap(mergeHeap_.begin(), mergeHeap_.end(), mergeLess<HeapEntry, HeapEntry>);
+      mergeHeap_.pop_back();
+    }
+    if (!mergeHeap_.empty() && mergeHeap_.front().e <= mergeCeil_) {
+      front = mergeHeap_.front();
+      return front.e <= limit;
+    }
+    if (mergeCeil_ >= limit || mergeCeil_ == kInf) return false;  // none with e <= limit
+    // Above the window: queue the next band of the mergeable cells.
+    const float lo = mergeCeil_;
+    mergeCeil_ = limit == kInf || !(mergeCeil_ > 0.0f) ? kInf : std::max(limit, 1.25f * mergeCeil_);
+    for (uint32_t i = 0; i < mergeable_.n; ++i) {
+      const float e = mergeable_.e[i];
+      if (e > lo && e <= mergeCeil_ && mergeHeap_.size() < mergeHeap_.capacity())
+        mergeHeap_.push_back({e, mergeable_.cell[i]});
+    }
+    std::make_heap(mergeHeap_.begin(), mergeHeap_.end(), mergeLess<HeapEntry, HeapEntry>);
+  }
+}
+
+// c (cut, every child drawable and costed) -> its children.
+void CellSelector::split(uint32_t c) {
+  const Ev x = ev(c);
+  const uint64_t own = cost(c);
+  remove(cut_, c);
+  node_[c].state = kRefined;
+  const uint32_t first = node_[c].firstChild, count = uint32_t{node_[c].childCount};
+  for (uint32_t i = 0; i < count; ++i) {
+    const uint32_t ch = first + i;
+    const Ev y = ev(ch);
+    insert(cut_, ch, y, cost(ch));
+    node_[ch].state = kCut;
+    if (refinable(ch, y)) pushSplit(ch, y.e);
+  }
+  const uint32_t p = tree_.parent(c);
+  if (p != kNoCell && node_[p].state == kMergeable) {
+    remove(mergeable_, p);
+    node_[p].state = kRefined;
+  }
+  insert(mergeable_, c, x, own);
+  node_[c].state = kMergeable;
+  pushMerge(c, x.e);
+}
+
+// p (mergeable) -> p in the cut, with the cost; then its parent, if that becomes mergeable and
+// is drawable but not refinable (invisible or sub-pixel: minimum quality, not a greedy operation).
+void CellSelector::merge(uint32_t p) {
+  for (;;) {
+    const uint32_t first = node_[p].firstChild, count = uint32_t{node_[p].childCount};
+    uint64_t sum = 0;
+    for (uint32_t i = 0; i < count; ++i) {
+      sum += cost(first + i);
+      remove(cut_, first + i);
+      node_[first + i].state = kBelow;
+    }
+    const uint32_t i = node_[p].slot;
+    const Ev x{mergeable_.e[i], mergeable_.flags[i]};
+    const uint64_t mc = mergeable_.mc[i];
+    cost_ = cost_ - sum + mc;
+    remove(mergeable_, p);
+    insert(cut_, p, x, mc);
+    node_[p].state = kCut;
+    if (refinable(p, x)) pushSplit(p, x.e);
+    const uint32_t gp = tree_.parent(p);
+    maybeMergeable(gp);
+    if (gp == kNoCell || node_[gp].state != kMergeable) return;
+    const Ev g = ev(gp);
+    if (refinable(gp, g)) {
+      pushMerge(gp, g.e);
+      return;
+    }
+    if (!drawable(gp, g)) return;
+    ++forcedMerges_;
+    p = gp;
+  }
 }
 
 bool CellSelector::request(uint32_t c) {
@@ -271,10 +654,46 @@ bool CellSelector::request(uint32_t c) {
 
 void CellSelector::requestUnknownCovers() {
   for (uint32_t c : unknownCover_) {
-    const uint32_t first = tree_.firstChild(c), count = tree_.childCount(c);
+    const uint32_t first = node_[c].firstChild, count = uint32_t{node_[c].childCount};
     for (uint32_t i = 0; i < count; ++i)
-      if (!drawable(first + i)) request(first + i);
+      if (!drawable(first + i, ev(first + i))) request(first + i);
   }
+}
+
+template <typename Emit>
+void CellSelector::emitCover(uint32_t c, bool liveOnly, Emit&& emit) const {
+  const Ev x = evConst(c);
+  if (!(x.flags & kLive)) {
+    if (!liveOnly) emit(c, x);
+    return;
+  }
+  if (costConst(c) < node_[c].voxels) {
+    const uint32_t first = node_[c].firstChild, count = uint32_t{node_[c].childCount};
+    for (uint32_t i = 0; i < count; ++i) emitCover(first + i, liveOnly, emit);
+    return;
+  }
+  emit(c, x);
+}
+
+size_t CellSelector::realization(std::span<uint32_t> out) const {
+  size_t n = 0;
+  if (tree_.empty()) return 0;
+  std::array<uint32_t, 8 * kMaxCellLevels + 8> stack{};
+  size_t top = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    const uint32_t c = stack[--top];
+    if (node_[c].state == kRefined || node_[c].state == kMergeable) {
+      const uint32_t first = node_[c].firstChild, count = uint32_t{node_[c].childCount};
+      for (uint32_t i = count; i-- > 0;) stack[top++] = first + i;
+    } else if (node_[c].state == kCut) {
+      emitCover(c, false, [&](uint32_t cell, Ev) {
+        if (n < out.size()) out[n] = cell;
+        ++n;
+      });
+    }
+  }
+  return std::min(n, out.size());
 }
 
 CellSelectStats CellSelector::select(const CellView& view, std::span<const Residency> residency,
@@ -285,111 +704,174 @@ CellSelectStats CellSelector::select(const CellView& view, std::span<const Resid
   if (tree_.empty()) return stats;
   residency_ = residency;
   if (++frame_ == 0) {
-    std::fill(evalStamp_.begin(), evalStamp_.end(), 0u);
-    std::fill(costStamp_.begin(), costStamp_.end(), 0u);
+    for (Node& d : node_) d.stamp = 0;
     std::fill(reqStamp_.begin(), reqStamp_.end(), 0u);
+    std::fill(popStamp_.begin(), popStamp_.end(), 0u);
     frame_ = 1;
   }
-  planes_ = makeFrustum(view.camera).planes;
-  rootRel_ = tree_.info().rootMin_m - view.camera.eye_m;
-  pxPerM_ = pixelsPerRadian(view);
-  near_m_ = view.camera.near_m;
+  makeConsts(tree_, view, vc_);
   alpha_ = static_cast<float>(view.minVoxel_px);
-  const uint64_t budget = view.voxelBudget, W = view.byteBudget;
-  uint32_t ops = 0;
-
-  forcedMerges_ = 0;
-  unknownCover_.clear();
-  while (!walkCut()) {
-  }
-  stats.merges = forcedMerges_;
-
+  const uint64_t budget = view.voxelBudget;
   reqOut_ = requests;
   reqCount_ = 0;
   reqBytes_ = 0;
-  W_ = W;
+  W_ = view.byteBudget;
   unfetchable_ = 0;
+  uint32_t ops = 0;
 
-  const auto splitLess = [](const HeapEntry& a, const HeapEntry& b) { return a.e < b.e; };
-  const auto mergeLess = [](const HeapEntry& a, const HeapEntry& b) { return a.e > b.e; };
-  auto popMerge = [&]() {
-    std::pop_heap(mergeHeap_.begin(), mergeHeap_.end(), mergeLess);
-    const uint32_t p = mergeHeap_.back().cell;
-    mergeHeap_.pop_back();
-    return p;
-  };
-  auto doMerge = [&](uint32_t p, uint64_t saving) {
+  // 1. Evaluate the cut and the mergeable cells (one pass each over packed arrays).
+  evaluateSet(cut_);
+  evaluateSet(mergeable_);
+
+  // 2. Drawn cells that stopped being resident: fall back to the nearest drawable ancestor
+  // (collected first: collapsing reorders the cut).
+  if (!residency_.empty()) {
+    evicted_.clear();
+    for (uint32_t i = 0; i < cut_.n; ++i)
+      if ((cut_.flags[i] & kLive) && !resident(cut_.cell[i]) && cut_.cell[i] != 0) evicted_.push_back(cut_.cell[i]);
+    for (uint32_t c : evicted_) {
+      if (node_[c].state != kCut) continue;  // gone with an earlier repair
+      uint32_t a = tree_.parent(c);
+      while (a != 0 && !drawable(a, ev(a))) a = tree_.parent(a);
+      collapse(a);
+    }
+  }
+
+  // 3. Costs: mc of every cut cell, then of the mergeable cells (from their children).
+  unknownCover_.clear();
+  cost_ = 0;
+  scratch_.clear();
+  for (uint32_t i = 0; i < cut_.n; ++i) {
+    const uint8_t f = cut_.flags[i];
+    uint64_t mc = 0;
+    if (f & kLive) {
+      mc = cut_.voxels[i];
+      // Cut by the frustum boundary: the cheapest cover (below), unless the certificate holds.
+      if (!(f & kInside) && (f & kHasChildren) && cut_.e[i] > alpha_ && (cut_.cert[i] == 0 || !certificateHolds(cut_, i)))
+        scratch_.push_back(i);
+    }
+    cut_.mc[i] = static_cast<uint32_t>(mc);
+    cost_ += mc;
+  }
+  // The covers, their children's nodes fetched a few cells ahead (the tree walk waits on memory).
+  constexpr size_t kAhead = 6;
+  for (size_t k = 0; k < std::min(kAhead, scratch_.size()); ++k) prefetchChildren(cut_.cell[scratch_[k]]);
+  for (size_t k = 0; k < scratch_.size(); ++k) {
+    if (k + kAhead < scratch_.size()) prefetchChildren(cut_.cell[scratch_[k + kAhead]]);
+    const uint32_t i = scratch_[k];
+    const uint64_t mc = coverCost(cut_.cell[i], {cut_.e[i], cut_.flags[i]});
+    cut_.cert[i] = mc == cut_.voxels[i] ? makeCertificate(cut_.cell[i]) : 0;
+    cost_ -= cut_.voxels[i] - mc;
+    cut_.mc[i] = static_cast<uint32_t>(mc);
+  }
+  for (uint32_t i = 0; i < mergeable_.n; ++i) {
+    const uint8_t f = mergeable_.flags[i];
+    uint64_t mc = 0;
+    if (f & kLive) {
+      mc = mergeable_.voxels[i];
+      if (!(f & kInside) && (f & kHasChildren) && mergeable_.e[i] > alpha_)
+        mc = coverCost(mergeable_.cell[i], {mergeable_.e[i], f});
+    }
+    mergeable_.mc[i] = static_cast<uint32_t>(mc);
+  }
+
+  // 4. Mergeable cells that became invisible or sub-pixel: minimum quality.
+  scratch_.clear();
+  for (uint32_t i = 0; i < mergeable_.n; ++i) {
+    const Ev x{mergeable_.e[i], mergeable_.flags[i]};
+    if (!refinable(mergeable_.cell[i], x) && drawable(mergeable_.cell[i], x)) scratch_.push_back(mergeable_.cell[i]);
+  }
+  splitHeap_.clear();
+  mergeHeap_.clear();
+  splitFloor_ = kInf;
+  mergeCeil_ = -kInf;
+  forcedMerges_ = 0;
+  for (size_t k = 0; k < scratch_.size(); ++k) {
+    const uint32_t p = scratch_[k];
+    if (node_[p].state != kMergeable) continue;
+    merge(p);  // cascades to parents that are not refinable either
+    ++forcedMerges_;
+  }
+
+  // The heap windows, around where the greedy stopped last frame.
+  splitFloor_ = 0.95f * lastT_;
+  mergeCeil_ = lastT_ / 0.95f;
+  for (uint32_t i = 0; i < cut_.n; ++i) {
+    const Ev x{cut_.e[i], cut_.flags[i]};
+    if (x.e >= splitFloor_ && refinable(cut_.cell[i], x)) splitHeap_.push_back({x.e, cut_.cell[i]});
+  }
+  for (uint32_t i = 0; i < mergeable_.n; ++i)
+    if (mergeable_.e[i] <= mergeCeil_) mergeHeap_.push_back({mergeable_.e[i], mergeable_.cell[i]});
+  std::make_heap(splitHeap_.begin(), splitHeap_.end(), splitLess<HeapEntry, HeapEntry>);
+  std::make_heap(mergeHeap_.begin(), mergeHeap_.end(), mergeLess<HeapEntry, HeapEntry>);
+  auto doMerge = [&](uint32_t p) {
     merge(p);
-    cost_ -= saving;
     ++stats.merges;
     ++ops;
-    if (refinable(p) && !pushSplit(p)) stats.capped = true;
-    const uint32_t gp = tree_.parent(p);
-    if (gp != kNoCell && mergeCandidate(gp) && !pushMerge(gp)) stats.capped = true;
+  };
+  auto popMerge = [&]() {
+    std::pop_heap(mergeHeap_.begin(), mergeHeap_.end(), mergeLess<HeapEntry, HeapEntry>);
+    mergeHeap_.pop_back();
   };
 
-  if (state_[0] == kCut && !drawable(0)) {
+  if (node_[0].state == kCut && !drawable(0, ev(0))) {
     // Nothing drawable yet: fetch the root.
     request(0);
     stats.feasible = false;
   } else {
-    std::make_heap(splitHeap_.begin(), splitHeap_.end(), splitLess);
-    std::make_heap(mergeHeap_.begin(), mergeHeap_.end(), mergeLess);
-    // Over budget (the view came closer, cells became visible): coarsen, smallest e first.
-    while (cost_ > budget && !mergeHeap_.empty()) {
-      const uint32_t p = popMerge();
-      if (!mergeCandidate(p) || !drawable(p)) continue;
-      doMerge(p, mergeSaving(p));
+    // 5. Over budget (the view came closer, cells became visible): coarsen, smallest e first.
+    HeapEntry m{};
+    while (cost_ > budget && mergeFront(kInf, m)) {
+      popMerge();
+      if (drawable(m.cell, ev(m.cell))) doMerge(m.cell);
     }
     stats.feasible = cost_ <= budget;
     if (!stats.feasible) requestUnknownCovers();  // a cheaper cover may hide below cells not resident
 
-    // Refine: largest on-screen voxel first.
+    // 6. Refine: largest on-screen voxel first; merge cells of lower priority to make room.
     uint64_t reserved = 0;
-    while (stats.feasible && !splitHeap_.empty()) {
+    HeapEntry s{};
+    while (stats.feasible && splitTop(s)) {
       if (ops >= config_.maxOperations) {
         stats.capped = true;
         break;
       }
-      std::pop_heap(splitHeap_.begin(), splitHeap_.end(), splitLess);
-      const uint32_t c = splitHeap_.back().cell;
-      splitHeap_.pop_back();
-      if (state_[c] != kCut) continue;
+      const uint32_t c = s.cell;
+      lastT_ = s.e;
+      const uint32_t first = node_[c].firstChild, count = uint32_t{node_[c].childCount};
       evaluateChildren(c);
-      const uint32_t first = tree_.firstChild(c), count = tree_.childCount(c);
       uint64_t childCost = 0;
       bool missing = false;
       for (uint32_t i = 0; i < count; ++i) {
         const uint32_t ch = first + i;
-        if (!drawable(ch)) {
+        if (!drawable(ch, ev(ch))) {
           missing = true;
-          childCost += tree_.voxels(ch);
+          childCost += node_[ch].voxels;
         } else {
           childCost += cost(ch);
         }
       }
       const uint64_t own = cost(c);
       const uint64_t delta = childCost > own ? childCost - own : 0;
-      // Make room by merging cells whose voxels are smaller on screen than c's.
-      while (cost_ + reserved + delta > budget && !mergeHeap_.empty() && mergeHeap_.front().e < e_[c]) {
-        const uint32_t p = popMerge();
-        if (!mergeCandidate(p) || !drawable(p)) continue;
-        const uint64_t saving = mergeSaving(p);
-        if (saving > 0) doMerge(p, saving);
+      bool fits = cost_ + reserved + delta <= budget;
+      // Every mergeable cell of lower priority than c is merged before c is given up (so that
+      // the result does not depend on the last frame's cut), and while c does not fit.
+      while (!fits && mergeFront(s.e, m) && mergeLess(s, m)) {
+        popMerge();
+        if (drawable(m.cell, ev(m.cell))) doMerge(m.cell);
+        fits = cost_ + reserved + delta <= budget;
       }
-      if (cost_ + reserved + delta > budget) {
+      if (!fits) {
         // The largest voxel cannot shrink: balanced. Fetch the cells whose residency may reveal
         // cheaper covers of cells cut by the frustum (their cost is counted as V until then).
         requestUnknownCovers();
         break;
       }
+      std::pop_heap(splitHeap_.begin(), splitHeap_.end(), splitLess<HeapEntry, HeapEntry>);
+      splitHeap_.pop_back();
+      popStamp_[c] = frame_;
       if (!missing) {
-        state_[c] = kRefined;
-        for (uint32_t i = 0; i < count; ++i) {
-          state_[first + i] = kCut;
-          if (refinable(first + i) && !pushSplit(first + i)) stats.capped = true;
-        }
-        if (!pushMerge(c)) stats.capped = true;
+        split(c);
         cost_ += delta;
         ++stats.splits;
         ++ops;
@@ -398,41 +880,51 @@ CellSelectStats CellSelector::select(const CellView& view, std::span<const Resid
       // Blocked: request the missing children (within W) and hold their voxels.
       bool all = true;
       for (uint32_t i = 0; i < count; ++i)
-        if (!drawable(first + i) && !request(first + i)) all = false;
+        if (!drawable(first + i, ev(first + i)) && !request(first + i)) all = false;
       if (all) {
         reserved += delta;
         ++stats.blockedSplits;
+      } else if (reqCount_ >= reqOut_.size() || W_ - reqBytes_ < minBytes_) {
+        break;  // W is spent: the next frames fetch what this cell waits for (bounds the work per frame)
       }
     }
+    if (!stats.capped && stats.feasible && splitHeap_.empty() && splitFloor_ <= 0.0f) lastT_ = 0.0f;
     stats.reservedVoxels = reserved;
   }
+  stats.merges += forcedMerges_;
   stats.requestedCells = reqCount_;
   stats.requestedBytes = reqBytes_;
   stats.unfetchable = unfetchable_;
   reqOut_ = {};
 
-  // Emit the realization's drawn cells.
+  // 7. Emit the realization's drawn cells.
   if (stats.feasible) {
-    size_t top = 0;
-    stack_[top++] = 0;
     uint32_t written = 0;
-    while (top > 0) {
-      const uint32_t c = stack_[--top];
-      if (state_[c] == kRefined) {
-        const uint32_t first = tree_.firstChild(c), count = tree_.childCount(c);
-        for (uint32_t i = count; i-- > 0;) stack_[top++] = first + i;
+    for (uint32_t i = 0; i < cut_.n; ++i) {
+      const uint32_t c = cut_.cell[i];
+      const uint8_t f = cut_.flags[i];
+      if (!(f & kLive)) {
+        ++stats.cutCells;
         continue;
       }
-      if (state_[c] != kCut) continue;
-      if (!drawable(c)) continue;  // the root, not yet arrived
-      emitCover(c, false, [&](uint32_t cell) {
+      if (!resident(c)) continue;  // the root, not yet arrived
+      auto emit = [&](uint32_t cell, Ev x) {
         ++stats.cutCells;
-        if (!live(cell)) return;
-        stats.drawnVoxels += tree_.voxels(cell);
-        stats.maxVoxel_px = std::max(stats.maxVoxel_px, e_[cell]);
-        if (written < draw.size()) draw[written++] = {cell, e_[cell]};
+        if (!(x.flags & kLive)) return;
+        stats.drawnVoxels += node_[cell].voxels;
+        stats.maxVoxel_px = std::max(stats.maxVoxel_px, x.e);
+        if (written < draw.size()) draw[written++] = {cell, x.e};
         else stats.drawTruncated = true;
-      });
+      };
+      if (cut_.mc[i] < cut_.voxels[i]) {
+        emitCover(c, false, emit);
+      } else {
+        ++stats.cutCells;
+        stats.drawnVoxels += cut_.voxels[i];
+        stats.maxVoxel_px = std::max(stats.maxVoxel_px, cut_.e[i]);
+        if (written < draw.size()) draw[written++] = {c, cut_.e[i]};
+        else stats.drawTruncated = true;
+      }
     }
     stats.drawnCells = written;
   }

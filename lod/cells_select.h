@@ -18,11 +18,26 @@
 //     max e(c) over drawn cells  (make the largest on-screen voxel as small as possible)
 // subject to  sum cost(c) <= voxelBudget  and  sum S(c) over cells requested this frame <= W.
 //
-// Method: a priority-driven greedy with split and merge queues, incremental from the last
-// frame's cut. Each frame walks the cut from the root (evaluating e, frustum and residency),
-// coarsens while over budget (smallest e first), then refines the cell with the largest e while
-// the budget allows, merging cells of smaller e to make room; it stops at the first cell of
-// largest e that does not fit. Cells that become invisible or sub-pixel are merged away.
+// Method: a priority-driven greedy with split and merge queues. Priority: larger e first, ties
+// by smaller cell index. From the root cut it refines the refinable cut cell of highest priority
+// while the budget allows and stops at the first that does not fit. Each later frame starts from
+// the last frame's cut and reaches the same result (tested: the same drawn cells as a selection
+// from the root, every frame of random camera paths): it coarsens while over budget (lowest
+// priority first), then takes the refinable cut cell of highest priority and splits it if it
+// fits, merging mergeable cells (refined cells whose children are all in the cut) of lower
+// priority to make room; before giving a cell up it merges every mergeable cell of lower
+// priority. Cells that become invisible or sub-pixel are merged away.
+//
+// Cost per frame. The cut and the mergeable cells are kept as packed arrays (struct of arrays,
+// float); each frame one vectorised pass over each re-evaluates e and the frustum (4 cells per
+// SSE step; every evaluation, evaluateCell() included, runs through that one routine, so all
+// give the same bits). Then work is proportional to what changes: the queues hold only the
+// candidates near where the greedy stopped last frame (e within a few percent), rebuilt from the
+// packed arrays in a further band when the greedy runs past them; splits and merges update the
+// arrays in place. The cheapest covers (below) are the one walk of the tree: a cut cell cut by
+// the frustum boundary keeps a certificate (up to 7 children / grandchildren that are wholly
+// inside, or live leaves, whose voxels already make mc = V); while those boxes keep their
+// status (one vectorised test), its cover is not recomputed.
 //
 // Exactness. Refining a cell never lowers the largest e but may lower the cost: a live cell cut
 // by the frustum boundary costs all its voxels, its children outside the frustum cost nothing.
@@ -34,13 +49,15 @@
 // largest drawn e equals the brute-force minimum over all realizations of the pre-selected tree
 // (tested on random trees up to 4 levels), because for any threshold t the cheapest realization
 // with max e <= t is "refine every live cell with e > t, cover the rest cheapest", whose cost
-// only grows as t falls.
+// only grows as t falls. The result is the realization "refine every refinable cell of higher
+// priority than the first that does not fit", whatever the last frame's cut.
 //
 // Residency (progressive loading). The caller passes each cell's residency. A live cell is drawn
 // only when resident; a split whose live children are not all resident is blocked: the missing
 // children are requested (largest e first, while sum S <= W; a cell in flight is not requested
 // again and costs no bytes), the voxels the split needs are reserved so that cells arriving in
-// a later frame fit without starving, and the cell stays drawn until its children arrive. A
+// a later frame fit without starving, and the cell stays drawn until its children arrive. Once
+// W is spent, the refinement stops at the next blocked split (the next frames fetch its cells). A
 // drawn cell that stops being resident is replaced by its nearest resident ancestor. A cover
 // through missing cells is unknown and costed as V; when the budget stops the greedy, the
 // missing children of such cells are requested too, so streaming converges to the all-resident
@@ -48,8 +65,10 @@
 // than W can never be requested (counted in `unfetchable`). Ancestors of drawn cells should stay
 // resident (a merge into a missing ancestor is skipped).
 //
-// Memory: everything is sized at construction from the tree (about 40 bytes per cell); select()
-// does not allocate.
+// Memory: everything is sized at construction from the tree: about 100 bytes per cell (a packed
+// copy of the tree's fields the selection reads, 40; the packed cut and mergeable arrays, 41;
+// stamps and lists) plus queue capacity of 32 bytes per cell that is touched only as used.
+// select() does not allocate.
 #pragma once
 
 #include <array>
@@ -122,8 +141,8 @@ class CellSelector {
   explicit CellSelector(const CellTree& tree, const CellSelectorConfig& config = {});
 
   // One frame. `residency`: one entry per cell, or empty (every cell resident). Writes the drawn
-  // cells (live, resident, in depth-first order) to `draw` and the cells to fetch, largest e
-  // first, to `requests`. No allocation.
+  // cells (live, resident; in the order of the packed cut, not sorted) to `draw` and the cells to
+  // fetch, largest e first, to `requests`. No allocation.
   CellSelectStats select(const CellView& view, std::span<const Residency> residency, std::span<CellDraw> draw,
                          std::span<uint32_t> requests);
 
@@ -135,53 +154,99 @@ class CellSelector {
   void reset();
 
  private:
-  enum : uint8_t { kBelow = 0, kCut = 1, kRefined = 2 };
+  // Cell states. kMergeable: refined and every child in the cut (the merge candidates).
+  enum : uint8_t { kBelow = 0, kCut = 1, kRefined = 2, kMergeable = 3 };
   struct HeapEntry {
     float e;
     uint32_t cell;
   };
+  // Frame constants in float, shared with evaluateCell() so that both give the same bits.
+  struct ViewConsts {
+    std::array<float, 6> nx{}, ny{}, nz{}, w{}, pos{}, neg{};  // planes; pos / neg: sums of positive / negative normal components
+    float rx = 0, ry = 0, rz = 0;                            // root corner - eye
+    float k = 0;                                             // e = edge * k / max(distance, near)
+    float near = 0;
+  };
+  // A set of cells with their evaluation (struct of arrays, padded to 4 lanes): the cut, or the
+  // mergeable cells. Each frame one pass over it re-evaluates every member.
+  struct CellSet {
+    std::vector<uint32_t> cell, voxels, mc;
+    std::vector<float> x, y, z, edge, e;  // x, y, z: the box's lowest corner relative to the root corner
+    std::vector<uint8_t> flags;           // kLive | kInside | kHasChildren
+    std::vector<uint64_t> cert;           // a certificate that mc = V (see makeCertificate), or 0
+    uint32_t n = 0;
+    void allocate(size_t capacity);
+  };
+  struct Ev {
+    float e;
+    uint8_t flags;
+  };
 
-  bool live(uint32_t c) const { return (flags_[c] & 0x80) != 0; }
-  bool resident(uint32_t c) const { return residency_.empty() || residency_[c] == Residency::Resident; }
-  bool drawable(uint32_t c) const { return !live(c) || resident(c); }
-  bool refinable(uint32_t c) const { return live(c) && tree_.childCount(c) > 0 && e_[c] > alpha_; }
-  void evaluate(uint32_t c, uint8_t parentMask);
+  static void makeConsts(const CellTree& tree, const CellView& view, ViewConsts& out);
+  static void evalQuad(const ViewConsts& vc, const float* x, const float* y, const float* z, const float* edge,
+                       const uint32_t* voxels, float* e, uint8_t* flags);
+  static Ev evalOne(const CellTree& tree, const ViewConsts& vc, float edge, uint32_t c);
+  friend CellEval evaluateCell(const CellTree& tree, uint32_t cell, const CellView& view);
+  void evaluateSet(CellSet& set);
   void evaluateChildren(uint32_t c);
-  uint64_t cost(uint32_t c);  // mc(c), memoised per frame; c evaluated
-  bool childrenDrawable(uint32_t c) const;
-  void collapse(uint32_t c);  // c and its subtree -> c in the cut
-  bool walkCut();
+  void prefetchChildren(uint32_t c) const;
+  Ev ev(uint32_t c);             // e and flags of any cell this frame (evaluated on demand)
+  Ev evConst(uint32_t c) const;  // of a cell already evaluated this frame
+  bool costed(uint32_t c) const { return node_[c].stamp == frame_ && (node_[c].flags & 8); }
+  uint64_t cost(uint32_t c);     // mc(c) this frame
+  uint64_t costConst(uint32_t c) const;
+  uint64_t coverCost(uint32_t c, Ev evc);  // mc(c) from its children (c live, not wholly inside, refinable)
+  uint64_t makeCertificate(uint32_t c);
+  bool certificateHolds(const CellSet& set, uint32_t i) const;
+  bool refinable(uint32_t c, Ev x) const;
+  bool resident(uint32_t c) const { return residency_.empty() || residency_[c] == Residency::Resident; }
+  bool drawable(uint32_t c, Ev x) const;
+  bool childrenDrawable(uint32_t c);
+  uint32_t insert(CellSet& set, uint32_t c, Ev x, uint64_t mc);
+  void remove(CellSet& set, uint32_t c);  // writes its evaluation back to the per-cell arrays
+  void maybeMergeable(uint32_t p);        // p refined with every child cut: into the merge set
+  void collapse(uint32_t a);              // a's subtree -> a in the cut (eviction repair)
+  void split(uint32_t c);
+  void merge(uint32_t p);  // and its parents that become mergeable but are not refinable (invisible, sub-pixel)
   bool request(uint32_t c);       // within W and the request span; false if it could not be sent
   void requestUnknownCovers();    // children of cells whose cheapest cover is unknown (not resident)
-  bool pushSplit(uint32_t c);
-  bool pushMerge(uint32_t p);
-  bool mergeCandidate(uint32_t p) const;
-  uint64_t mergeSaving(uint32_t p);
-  void merge(uint32_t p);
+  void pushSplit(uint32_t c, float e);
+  void pushMerge(uint32_t p, float e);
+  bool splitTop(HeapEntry& top);  // the highest-priority refinable cut cell (rescans the cut below the window)
+  bool mergeFront(float limit, HeapEntry& front);  // the lowest-priority mergeable cell if its e <= limit
   template <typename Emit>
   void emitCover(uint32_t c, bool liveOnly, Emit&& emit) const;
 
   const CellTree& tree_;
   CellSelectorConfig config_;
-  std::vector<uint8_t> state_, flags_;
-  std::vector<uint32_t> evalStamp_, costStamp_;
-  std::vector<float> e_;
-  std::vector<uint64_t> mc_;
-  std::vector<uint32_t> cutList_, unknownCover_, reqStamp_;
+  // Per cell, packed so that a cell's children (contiguous) share a few cache lines: the tree's
+  // data the selection reads (copied at construction) and this frame's evaluation of cells that
+  // are in neither set.
+  struct Node {
+    float x = 0, y = 0, z = 0;  // lowest corner relative to the root corner (as the sets hold it)
+    uint32_t voxels = 0, firstChild = 0, slot = 0;
+    float e = 0;             // valid when stamp == frame_
+    uint32_t mc = 0;         // valid when stamp == frame_ and flags & kCosted
+    uint32_t stamp = 0;
+    uint8_t childCount = 0, level = 0, state = 0, flags = 0;
+  };
+  std::vector<Node> node_;
+  std::vector<uint32_t> reqStamp_, popStamp_;
+  std::vector<float> edgeF_;
+  CellSet cut_, mergeable_;
+  std::vector<uint32_t> scratch_, evicted_, unknownCover_;
   std::vector<HeapEntry> splitHeap_, mergeHeap_;
-  std::array<uint32_t, 8 * kMaxCellLevels + 8> stack_{};
   uint32_t frame_ = 0;
   std::span<const Residency> residency_;
-  // This frame's view.
-  std::array<glm::dvec4, 6> planes_{};
-  glm::dvec3 rootRel_{0.0};
-  double pxPerM_ = 0.0, near_m_ = 0.0;
+  ViewConsts vc_;
   float alpha_ = 1.0f;
+  float splitFloor_ = 0.0f, mergeCeil_ = 0.0f;  // heap windows: every candidate with e >= floor / <= ceil is queued
+  float lastT_ = 0.0f;                          // e of the last split candidate examined (next frame's window)
   uint64_t cost_ = 0;
   uint32_t forcedMerges_ = 0;
   std::span<uint32_t> reqOut_;
   uint32_t reqCount_ = 0, unfetchable_ = 0;
-  uint64_t reqBytes_ = 0, W_ = 0;
+  uint64_t reqBytes_ = 0, W_ = 0, minBytes_ = 0;
 };
 
 }  // namespace ig::lod

@@ -2,8 +2,6 @@
 ig_add_test(cells_tree_test cells_tree_test.cpp LIBS ig_lod)
 ig_add_test(cells_voxel_test cells_voxel_test.cpp LIBS ig_lod)
 ig_add_test(cells_select_test cells_select_test.cpp LIBS ig_lod)
-add_test(NAME cells_bench_test COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/cells_bench_test.sh $<TARGET_FILE:igbench>)
-set_tests_properties(cells_bench_test PROPERTIES TIMEOUT 300)
 # The packed cell database (lod/cells_db): round trip, corruption, zlib crc.
 ig_add_test(cells_db_test cells_db_test.cpp LIBS ig_lod ZLIB::ZLIB)
 # The splat pass (render/cells_pass) on a headless context: no holes, coverage per level, arena.
@@ -14,3 +12,10 @@ add_test(NAME fetch_cells COMMAND ${PROJECT_SOURCE_DIR}/scripts/fetch-cells)
 set_tests_properties(fetch_cells PROPERTIES FIXTURES_SETUP cells_data TIMEOUT 300)
 add_test(NAME cells_bunny_test COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/cells_tool_test.sh $<TARGET_FILE:igtool> ${PROJECT_SOURCE_DIR})
 set_tests_properties(cells_bunny_test PROPERTIES FIXTURES_REQUIRED cells_data)
+# igbench cells --quick: selection, the bunny's PSNR sweep, streaming through nginx (benchmark
+# smoke test: Release only, like the other benchmarks).
+if(NOT IG_SANITIZE)
+  add_test(NAME cells_bench_test COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/cells_bench_test.sh $<TARGET_FILE:igbench>
+           ${PROJECT_SOURCE_DIR})
+  set_tests_properties(cells_bench_test PROPERTIES FIXTURES_REQUIRED cells_data TIMEOUT 300)
+endif()

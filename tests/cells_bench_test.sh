@@ -1,20 +1,46 @@
 #!/usr/bin/env bash
-# igbench cells on a small scene prints one JSON object with the fields the cells issue names
-# (selection only for now); budgets are never exceeded (exit 1 otherwise).
+# igbench cells --quick: one JSON object with the fields the cells issue names. Selection on a
+# small sphere scene (budgets never exceeded: exit 1 otherwise), and the real Stanford bunny
+# (scripts/fetch-cells): the PSNR sweep rises with the voxel budget and reaches the full-detail
+# picture, and streaming through nginx at 10 and 100 Mbit/s reaches full quality after the
+# teleport without the quality ever falling while the viewer stands still.
 set -euo pipefail
 igbench=$1
-out=$("$igbench" cells --spheres 100 --levels 7 --frames 60 --json)
+src=$2
+cd "$src"
+out=$("$igbench" cells --spheres 100 --levels 7 --frames 60 --quick --json)
 /usr/bin/python3 - "$out" <<'PY'
 import json, sys
 d = json.loads(sys.argv[1])
 for k in ("cells", "levels", "dimension", "select_ms_p99", "voxels_drawn_p50", "voxel_budget",
-          "budget_exceeded_frames", "bytes_per_frame_max", "w_bytes", "sweep"):
+          "budget_exceeded_frames", "bytes_per_frame_max", "w_bytes", "select_sweep", "sweep",
+          "streaming", "seconds_to_full_quality", "mesh"):
     assert k in d, k
-assert d["budget_exceeded_frames"] == 0, d
+assert d["budget_exceeded_frames"] == 0, d["budget_exceeded_frames"]
 assert d["bytes_per_frame_max"] <= d["w_bytes"], d
 assert d["voxels_drawn_p50"] <= d["voxel_budget"], d
 assert 1.8 < d["dimension"][-1] < 2.2, d["dimension"]  # sphere surfaces: about 2
-for s in d["sweep"]:
+for s in d["select_sweep"]:
     assert s["voxels_drawn_p50"] <= s["voxel_budget"], s
+# The bunny: a surface, so about 2 at the fine levels.
+assert 1.9 < d["mesh"]["dimension"][-1] < 2.1, d["mesh"]["dimension"]
+sw = d["sweep"]
+assert len(sw) >= 3, sw
+for a, b in zip(sw, sw[1:]):
+    assert b["voxels_drawn"] >= a["voxels_drawn"], (a, b)
+    assert b["psnr_db"] >= a["psnr_db"] - 0.5, ("PSNR should rise with the budget", a, b)
+for s in sw:
+    assert s["voxels_drawn"] <= s["voxel_budget"], s
+assert sw[-1]["psnr_db"] > sw[0]["psnr_db"] + 3, sw
+runs = d["streaming"]
+assert [r["rate_mbit"] for r in runs] == [10.0, 100.0], runs
+for r in runs:
+    assert r["seconds_to_full_quality"] >= 0, ("full quality not reached", r["rate_mbit"])
+    assert r["quality_monotonic"], ("quality fell while standing still", r["rate_mbit"])
+    assert r["bytes_per_frame_max"] <= r["w_bytes"], r
+    assert r["budget_exceeded_frames"] == 0, r
+    assert r["broken"] == 0 and r["corrupt"] == 0, r
+    curve = r["curve"]
+    assert curve and curve[-1][1] <= r["target_voxel_px"] * 1.000001, curve[-1]
 print("cells_bench_test: 1 passed, 0 failed")
 PY

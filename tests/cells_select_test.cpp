@@ -281,6 +281,73 @@ TEST(CellSelect, IncrementalEqualsBruteForceAlongAPath) {
   }
 }
 
+// The selection does not depend on history: along camera paths over deeper random trees (small
+// moves, turns, budget and pre-selection changes, jumps), the incremental selector (which keeps
+// its cut, its certificates and its queue windows from frame to frame) draws exactly the cells a
+// fresh selector draws from the root, with the same largest on-screen voxel.
+TEST(CellSelect, IncrementalDrawsTheSameCellsAsFromScratch) {
+  std::mt19937 rng(99);
+  int frames = 0, differentCuts = 0, invisible = 0;
+  for (int trial = 0; trial < 24; ++trial) {
+    TreeSpec spec;
+    spec.levels = 6 + trial % 2;
+    spec.minChildren = 2;
+    spec.maxChildren = 5;
+    spec.leafEarly = 0.05;
+    spec.rootEdge_m = 64.0;
+    const CellTree t = randomTree(rng, spec);
+    CellSelector sel(t);
+    CellView v = randomView(rng, t);
+    v.camera.far_m = 1000.0;
+    v.camera.eye_m = {32.0, -20.0, 30.0};
+    v.camera.heading_deg = 10.0;
+    v.camera.pitch_deg = -20.0;
+    v.minVoxel_px = trial % 3 == 0 ? 0.0 : 1.0;
+    uint64_t total = 0;
+    for (uint32_t c = 0; c < t.size(); ++c)
+      if (t.childCount(c) == 0) total += t.voxels(c);
+    v.voxelBudget = total / 4 + 10;
+    std::vector<uint32_t> last;
+    for (int frame = 0; frame < 40; ++frame) {
+      if (frame % 13 == 12) {
+        std::uniform_real_distribution<double> u(0.0, 1.0);
+        v.camera.eye_m = {64.0 * u(rng), -10.0 - 30.0 * u(rng), 10.0 + 50.0 * u(rng)};  // a jump
+      } else {
+        v.camera.eye_m += glm::dvec3(0.4, 0.9, -0.2);
+        v.camera.heading_deg += 1.5 * std::sin(frame * 0.3);
+        v.camera.pitch_deg += 0.3;
+      }
+      if (frame % 7 == 3) v.voxelBudget = v.voxelBudget * (70 + rng() % 61) / 100;
+      if (frame % 11 == 5) v.minVoxel_px = v.minVoxel_px > 0.0 ? 0.0 : 2.0;
+      const Frame f = runSelect(sel, t, v);
+      CellSelector fresh(t);
+      const Frame g = runSelect(fresh, t, v);
+      const std::string what = "trial " + std::to_string(trial) + " frame " + std::to_string(frame);
+      ASSERT_TRUE(f.stats.valid && g.stats.valid) << what;
+      ASSERT_EQ(f.stats.feasible, g.stats.feasible) << what;
+      EXPECT_EQ(f.stats.maxVoxel_px, g.stats.maxVoxel_px) << what;
+      EXPECT_EQ(f.stats.drawnVoxels, g.stats.drawnVoxels) << what;
+      EXPECT_EQ(f.stats.cutCells, g.stats.cutCells) << what;
+      std::vector<uint32_t> a, b;
+      for (const CellDraw& d : f.draw) a.push_back(d.cell);
+      for (const CellDraw& d : g.draw) b.push_back(d.cell);
+      std::sort(a.begin(), a.end());
+      std::sort(b.begin(), b.end());
+      ASSERT_EQ(a, b) << what;
+      for (size_t i = 0; i < f.draw.size(); ++i)
+        EXPECT_EQ(f.draw[i].voxel_px, evaluateCell(t, f.draw[i].cell, v).voxel_px) << what;
+      expectValidRealization(t, sel);
+      if (a != last) ++differentCuts;
+      last = a;
+      if (f.stats.cutCells > f.stats.drawnCells) ++invisible;
+      ++frames;
+    }
+  }
+  EXPECT_EQ(frames, 24 * 40);
+  EXPECT_GT(differentCuts, 24 * 40 / 2);  // the cut changes along the path
+  EXPECT_GT(invisible, 24 * 40 / 2);      // cells outside the frustum are part of the realization
+}
+
 TEST(CellSelect, PreSelectionDropsCellsFinerThanThePixel) {
   std::mt19937 rng(5);
   TreeSpec spec;
