@@ -606,7 +606,7 @@ bool parseScene(const std::string& text, const std::string& name, const std::str
   SceneConfig cfg;
   cfg.path = name;
   Reader r(text, name);
-  const Table root = r.parse({"name", "origin", "terrain", "forest", "hdlod", "sun", "fog"});
+  const Table root = r.parse({"name", "origin", "terrain", "forest", "hdlod", "cells", "sun", "fog"});
   r.get(root, "name", cfg.name, false);
 
   const Table origin = r.table(root, "origin", {"lat_deg", "lon_deg", "height_m"});
@@ -715,6 +715,24 @@ bool parseScene(const std::string& text, const std::string& name, const std::str
     r.get(hdlod, "octree_depth", h.octreeDepth, IntRange{0, 6});
   }
 
+  const Table cells = r.table(root, "cells", {"source", "origin_m", "voxel_budget", "w_bytes", "min_voxel_px",
+                                              "gpu_mb", "memory_mb", "point_scale", "open_timeout_s"});
+  if (cells.present()) {
+    CellsLayerConfig& c = cfg.cells.emplace();
+    r.require(cells, "source", "the cell database (a file, or http://HOST:PORT/path)");
+    r.get(cells, "source", c.source, false);
+    if (r.ok() && c.source.find("://") != std::string::npos && c.source.rfind("http://", 0) != 0)
+      r.fail(*r.find(cells, "source"), cells.keyOf("source"), "only http:// URLs or file paths are supported");
+    r.get(cells, "origin_m", c.origin_m, closed(-1e8, 1e8));
+    r.get(cells, "voxel_budget", c.voxelBudget, IntRange{1000, 1'000'000'000});
+    r.get(cells, "w_bytes", c.wBytes, IntRange{4096, int64_t{1} << 30});
+    r.get(cells, "min_voxel_px", c.minVoxel_px, closed(0.0, 100.0));
+    r.get(cells, "gpu_mb", c.gpu_mb, IntRange{1, 65536});
+    r.get(cells, "memory_mb", c.memory_mb, IntRange{1, 65536});
+    r.get(cells, "point_scale", c.pointScale, openClosed(0.0, 16.0));
+    r.get(cells, "open_timeout_s", c.openTimeout_s, openClosed(0.0, 600.0));
+  }
+
   const Table sun = r.table(root, "sun", {"azimuth_deg", "elevation_deg", "color", "ambient"});
   r.get(sun, "azimuth_deg", cfg.sun.azimuth_deg, closed(-360.0, 360.0));
   r.get(sun, "elevation_deg", cfg.sun.elevation_deg, closed(-90.0, 90.0));
@@ -739,6 +757,7 @@ bool parseScene(const std::string& text, const std::string& name, const std::str
     if (!cfg.hdlod->schedule.empty()) cfg.hdlod->schedule = resolvePath(cfg.hdlod->schedule, baseDir);
     if (!cfg.hdlod->cache.empty()) cfg.hdlod->cache = resolvePath(cfg.hdlod->cache, baseDir);
   }
+  if (cfg.cells && cfg.cells->source.rfind("http://", 0) != 0) cfg.cells->source = resolvePath(cfg.cells->source, baseDir);
   out = std::move(cfg);
   return true;
 }

@@ -162,6 +162,21 @@ struct HdlodLayerConfig {
   bool operator==(const HdlodLayerConfig&) const = default;
 };
 
+// [cells]: a hierarchical-cells database (paper 003, docs/cells.md) streamed from a file or an
+// HTTP server and drawn as point splats within a voxel budget (ig/cells_layer.h).
+struct CellsLayerConfig {
+  std::string source;                          // database file (resolved against the scene's folder) or http://HOST:PORT/path
+  std::array<double, 3> origin_m{0, 0, 0};     // where the database's root corner goes in scene ENU metres
+  uint64_t voxelBudget = 2'000'000;            // voxels drawn per frame at most
+  uint64_t wBytes = 1u << 20;                  // W: bytes requested per frame at most (cells larger are never fetched)
+  double minVoxel_px = 1.0;                    // cells whose voxels are already this small are not refined
+  int64_t gpu_mb = 64;                         // GPU point arena (16 B a point, a cell uses at most twice its size)
+  int64_t memory_mb = 32;                      // decoded points kept resident (LRU over the least recently drawn)
+  double pointScale = 1.0;                     // point side / voxel footprint
+  double openTimeout_s = 10.0;                 // start-up: reading the header and index (http)
+  bool operator==(const CellsLayerConfig&) const = default;
+};
+
 struct SunConfig {
   double azimuth_deg = 135.0;                // clockwise from north
   double elevation_deg = 35.0;
@@ -186,6 +201,7 @@ struct SceneConfig {
   std::optional<TerrainLayerConfig> terrain;
   std::optional<ForestLayerConfig> forest;
   std::optional<HdlodLayerConfig> hdlod;
+  std::optional<CellsLayerConfig> cells;
   SunConfig sun;
   FogConfig fog;
   bool operator==(const SceneConfig&) const = default;

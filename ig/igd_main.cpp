@@ -57,9 +57,9 @@ int main(int argc, char** argv) {
     return 2;
   }
   if (checkOnly) {
-    std::printf("igd: config OK: %s (scene '%s' from %s; layers:%s%s%s)\n", config.path.c_str(), scene.name.c_str(),
+    std::printf("igd: config OK: %s (scene '%s' from %s; layers:%s%s%s%s)\n", config.path.c_str(), scene.name.c_str(),
                 scene.path.c_str(), scene.terrain ? " terrain" : "", scene.forest ? " forest" : "",
-                scene.hdlod ? " hdlod" : "");
+                scene.hdlod ? " hdlod" : "", scene.cells ? " cells" : "");
     return 0;
   }
 
@@ -90,6 +90,7 @@ int main(int argc, char** argv) {
                static_cast<double>(info.gpuBufferBytes) / (1024.0 * 1024.0), info.threads);
   if (!info.hdlodDescription.empty())
     std::fprintf(stderr, "igd: hdlod: %s, ready in %.0f ms\n", info.hdlodDescription.c_str(), info.hdlodBuild_ms);
+  if (!info.cellsDescription.empty()) std::fprintf(stderr, "igd: %s\n", info.cellsDescription.c_str());
   if (!info.scheduling.empty()) std::fprintf(stderr, "igd: render thread: %s\n", info.scheduling.c_str());
   if (!info.terrainSource.empty())
     std::fprintf(stderr, "igd: terrain: %s, built in %.0f ms (load, LOD precomputation, upload)\n",

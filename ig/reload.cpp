@@ -90,6 +90,17 @@ ReloadPlan planReload(const ServiceConfig& runC, const SceneConfig& runS, const 
   }
   check(runS, newS, &SceneConfig::forest, "scene.forest", r);
   check(runS, newS, &SceneConfig::hdlod, "scene.hdlod", r);
+  // Cells: the budgets apply at once; the source, placement and memory need a restart.
+  if (runS.cells && newS.cells) {
+    take(*mergedS.cells, *newS.cells, &CellsLayerConfig::voxelBudget, "scene.cells.voxel_budget", a);
+    take(*mergedS.cells, *newS.cells, &CellsLayerConfig::wBytes, "scene.cells.w_bytes", a);
+    take(*mergedS.cells, *newS.cells, &CellsLayerConfig::minVoxel_px, "scene.cells.min_voxel_px", a);
+  }
+  if (runS.cells.has_value() != newS.cells.has_value()) {
+    r.emplace_back("scene.cells (added or removed)");
+  } else if (runS.cells && !(*mergedS.cells == *newS.cells)) {
+    r.emplace_back("scene.cells (source, origin, memory or point scale)");
+  }
 
   // A key this function does not know yet must not be silently ignored.
   ServiceConfig c = mergedC;

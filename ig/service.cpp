@@ -17,6 +17,7 @@
 #include "io/dem.h"
 #include "io/replay.h"
 #include "lod/sun.h"
+#include "ig/cells_layer.h"
 #include "ig/forest_layer.h"
 #include "ig/hdlod_layer.h"
 #include "ig/host_input.h"
@@ -266,6 +267,7 @@ struct Service::Impl {
   std::unique_ptr<TerrainMeshLayer> terrainMesh;  // lod = "roam" | "block"
   std::unique_ptr<ForestLayer> forest;            // [forest]: on the terrain mesh
   std::unique_ptr<HdlodLayer> hdlod;              // [hdlod]: 4D scene
+  std::unique_ptr<CellsLayer> cells;              // [cells]: streamed hierarchical cells
   std::unique_ptr<io::ReplaySource> replay;
   MonotonicClock startClock;                 // stamps host samples until run() hands over its clock
   std::unique_ptr<HostInput> hostInput;      // live link and recorder; only for link sources
@@ -278,6 +280,7 @@ struct Service::Impl {
   int generation = 1;                         // config generation: +1 per applied reload
   std::optional<lod::Governor> governor;      // [governor] enabled and a layer with a knob
   double terrainSelect_ms = 0.0;              // this frame's terrain selection (governor phase)
+  double cellsSelect_ms = 0.0, cellsDraw_ms = 0.0;  // this frame's cells selection and draw
 
   // The governor's config from [governor] and the layers this scene has.
   lod::GovernorConfig governorConfig() const {
@@ -347,6 +350,11 @@ struct Service::Impl {
     }
     if (forest) forest->select(cam);
     if (hdlod) hdlod->select(cam, simTime_s, config.height_px);
+    if (cells) {
+      const int64_t t0 = clock ? clock->now_ns() : 0;
+      cells->select(cam, config.height_px);
+      cellsSelect_ms = clock ? static_cast<double>(clock->now_ns() - t0) * 1e-6 : 0.0;
+    }
     if (terrain) {
       const lod::Frustum fr = lod::makeFrustum(cam);
       terrain->selectedCount =
@@ -370,16 +378,22 @@ struct Service::Impl {
     return l;
   }
 
-  // submit phase: the selections become GL work.
-  render::RenderStats submit(const lod::Camera& cam, const io::HostState& host) {
+  // submit phase: the selections become GL work. `clock` (the frame loop's) times the layers.
+  render::RenderStats submit(const lod::Camera& cam, const io::HostState& host, Clock* clock = nullptr) {
     renderer.beginFrame(cam, lightingFor(host));
     if (terrain) renderer.drawTerrain(std::span(terrain->selected.data(), terrain->selectedCount));
     if (terrainMesh)
       renderer.drawTerrainMesh(terrainMesh->origin_m, terrainMesh->vertexCount());
     if (forest) forest->draw(renderer, terrainMesh->origin_m, terrainMesh->vertexCount());
     if (hdlod) hdlod->draw(renderer);
+    if (cells) {
+      const int64_t t0 = clock ? clock->now_ns() : 0;
+      cells->draw(renderer);
+      cellsDraw_ms = clock ? static_cast<double>(clock->now_ns() - t0) * 1e-6 : 0.0;
+      if (clock) cells->recordTiming(cellsSelect_ms, cellsDraw_ms);
+    }
     render::RenderStats st = renderer.endFrame();
-    st.passes += (forest ? 1u : 0u) + (hdlod ? 1u : 0u);  // passes in their own files
+    st.passes += (forest ? 1u : 0u) + (hdlod ? 1u : 0u) + (cells ? 1u : 0u);  // passes in their own files
     return st;
   }
 
@@ -474,6 +488,16 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
     s->info_.hdlodDescription = m.hdlod->describe();
     s->info_.hdlodBuild_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   }
+  if (scene.cells) {
+    m.cells = CellsLayer::create(*scene.cells, error);
+    if (!m.cells || !m.cells->initRender(error)) {
+      error = "scene '" + scene.path + "' " + error;
+      return nullptr;
+    }
+    s->info_.layers.push_back("cells");
+    s->info_.cellsDescription = m.cells->describe();
+    s->info_.threads += m.cells->threads();
+  }
   if (config.snapshotEvery > 0 || !config.snapshotFrames.empty()) {
     std::error_code ec;
     std::filesystem::create_directories(config.snapshotDir, ec);
@@ -496,8 +520,8 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
   }
   s->info_.passes = m.renderer.passCount();
   s->info_.gpuBufferBytes = m.renderer.bufferBytes() + (m.hdlod ? m.hdlod->gpuBytes() : 0) +
-                            (m.forest ? m.forest->bufferBytes() : 0);
-  s->info_.passes += (m.hdlod ? 1u : 0u) + (m.forest ? 1u : 0u);
+                            (m.forest ? m.forest->bufferBytes() : 0) + (m.cells ? m.cells->gpuBytes() : 0);
+  s->info_.passes += (m.hdlod ? 1u : 0u) + (m.forest ? 1u : 0u) + (m.cells ? 1u : 0u);
 
   m.enu.emplace(origin);
   m.setLighting();
@@ -648,6 +672,8 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
       m.terrainMesh->tolerance_px = m.scene.terrain->tolerance_px;
       m.terrainMesh->budget_ms = m.scene.terrain->lodBudget_ms;
     }
+    if (m.cells && m.scene.cells)
+      m.cells->setBudgets(m.scene.cells->voxelBudget, m.scene.cells->wBytes, m.scene.cells->minVoxel_px);
     if (statusChanged) makeStatus();
     if (m.governor) m.governor->reconfigure(m.governorConfig());
     std::fprintf(stderr,
@@ -705,7 +731,7 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
     pacer.endPhase(Phase::Lod);
 
     // submit
-    const render::RenderStats st = m.submit(cam, host_);
+    const render::RenderStats st = m.submit(cam, host_, &clock);
     pacer.endPhase(Phase::Submit);
 
     // gpu
@@ -807,6 +833,7 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
                  static_cast<long long>(g.directionChanges[static_cast<size_t>(lod::GovLayer::Terrain)]), g.errorScale_ms,
                  static_cast<long long>(g.ignored));
   }
+  if (m.cells) std::fprintf(stderr, "igd: %s\n", m.cells->summaryLine().c_str());
   m.overruns = pacer.overruns();
   m.missed = pacer.missedSlots();
   const std::string glErr = m.renderer.errors();

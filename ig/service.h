@@ -41,6 +41,7 @@ struct ServiceInfo {
   double terrainBuild_ms = 0.0;      // start-up time: load + LOD precomputation + upload
   std::string hdlodDescription;      // [hdlod]: objects, clusters, cache outcome
   double hdlodBuild_ms = 0.0;        // [hdlod]: schedule + tree (cache or build) + upload
+  std::string cellsDescription;      // [cells]: source, cells, placement, budgets
 };
 
 // The terrain grid a scene's [terrain] table describes.

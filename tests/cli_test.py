@@ -554,6 +554,53 @@ class Control(Tmp):
                 self.assertEqual(len(rows), 5)
                 self.assertGreaterEqual(int(rows[-1]["passes"]), 1)
 
+    def test_scene_with_cells_streams_and_draws_them(self):
+        db = os.path.join(self.tmp, "spheres.ighc")
+        p = run([IGTOOL, "cells-build", "--scene", "spheres:20", "--cell-levels", "5", "--depth", "2", "-o", db])
+        self.assertExit(p, 0)
+        config, scene = self.configs()
+        plain = open(scene, encoding="utf-8").read()
+        # The 1,024 m cube of spheres ~2.5 km ahead of the replay's first eyepoint.
+        cells = f"\n[cells]\nsource = {toml_str(db)}\norigin_m = [0, -3500, 0]\nvoxel_budget = 20000\n"
+        with_cells = write(os.path.join(self.tmp, "cells.toml"), plain + cells)
+        runs = {}
+        for name, path in (("cells", with_cells), ("plain", scene)):
+            stats = os.path.join(self.tmp, name + ".jsonl")
+            p = run([IGD, "--config", config, "--scene", path, "--frames", "30", "--free-run", "--width", "160",
+                     "--height", "90", "--stats", stats, "--stats-format", "jsonl"], timeout=RUN, cwd=self.tmp)
+            self.assertExit(p, 0)
+            with open(stats, encoding="utf-8") as f:
+                runs[name] = (p, json.loads(f.readline())["run"], self.status())
+        p, info, status = runs["cells"]
+        self.assertRegex(p.stderr, r"layers: terrain cells;", describe(p))
+        m = re.search(r"igd: cells: last frame (\d+) cells drawn, (\d+) voxels \(most (\d+), budget 20000\).*"
+                      r"fetched [0-9.]+ MB in (\d+) cells, broken 0", p.stderr)
+        self.assertIsNotNone(m, describe(p))
+        self.assertGreater(int(m.group(1)), 0, "no cell drawn")
+        self.assertGreater(int(m.group(4)), 1, "no cell fetched beyond the root")
+        self.assertLessEqual(int(m.group(3)), 20000)
+        self.assertIn("cells", info["layers"])
+        self.assertIn("cells", status["layers"])
+        # Without [cells]: no cells pass, no arena, no fetcher thread, no cells line.
+        q, plain_info, plain_status = runs["plain"]
+        self.assertNotIn("cells", plain_info["layers"])
+        self.assertNotIn("cells", plain_status["layers"])
+        self.assertNotIn("igd: cells:", q.stderr)
+        self.assertEqual(info["passes"], plain_info["passes"] + 1)
+        self.assertEqual(info["threads"], plain_info["threads"] + 1)
+        self.assertGreater(info["gpu_buffer_bytes"], plain_info["gpu_buffer_bytes"])
+        # A database that is not there stops start-up naming it.
+        missing = os.path.join(self.tmp, "none.ighc")
+        bad = write(os.path.join(self.tmp, "bad.toml"), plain + cells.replace(toml_str(db), toml_str(missing)))
+        p = run([IGD, "--config", config, "--scene", bad, "--frames", "1"], cwd=self.tmp)
+        self.assertExit(p, 3)
+        self.assertMentions(p, "[cells] source", missing)
+        # The example scene's [cells] table is valid as shipped (its database is built by hand).
+        example = os.path.join(SRC, "config", "scenes", "cells_bunny.toml")
+        p = run([IGD, "--config", config, "--scene", example, "--check-config"], cwd=self.tmp)
+        self.assertExit(p, 0)
+        self.assertRegex(p.stdout, r"layers: terrain cells\)", describe(p))
+
     def test_cpu_affinity_and_realtime(self):
         config, _ = self.configs(cpu_affinity="[0]", realtime_priority="10")
         p = run([IGD, "--config", config, "--frames", "3", "--free-run", "--width", "64", "--height", "36"],

@@ -733,3 +733,87 @@ TEST(ConfigGovernor, KeysAreReadAndCrossChecked) {
 
 }  // namespace
 }  // namespace ig
+
+#include "ig/reload.h"
+
+namespace ig {
+namespace {
+
+TEST(ConfigCells, KeysParseAndTheSourceIsResolved) {
+  const SceneConfig cfg = parseSceneOk(
+      "[cells]\nsource = \"db/bunny.ighc\"\norigin_m = [100, -2000.5, 1e6]\nvoxel_budget = 300000\n"
+      "w_bytes = 65536\nmin_voxel_px = 2.5\ngpu_mb = 128\nmemory_mb = 48\npoint_scale = 1.5\nopen_timeout_s = 3\n",
+      "/scenes");
+  ASSERT_TRUE(cfg.cells.has_value());
+  const CellsLayerConfig& c = *cfg.cells;
+  EXPECT_EQ(c.source, "/scenes/db/bunny.ighc");
+  EXPECT_EQ(c.origin_m, (std::array<double, 3>{100.0, -2000.5, 1e6}));
+  EXPECT_EQ(c.voxelBudget, 300000u);
+  EXPECT_EQ(c.wBytes, 65536u);
+  EXPECT_EQ(c.minVoxel_px, 2.5);
+  EXPECT_EQ(c.gpu_mb, 128);
+  EXPECT_EQ(c.memory_mb, 48);
+  EXPECT_EQ(c.pointScale, 1.5);
+  EXPECT_EQ(c.openTimeout_s, 3.0);
+  // A URL is kept as written; defaults elsewhere.
+  const SceneConfig web = parseSceneOk("[cells]\nsource = \"http://127.0.0.1:8080/c/bunny.ighc\"\n", "/scenes");
+  ASSERT_TRUE(web.cells.has_value());
+  EXPECT_EQ(web.cells->source, "http://127.0.0.1:8080/c/bunny.ighc");
+  EXPECT_EQ(web.cells->voxelBudget, CellsLayerConfig{}.voxelBudget);
+  EXPECT_FALSE(parseSceneOk("[terrain]\n").cells.has_value());
+}
+
+TEST(ConfigCells, BadValuesAreRefusedNamingTheKey) {
+  const std::string src = "[cells]\nsource = \"a.ighc\"\n";
+  struct Case {
+    std::string text, key, value;
+  };
+  const Case cases[] = {
+      {"[cells]\nvoxel_budget = 1000\n", "cells.source", ""},  // required
+      {"[cells]\nsource = \"\"\n", "cells.source", "\"\""},
+      {"[cells]\nsource = \"https://example.com/a.ighc\"\n", "cells.source", "\"https://example.com/a.ighc\""},
+      {src + "origin_m = [0, 0]\n", "cells.origin_m", "[0, 0]"},
+      {src + "origin_m = [0, nan, 0]\n", "cells.origin_m[1]", "nan"},
+      {src + "voxel_budget = 0\n", "cells.voxel_budget", "0"},
+      {src + "voxel_budget = 1.5e3\n", "cells.voxel_budget", "1.5e3"},
+      {src + "w_bytes = 100\n", "cells.w_bytes", "100"},
+      {src + "min_voxel_px = -1\n", "cells.min_voxel_px", "-1"},
+      {src + "gpu_mb = 0\n", "cells.gpu_mb", "0"},
+      {src + "memory_mb = -5\n", "cells.memory_mb", "-5"},
+      {src + "point_scale = 0\n", "cells.point_scale", "0"},
+      {src + "open_timeout_s = 0\n", "cells.open_timeout_s", "0"},
+      {src + "budget = 5\n", "cells.budget", ""},
+  };
+  for (const Case& c : cases) {
+    const ConfigError e = sceneError(c.text);
+    EXPECT_EQ(e.key, c.key) << c.text << " -> " << e.what();
+    if (!c.value.empty()) {
+      EXPECT_EQ(e.value, c.value) << c.text << " -> " << e.what();
+    }
+    EXPECT_NE(e.what().find(c.key), std::string::npos) << e.what();
+  }
+}
+
+TEST(ConfigCells, ReloadAppliesTheBudgetsAndNamesTheRest) {
+  const SceneConfig run = parseSceneOk("[cells]\nsource = \"a.ighc\"\nvoxel_budget = 100000\n");
+  SceneConfig next = parseSceneOk("[cells]\nsource = \"a.ighc\"\nvoxel_budget = 50000\nw_bytes = 8192\n"
+                                  "min_voxel_px = 2\norigin_m = [1, 2, 3]\n");
+  const ServiceConfig svc = parseServiceOk(kMinimalService);
+  ServiceConfig mc;
+  SceneConfig ms;
+  ReloadPlan p = planReload(svc, run, svc, next, mc, ms);
+  ASSERT_TRUE(ms.cells.has_value());
+  EXPECT_EQ(ms.cells->voxelBudget, 50000u);
+  EXPECT_EQ(ms.cells->wBytes, 8192u);
+  EXPECT_EQ(ms.cells->minVoxel_px, 2.0);
+  EXPECT_EQ(ms.cells->origin_m, run.cells->origin_m);  // needs a restart: the running value is kept
+  EXPECT_EQ(joinKeys(p.applied), "scene.cells.voxel_budget, scene.cells.w_bytes, scene.cells.min_voxel_px");
+  EXPECT_EQ(joinKeys(p.needRestart), "scene.cells (source, origin, memory or point scale)");
+  next.cells.reset();
+  p = planReload(svc, run, svc, next, mc, ms);
+  EXPECT_EQ(joinKeys(p.needRestart), "scene.cells (added or removed)");
+  EXPECT_TRUE(ms.cells.has_value());
+}
+
+}  // namespace
+}  // namespace ig

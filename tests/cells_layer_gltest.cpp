@@ -1,0 +1,255 @@
+// ig/cells_layer (the [cells] scene layer) on a real headless context, with a cell database of
+// two voxelized spheres written to a temporary file: after some frames of the per-frame loop
+// (receive -> select -> request -> draw -> drawn) the spheres are drawn where they project and
+// nothing far outside, every frame within the voxel and byte budgets; origin_m moves the object
+// (the same view relative to it renders the same image 1e6 m away, and the old place is empty);
+// a missing, corrupt or unreachable source fails create() naming it; a W below the largest cell
+// is refused naming w_bytes.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <string>
+#include <thread>
+
+#include "ig/cells_layer.h"
+#include "lod/cells_db.h"
+#include "lod/cells_voxel.h"
+#include "render/context.h"
+#include "render/image.h"
+#include "render/renderer.h"
+
+using namespace ig;
+
+namespace {
+
+constexpr int kW = 320, kH = 180;
+constexpr double kRadius = 20.0;
+const glm::dvec3 kCentre(50.0, 50.0, 50.0);  // the large sphere, in the database's frame (root cube [0, 100]^3)
+
+struct Db {
+  std::string path;
+  Db() {
+    lod::VoxelMesh m;
+    lod::appendSphere(m, kCentre, kRadius, 48, 0xFF2040E0u);
+    lod::appendSphere(m, {80, 80, 80}, 8, 24, 0xFF10C020u);  // behind, partly hidden
+    lod::VoxelizeConfig vc;
+    vc.levels = 7;
+    vc.boxMin_m = glm::dvec3(0.0);
+    vc.boxEdge_m = 100.0;
+    lod::VoxelPyramid p;
+    std::string err;
+    EXPECT_TRUE(lod::voxelize(m, vc, p, err)) << err;
+    path = testing::TempDir() + "/cells_layer_" + std::to_string(::getpid()) + ".ighc";
+    lod::CellBuildConfig bc;
+    bc.cellLevels = 5;
+    bc.cellVoxelDepth = 2;
+    EXPECT_TRUE(lod::writeCellDb(path, p, bc, nullptr, err)) << err;
+  }
+  ~Db() { std::remove(path.c_str()); }
+};
+
+const Db& db() {
+  static const Db d;
+  return d;
+}
+
+struct Gl {
+  std::unique_ptr<render::GlContext> context;
+  render::Renderer renderer;
+  render::Lighting light;
+  Gl() {
+    std::string error;
+    context = render::createContext(render::ContextKind::Headless, kW, kH, error);
+    EXPECT_TRUE(context) << error;
+    EXPECT_TRUE(renderer.init(kW, kH, error)) << error;
+    light.fog = false;
+    light.fogColor = {0.2, 0.3, 0.4};
+  }
+  render::Image frame(const lod::Camera& cam, CellsLayer* layer) {
+    if (layer) layer->select(cam, kH);
+    renderer.beginFrame(cam, light);
+    if (layer) layer->draw(renderer);
+    renderer.endFrame();
+    renderer.finish();
+    render::Image img;
+    renderer.readPixels(img);
+    return img;
+  }
+};
+
+// Looking north at the large sphere from 130 m, in the scene frame of a layer placed at `origin`.
+lod::Camera camera(const glm::dvec3& origin) {
+  lod::Camera c;
+  c.eye_m = origin + kCentre + glm::dvec3(0.0, -130.0, 0.0);
+  c.heading_deg = 0.0;
+  c.pitch_deg = 0.0;
+  c.fovY_deg = 60.0;
+  c.aspect = static_cast<double>(kW) / kH;
+  c.near_m = 0.5;
+  c.far_m = 5000.0;
+  return c;
+}
+
+CellsLayerConfig config(const glm::dvec3& origin) {
+  CellsLayerConfig c;
+  c.source = db().path;
+  c.origin_m = {origin.x, origin.y, origin.z};
+  c.voxelBudget = 20000;
+  c.wBytes = 16384;
+  c.minVoxel_px = 1.0;
+  c.gpu_mb = 8;
+  c.memory_mb = 4;
+  return c;
+}
+
+std::unique_ptr<CellsLayer> makeLayer(const CellsLayerConfig& c) {
+  std::string error;
+  auto layer = CellsLayer::create(c, error);
+  EXPECT_TRUE(layer) << error;
+  if (layer) {
+    EXPECT_TRUE(layer->initRender(error)) << error;
+  }
+  return layer;
+}
+
+// Frames until nothing is requested or in flight and the drawn set stays put (streaming done),
+// checking the budgets every frame. Returns the last image.
+render::Image converge(Gl& gl, CellsLayer& layer, const lod::Camera& cam, const CellsLayerConfig& c) {
+  render::Image img;
+  uint64_t lastArrived = ~uint64_t{0};
+  int still = 0;
+  const auto t0 = std::chrono::steady_clock::now();
+  for (int frame = 0; frame < 3000 && still < 3; ++frame) {
+    img = gl.frame(cam, &layer);
+    const CellsLayerStats& s = layer.stats();
+    EXPECT_TRUE(s.select.valid);
+    EXPECT_LE(s.select.drawnVoxels, c.voxelBudget) << "frame " << frame;
+    EXPECT_LE(s.drawnPoints, c.voxelBudget) << "frame " << frame;
+    EXPECT_LE(s.select.requestedBytes, c.wBytes) << "frame " << frame;
+    const bool idle = s.select.requestedCells == 0 && s.select.blockedSplits == 0 && s.arrivedCells == lastArrived;
+    still = idle ? still + 1 : 0;
+    lastArrived = s.arrivedCells;
+    if (std::chrono::steady_clock::now() - t0 > std::chrono::seconds(20)) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));  // the fetcher's worker reads the file
+  }
+  EXPECT_EQ(still, 3) << "streaming did not settle";
+  return img;
+}
+
+bool isBackground(const render::Image& img, const render::Image& bg, int x, int y) {
+  const size_t i = (static_cast<size_t>(y) * static_cast<size_t>(img.width) + static_cast<size_t>(x)) * 4;
+  for (size_t k = 0; k < 3; ++k)
+    if (std::abs(static_cast<int>(img.rgba[i + k]) - static_cast<int>(bg.rgba[i + k])) > 2) return false;
+  return true;
+}
+
+// The large sphere's projection: a disc around the image centre.
+struct Coverage {
+  int inside = 0, insideCovered = 0, farOutsideCovered = 0;
+};
+Coverage coverage(const render::Image& img, const render::Image& bg) {
+  const double pxPerM = kH / (2.0 * std::tan(30.0 * 3.14159265358979323846 / 180.0));
+  const double r_px = pxPerM * kRadius / std::sqrt(130.0 * 130.0 - kRadius * kRadius);  // silhouette radius
+  Coverage c;
+  for (int y = 0; y < kH; ++y) {
+    for (int x = 0; x < kW; ++x) {
+      const double d = std::hypot(x + 0.5 - kW / 2.0, y + 0.5 - kH / 2.0);
+      const bool covered = !isBackground(img, bg, x, y);
+      if (d < r_px - 2.0) {
+        ++c.inside;
+        c.insideCovered += covered ? 1 : 0;
+      } else if (d > r_px + 4.0 && !(x > kW / 2 && y < kH / 2)) {  // the small sphere is up and right
+        c.farOutsideCovered += covered ? 1 : 0;
+      }
+    }
+  }
+  return c;
+}
+
+}  // namespace
+
+TEST(CellsLayerGL, LocalFileRendersTheObjectWithinTheBudgets) {
+  Gl gl;
+  const glm::dvec3 origin(300.0, -200.0, 10.0);
+  CellsLayerConfig c = config(origin);
+  c.voxelBudget = 6000;  // binds: the finest cells in view need more
+  auto layer = makeLayer(c);
+  ASSERT_TRUE(layer);
+  EXPECT_EQ(layer->tree().info().rootMin_m, origin);
+  EXPECT_EQ(layer->threads(), 1u);
+  EXPECT_GT(layer->gpuBytes(), 0u);
+  const lod::Camera cam = camera(origin);
+  const render::Image bg = gl.frame(cam, nullptr);
+  const render::Image img = converge(gl, *layer, cam, c);
+  const CellsLayerStats& s = layer->stats();
+  EXPECT_GT(s.drawnCells, 0u);
+  EXPECT_GT(s.fetchedBytes, 0u);
+  EXPECT_EQ(s.broken, 0u);
+  EXPECT_GT(s.residentBytes, 0u);
+  EXPECT_LE(s.maxDrawnVoxels, c.voxelBudget);
+  EXPECT_GT(s.drawnPoints, c.voxelBudget / 2);
+  EXPECT_GT(s.select.maxVoxel_px, 1.0f);  // the budget, not min_voxel_px, stopped the refinement
+  const Coverage cov = coverage(img, bg);
+  ASSERT_GT(cov.inside, 1000);
+  EXPECT_GE(cov.insideCovered, cov.inside * 97 / 100) << "holes in the sphere";
+  EXPECT_EQ(cov.farOutsideCovered, 0) << "points far outside the sphere";
+  EXPECT_NE(layer->summaryLine().find("cells drawn"), std::string::npos);
+}
+
+TEST(CellsLayerGL, OriginMovesTheObjectEvenAMillionMetresAway) {
+  Gl gl;
+  const glm::dvec3 near(0.0), far(1e6, -1e6, 1e3);
+  const CellsLayerConfig cn = config(near), cf = config(far);
+  auto a = makeLayer(cn);
+  auto b = makeLayer(cf);
+  ASSERT_TRUE(a && b);
+  const render::Image bg = gl.frame(camera(near), nullptr);
+  const render::Image imgA = converge(gl, *a, camera(near), cn);
+  const render::Image imgB = converge(gl, *b, camera(far), cf);
+  EXPECT_GT(coverage(imgA, bg).insideCovered, 1000);
+  // The same view relative to the object: the same picture.
+  EXPECT_LT(render::fractionDifferent(imgA, imgB, 8), 0.002);
+  // The moved layer seen from the old place: nothing there.
+  const render::Image old = gl.frame(camera(near), b.get());
+  EXPECT_EQ(render::fractionDifferent(old, bg, 2), 0.0);
+  EXPECT_EQ(b->stats().drawnCells, 0u);
+}
+
+TEST(CellsLayerGL, BadSourceFailsNamingIt) {
+  std::string error;
+  CellsLayerConfig c = config(glm::dvec3(0.0));
+  c.source = testing::TempDir() + "/no_such_cells.ighc";
+  EXPECT_FALSE(CellsLayer::create(c, error));
+  EXPECT_NE(error.find(c.source), std::string::npos) << error;
+  EXPECT_NE(error.find("[cells] source"), std::string::npos) << error;
+
+  // Not a database.
+  c.source = testing::TempDir() + "/not_cells_" + std::to_string(::getpid()) + ".ighc";
+  {
+    std::ofstream f(c.source, std::ios::binary);
+    f << std::string(4096, 'x');
+  }
+  error.clear();
+  EXPECT_FALSE(CellsLayer::create(c, error));
+  EXPECT_NE(error.find(c.source), std::string::npos) << error;
+  std::remove(c.source.c_str());
+
+  // Nobody listens (port 1 on loopback): the open times out naming the URL.
+  c.source = "http://127.0.0.1:1/bunny.ighc";
+  c.openTimeout_s = 0.3;
+  error.clear();
+  EXPECT_FALSE(CellsLayer::create(c, error));
+  EXPECT_NE(error.find(c.source), std::string::npos) << error;
+
+  // W below the database's largest cell: those cells could never be fetched.
+  c = config(glm::dvec3(0.0));
+  c.wBytes = 8;
+  error.clear();
+  EXPECT_FALSE(CellsLayer::create(c, error));
+  EXPECT_NE(error.find("w_bytes = 8"), std::string::npos) << error;
+}
