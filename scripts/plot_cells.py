@@ -44,6 +44,7 @@ def main():
         pts = [p for p in curve if p[2] >= 0]
         b.plot([p[0] for p in pts], [min(p[2], 60.0) for p in pts], ".-", color=col, label=label)
     a.set_xscale("symlog", linthresh=0.1)
+    a.set_xlim(left=0)
     a.set_yscale("log")
     a.set_xlabel("seconds after the teleport")
     a.set_ylabel("largest voxel on screen (px)")
@@ -51,6 +52,7 @@ def main():
     if runs:
         a.legend(fontsize=8)
     b.set_xscale("symlog", linthresh=0.1)
+    b.set_xlim(left=0)
     b.set_xlabel("seconds after the teleport")
     b.set_ylabel("PSNR vs the final picture (dB, capped at 60)")
     b.set_title("picture while streaming")
@@ -58,10 +60,10 @@ def main():
         b.legend(fontsize=8)
     if sweep:
         x = [s["voxel_budget"] for s in sweep]
-        c.plot(x, [s["psnr_db"] for s in sweep], "o-", color="tab:blue", label="PSNR vs full detail")
+        c.plot(x, [min(s["psnr_db"], 60.0) for s in sweep], "o-", color="tab:blue", label="PSNR vs full detail")
         c.set_xscale("log")
         c.set_xlabel("voxel budget")
-        c.set_ylabel("PSNR (dB)", color="tab:blue")
+        c.set_ylabel("PSNR vs full detail (dB, capped at 60 = identical)", color="tab:blue")
         c2 = c.twinx()
         c2.plot(x, [s["select_ms"] for s in sweep], "s--", color="tab:gray", label="select ms")
         c2.set_ylabel("selection (ms)", color="tab:gray")
