@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "ig/cells_tool.h"
 #include "ig/stats.h"
 #include "lod/cells.h"
 #include "lod/cells_select.h"
@@ -19,23 +20,7 @@ namespace {
 using BenchClock = std::chrono::steady_clock;
 double msSince(BenchClock::time_point t0) { return std::chrono::duration<double, std::milli>(BenchClock::now() - t0).count(); }
 
-constexpr double kSceneEdge_m = 1024.0;
-
-// Spheres of radius 8 - 60 m scattered through the cube, each with its own colour.
-lod::VoxelMesh sphereScene(int count, uint32_t seed) {
-  lod::VoxelMesh mesh;
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  for (int i = 0; i < count; ++i) {
-    const double r = 8.0 + 52.0 * u(rng) * u(rng);
-    const glm::dvec3 c(r + (kSceneEdge_m - 2 * r) * u(rng), r + (kSceneEdge_m - 2 * r) * u(rng),
-                       r + (kSceneEdge_m - 2 * r) * u(rng));
-    const int segments = std::clamp(static_cast<int>(r * 1.5), 16, 96);
-    mesh.positions_m.reserve(mesh.positions_m.size() + static_cast<size_t>(segments * segments));
-    lod::appendSphere(mesh, c, r, segments, 0xFF000000u | (rng() & 0xFFFFFFu));
-  }
-  return mesh;
-}
+constexpr double kSceneEdge_m = kCellsSceneEdge_m;
 
 // A slow fly-through of the cube, a turn, a teleport to the far corner at 2/3, on.
 lod::Camera pathCamera(int i, int frames) {
@@ -79,7 +64,7 @@ int runCellsBench(const CellsBenchOptions& o) {
   }
   // Build the HC.
   const auto tBuild = BenchClock::now();
-  const lod::VoxelMesh mesh = sphereScene(o.spheres, o.seed);
+  const lod::VoxelMesh mesh = cellsSphereScene(o.spheres, o.seed);
   lod::VoxelizeConfig vc;
   vc.levels = o.cellLevels - 1 + o.cellVoxelDepth;
   vc.boxMin_m = glm::dvec3(0.0);

@@ -46,17 +46,6 @@ lod::Camera lookAt(const glm::dvec3& eye, const glm::dvec3& target, int w, int h
   return c;
 }
 
-// The GL arena as the stream's sink.
-class PassSink final : public CellSink {
- public:
-  explicit PassSink(render::CellsPass& pass) : pass_(pass) {}
-  bool upload(uint32_t cell, std::span<const lod::CellPoint> points) override { return pass_.upload(cell, points); }
-  void evict(uint32_t cell) override { pass_.evict(cell); }
-
- private:
-  render::CellsPass& pass_;
-};
-
 // scripts/cells-server around one rate.
 class Server {
  public:
@@ -281,7 +270,7 @@ bool runCellsStreamBench(const CellsStreamBenchOptions& o, CellsStreamBenchResul
     so.memoryBudget_bytes = pc.arenaBytes / 2;
     if (!stream.open(so, error)) return false;
     gl.pass.evictAll();
-    PassSink sink(gl.pass);
+    CellsPassSink sink(gl.pass);
     lod::CellSelector sel(stream.tree());
     lod::CellView v = view;
     v.minVoxel_px = 1.0;

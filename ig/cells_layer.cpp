@@ -11,17 +11,6 @@
 
 namespace ig {
 
-// The GPU arena as the stream's sink (uploads cost no GL call: the arena is persistently mapped).
-class CellsLayer::PassSink final : public CellSink {
- public:
-  explicit PassSink(render::CellsPass& pass) : pass_(pass) {}
-  bool upload(uint32_t cell, std::span<const lod::CellPoint> points) override { return pass_.upload(cell, points); }
-  void evict(uint32_t cell) override { pass_.evict(cell); }
-
- private:
-  render::CellsPass& pass_;
-};
-
 namespace {
 
 // The same cells with the root corner at `rootMin_m` (points are stored relative to it).
@@ -102,7 +91,7 @@ bool CellsLayer::initRender(std::string& error) {
     pass_.reset();
     return false;
   }
-  sink_ = std::make_unique<PassSink>(*pass_);
+  sink_ = std::make_unique<CellsPassSink>(*pass_);
   return true;
 }
 

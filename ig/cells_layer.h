@@ -36,6 +36,7 @@ class CellsPass;
 }  // namespace render
 
 class CellStream;
+class CellsPassSink;
 class CellSink;
 
 // CellsLayerConfig ([cells] scene keys) is in ig/config.h.
@@ -86,13 +87,12 @@ class CellsLayer {
 
  private:
   CellsLayer();
-  class PassSink;
   CellsLayerConfig config_;
   std::unique_ptr<CellStream> stream_;
   lod::CellTree tree_;
   std::unique_ptr<lod::CellSelector> selector_;
   std::unique_ptr<render::CellsPass> pass_;
-  std::unique_ptr<PassSink> sink_;
+  std::unique_ptr<CellsPassSink> sink_;
   lod::CellView view_;
   std::vector<lod::CellDraw> draws_;
   std::vector<uint32_t> requests_;

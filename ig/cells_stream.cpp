@@ -4,6 +4,8 @@
 #include <cinttypes>
 #include <cstdio>
 
+#include "render/cells_pass.h"
+
 namespace ig {
 namespace {
 
@@ -14,6 +16,9 @@ uint64_t pointBytes(const lod::CellTree& tree, uint32_t cell) {
 }
 
 }  // namespace
+
+bool CellsPassSink::upload(uint32_t cell, std::span<const lod::CellPoint> points) { return pass_.upload(cell, points); }
+void CellsPassSink::evict(uint32_t cell) { pass_.evict(cell); }
 
 CellStream::CellStream() = default;
 CellStream::~CellStream() = default;

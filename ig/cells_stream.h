@@ -33,6 +33,10 @@
 #include "lod/cells_db.h"
 #include "lod/cells_select.h"
 
+namespace ig::render {
+class CellsPass;
+}
+
 namespace ig {
 
 struct CellStreamOptions {
@@ -49,6 +53,18 @@ class CellSink {
   // False: no room (the stream evicts least recently drawn cells and tries once more).
   virtual bool upload(uint32_t cell, std::span<const lod::CellPoint> points) = 0;
   virtual void evict(uint32_t cell) = 0;
+};
+
+// The GPU arena of render/cells_pass.h as the sink (uploads cost no GL call: the arena is
+// persistently mapped).
+class CellsPassSink final : public CellSink {
+ public:
+  explicit CellsPassSink(render::CellsPass& pass) : pass_(pass) {}
+  bool upload(uint32_t cell, std::span<const lod::CellPoint> points) override;
+  void evict(uint32_t cell) override;
+
+ private:
+  render::CellsPass& pass_;
 };
 
 struct CellStreamStats {

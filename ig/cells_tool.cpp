@@ -21,24 +21,8 @@ namespace {
 using ToolClock = std::chrono::steady_clock;
 double msSince(ToolClock::time_point t0) { return std::chrono::duration<double, std::milli>(ToolClock::now() - t0).count(); }
 
-constexpr double kSceneEdge_m = 1024.0;
 constexpr double kPi = 3.14159265358979323846;
 
-// Spheres of radius 8 - 60 m scattered through a 1,024 m cube, each with its own colour (the
-// scene of igbench cells).
-lod::VoxelMesh sphereScene(int count, uint32_t seed) {
-  lod::VoxelMesh mesh;
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  for (int i = 0; i < count; ++i) {
-    const double r = 8.0 + 52.0 * u(rng) * u(rng);
-    const glm::dvec3 c(r + (kSceneEdge_m - 2 * r) * u(rng), r + (kSceneEdge_m - 2 * r) * u(rng),
-                       r + (kSceneEdge_m - 2 * r) * u(rng));
-    const int segments = std::clamp(static_cast<int>(r * 1.5), 16, 96);
-    lod::appendSphere(mesh, c, r, segments, 0xFF000000u | (rng() & 0xFFFFFFu));
-  }
-  return mesh;
-}
 
 // The model as a voxel mesh: turned to z up, scaled, centred on the origin, light clay colour.
 lod::VoxelMesh meshFromModel(const lod::hdlod::Model& model, bool yUp, double size_m) {
@@ -150,6 +134,20 @@ std::string formatted(const char* format, ...) {
 
 }  // namespace
 
+lod::VoxelMesh cellsSphereScene(int count, uint32_t seed) {
+  lod::VoxelMesh mesh;
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int i = 0; i < count; ++i) {
+    const double r = 8.0 + 52.0 * u(rng) * u(rng);
+    const glm::dvec3 c(r + (kCellsSceneEdge_m - 2 * r) * u(rng), r + (kCellsSceneEdge_m - 2 * r) * u(rng),
+                       r + (kCellsSceneEdge_m - 2 * r) * u(rng));
+    const int segments = std::clamp(static_cast<int>(r * 1.5), 16, 96);
+    lod::appendSphere(mesh, c, r, segments, 0xFF000000u | (rng() & 0xFFFFFFu));
+  }
+  return mesh;
+}
+
 bool cellsBuildMesh(const CellsBuildOptions& o, lod::VoxelMesh& mesh, std::string& source, std::string& error) {
   mesh = {};
   if (!o.scene.empty()) {
@@ -164,7 +162,7 @@ bool cellsBuildMesh(const CellsBuildOptions& o, lod::VoxelMesh& mesh, std::strin
       error = formatted("--copies %d: needs an input mesh, not --scene", o.copies);
       return false;
     }
-    mesh = sphereScene(static_cast<int>(n), o.seed);
+    mesh = cellsSphereScene(static_cast<int>(n), o.seed);
     source = o.scene;
   } else {
     const auto model = lod::hdlod::loadModelFile(o.input, error);
@@ -237,7 +235,7 @@ int runCellsBuild(const CellsBuildOptions& o) {
   vc.solid = o.solid;
   if (!o.scene.empty()) {
     vc.boxMin_m = glm::dvec3(0.0);
-    vc.boxEdge_m = kSceneEdge_m;
+    vc.boxEdge_m = kCellsSceneEdge_m;
   }
   lod::VoxelPyramid pyramid;
   if (!lod::voxelize(mesh, vc, pyramid, error)) {

@@ -29,6 +29,11 @@ struct CellsBuildOptions {
   bool json = false;              // one JSON object on stdout instead of text
 };
 
+// The procedural scene of igbench cells and `--scene spheres:N`: `count` spheres of radius 8 - 60 m
+// scattered through the cube [0, kCellsSceneEdge_m]^3, each with its own colour.
+inline constexpr double kCellsSceneEdge_m = 1024.0;
+lod::VoxelMesh cellsSphereScene(int count, uint32_t seed);
+
 // The mesh cells-build voxelizes: the input (scaled, turned z up, copied) or the procedural scene,
 // with sun shading baked into its colours when `shading`. `source` names it. False with `error`
 // naming the bad option or input. (The options' ranges are checked by runCellsBuild.)

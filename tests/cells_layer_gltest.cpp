@@ -19,6 +19,7 @@
 #include "ig/cells_layer.h"
 #include "lod/cells_db.h"
 #include "lod/cells_voxel.h"
+#include "cells_test_db.h"
 #include "render/context.h"
 #include "render/image.h"
 #include "render/renderer.h"
@@ -37,18 +38,9 @@ struct Db {
     lod::VoxelMesh m;
     lod::appendSphere(m, kCentre, kRadius, 48, 0xFF2040E0u);
     lod::appendSphere(m, {80, 80, 80}, 8, 24, 0xFF10C020u);  // behind, partly hidden
-    lod::VoxelizeConfig vc;
-    vc.levels = 7;
-    vc.boxMin_m = glm::dvec3(0.0);
-    vc.boxEdge_m = 100.0;
-    lod::VoxelPyramid p;
-    std::string err;
-    EXPECT_TRUE(lod::voxelize(m, vc, p, err)) << err;
     path = testing::TempDir() + "/cells_layer_" + std::to_string(::getpid()) + ".ighc";
-    lod::CellBuildConfig bc;
-    bc.cellLevels = 5;
-    bc.cellVoxelDepth = 2;
-    EXPECT_TRUE(lod::writeCellDb(path, p, bc, nullptr, err)) << err;
+    std::string err;
+    EXPECT_TRUE(test::writeTestCellDb(m, path, nullptr, err)) << err;
   }
   ~Db() { std::remove(path.c_str()); }
 };

@@ -24,6 +24,7 @@
 #include "lod/cells_db.h"
 #include "lod/cells_select.h"
 #include "lod/cells_voxel.h"
+#include "cells_test_db.h"
 #include "test_servers.h"
 
 using namespace ig;
@@ -43,17 +44,8 @@ void writeDb(Db& db, const char* name) {
   lod::appendSphere(m, {30, 30, 30}, 20, 48, 0xFF2040E0u);
   lod::appendSphere(m, {70, 60, 40}, 15, 40, 0xFF10C020u);
   lod::appendQuad(m, {5, 90, 5}, {95, 90, 5}, {95, 90, 95}, {5, 90, 95}, 0xFFC0C0C0u);
-  lod::VoxelizeConfig vc;
-  vc.levels = 7;
-  vc.boxMin_m = glm::dvec3(0.0);
-  vc.boxEdge_m = 100.0;
-  lod::VoxelPyramid p;
   std::string err;
-  ASSERT_TRUE(lod::voxelize(m, vc, p, err)) << err;
-  lod::CellBuildConfig bc;
-  bc.cellLevels = 5;
-  bc.cellVoxelDepth = 2;
-  ASSERT_TRUE(lod::writeCellDb(db.path, p, bc, &db.tree, err)) << err;
+  ASSERT_TRUE(ig::test::writeTestCellDb(m, db.path, &db.tree, err)) << err;
 }
 
 // Keeps what was uploaded, like the GPU arena would.
