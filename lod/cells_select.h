@@ -30,14 +30,17 @@
 //
 // Cost per frame. The cut and the mergeable cells are kept as packed arrays (struct of arrays,
 // float); each frame one vectorised pass over each re-evaluates e and the frustum (4 cells per
-// SSE step; every evaluation, evaluateCell() included, runs through that one routine, so all
-// give the same bits). Then work is proportional to what changes: the queues hold only the
+// SSE2 step, 8 per AVX2 step where the CPU has it, lane for lane the same operations and no FMA;
+// every evaluation, evaluateCell() included, runs through that one routine, so all give the same
+// bits). Then work is proportional to what changes: the queues hold only the
 // candidates near where the greedy stopped last frame (e within a few percent), rebuilt from the
 // packed arrays in a further band when the greedy runs past them; splits and merges update the
 // arrays in place. The cheapest covers (below) are the one walk of the tree: a cut cell cut by
 // the frustum boundary keeps a certificate (up to 7 children / grandchildren that are wholly
 // inside, or live leaves, whose voxels already make mc = V); while those boxes keep their
-// status (one vectorised test), its cover is not recomputed.
+// status (one vectorised test), its cover is not recomputed. A mergeable cell's children are all
+// cut cells, so its cover needs no walk: each cut cell keeps its parent's slot in the mergeable
+// arrays, and one pass over the cut sums the children's mc per mergeable cell.
 //
 // Exactness. Refining a cell never lowers the largest e but may lower the cost: a live cell cut
 // by the frustum boundary costs all its voxels, its children outside the frustum cost nothing.
@@ -65,9 +68,10 @@
 // than W can never be requested (counted in `unfetchable`). Ancestors of drawn cells should stay
 // resident (a merge into a missing ancestor is skipped).
 //
-// Memory: everything is sized at construction from the tree: about 100 bytes per cell (a packed
-// copy of the tree's fields the selection reads, 40; the packed cut and mergeable arrays, 41;
-// stamps and lists) plus queue capacity of 32 bytes per cell that is touched only as used.
+// Memory: everything is sized at construction from the tree: about 110 bytes per cell (a packed
+// copy of the tree's fields the selection reads, 40; the packed cut and mergeable arrays, 45;
+// the mergeable cells' child sums, 8 per inner cell; stamps and lists) plus queue capacity of 32
+// bytes per cell that is touched only as used.
 // select() does not allocate.
 #pragma once
 
@@ -166,6 +170,9 @@ class CellSelector {
     float rx = 0, ry = 0, rz = 0;                            // root corner - eye
     float k = 0;                                             // e = edge * k / max(distance, near)
     float near = 0;
+    // The same, each in 4 lanes (loaded, not broadcast, per quad): planes (6 each of nx, ny, nz,
+    // w, pos, neg), then rx, ry, rz, k, near.
+    alignas(16) std::array<std::array<float, 4>, 41> lanes{};
   };
   // A set of cells with their evaluation (struct of arrays, padded to 4 lanes): the cut, or the
   // mergeable cells. Each frame one pass over it re-evaluates every member.
@@ -174,6 +181,7 @@ class CellSelector {
     std::vector<float> x, y, z, edge, e;  // x, y, z: the box's lowest corner relative to the root corner
     std::vector<uint8_t> flags;           // kLive | kInside | kHasChildren
     std::vector<uint64_t> cert;           // a certificate that mc = V (see makeCertificate), or 0
+    std::vector<uint32_t> up;             // the cut: the parent's slot in the mergeable cells, or kNoCell
     uint32_t n = 0;
     void allocate(size_t capacity);
   };
@@ -183,8 +191,8 @@ class CellSelector {
   };
 
   static void makeConsts(const CellTree& tree, const CellView& view, ViewConsts& out);
-  static void evalQuad(const ViewConsts& vc, const float* x, const float* y, const float* z, const float* edge,
-                       const uint32_t* voxels, float* e, uint8_t* flags);
+  static void evalCells(const ViewConsts& vc, uint32_t n, const float* x, const float* y, const float* z,
+                        const float* edge, const uint32_t* voxels, float* e, uint8_t* flags);
   static Ev evalOne(const CellTree& tree, const ViewConsts& vc, float edge, uint32_t c);
   friend CellEval evaluateCell(const CellTree& tree, uint32_t cell, const CellView& view);
   void evaluateSet(CellSet& set);
@@ -204,6 +212,7 @@ class CellSelector {
   bool childrenDrawable(uint32_t c);
   uint32_t insert(CellSet& set, uint32_t c, Ev x, uint64_t mc);
   void remove(CellSet& set, uint32_t c);  // writes its evaluation back to the per-cell arrays
+  void setUp(uint32_t p, uint32_t slot);  // cut_.up of p's children that are in the cut
   void maybeMergeable(uint32_t p);        // p refined with every child cut: into the merge set
   void collapse(uint32_t a);              // a's subtree -> a in the cut (eviction repair)
   void split(uint32_t c);
@@ -235,6 +244,7 @@ class CellSelector {
   std::vector<float> edgeF_;
   CellSet cut_, mergeable_;
   std::vector<uint32_t> scratch_, evicted_, unknownCover_;
+  std::vector<uint64_t> childSum_;  // per mergeable slot: the sum of its children's mc this frame
   std::vector<HeapEntry> splitHeap_, mergeHeap_;
   uint32_t frame_ = 0;
   std::span<const Residency> residency_;

@@ -26,26 +26,8 @@
 #include "lod/cells.h"
 #include "lod/cells_select.h"
 
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
-#endif
 // Counts heap allocations while armed (no allocation in select()).
-static std::atomic<bool> gCountAllocs{false};
-static std::atomic<long> gAllocs{0};
-void* operator new(std::size_t n) {
-  if (gCountAllocs.load()) ++gAllocs;
-  if (void* p = std::malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t n) {
-  if (gCountAllocs.load()) ++gAllocs;
-  if (void* p = std::malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
+#include "alloc_counter.h"
 
 using namespace ig::lod;
 
@@ -346,6 +328,67 @@ TEST(CellSelect, IncrementalDrawsTheSameCellsAsFromScratch) {
   EXPECT_EQ(frames, 24 * 40);
   EXPECT_GT(differentCuts, 24 * 40 / 2);  // the cut changes along the path
   EXPECT_GT(invisible, 24 * 40 / 2);      // cells outside the frustum are part of the realization
+}
+
+// The same over deep, thin trees (16 levels: 16-bit cell coordinates) with an edge that is not a
+// power of two, far from the origin: certificates locate children by comparing the corners the
+// selector keeps in float, which must hold down to the finest level.
+TEST(CellSelect, IncrementalEqualsFromScratchOnDeepTrees) {
+  std::mt19937 rng(7);
+  int frames = 0, deep = 0;
+  for (int trial = 0; trial < 4; ++trial) {
+    TreeSpec spec;
+    spec.levels = kMaxCellLevels;
+    spec.minChildren = 1;
+    spec.maxChildren = 2;
+    spec.leafEarly = 0.02;
+    spec.empty = 0.1;
+    spec.rootEdge_m = 100.3 + trial;
+    spec.rootMin_m = {-3.0e4, 5.0e3 + trial, 17.25};
+    const CellTree t = randomTree(rng, spec);
+    CellSelector sel(t);
+    CellView v;
+    v.camera.far_m = 1000.0;
+    v.camera.near_m = 0.01;
+    v.camera.fovY_deg = 50.0;
+    v.minVoxel_px = 0.5;
+    uint64_t total = 0;
+    for (uint32_t c = 0; c < t.size(); ++c)
+      if (t.childCount(c) == 0) total += t.voxels(c);
+    v.voxelBudget = total / 3 + 10;
+    // Start at a leaf's corner (deep cells around the eye), then drift and turn.
+    uint32_t c = 0;
+    while (t.childCount(c) > 0) c = t.firstChild(c);
+    v.camera.eye_m = t.info().rootMin_m + glm::dvec3(t.coord(c)) * t.cellEdge_m(t.level(c)) + glm::dvec3(1e-3);
+    for (int frame = 0; frame < 30; ++frame) {
+      v.camera.eye_m += glm::dvec3(0.002, 0.001, -0.0005) * static_cast<double>(frame);
+      v.camera.heading_deg = 9.0 * frame;
+      v.camera.pitch_deg = -30.0 + 2.0 * frame;
+      const Frame f = runSelect(sel, t, v);
+      CellSelector fresh(t);
+      const Frame g = runSelect(fresh, t, v);
+      const std::string what = "trial " + std::to_string(trial) + " frame " + std::to_string(frame);
+      ASSERT_TRUE(f.stats.valid && g.stats.valid) << what;
+      ASSERT_EQ(f.stats.feasible, g.stats.feasible) << what;
+      EXPECT_EQ(f.stats.maxVoxel_px, g.stats.maxVoxel_px) << what;
+      EXPECT_EQ(f.stats.drawnVoxels, g.stats.drawnVoxels) << what;
+      std::vector<uint32_t> a, b;
+      int deepest = 0;
+      for (const CellDraw& d : f.draw) {
+        a.push_back(d.cell);
+        deepest = std::max(deepest, t.level(d.cell));
+      }
+      for (const CellDraw& d : g.draw) b.push_back(d.cell);
+      std::sort(a.begin(), a.end());
+      std::sort(b.begin(), b.end());
+      ASSERT_EQ(a, b) << what;
+      expectValidRealization(t, sel);
+      if (deepest >= 12) ++deep;
+      ++frames;
+    }
+  }
+  EXPECT_EQ(frames, 4 * 30);
+  EXPECT_GT(deep, 4 * 30 / 4);  // the selection reaches the deep levels
 }
 
 TEST(CellSelect, PreSelectionDropsCellsFinerThanThePixel) {
