@@ -180,9 +180,9 @@ int main(int argc, char** argv) {
       "screen size of the scene (1/1, 1/4, 1/16) selects and renders with HDLOD at --tolerance and\n"
       "with full detail: triangles, draws, select_ms, frame_ms (glFinish) and the PSNR of the HDLOD\n"
       "image against the full one; then an r sweep. JSON fields: objects, triangles, build_s,\n"
-      "cache_bytes, clusters, levels, cases [{time, screen, hdlod{triangles, draws, select_ms,\n"
+      "cache_bytes, clusters, levels, cases [{time, screen, hdlod{triangles, draws, select_ms, select_cpu_ms,\n"
       "frame_ms}, full{...}, psnr_db}], sweep [{r_px, triangles, select_ms, frame_ms, psnr_db}],\n"
-      "select_ms_max, triangle_ratio_1_16_min, frame_ratio_end_1_16, psnr_db_min, two_thread_gain_max,\n"
+      "select_ms_max, select_cpu_ms_max, triangle_ratio_1_16_min, frame_ratio_end_1_16, psnr_db_min, two_thread_gain_max,\n"
       "simplifiers [{name, seconds, hausdorff_m, merged_triangles, triangle_ratio_1_16_min}] (docs/hdlod.md).");
   hdlod->add_option("--scale", hdlodOptions.scale, "Site scale: 1 = the paper's ~56k objects / ~4 M triangles")
       ->capture_default_str()->check(CLI::PositiveNumber);

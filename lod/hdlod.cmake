@@ -12,6 +12,10 @@ target_sources(ig_lod PRIVATE
 # library with its header).
 find_package(TinyGLTF REQUIRED CONFIG)
 target_link_libraries(ig_lod PRIVATE TinyGLTF::TinyGLTF)
+# IFC models (lod/hdlod_models.cpp): Debian libassimp-dev (pkg-config assimp; its IFC importer is
+# enabled in Debian's build).
+pkg_check_modules(ASSIMP REQUIRED IMPORTED_TARGET assimp)
+target_link_libraries(ig_lod PRIVATE PkgConfig::ASSIMP)
 
 # Parent-cluster simplifiers (lod/hdlod_simplify.h): Debian libmeshoptimizer-dev (CMake package
 # meshoptimizer, target meshoptimizer::meshoptimizer) and libopenmesh-dev (CMake package OpenMesh,

@@ -1,5 +1,8 @@
-// HDLOD model files beyond OBJ: PLY (own reader) and glTF 2.0 (Debian's libtinygltf). See
-// hdlod_scene.h.
+// HDLOD model files beyond OBJ: PLY (own reader), glTF 2.0 (Debian's libtinygltf) and IFC
+// (Debian's libassimp). See hdlod_scene.h.
+#include <assimp/Importer.hpp>
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
 #include <tiny_gltf.h>
 
 #include <algorithm>
@@ -428,11 +431,74 @@ std::optional<Model> loadGltf(const std::string& path, std::string& error) {
   return finish(std::move(m));
 }
 
+std::optional<Model> loadIfc(const std::string& path, std::string& error) {
+  {
+    // assimp picks its importer by content when the extension does not match, so an OBJ named
+    // .ifc would load as OBJ: check the STEP magic first.
+    std::ifstream in(path, std::ios::binary);
+    if (!in) {
+      error = path + ": cannot open";
+      return std::nullopt;
+    }
+    char magic[13] = {};
+    in.read(magic, sizeof magic);
+    if (in.gcount() != static_cast<std::streamsize>(sizeof magic) || std::memcmp(magic, "ISO-10303-21;", sizeof magic) != 0) {
+      error = path + ": not an IFC (STEP) file: expected 'ISO-10303-21;' at its start";
+      return std::nullopt;
+    }
+  }
+  Assimp::Importer importer;
+  // Lines and points are dropped (aiProcess_SortByPType + the removal flag); node transforms
+  // are applied to the vertices (aiProcess_PreTransformVertices).
+  importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
+  const aiScene* s = importer.ReadFile(path, aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_SortByPType |
+                                                 aiProcess_PreTransformVertices);
+  if (s == nullptr || (s->mFlags & AI_SCENE_FLAGS_INCOMPLETE) != 0) {
+    std::string why = importer.GetErrorString();
+    while (!why.empty() && (why.back() == '\n' || why.back() == '\r')) why.pop_back();
+    error = path + ": cannot load IFC: " + (why.empty() ? std::string("incomplete scene") : why);
+    return std::nullopt;
+  }
+  // assimp's IFC importer converts the file's length unit to metres and its z up to y up; back
+  // to ours: (x, y, z) -> (x, -z, y).
+  Model m;
+  m.name = path;
+  for (unsigned i = 0; i < s->mNumMeshes; ++i) {
+    const aiMesh* mesh = s->mMeshes[i];
+    const uint32_t base = static_cast<uint32_t>(m.positions.size());
+    for (unsigned v = 0; v < mesh->mNumVertices; ++v) {
+      const aiVector3D& p = mesh->mVertices[v];
+      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
+        error = path + ": mesh " + std::to_string(i) + ": vertex " + std::to_string(v) + " not finite";
+        return std::nullopt;
+      }
+      m.positions.emplace_back(p.x, -p.z, p.y);
+    }
+    for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
+      const aiFace& face = mesh->mFaces[f];
+      if (face.mNumIndices != 3) continue;
+      for (unsigned k = 0; k < 3; ++k) {
+        if (face.mIndices[k] >= mesh->mNumVertices) {
+          error = path + ": mesh " + std::to_string(i) + ": index " + std::to_string(face.mIndices[k]) + " out of range";
+          return std::nullopt;
+        }
+        m.indices.push_back(base + face.mIndices[k]);
+      }
+    }
+  }
+  if (m.indices.empty()) {
+    error = path + ": IFC file without triangles";
+    return std::nullopt;
+  }
+  return finish(std::move(m));
+}
+
 std::optional<Model> loadModelFile(const std::string& path, std::string& error) {
   if (endsWith(path, ".obj")) return loadObj(path, error);
   if (endsWith(path, ".ply")) return loadPly(path, error);
   if (endsWith(path, ".gltf") || endsWith(path, ".glb")) return loadGltf(path, error);
-  error = path + ": unknown model format (.obj, .ply, .gltf, .glb)";
+  if (endsWith(path, ".ifc")) return loadIfc(path, error);
+  error = path + ": unknown model format (.obj, .ply, .gltf, .glb, .ifc)";
   return std::nullopt;
 }
 

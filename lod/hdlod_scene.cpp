@@ -309,16 +309,35 @@ std::optional<Scene> parseSchedule(const std::string& text, const std::string& n
           return fail("model box: expected three finite sizes >= 0: " + line);
         }
         m = makeBoxModel(w[1], s);
-      } else if (w[2] == "obj" || w[2] == "ply" || w[2] == "gltf") {
-        if (!arity(4)) return fail("model " + w[2] + ": expected 'model NAME " + w[2] + " PATH': " + line);
+      } else if (w[2] == "obj" || w[2] == "ply" || w[2] == "gltf" || w[2] == "ifc") {
+        // model NAME KIND PATH [scale S]
+        double scale = 1.0;
+        if (w.size() == 6 && w[4] == "scale") {
+          if (!number(5, scale) || !(scale > 0.0)) return fail("model " + w[1] + ": scale must be one finite number > 0: " + w[5]);
+        } else if (!arity(4)) {
+          return fail("model " + w[2] + ": expected 'model NAME " + w[2] + " PATH [scale S]': " + line);
+        }
         const std::string p = w[3][0] == '/' ? w[3] : baseDir + w[3];
         std::string objError;
-        auto loaded = w[2] == "obj" ? loadObj(p, objError) : w[2] == "ply" ? loadPly(p, objError) : loadGltf(p, objError);
+        auto loaded = w[2] == "obj"    ? loadObj(p, objError)
+                      : w[2] == "ply"  ? loadPly(p, objError)
+                      : w[2] == "gltf" ? loadGltf(p, objError)
+                                       : loadIfc(p, objError);
         if (!loaded) return fail("model " + w[1] + ": " + objError);
         m = std::move(*loaded);
         m.name = w[1];
+        if (scale != 1.0) {
+          for (glm::vec3& v : m.positions) {
+            v = glm::vec3(glm::dvec3(v) * scale);
+            if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z)) return fail("model " + w[1] + ": scale too large: " + w[5]);
+          }
+          Scene tmp;
+          tmp.models.push_back(std::move(m));
+          computeModelBoxes(tmp);
+          m = std::move(tmp.models[0]);
+        }
       } else {
-        return fail("model: unknown kind (box, obj, ply, gltf): " + w[2]);
+        return fail("model: unknown kind (box, obj, ply, gltf, ifc): " + w[2]);
       }
       modelIndex[w[1]] = static_cast<uint32_t>(scene.models.size());
       scene.models.push_back(std::move(m));

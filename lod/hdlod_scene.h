@@ -113,7 +113,13 @@ std::optional<Model> loadPly(const std::string& path, std::string& error);
 // triangle, strip and fan primitives of every node of the default scene, with the node
 // transforms, converted from glTF's y up to z up ((x, y, z) -> (x, -z, y)); textures ignored.
 std::optional<Model> loadGltf(const std::string& path, std::string& error);
-// By extension: .obj, .ply, .gltf, .glb (case-insensitive).
+// IFC (Industry Foundation Classes, STEP text starting 'ISO-10303-21;') through Debian's libassimp:
+// every triangle of the building's geometry with the placements applied, in metres (assimp
+// converts the file's length unit), z up as in the file; lines and points dropped. Errors
+// name the file ("not an IFC (STEP) file", "cannot load IFC: <assimp's reason>", "IFC file
+// without triangles").
+std::optional<Model> loadIfc(const std::string& path, std::string& error);
+// By extension: .obj, .ply, .gltf, .glb, .ifc (case-insensitive).
 std::optional<Model> loadModelFile(const std::string& path, std::string& error);
 
 // An axis-aligned box model (12 triangles), centred on x and y, standing on z = 0.

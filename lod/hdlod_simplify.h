@@ -13,10 +13,18 @@
 //   target_error and taken when it has at most half as many triangles. meshoptimizer only
 //   estimates its errors (and sloppy's estimate is the grid cell), so the builder measures the
 //   result (sampled Hausdorff): that measured distance, never the estimate, is eps_c.
-// - OpenMesh: the welded mesh as an OpenMesh TriMesh (triangles that would make a non-manifold
-//   edge are kept aside unchanged), OpenMesh's Decimater with ModQuadric (priority, squared error
-//   bounded by eps^2) and ModHausdorff (binary: no collapse moves an original point farther than
-//   eps from the surface), decimated as far as they allow.
+// - OpenMesh: the welded mesh less its thin parts (a connected part whose every vertex lies
+//   within eps of the segment along its box's longest axis vanishes as that segment, as such
+//   parts do in meshoptimizer's collapses; the Decimater never removes a closed part) as an
+//   OpenMesh TriMesh (triangles that would make a non-manifold edge go into further layers of
+//   vertex copies, up to 4, the rest are kept unchanged), OpenMesh's Decimater with ModQuadric
+//   (priority, bounded by 16 eps^2: OpenMesh's quadric sums over all planes around both vertices,
+//   eps^2 refused harmless collapses), ModHausdorff (binary: no collapse moves an original
+//   point farther than eps from the surface) and ModNormalFlipping (binary: no triangle's normal
+//   turns by more than 90 degrees; without it collapses folded triangles over each other, which
+//   keeps every point near some triangle but uncovers parts of the surface), decimated as far as
+//   they allow; then the same sloppy fallback as meshoptimizer's when more than
+//   `sloppyAboveTriangles` triangles remain.
 // - Clustering: the earlier placeholder, kept for comparison. Vertex clustering on a grid of cell
 //   eps anchored at `gridOffset_m` (vertices of a cell collapse to their mean; triangles that lose
 //   a corner become the segments / points in `collapsed`, the Rossignac-Borrel complex the error
@@ -46,7 +54,8 @@ struct SimplifyParams {
   // Clustering: the grid corner minus the positions' frame origin, world metres (so that the
   // grid, anchored at the tree's box, does not move with the cluster's origin).
   glm::dvec3 gridOffset_m{0.0};
-  // Meshoptimizer: try meshopt_simplifySloppy when meshopt_simplify leaves more triangles.
+  // Meshoptimizer and OpenMesh: try meshopt_simplifySloppy when the topology-preserving pass
+  // leaves more triangles.
   uint32_t sloppyAboveTriangles = 64;
   // Meshoptimizer and OpenMesh: the result is measured (sampled Hausdorff from the input's
   // vertices and triangle centroids, at most maxSamples, to the result's triangles and vanished

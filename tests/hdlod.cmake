@@ -10,3 +10,12 @@ ig_add_test(hdlod_simplify_test ${CMAKE_CURRENT_SOURCE_DIR}/hdlod_simplify_test.
 ig_add_test(hdlod_cache_test ${CMAKE_CURRENT_SOURCE_DIR}/hdlod_cache_test.cpp LIBS ig_lod)
 ig_add_test(hdlod_pass_gltest ${CMAKE_CURRENT_SOURCE_DIR}/hdlod_pass_gltest.cpp LIBS ig_render GL)
 ig_add_test(hdlod_models_test ${CMAKE_CURRENT_SOURCE_DIR}/hdlod_models_test.cpp LIBS ig_lod)
+# A real building (the FZK-Haus IFC from Debian's assimp-testmodels), fetched at test time like
+# the forest's models (scripts/fetch-ifc: data/ifc/, never committed).
+add_test(NAME fetch_ifc COMMAND ${PROJECT_SOURCE_DIR}/scripts/fetch-ifc)
+set_tests_properties(fetch_ifc PROPERTIES FIXTURES_SETUP ifc_models TIMEOUT 300)
+add_executable(hdlod_ifc_test ${CMAKE_CURRENT_SOURCE_DIR}/hdlod_ifc_test.cpp)
+target_link_libraries(hdlod_ifc_test PRIVATE ig_lod GTest::gtest GTest::gtest_main ig_warnings)
+target_compile_definitions(hdlod_ifc_test PRIVATE IG_SOURCE_DIR="${PROJECT_SOURCE_DIR}" IG_BINARY_DIR="${PROJECT_BINARY_DIR}")
+add_test(NAME hdlod_ifc_test COMMAND hdlod_ifc_test WORKING_DIRECTORY ${PROJECT_SOURCE_DIR})
+set_tests_properties(hdlod_ifc_test PROPERTIES FIXTURES_REQUIRED ifc_models TIMEOUT 120)

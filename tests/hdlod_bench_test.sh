@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # igbench hdlod --quick prints one JSON object with the fields the HDLOD issue names (cases with
-# hdlod/full triangles, draws, select_ms, frame_ms and psnr_db; the r sweep), HDLOD never draws
+# hdlod/full triangles, draws, select_ms, frame_ms and psnr_db, HDLOD's select_cpu_ms; the r sweep), HDLOD never draws
 # more triangles than full detail, a larger r never draws more, and the r sweep's image error
 # grows with r; a second run with --cache (selection only) loads the tree the first one wrote.
 set -euo pipefail
@@ -13,7 +13,7 @@ again=$("$igbench" hdlod --quick --no-render --json --cache "$dir/site.cache")
 import json, sys
 d = json.loads(sys.argv[1])
 again = json.loads(sys.argv[2])
-for k in ("objects", "triangles", "build_s", "cache_bytes", "cases", "sweep", "select_ms_max", "psnr_db_min",
+for k in ("objects", "triangles", "build_s", "cache_bytes", "cases", "sweep", "select_ms_max", "select_cpu_ms_max", "psnr_db_min",
           "frame_ratio_end_1_16", "triangle_ratio_1_16_min"):
     assert k in d, k
 assert d["objects"] == d["static"] + d["pseudo_dynamic"] + d["dynamic"] + d["empty"], d
@@ -24,6 +24,7 @@ for c in d["cases"]:
         for f in ("triangles", "draws", "select_ms", "frame_ms"):
             assert f in c[side], (c, side, f)
     assert 0 < c["hdlod"]["triangles"] <= c["full"]["triangles"], c
+    assert 0 <= c["hdlod"]["select_cpu_ms"] <= d["select_cpu_ms_max"], c
     assert 20 < c["psnr_db"] <= 99, c
 tris = [s["triangles"] for s in d["sweep"]]
 assert tris == sorted(tris, reverse=True), tris  # a larger r never draws more

@@ -81,9 +81,9 @@ TEST(HdlodSimplify, FlatTileBecomesAFewTriangles) {
     const double eps = s == Simplifier::Clustering ? 12.0 : 1.0;
     simplifyMesh(positions, indices, eps, paramsFor(s), m);
     EXPECT_GT(m.indices.size(), 0u);
-    // KNOWN GAP: OpenMesh's Decimater leaves the welded tile at 512 triangles here (not yet
-    // understood); asserted as it is so that a fix shows up, see docs/hdlod.md "Not done".
-    EXPECT_LE(m.indices.size() / 3, s == Simplifier::OpenMesh ? 512u : 8u);
+    // OpenMesh: without its normal-flipping module the Decimater folded the tile over itself and
+    // every measured retry fell back to the 512 input triangles.
+    EXPECT_LE(m.indices.size() / 3, 8u);
     EXPECT_LE(measured(positions, indices, m), s == Simplifier::Clustering ? std::sqrt(3.0) * eps : 1e-3);
     for (uint32_t i : m.indices) ASSERT_LT(i, m.positions.size());
   }
@@ -94,6 +94,7 @@ TEST(HdlodSimplify, BumpyMeshStaysWithinEps) {
   std::vector<uint32_t> indices;
   grid(32, 32.0, bumpy, positions, indices);  // 2048 triangles, amplitude 0.5 m
   for (double eps0 : {0.05, 0.2}) {
+    size_t meshoptTriangles = 0;
     for (Simplifier s : kAll) {
       // Vertex clustering only merges vertices closer than a cell: its cell must exceed the 1 m
       // grid spacing to do anything.
@@ -107,6 +108,12 @@ TEST(HdlodSimplify, BumpyMeshStaysWithinEps) {
       // meshoptimizer and OpenMesh are measured inside simplifyMesh and retried until within
       // eps; vertex clustering moves a vertex by at most its cell's diagonal (sqrt 3 eps).
       EXPECT_LE(d, (s == Simplifier::Clustering ? std::sqrt(3.0) : 1.0) * eps + 1e-4);
+      // OpenMesh reduces at least about as far as meshoptimizer (1511 / 1950 and 240 / 1354
+      // triangles; before its normal-flipping module, every retry kept the input).
+      if (s == Simplifier::Meshoptimizer) meshoptTriangles = m.indices.size() / 3;
+      if (s == Simplifier::OpenMesh) {
+        EXPECT_LE(m.indices.size() / 3, meshoptTriangles * 11 / 10);
+      }
     }
   }
 }
