@@ -77,13 +77,9 @@ void compact(SimplifiedMesh& m) {
 
 // ---------------------------------------------------------------- vanished parts
 
-// Edge collapses and the sloppy grid may remove a whole connected part (a thin column, a small
-// box). Each part of the input with no triangle left in `kept` (which indexes the same vertices)
-// is recorded in m.collapsed as the segment it shrank to: its box's longest axis through the box
-// centre (Rossignac-Borrel: a column counts as an error of about its thickness, as in vertex
-// clustering, not as its distance to the nearest surviving surface). Appends the segment ends to
-// m.positions.
-void recordVanishedParts(std::span<const uint32_t> kept, SimplifiedMesh& m) {
+// The connected part of each vertex of m (through its triangles): the smallest vertex index in
+// the part. Vertices in no triangle are their own part.
+std::vector<uint32_t> partRoots(const SimplifiedMesh& m) {
   const uint32_t nv = static_cast<uint32_t>(m.positions.size());
   std::vector<uint32_t> parent(nv);
   for (uint32_t i = 0; i < nv; ++i) parent[i] = i;
@@ -97,18 +93,31 @@ void recordVanishedParts(std::span<const uint32_t> kept, SimplifiedMesh& m) {
       if (a != b) parent[std::max(a, b)] = std::min(a, b);
     }
   }
+  for (uint32_t i = 0; i < nv; ++i) parent[i] = find(i);
+  return parent;
+}
+
+// Edge collapses and the sloppy grid may remove a whole connected part (a thin column, a small
+// box). Each part of the input with no triangle left in `kept` (which indexes the same vertices)
+// is recorded in m.collapsed as the segment it shrank to: its box's longest axis through the box
+// centre (Rossignac-Borrel: a column counts as an error of about its thickness, as in vertex
+// clustering, not as its distance to the nearest surviving surface). Appends the segment ends to
+// m.positions.
+void recordVanishedParts(std::span<const uint32_t> kept, SimplifiedMesh& m) {
+  const uint32_t nv = static_cast<uint32_t>(m.positions.size());
+  const std::vector<uint32_t> root = partRoots(m);
   std::vector<uint8_t> alive(nv, 0), used(nv, 0);
-  for (uint32_t i : kept) alive[find(i)] = 1;
+  for (uint32_t i : kept) alive[root[i]] = 1;
   for (uint32_t i : m.indices) used[i] = 1;
   std::vector<glm::vec3> lo(nv, glm::vec3(std::numeric_limits<float>::max())), hi(nv, glm::vec3(-std::numeric_limits<float>::max()));
   for (uint32_t i = 0; i < nv; ++i) {
     if (!used[i]) continue;
-    const uint32_t r = find(i);
+    const uint32_t r = root[i];
     lo[r] = glm::min(lo[r], m.positions[i]);
     hi[r] = glm::max(hi[r], m.positions[i]);
   }
   for (uint32_t r = 0; r < nv; ++r) {
-    if (!used[r] || find(r) != r || alive[r]) continue;
+    if (!used[r] || root[r] != r || alive[r]) continue;
     const glm::vec3 c = (lo[r] + hi[r]) * 0.5f, e = hi[r] - lo[r];
     const int axis = e.x >= e.y && e.x >= e.z ? 0 : (e.y >= e.z ? 1 : 2);
     glm::vec3 a = c, b = c;
@@ -154,28 +163,17 @@ using OmMesh = OpenMesh::TriMesh_ArrayKernelT<OmTraits>;
 // by collapsing them away; OpenMesh's Decimater never removes a closed part.
 void dropThinParts(double eps_m, SimplifiedMesh& m) {
   const uint32_t nv = static_cast<uint32_t>(m.positions.size());
-  std::vector<uint32_t> parent(nv);
-  for (uint32_t i = 0; i < nv; ++i) parent[i] = i;
-  auto find = [&](uint32_t i) {
-    while (parent[i] != i) i = parent[i] = parent[parent[i]];
-    return i;
-  };
-  for (size_t t = 0; t + 2 < m.indices.size(); t += 3) {
-    for (int k = 1; k < 3; ++k) {
-      const uint32_t a = find(m.indices[t]), b = find(m.indices[t + static_cast<size_t>(k)]);
-      if (a != b) parent[std::max(a, b)] = std::min(a, b);
-    }
-  }
+  const std::vector<uint32_t> root = partRoots(m);
   std::vector<glm::vec3> lo(nv, glm::vec3(std::numeric_limits<float>::max())), hi(nv, glm::vec3(-std::numeric_limits<float>::max()));
   for (uint32_t i : m.indices) {
-    const uint32_t r = find(i);
+    const uint32_t r = root[i];
     lo[r] = glm::min(lo[r], m.positions[i]);
     hi[r] = glm::max(hi[r], m.positions[i]);
   }
   // Largest squared distance of a part's vertices from its segment.
   std::vector<float> far2(nv, 0.0f);
   for (uint32_t i : m.indices) {
-    const uint32_t r = find(i);
+    const uint32_t r = root[i];
     const glm::vec3 c = (lo[r] + hi[r]) * 0.5f, e = hi[r] - lo[r];
     const int axis = e.x >= e.y && e.x >= e.z ? 0 : (e.y >= e.z ? 1 : 2);
     glm::vec3 d = m.positions[i] - c;
@@ -186,7 +184,7 @@ void dropThinParts(double eps_m, SimplifiedMesh& m) {
   std::vector<uint32_t> kept;
   kept.reserve(m.indices.size());
   for (size_t t = 0; t + 2 < m.indices.size(); t += 3) {
-    if (far2[find(m.indices[t])] > eps2) kept.insert(kept.end(), {m.indices[t], m.indices[t + 1], m.indices[t + 2]});
+    if (far2[root[m.indices[t]]] > eps2) kept.insert(kept.end(), {m.indices[t], m.indices[t + 1], m.indices[t + 2]});
   }
   if (kept.size() == m.indices.size()) return;
   recordVanishedParts(kept, m);

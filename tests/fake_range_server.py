@@ -19,6 +19,7 @@ import http.server
 import os
 import re
 import signal
+import socket
 import socketserver
 import sys
 import threading
@@ -130,6 +131,19 @@ def main():
     class Server(socketserver.ThreadingMixIn, http.server.HTTPServer):
         daemon_threads = True
         allow_reuse_address = True
+
+        def shutdown_request(self, request):
+            # Lingering close, as nginx does: closing a socket with pipelined requests still
+            # unread makes the kernel send RST, which may discard the last response before the
+            # client has read it. Send FIN, read what the client still sends, then close.
+            try:
+                request.shutdown(socket.SHUT_WR)
+                request.settimeout(0.5)
+                while request.recv(65536):
+                    pass
+            except OSError:
+                pass
+            self.close_request(request)
 
     srv = Server(("127.0.0.1", a.port), Handler)
     signal.signal(signal.SIGTERM, lambda *_: os._exit(0))
