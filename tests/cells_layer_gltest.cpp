@@ -20,6 +20,7 @@
 #include "lod/cells_db.h"
 #include "lod/cells_voxel.h"
 #include "cells_test_db.h"
+#include "headless_gl.h"
 #include "render/context.h"
 #include "render/image.h"
 #include "render/renderer.h"
@@ -50,15 +51,9 @@ const Db& db() {
   return d;
 }
 
-struct Gl {
-  std::unique_ptr<render::GlContext> context;
-  render::Renderer renderer;
+struct Gl : test::HeadlessGl {
   render::Lighting light;
-  Gl() {
-    std::string error;
-    context = render::createContext(render::ContextKind::Headless, kW, kH, error);
-    EXPECT_TRUE(context) << error;
-    EXPECT_TRUE(renderer.init(kW, kH, error)) << error;
+  Gl() : HeadlessGl(kW, kH) {
     light.fog = false;
     light.fogColor = {0.2, 0.3, 0.4};
   }

@@ -20,6 +20,7 @@
 #include "lod/cells_voxel.h"
 #include "lod/view.h"
 #include "render/cells_pass.h"
+#include "headless_gl.h"
 #include "render/context.h"
 #include "render/image.h"
 #include "render/renderer.h"
@@ -33,15 +34,8 @@ constexpr double kPlaneY = 32.5;       // mid-voxel at every level: never on a v
 constexpr double kQuadLo = 16.5, kQuadHi = 47.5;
 constexpr double kCoverLo = 16.0, kCoverHi = 48.0;  // the voxels' extent at 1, 2 and 4 m
 
-struct Gl {
-  std::unique_ptr<render::GlContext> context;
-  render::Renderer renderer;
-  Gl() {
-    std::string error;
-    context = render::createContext(render::ContextKind::Headless, kW, kH, error);
-    EXPECT_TRUE(context) << error;
-    EXPECT_TRUE(renderer.init(kW, kH, error)) << error;
-  }
+struct Gl : test::HeadlessGl {
+  Gl() : HeadlessGl(kW, kH) {}
 };
 
 render::Lighting light() {

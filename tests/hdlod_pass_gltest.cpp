@@ -16,6 +16,7 @@
 #include "lod/hdlod_build.h"
 #include "lod/hdlod_select.h"
 #include "lod/hdlod_site.h"
+#include "headless_gl.h"
 #include "render/context.h"
 #include "render/hdlod_pass.h"
 #include "render/image.h"
@@ -28,15 +29,8 @@ namespace {
 
 constexpr int kW = 320, kH = 180;
 
-struct Gl {
-  std::unique_ptr<render::GlContext> context;
-  render::Renderer renderer;
-  Gl() {
-    std::string error;
-    context = render::createContext(render::ContextKind::Headless, kW, kH, error);
-    EXPECT_TRUE(context) << error;
-    EXPECT_TRUE(renderer.init(kW, kH, error)) << error;
-  }
+struct Gl : test::HeadlessGl {
+  Gl() : HeadlessGl(kW, kH) {}
 };
 
 render::Lighting light() {
