@@ -225,7 +225,7 @@ int runHdlodBench(const HdlodBenchOptions& in) {
     renderer = std::make_unique<render::Renderer>();
     hdlodPass = std::make_unique<render::HdlodPass>();
     fullPass = std::make_unique<render::HdlodPass>();
-    if (!context || !renderer->init(o.width_px, o.height_px, error) || !hdlodPass->init(tree, scene, 3, error) ||
+    if (!context || !renderer->init(o.width_px, o.height_px, error, o.msaa) || !hdlodPass->init(tree, scene, 3, error) ||
         !fullPass->init(tree, scene, 3, error)) {
       std::fprintf(stderr, "igbench hdlod: %s\n", error.c_str());
       return 3;
@@ -437,12 +437,12 @@ int runHdlodBench(const HdlodBenchOptions& in) {
     std::printf("{\"suite\":\"hdlod\",\"scale\":%g,\"seed\":%u,\"objects\":%zu,\"static\":%u,\"pseudo_dynamic\":%u,\"dynamic\":%u,"
                 "\"empty\":%u,\"triangles\":%llu,\"scene_s\":%.3f,\"build_s\":%.3f,\"cache\":\"%s\",\"cache_bytes\":%llu,"
                 "\"clusters\":%zu,\"merged_clusters\":%u,\"levels\":%u,\"merged_triangles\":%llu,\"model_lods\":%u,"
-                "\"eps_per_size\":%g,\"strict_hausdorff\":%s,\"hausdorff_samples\":%llu,\"width\":%d,\"height\":%d,\"r_px\":%g,\"context\":\"%s\",\"gpu_bytes\":%llu,\"cases\":[",
+                "\"eps_per_size\":%g,\"strict_hausdorff\":%s,\"hausdorff_samples\":%llu,\"width\":%d,\"height\":%d,\"msaa\":%d,\"r_px\":%g,\"context\":\"%s\",\"gpu_bytes\":%llu,\"cases\":[",
                 o.scale, o.seed, scene.objects.size(), st.staticObjects, st.pseudoDynamicObjects, st.dynamicObjects, st.emptyObjects,
                 static_cast<unsigned long long>(triangles), sceneS, buildS, hd::cacheOutcomeName(outcome),
                 static_cast<unsigned long long>(cacheBytes), tree.clusters.size(), st.mergedClusters, st.levels,
                 static_cast<unsigned long long>(st.mergedTriangles), st.modelLods, o.epsPerSize, o.strictHausdorff ? "true" : "false", static_cast<unsigned long long>(st.hausdorffSamples),
-                o.width_px, o.height_px, o.tolerance_px, contextName.c_str(), static_cast<unsigned long long>(gpuBytes));
+                o.width_px, o.height_px, o.msaa, o.tolerance_px, contextName.c_str(), static_cast<unsigned long long>(gpuBytes));
     for (size_t i = 0; i < cases.size(); ++i) {
       const Case& c = cases[i];
       std::printf("%s{\"time\":\"%s\",\"screen\":\"%s\",", i ? "," : "", c.time.c_str(), c.screen.c_str());
@@ -482,7 +482,7 @@ int runHdlodBench(const HdlodBenchOptions& in) {
     std::printf("  generated in %.2f s, tree %s in %.2f s (%s): %zu clusters (%u merged, %u levels, %llu merged triangles, %u model versions)\n",
                 sceneS, hd::cacheOutcomeName(outcome), buildS, hd::simplifierName(config.simplifier), tree.clusters.size(), st.mergedClusters,
                 st.levels, static_cast<unsigned long long>(st.mergedTriangles), st.modelLods);
-    std::printf("  r = %g px, %dx%d, %s\n", o.tolerance_px, o.width_px, o.height_px, contextName.c_str());
+    std::printf("  r = %g px, %dx%d, msaa %d, %s\n", o.tolerance_px, o.width_px, o.height_px, o.msaa, contextName.c_str());
     std::printf("  time      screen | HDLOD triangles draws select ms frame ms | full triangles draws select ms frame ms | ratio  PSNR dB\n");
     for (const Case& c : cases) {
       std::printf("    %-9s %-4s | %9.0f %6.0f %8.3f %8.2f | %9.0f %6.0f %8.3f %8.2f | %6.1fx %6.2f\n", c.time.c_str(), c.screen.c_str(),

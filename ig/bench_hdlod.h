@@ -22,6 +22,7 @@ struct HdlodBenchOptions {
   int width_px = 1280, height_px = 720;
   double fovY_deg = 45.0;
   double tolerance_px = 1.0;  // r for the cases
+  int msaa = 4;             // samples per pixel of both images (render::Renderer::init), as a cabin display renders
   int repeats = 21;         // selections per case (the median is reported)
   int frames = 5;           // rendered frames per case (the median is reported)
   int animationFrames = 60; // frames of the "animation" case (0 to T)

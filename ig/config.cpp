@@ -463,12 +463,17 @@ bool parseService(const std::string& text, const std::string& name, const std::s
   r.get(frame, "frames", cfg.frames, IntRange{0});
   r.get(frame, "free_run", cfg.freeRun);
 
-  const Table output = r.table(root, "output", {"mode", "width_px", "height_px", "snapshot_dir",
+  const Table output = r.table(root, "output", {"mode", "width_px", "height_px", "msaa", "snapshot_dir",
                                                 "snapshot_every", "snapshot_frames"});
   r.getEnum(output, "mode", cfg.output,
             {{"headless", OutputMode::Headless}, {"window", OutputMode::Window}, {"osmesa", OutputMode::OSMesa}});
   r.get(output, "width_px", cfg.width_px, IntRange{16, 16384});
   r.get(output, "height_px", cfg.height_px, IntRange{16, 16384});
+  r.get(output, "msaa", cfg.msaa, IntRange{1, 8});
+  if (cfg.msaa == 3 || cfg.msaa == 5 || cfg.msaa == 6 || cfg.msaa == 7) {
+    if (const toml::node* node = r.find(output, "msaa"))
+      r.fail(*node, "output.msaa", cat("samples per pixel must be 1, 2, 4 or 8, not ", std::to_string(cfg.msaa)));
+  }
   r.get(output, "snapshot_dir", cfg.snapshotDir, false);
   r.get(output, "snapshot_every", cfg.snapshotEvery, IntRange{0});
   r.get(output, "snapshot_frames", cfg.snapshotFrames, IntRange{0});

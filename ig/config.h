@@ -62,6 +62,7 @@ struct ServiceConfig {
   OutputMode output = OutputMode::Headless;
   int width_px = 1280;
   int height_px = 720;
+  int msaa = 1;                              // samples per pixel: 1 (off), 2, 4 or 8
   std::string snapshotDir = "out/snapshots"; // resolved against the config file's folder
   int64_t snapshotEvery = 0;                 // write a PNG every N frames, 0 = never
   std::vector<int64_t> snapshotFrames;       // and at these frame numbers

@@ -195,6 +195,10 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1.0, 179.0));
   hdlod->add_option("--tolerance", hdlodOptions.tolerance_px, "Screen-space tolerance r in pixels for the cases")
       ->capture_default_str()->check(CLI::Range(0.0, 1000.0));
+  hdlod->add_option("--msaa", hdlodOptions.msaa,
+                    "Samples per pixel (MSAA 1, 2, 4 or 8) of the HDLOD and the full-detail image alike")
+      ->capture_default_str()
+      ->check(CLI::IsMember({1, 2, 4, 8}));
   hdlod->add_option("--repeats", hdlodOptions.repeats, "Selections per case (the median is reported)")
       ->capture_default_str()->check(CLI::Range(1, 10000));
   hdlod->add_option("--simplifier", hdlodOptions.simplifier,

@@ -432,7 +432,7 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
 
   m.context = render::createContext(contextKind(config.output), config.width_px, config.height_px, error);
   if (!m.context) return nullptr;
-  if (!m.renderer.init(config.width_px, config.height_px, error)) return nullptr;
+  if (!m.renderer.init(config.width_px, config.height_px, error, config.msaa)) return nullptr;
   s->info_.context = m.context->description();
 
   const auto terrainStart = std::chrono::steady_clock::now();

@@ -8,12 +8,14 @@
 // - Leaves are objects: g_c = the object's model (shared, instanced), its constant matrix
 //   (static / pseudo-dynamic) or its path (dynamic); eps_c = 0; f_c = v_s.
 // - Merged clusters (built bottom-up, appendix 2): g_c = the union of the children's geometry,
-//   simplified to eps(l) by BuildConfig::simplifier (lod/hdlod_simplify.h: meshoptimizer by
+//   material by material (each scene model's triangles on their own, so a window 12 cm in
+//   front of its facade panel never turns into panel: the colour, not only the surface, stays
+//   within eps), simplified to eps(l) by BuildConfig::simplifier (lod/hdlod_simplify.h: meshoptimizer by
 //   default, OpenMesh's Decimater, or the vertex clustering on a grid of cell eps(l) anchored at
 //   the tree's box kept for comparison); stored in float relative to the cluster's origin (its
 //   box centre, double), so huge world coordinates keep their precision.
-// - eps_c = D(children -> g_c) + max over children eps_child, where D is a sampled one-sided
-//   Hausdorff distance: the largest distance from a sample of the children's surfaces (every
+// - eps_c = D(children -> g_c) + max over children eps_child, where D is the largest over the
+//   materials of a sampled one-sided Hausdorff distance between that material's triangles: the largest distance from a sample of the children's surfaces (every
 //   vertex and every triangle's centroid; at most `maxHausdorffSamples`, evenly strided) to the
 //   nearest point of the simplified complex (exact point-triangle distance through a BVH), and
 //   with `twoSidedHausdorff` (default, the paper's D_H) also from a sample of the simplified
@@ -123,8 +125,9 @@ struct ClusterMesh {
   glm::dvec3 origin_m{0.0};
   std::vector<glm::vec3> positions;
   std::vector<uint32_t> indices;
-  // Per triangle: the scene model it stands for (its material, for the renderer): that of the
-  // input triangle nearest to its centroid (models past 65535 share the last index).
+  // Per triangle: the scene model it stands for (its material, for the renderer; merged
+  // clusters are simplified per material, so it is that of the triangles it replaces; models
+  // past 65535 share the last index).
   std::vector<uint16_t> materials;
 };
 

@@ -20,7 +20,8 @@
 
 namespace ig::lod::hdlod {
 
-inline constexpr uint32_t kHdlodCacheVersion = 1;
+// 2: merged clusters are simplified per material (the builder's output changed, not the layout).
+inline constexpr uint32_t kHdlodCacheVersion = 2;
 
 // A hash of everything the tree depends on: the scene (T, models, objects) and the config.
 uint64_t hdlodCacheKey(const Scene& scene, const BuildConfig& config);

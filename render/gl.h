@@ -69,6 +69,7 @@ using PFNIGDELETETEXTURESPROC = void(APIENTRYP)(GLsizei n, const GLuint* texture
   X(PFNGLCREATERENDERBUFFERSPROC, CreateRenderbuffers)                                                \
   X(PFNGLDELETERENDERBUFFERSPROC, DeleteRenderbuffers)                                                \
   X(PFNGLNAMEDRENDERBUFFERSTORAGEPROC, NamedRenderbufferStorage)                                      \
+  X(PFNGLNAMEDRENDERBUFFERSTORAGEMULTISAMPLEPROC, NamedRenderbufferStorageMultisample)                \
   X(PFNGLBLITNAMEDFRAMEBUFFERPROC, BlitNamedFramebuffer)                                              \
   X(PFNGLDRAWELEMENTSBASEVERTEXPROC, DrawElementsBaseVertex)                                          \
   X(PFNIGDRAWARRAYSPROC, DrawArrays)                                                                    \

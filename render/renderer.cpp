@@ -78,10 +78,24 @@ glm::vec3 toFloat(const glm::dvec3& v) { return glm::vec3(v); }
 }  // namespace
 
 struct Renderer::Target {
-  GlFramebuffer fbo;
+  GlFramebuffer fbo;  // drawn into (multisampled with MSAA)
   GlRenderbuffer color;
   GlRenderbuffer depth;
+  GlFramebuffer resolvedFbo;  // MSAA only: the single-sample image
+  GlRenderbuffer resolvedColor;
 };
+
+namespace {
+
+bool completeFramebuffer(GLuint fbo, int width_px, int height_px, std::string& error) {
+  const GLenum status = gl.CheckNamedFramebufferStatus(fbo, GL_FRAMEBUFFER);
+  if (status == GL_FRAMEBUFFER_COMPLETE) return true;
+  error = "framebuffer " + std::to_string(width_px) + "x" + std::to_string(height_px) + " incomplete (status 0x" +
+          std::to_string(status) + ")";
+  return false;
+}
+
+}  // namespace
 
 // Draws terrain with the terrain program: either a static chunked grid (uploaded once), or a
 // dynamic triangle list re-uploaded each frame (ROAM / block LOD output), or both.
@@ -240,25 +254,46 @@ class TerrainPass {
 Renderer::Renderer() = default;
 Renderer::~Renderer() = default;
 
-bool Renderer::init(int width_px, int height_px, std::string& error) {
+bool Renderer::init(int width_px, int height_px, std::string& error, int samples) {
+  GLint maxSamples = 1;
+  gl.GetIntegerv(GL_MAX_SAMPLES, &maxSamples);
+  if (samples != 1 && samples != 2 && samples != 4 && samples != 8) {
+    error = "msaa " + std::to_string(samples) + ": samples per pixel must be 1, 2, 4 or 8";
+    return false;
+  }
+  if (samples > maxSamples) {
+    error = "msaa " + std::to_string(samples) + ": this GL allows at most " + std::to_string(maxSamples) + " samples per pixel";
+    return false;
+  }
   auto t = std::make_unique<Target>();
   GLuint rb[2];
   gl.CreateRenderbuffers(2, rb);
   t->color = GlRenderbuffer::wrap(rb[0]);
   t->depth = GlRenderbuffer::wrap(rb[1]);
-  gl.NamedRenderbufferStorage(rb[0], GL_RGBA8, width_px, height_px);
-  gl.NamedRenderbufferStorage(rb[1], GL_DEPTH_COMPONENT32F, width_px, height_px);
+  if (samples > 1) {
+    gl.NamedRenderbufferStorageMultisample(rb[0], samples, GL_RGBA8, width_px, height_px);
+    gl.NamedRenderbufferStorageMultisample(rb[1], samples, GL_DEPTH_COMPONENT32F, width_px, height_px);
+  } else {
+    gl.NamedRenderbufferStorage(rb[0], GL_RGBA8, width_px, height_px);
+    gl.NamedRenderbufferStorage(rb[1], GL_DEPTH_COMPONENT32F, width_px, height_px);
+  }
   GLuint fbo = 0;
   gl.CreateFramebuffers(1, &fbo);
   t->fbo = GlFramebuffer::wrap(fbo);
   gl.NamedFramebufferRenderbuffer(fbo, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, rb[0]);
   gl.NamedFramebufferRenderbuffer(fbo, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, rb[1]);
   gl.NamedFramebufferReadBuffer(fbo, GL_COLOR_ATTACHMENT0);
-  const GLenum status = gl.CheckNamedFramebufferStatus(fbo, GL_FRAMEBUFFER);
-  if (status != GL_FRAMEBUFFER_COMPLETE) {
-    error = "framebuffer " + std::to_string(width_px) + "x" + std::to_string(height_px) +
-            " incomplete (status 0x" + std::to_string(status) + ")";
-    return false;
+  if (!completeFramebuffer(fbo, width_px, height_px, error)) return false;
+  if (samples > 1) {
+    GLuint color = 0, resolved = 0;
+    gl.CreateRenderbuffers(1, &color);
+    t->resolvedColor = GlRenderbuffer::wrap(color);
+    gl.NamedRenderbufferStorage(color, GL_RGBA8, width_px, height_px);
+    gl.CreateFramebuffers(1, &resolved);
+    t->resolvedFbo = GlFramebuffer::wrap(resolved);
+    gl.NamedFramebufferRenderbuffer(resolved, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, color);
+    gl.NamedFramebufferReadBuffer(resolved, GL_COLOR_ATTACHMENT0);
+    if (!completeFramebuffer(resolved, width_px, height_px, error)) return false;
   }
   // Reverse-Z: clip depth in [0, 1], far = 0, near = 1.
   gl.ClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
@@ -275,6 +310,8 @@ bool Renderer::init(int width_px, int height_px, std::string& error) {
   target_ = std::move(t);
   width_ = width_px;
   height_ = height_px;
+  samples_ = samples;
+  resolved_ = true;
   return true;
 }
 
@@ -312,6 +349,7 @@ void Renderer::beginFrame(const lod::Camera& camera, const Lighting& lighting) {
   lighting_ = lighting;
   stats_ = {};
   stats_.passes = passCount();
+  resolved_ = samples_ == 1;
   const GLuint fbo = target_->fbo.id();
   gl.BindFramebuffer(GL_FRAMEBUFFER, fbo);
   gl.Viewport(0, 0, width_, height_);
@@ -333,7 +371,7 @@ void Renderer::readPixels(Image& out) {
   out.width = width_;
   out.height = height_;
   out.rgba.resize(static_cast<size_t>(width_) * static_cast<size_t>(height_) * 4);
-  gl.BindFramebuffer(GL_READ_FRAMEBUFFER, target_->fbo.id());
+  gl.BindFramebuffer(GL_READ_FRAMEBUFFER, framebuffer());
   gl.PixelStorei(GL_PACK_ALIGNMENT, 1);
   gl.ReadPixels(0, 0, width_, height_, GL_RGBA, GL_UNSIGNED_BYTE, out.rgba.data());
   // GL's row 0 is the bottom; images store the top row first.
@@ -345,7 +383,19 @@ void Renderer::readPixels(Image& out) {
   }
 }
 
-unsigned Renderer::framebuffer() const { return target_ ? target_->fbo.id() : 0; }
+void Renderer::resolve() {
+  if (resolved_ || !target_) return;
+  gl.BlitNamedFramebuffer(target_->fbo.id(), target_->resolvedFbo.id(), 0, 0, width_, height_, 0, 0, width_, height_,
+                          GL_COLOR_BUFFER_BIT, GL_NEAREST);
+  resolved_ = true;
+}
+
+unsigned Renderer::framebuffer() {
+  if (!target_) return 0;
+  if (samples_ == 1) return target_->fbo.id();
+  resolve();
+  return target_->resolvedFbo.id();
+}
 
 unsigned Renderer::terrainMeshVertexBuffer() const { return terrainMesh_ ? terrainMesh_->vertexBufferId() : 0; }
 

@@ -41,8 +41,13 @@ class Renderer {
   Renderer(const Renderer&) = delete;
   Renderer& operator=(const Renderer&) = delete;
 
-  // Creates the FBO. A GL context must be current (render/context.h).
-  bool init(int width_px, int height_px, std::string& error);
+  // Creates the FBO. A GL context must be current (render/context.h). `samples` > 1 draws into
+  // a multisampled FBO (MSAA: 2, 4 or 8, at most what GL_MAX_SAMPLES allows; anything else is
+  // an error naming the value) that readPixels() and framebuffer() resolve into a single-sample
+  // one. Edges and sub-pixel parts (window frames, lattices, wires) then cover the share of the
+  // pixel they really cover instead of all or nothing, at the price of fill rate.
+  bool init(int width_px, int height_px, std::string& error, int samples = 1);
+  int samples() const { return samples_; }
   // Uploads a terrain once (start-up). Creates the terrain pass.
   bool addTerrain(const lod::TerrainGrid& grid, std::string& error);
   bool hasTerrain() const { return terrain_ != nullptr; }
@@ -68,7 +73,9 @@ class Renderer {
   // Reads the finished frame, top row first.
   void readPixels(Image& out);
 
-  unsigned framebuffer() const;
+  // The finished frame's single-sample framebuffer (a multisampled frame is resolved into it
+  // first, once per frame).
+  unsigned framebuffer();
   // For passes that live in their own files (render/<part>_pass.*): the frame's camera and
   // lighting (valid between beginFrame and endFrame), and a place to add what they drew so
   // endFrame's stats cover every pass. Such a pass binds its own program and VAO and leaves
@@ -94,7 +101,9 @@ class Renderer {
   std::unique_ptr<Target> target_;
   std::unique_ptr<TerrainPass> terrain_;
   std::unique_ptr<TerrainPass> terrainMesh_;
-  int width_ = 0, height_ = 0;
+  int width_ = 0, height_ = 0, samples_ = 1;
+  bool resolved_ = true;
+  void resolve();
   lod::Camera camera_;
   Lighting lighting_;
   RenderStats stats_;

@@ -136,7 +136,7 @@ TEST(ConfigParse, MissingTablesKeepStructDefaults) {
 TEST(ConfigParse, AllServiceKeysAreRead) {
   const ServiceConfig cfg = parseServiceOk(
       "[frame]\nrate_hz = 120.5\nframes = 7\nfree_run = true\n"
-      "[output]\nmode = \"osmesa\"\nwidth_px = 16\nheight_px = 16384\nsnapshot_dir = \"snaps\"\n"
+      "[output]\nmode = \"osmesa\"\nwidth_px = 16\nheight_px = 16384\nmsaa = 4\nsnapshot_dir = \"snaps\"\n"
       "snapshot_every = 5\nsnapshot_frames = [0, 3, 9]\n"
       "[stats]\nfile = \"s.jsonl\"\nformat = \"jsonl\"\n"
       "[host]\nsource = \"replay\"\nreplay_file = \"r.rec\"\nreplay_loop = true\n"
@@ -149,6 +149,7 @@ TEST(ConfigParse, AllServiceKeysAreRead) {
   EXPECT_EQ(cfg.output, OutputMode::OSMesa);
   EXPECT_EQ(cfg.width_px, 16);
   EXPECT_EQ(cfg.height_px, 16384);
+  EXPECT_EQ(cfg.msaa, 4);
   EXPECT_EQ(cfg.snapshotEvery, 5);
   EXPECT_EQ(cfg.snapshotFrames, (std::vector<int64_t>{0, 3, 9}));
   EXPECT_EQ(cfg.statsFormat, StatsFormat::JsonLines);
@@ -332,6 +333,14 @@ TEST(ConfigErrors, OutOfRangeNamesTheRange) {
   EXPECT_EQ(e.key, "output.height_px");
   EXPECT_EQ(e.value, "15");
   EXPECT_NE(e.message.find("[16, 16384]"), std::string::npos) << e.message;
+
+  e = serviceError(std::string(kMinimalService) + "[output]\nmsaa = 3\n");
+  EXPECT_EQ(e.key, "output.msaa");
+  EXPECT_EQ(e.value, "3");
+  EXPECT_NE(e.message.find("1, 2, 4 or 8"), std::string::npos) << e.message;
+  e = serviceError(std::string(kMinimalService) + "[output]\nmsaa = 16\n");
+  EXPECT_EQ(e.key, "output.msaa");
+  EXPECT_NE(e.message.find("[1, 8]"), std::string::npos) << e.message;
 
   e = serviceError(std::string(kMinimalService) + "[budget]\ntriangles = 999\n");
   EXPECT_EQ(e.key, "budget.triangles");

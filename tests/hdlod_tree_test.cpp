@@ -191,6 +191,71 @@ TEST(HdlodBuild, SampledHausdorffHandCases) {
   EXPECT_NEAR(sampledHausdorff(above, line, idx), 3.0, 1e-6);
 }
 
+// A facade: panels with a window 4-8 cm in front of each. Removing a window moves the surface
+// by centimetres but turns a window into panel on screen; merged clusters are simplified per
+// material, so every point of every colour of a cluster's children lies within eps_c of the
+// cluster's geometry of the same colour (the sampled distance the builder itself measures, here
+// against the drawn triangles only).
+TEST(HdlodBuild, MergedClustersKeepEveryColourWithinEps) {
+  Scene s;
+  s.duration_s = 10;
+  s.models.push_back(makeBoxModel("facade_panel", {2.0, 0.08, 3.0}));
+  s.models.push_back(makeBoxModel("window", {1.2, 0.04, 1.6}));
+  for (int i = 0; i < 8; ++i) {
+    for (int k = 0; k < 8; ++k) {
+      const std::string id = std::to_string(i) + "_" + std::to_string(k);
+      s.objects.push_back(placed("p" + id, 0, {2.0 * i, 0, 3.0 * k}, {}));
+      s.objects.push_back(placed("w" + id, 1, {2.0 * i, -0.06, 3.0 * k + 0.7}, {}));
+    }
+  }
+  BuildConfig config;
+  config.strictHausdorff = true;  // against the drawn triangles only (no collapsed segments)
+  const HdlodTree tree = buildHdlod(s, config);
+  int checked = 0, fine = 0;
+  for (const Cluster& c : tree.clusters) {
+    if (c.kind != ClusterKind::Merged) continue;
+    const ClusterMesh& mesh = tree.meshes[c.mesh];
+    for (uint16_t material = 0; material < 2; ++material) {
+      // The children's triangles of this material and their samples (vertices, centroids),
+      // relative to the cluster's origin.
+      std::vector<glm::vec3> samples;
+      for (uint32_t k : tree.childrenOf(c)) {
+        const Cluster& child = tree.clusters[k];
+        std::vector<glm::vec3> tri;
+        if (child.kind == ClusterKind::Object) {
+          if (child.mesh != material) continue;
+          const Model& m = s.models[child.mesh];
+          for (uint32_t i : m.indices) {
+            tri.push_back(glm::vec3(glm::dvec3(tree.leafMatrix[k] * glm::dvec4(glm::dvec3(m.positions[i]), 1.0)) - mesh.origin_m));
+          }
+        } else {
+          const ClusterMesh& cm = tree.meshes[child.mesh];
+          for (size_t t = 0; t < cm.materials.size(); ++t) {
+            if (cm.materials[t] != material) continue;
+            for (int v = 0; v < 3; ++v) tri.push_back(glm::vec3(glm::dvec3(cm.positions[cm.indices[3 * t + v]]) + cm.origin_m - mesh.origin_m));
+          }
+        }
+        for (size_t t = 0; t + 2 < tri.size(); t += 3) {
+          samples.insert(samples.end(), {tri[t], tri[t + 1], tri[t + 2], (tri[t] + tri[t + 1] + tri[t + 2]) / 3.0f});
+        }
+      }
+      if (samples.empty()) continue;
+      std::vector<uint32_t> same;
+      for (size_t t = 0; t < mesh.materials.size(); ++t) {
+        if (mesh.materials[t] == material) same.insert(same.end(), {mesh.indices[3 * t], mesh.indices[3 * t + 1], mesh.indices[3 * t + 2]});
+      }
+      double d = sampledHausdorff(samples, mesh.positions, same);
+      // A colour with nothing left is measured as half the cluster's diagonal.
+      if (same.empty()) d = 0.5 * c.size_m;
+      EXPECT_LE(d, c.eps_m + 1e-3) << "cluster level " << c.level << " material " << material;
+      ++checked;
+      fine += c.eps_m < 0.6 ? 1 : 0;  // finer than a window's half width: windows must stay windows
+    }
+  }
+  EXPECT_GT(checked, 20);
+  EXPECT_GT(fine, 10);
+}
+
 TEST(HdlodBuild, CoincidentObjectsMergeIntoOneSmallCluster) {
   Scene s;
   s.duration_s = 10;

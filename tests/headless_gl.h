@@ -15,11 +15,12 @@ namespace ig::test {
 struct HeadlessGl {
   std::unique_ptr<render::GlContext> context;
   render::Renderer renderer;
-  HeadlessGl(int width_px, int height_px) {
+  // `samples` > 1: an MSAA frame (render::Renderer::init).
+  HeadlessGl(int width_px, int height_px, int samples = 1) {
     std::string error;
     context = render::createContext(render::ContextKind::Headless, width_px, height_px, error);
     EXPECT_TRUE(context) << error;
-    EXPECT_TRUE(renderer.init(width_px, height_px, error)) << error;
+    EXPECT_TRUE(renderer.init(width_px, height_px, error, samples)) << error;
   }
 };
 

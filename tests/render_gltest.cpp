@@ -27,11 +27,15 @@ constexpr double kFar_m = 977.0 * 1024.0;
 constexpr double kGoldenTime_s = 5.0;
 const std::string kGolden = test::kSource + "/tests/golden/default_t5_320x180.png";
 
-render::Image renderView(const io::HostState& view, glm::dvec3 worldShift_m, OutputMode mode = OutputMode::Headless) {
+render::Image renderView(const io::HostState& view, glm::dvec3 worldShift_m, OutputMode mode = OutputMode::Headless,
+                         int msaa = 1, int scale = 1) {
   ServiceConfig cfg;
   SceneConfig scene;
   test::defaultConfigs(cfg, scene);
   cfg.output = mode;
+  cfg.msaa = msaa;
+  cfg.width_px *= scale;
+  cfg.height_px *= scale;
   for (int i = 0; i < 3; ++i) scene.terrain->offset_m[static_cast<size_t>(i)] += worldShift_m[i];
   std::string error;
   auto service = Service::create(cfg, scene, error);
@@ -107,6 +111,48 @@ TEST(RenderGL, CloseUpOneThousandKilometresFromOriginMatches) {
   // computed in float (the classic jitter), so this bound separates the two.
   EXPECT_LT(render::rmse(origin, far), 0.1);
   EXPECT_LT(render::fractionDifferent(origin, far, 2), 0.001);
+}
+
+// MSAA ([output] msaa): the terrain's silhouette against the sky and the far hills are
+// anti-aliased, so 4 samples per pixel come closer to a 2x2 supersampled reference (rendered at
+// twice the size, box-filtered) than 1 sample does; a bad sample count is refused by name.
+TEST(RenderGL, MsaaComesCloserToSupersamplingAndBadCountsAreRefused) {
+  const io::HostState view = test::defaultHostAt(kGoldenTime_s);
+  const render::Image one = renderView(view, {0, 0, 0}, OutputMode::Headless, 1);
+  const render::Image four = renderView(view, {0, 0, 0}, OutputMode::Headless, 4);
+  const render::Image big = renderView(view, {0, 0, 0}, OutputMode::Headless, 1, 2);
+  ASSERT_EQ(big.width, 2 * one.width);
+  render::Image reference = one;
+  for (int y = 0; y < one.height; ++y) {
+    for (int x = 0; x < one.width; ++x) {
+      for (size_t c = 0; c < 4; ++c) {
+        unsigned sum = 0;
+        for (int k = 0; k < 4; ++k) {
+          const size_t i = (static_cast<size_t>(2 * y + k / 2) * static_cast<size_t>(big.width) + static_cast<size_t>(2 * x + k % 2)) * 4 + c;
+          sum += big.rgba[i];
+        }
+        reference.rgba[(static_cast<size_t>(y) * static_cast<size_t>(one.width) + static_cast<size_t>(x)) * 4 + c] =
+            static_cast<uint8_t>((sum + 2) / 4);
+      }
+    }
+  }
+  const double eOne = render::rmse(one, reference), eFour = render::rmse(four, reference);
+  EXPECT_GT(render::rmse(one, four), 0.05) << "MSAA changed nothing";
+  EXPECT_LT(eFour, eOne) << "4 samples: " << eFour << ", 1 sample: " << eOne;
+
+  std::string error;
+  auto ctx = render::createContext(render::ContextKind::Headless, 64, 64, error);
+  ASSERT_TRUE(ctx) << error;
+  render::Renderer renderer;
+  EXPECT_FALSE(renderer.init(64, 64, error, 3));
+  EXPECT_NE(error.find("msaa 3"), std::string::npos) << error;
+  GLint maxSamples = 0;
+  render::gl.GetIntegerv(GL_MAX_SAMPLES, &maxSamples);
+  error.clear();
+  EXPECT_EQ(renderer.init(64, 64, error, 8), maxSamples >= 8) << error;
+  if (maxSamples < 8) {
+    EXPECT_NE(error.find("at most " + std::to_string(maxSamples)), std::string::npos) << error;
+  }
 }
 
 TEST(RenderGL, OSMesaFallbackRendersTheSameFrame) {
