@@ -620,8 +620,8 @@ bool parseScene(const std::string& text, const std::string& name, const std::str
   r.get(origin, "height_m", cfg.originGeodetic[2], closed(-1e4, 1e5));
 
   const Table terrain = r.table(root, "terrain", {"source", "lod", "file", "spacing_m", "png_scale_m", "png_offset_m",
-                                                  "tolerance_px", "lod_budget_ms", "morph_s", "seed", "size_m", "grid_step_m",
-                                                  "height_scale_m", "offset_m", "chunk_quads"});
+                                                  "tolerance_px", "lod_budget_ms", "morph_s", "roam_mode", "seed",
+                                                  "size_m", "grid_step_m", "height_scale_m", "offset_m", "chunk_quads"});
   if (terrain.present()) {
     TerrainLayerConfig& t = cfg.terrain.emplace();
     r.getEnum(terrain, "source", t.source,
@@ -637,6 +637,8 @@ bool parseScene(const std::string& text, const std::string& name, const std::str
     r.get(terrain, "tolerance_px", t.tolerance_px, Range{0.0, 1000.0, true, false});
     r.get(terrain, "lod_budget_ms", t.lodBudget_ms, closed(0.0, 1000.0));
     r.get(terrain, "morph_s", t.morph_s, closed(0.0, 60.0));
+    r.getEnum(terrain, "roam_mode", t.roamMode,
+              {{"deferred", TerrainLayerConfig::RoamMode::Deferred}, {"enhmerge", TerrainLayerConfig::RoamMode::EnhMerge}});
     if (r.ok() && t.source == TerrainLayerConfig::Source::Dem) {
       r.require(terrain, "file", "source = \"dem\" needs the DEM file (.png, .tif, .tiff, .hgt)");
       if (r.ok() && t.lod == TerrainLayerConfig::Lod::Grid) {

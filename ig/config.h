@@ -107,7 +107,10 @@ struct TerrainLayerConfig {
   double pngOffset_m = 0.0;
   double tolerance_px = 1.0;                 // roam / block: screen-space error target
   double lodBudget_ms = 0.0;                 // roam: CPU time for mesh updates per frame, 0 = unlimited
-  double morph_s = 0.0;                      // roam: geomorph time of new vertices, 0 = off
+  double morph_s = 0.0;                      // roam: geomorph time of new and removed vertices, 0 = off
+  // roam: Deferred (work budgeted in node visits, persistent split queue) or EnhMerge (a walk
+  // of the whole tree each frame, budgeted in operations); lod/roam.h RoamMode.
+  enum class RoamMode { Deferred, EnhMerge } roamMode = RoamMode::Deferred;
   uint32_t seed = 1;
   double size_m = 8192.0;                    // square side
   double gridStep_m = 32.0;                  // post spacing

@@ -4,9 +4,13 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <span>
 #include <thread>
+
+#include <glm/geometric.hpp>
+#include <glm/vec3.hpp>
 
 #include "ig/frame_loop.h"
 #include "ig/snapshot_writer.h"
@@ -66,28 +70,49 @@ struct TerrainLayer {
 
 }  // namespace
 
-// Terrain drawn from a per-frame triangle list: ROAM with enhMerge, or block LOD, over a DEM
-// or the procedural heights. All buffers are sized at start-up.
+// Terrain drawn from a per-frame triangle list: ROAM (Deferred or enhMerge updates), or block
+// LOD, over a DEM or the procedural heights. All buffers are sized at start-up.
+//
+// Geomorphing (morph_s > 0, ROAM): a vertex a split adds rises from the coarser surface to its
+// height (lod::Geomorph `morph`); a merge morphs out (lod::MorphOut `morphOut`): the triangles
+// that left stay drawn as ghosts in the slots above the mesh's high-water mark while the
+// removed vertices move onto the coarse surface, and the coarse triangles that replace them
+// stay degenerate in their slots (`hiddenSlot`) until the morph ends.
 struct TerrainMeshLayer {
+  struct FreeDeleter {
+    void operator()(void* p) const { std::free(p); }
+  };
   std::vector<float> heights_m;  // row-major, row y grows northwards
   int width = 0, height = 0;
   double spacing_m = 1.0;
   glm::dvec3 origin_m{0.0};      // ENU of sample (0, 0)
   double heightRange_m = 1.0;
   std::unique_ptr<lod::Roam> roam;
+  lod::RoamMode roamMode = lod::RoamMode::Deferred;
   std::unique_ptr<lod::BlockLod> block;
-  std::vector<lod::RoamTriangle> triangles;   // this frame's mesh
+  // This frame's mesh, room for the whole ROAM mesh (Deferred refines beyond the view, and
+  // emitVisible needs room for all of it): calloc'd, so only what is written is committed.
+  std::unique_ptr<lod::RoamTriangle[], FreeDeleter> triangles;
+  size_t triangleRoom = 0;
   std::unique_ptr<lod::TriangleSlots> slots;  // which buffer slot each triangle occupies
   std::vector<lod::RoamTriangle> slotTriangle;  // the triangle in each slot (x = kFreeSlot: none)
-  std::unique_ptr<lod::Geomorph> morph;       // roam with morph_s > 0
+  std::unique_ptr<lod::Geomorph> morph;       // roam with morph_s > 0: splits
+  std::unique_ptr<lod::MorphOut> morphOut;    // roam with morph_s > 0: merges
+  std::vector<uint8_t> hiddenSlot;            // 1: the slot holds a MorphOut cover, drawn degenerate
+  std::vector<lod::RoamTriangle> left, coverOf;  // MorphOut input: triangles that left, their covers
+  std::vector<float> removedTargets_m;        // MorphOut input: heights removed vertices go to
+  size_t ghostsDrawn = 0;                     // ghost triangles above the high-water mark
   std::vector<uint32_t> addedTriangles, addedSlots, freedSlots;
   std::span<lod::TerrainVertex> gpu;          // the renderer's mapped vertex buffer
+  size_t bufferTriangles = 0;                 // its size: slots + ghosts
   uint64_t uploadedTriangles = 0;             // written into `gpu` this frame
   size_t emitted = 0;                         // triangles of this frame's mesh (the governor's load)
   double tolerance_px = 1.0;
   double budget_ms = 0.0;
-  double nsPerOperation = 2000.0;  // measured, smoothed: turns the time budget into operations
-  uint64_t maxTriangles = 0;
+  double nsPerOperation = 2000.0;  // EnhMerge: measured, smoothed: turns the time budget into operations
+  double nsPerVisit = 100.0;       // Deferred: the same for node visits
+  uint64_t maxTriangles = 0;       // ROAM mesh cap (Deferred: the whole surroundings)
+  uint64_t meshCap = 0;            // Deferred: this frame's cap, lowered while the view overflows the slots
 
   static constexpr int32_t kFreeSlot = INT32_MIN;
 
@@ -97,12 +122,42 @@ struct TerrainMeshLayer {
     return heights_m[static_cast<size_t>(y) * static_cast<size_t>(width) + static_cast<size_t>(x)];
   }
 
-  void writeTriangle(uint32_t slot, const lod::RoamTriangle& t, double now_s) {
+  void writeTriangle(uint32_t slot, const lod::RoamTriangle& t, double now_s, bool ghost = false) {
     for (size_t k = 0; k < 3; ++k) {
       lod::TerrainVertex v = lod::heightFieldVertex(heights_m, width, height, spacing_m, t.v[k].x, t.v[k].y);
       if (morph) v.position[2] = morph->height(t.v[k].x, t.v[k].y, v.position[2], now_s);
+      if (ghost) {
+        v.position[2] = morphOut->height(t.v[k].x, t.v[k].y, v.position[2], now_s);
+        const double f = morphOut->progress(t.v[k].x, t.v[k].y, now_s);
+        if (f > 0.0) blendNormal(v, t.v[k], static_cast<float>(f));
+      }
       gpu[slot * 3 + k] = v;
     }
+  }
+  // A ghost vertex moving onto the coarse surface also takes on the coarse surface's shading:
+  // its normal goes by `f` towards the normal the coarse triangle under it interpolates there,
+  // so the swap to that triangle at the end of the morph does not show.
+  void blendNormal(lod::TerrainVertex& v, const lod::RoamVertex& at, float f) const {
+    const lod::RoamTriangle c = roam->leafAt(3 * int64_t{at.x}, 3 * int64_t{at.y});
+    const double x0 = c.v[0].x, y0 = c.v[0].y;
+    const double d = (c.v[1].x - x0) * (c.v[2].y - y0) - (c.v[2].x - x0) * (c.v[1].y - y0);
+    if (d == 0.0) return;
+    const double w1 = ((at.x - x0) * (c.v[2].y - y0) - (c.v[2].x - x0) * (at.y - y0)) / d;
+    const double w2 = ((c.v[1].x - x0) * (at.y - y0) - (at.x - x0) * (c.v[1].y - y0)) / d;
+    const double w[3] = {1.0 - w1 - w2, w1, w2};
+    glm::vec3 n(0.0f);
+    for (int i = 0; i < 3; ++i) {
+      const lod::TerrainVertex cv = lod::heightFieldVertex(heights_m, width, height, spacing_m, c.v[i].x, c.v[i].y);
+      n += static_cast<float>(w[i]) * glm::vec3(cv.normal[0], cv.normal[1], cv.normal[2]);
+    }
+    const glm::vec3 own(v.normal[0], v.normal[1], v.normal[2]);
+    const glm::vec3 blended = own + (n - own) * f;
+    const float len = glm::length(blended);
+    if (!(len > 0.0f)) return;
+    for (int i = 0; i < 3; ++i) v.normal[i] = blended[i] / len;
+  }
+  void hideSlot(uint32_t slot) {
+    for (size_t k = 0; k < 3; ++k) gpu[slot * 3 + k] = lod::TerrainVertex{};
   }
 
   // lod phase: update the mesh for this view within the time budget, emit what is visible.
@@ -114,40 +169,82 @@ struct TerrainMeshLayer {
     view.viewportHeight_px = viewportHeight_px;
     view.tolerance_px = tolerance_px;
     view.maxTriangles = maxTriangles;
+    const bool morphing = std::isfinite(now_s);
+    const double t = morph && morphing ? now_s : 1e300;  // 1e300: every morph finished
     size_t n = 0;
     if (roam) {
-      if (clock && budget_ms > 0.0)
-        view.maxOperations = static_cast<uint32_t>(std::clamp(budget_ms * 1e6 / nsPerOperation, 64.0, 1e9));
       const int64_t t0 = clock ? clock->now_ns() : 0;
-      const lod::RoamStats st = roam->update(view, lod::RoamMode::EnhMerge);
-      const uint64_t ops = st.splits + st.merges + st.enhMerges;
-      if (clock && ops >= 16)
-        nsPerOperation = 0.8 * nsPerOperation + 0.2 * static_cast<double>(clock->now_ns() - t0) / static_cast<double>(ops);
-      if (morph && std::isfinite(now_s)) {
+      if (roamMode == lod::RoamMode::Deferred) {
+        // Work in node visits, from the time budget and the measured time per visit; what is
+        // left stays queued for the next frame (the mesh is valid at every stop).
+        view.maxTriangles = meshCap;
+        if (clock && budget_ms > 0.0)
+          view.maxVisits = static_cast<uint32_t>(std::clamp(budget_ms * 1e6 / nsPerVisit, 1024.0, 1e9));
+        const lod::RoamStats st = roam->update(view, lod::RoamMode::Deferred);
+        if (clock && st.visits >= 256)
+          nsPerVisit = 0.8 * nsPerVisit + 0.2 * static_cast<double>(clock->now_ns() - t0) / static_cast<double>(st.visits);
+      } else {
+        if (clock && budget_ms > 0.0)
+          view.maxOperations = static_cast<uint32_t>(std::clamp(budget_ms * 1e6 / nsPerOperation, 64.0, 1e9));
+        const lod::RoamStats st = roam->update(view, lod::RoamMode::EnhMerge);
+        const uint64_t ops = st.splits + st.merges + st.enhMerges;
+        if (clock && ops >= 16)
+          nsPerOperation =
+              0.8 * nsPerOperation + 0.2 * static_cast<double>(clock->now_ns() - t0) / static_cast<double>(ops);
+      }
+      if (morph && morphing) {
         for (const lod::RoamVertex& v : roam->createdVertices()) {
           lod::RoamVertex a, b;
           if (roam->splitEnds(v.x, v.y, a, b))
             morph->start(v.x, v.y, 0.5f * (sampleHeight(a.x, a.y) + sampleHeight(b.x, b.y)), now_s);
         }
       }
-      n = roam->emitVisible(cam, triangles);
+      n = roam->emitVisible(cam, std::span(triangles.get(), triangleRoom));
+      if (roamMode == lod::RoamMode::Deferred) {
+        // Deferred refines the whole surroundings: keep the visible part within the slots by
+        // lowering the mesh cap while it overflows, raising it back slowly.
+        const size_t room = slots->capacity();
+        if (n > room)
+          meshCap = std::max<uint64_t>(roam->baseTriangles() * 4, roam->triangleCount() * room / n * 9 / 10);
+        else if (meshCap < maxTriangles && n < room * 8 / 10)
+          meshCap = std::min(maxTriangles, meshCap + meshCap / 16 + 1);
+      }
     } else {
       block->update(view);
-      n = block->emitTriangles(triangles);
+      n = block->emitTriangles(std::span(triangles.get(), triangleRoom));
     }
     emitted = n;
     // Write only what changed: freed slots become degenerate, new triangles take slots. The
     // GPU is idle here (the previous frame ended with glFinish).
     const lod::TriangleSlots::Changes c =
-        slots->update(std::span(triangles.data(), n), addedTriangles, addedSlots, freedSlots);
-    for (size_t i = 0; i < c.freed; ++i) {
-      for (size_t k = 0; k < 3; ++k) gpu[freedSlots[i] * 3 + k] = lod::TerrainVertex{};
-      slotTriangle[freedSlots[i]].v[0].x = kFreeSlot;
+        slots->update(std::span(triangles.get(), n), addedTriangles, addedSlots, freedSlots);
+    // Morph-out: the triangles that left (this frame's freed slots), the new mesh's triangle
+    // over each, and the heights the merge-removed vertices go to.
+    if (morphOut && morphing) {
+      for (size_t i = 0; i < c.freed; ++i) left[i] = slotTriangle[freedSlots[i]];
+      const std::span<const lod::RoamVertex> removed = roam->removedVertices();
+      size_t covers = 0;
+      if (!removed.empty()) {
+        for (size_t i = 0; i < removed.size(); ++i)
+          removedTargets_m[i] = static_cast<float>(roam->meshHeight(removed[i].x, removed[i].y));
+        for (size_t i = 0; i < c.freed; ++i) {
+          const lod::RoamTriangle& l = left[i];
+          coverOf[i] = roam->leafAt(int64_t{l.v[0].x} + l.v[1].x + l.v[2].x, int64_t{l.v[0].y} + l.v[1].y + l.v[2].y);
+        }
+        covers = c.freed;
+      }
+      morphOut->update(std::span(left.data(), c.freed), std::span(coverOf.data(), covers), removed,
+                       std::span(removedTargets_m.data(), removed.size()), now_s);
     }
-    const double t = morph && std::isfinite(now_s) ? now_s : 1e300;  // 1e300: every morph finished
+    for (size_t i = 0; i < c.freed; ++i) {
+      hideSlot(freedSlots[i]);
+      slotTriangle[freedSlots[i]].v[0].x = kFreeSlot;
+      if (morphOut) hiddenSlot[freedSlots[i]] = 0;
+    }
     for (size_t i = 0; i < c.added; ++i) {
       slotTriangle[addedSlots[i]] = triangles[addedTriangles[i]];
       writeTriangle(addedSlots[i], triangles[addedTriangles[i]], t);
+      if (morphOut) hiddenSlot[addedSlots[i]] = 0;
     }
     uploadedTriangles = c.added + c.freed;
     // Geomorph: rewrite the triangles that touch a vertex still on its way to its height, once
@@ -155,17 +252,43 @@ struct TerrainMeshLayer {
     if (morph && morph->size() > 0) {
       for (uint32_t s = 0; s < slots->highWater(); ++s) {
         const lod::RoamTriangle& tri = slotTriangle[s];
-        if (tri.v[0].x == kFreeSlot) continue;
+        if (tri.v[0].x == kFreeSlot || (morphOut && hiddenSlot[s])) continue;
         if (morph->contains(tri.v[0].x, tri.v[0].y) || morph->contains(tri.v[1].x, tri.v[1].y) ||
             morph->contains(tri.v[2].x, tri.v[2].y)) {
           writeTriangle(s, tri, t);
           ++uploadedTriangles;
         }
       }
-      morph->expire(t);
     }
+    ghostsDrawn = 0;
+    if (morphOut) {
+      // Finished morph-outs: the covers show again, their ghosts go.
+      for (const lod::RoamTriangle& cover : morphOut->expire(t)) {
+        const uint32_t s = slots->slotOf(cover);
+        if (s == lod::TriangleSlots::kNone || !hiddenSlot[s]) continue;
+        hiddenSlot[s] = 0;
+        writeTriangle(s, slotTriangle[s], t);
+        ++uploadedTriangles;
+      }
+      // Running ones: covers degenerate (also one that has just come into view), ghosts drawn
+      // above the high-water mark (rewritten every frame: their vertices move).
+      for (size_t i = 0; i < morphOut->coverCount(); ++i) {
+        if (!morphOut->coverHidden(i)) continue;
+        const uint32_t s = slots->slotOf(morphOut->cover(i));
+        if (s == lod::TriangleSlots::kNone || hiddenSlot[s]) continue;
+        hiddenSlot[s] = 1;
+        hideSlot(s);
+        ++uploadedTriangles;
+      }
+      const std::span<const lod::RoamTriangle> ghosts = morphOut->ghosts();
+      ghostsDrawn = std::min(ghosts.size(), bufferTriangles - slots->highWater());
+      for (size_t i = 0; i < ghostsDrawn; ++i)
+        writeTriangle(static_cast<uint32_t>(slots->highWater() + i), ghosts[i], t, true);
+      uploadedTriangles += ghostsDrawn;
+    }
+    if (morph) morph->expire(t);
   }
-  size_t vertexCount() const { return static_cast<size_t>(slots->highWater()) * 3; }
+  size_t vertexCount() const { return (static_cast<size_t>(slots->highWater()) + ghostsDrawn) * 3; }
 };
 
 lod::TerrainGridDesc terrainGridDesc(const TerrainLayerConfig& t) {
@@ -220,20 +343,41 @@ static bool createTerrainMesh(const TerrainLayerConfig& t, const ServiceConfig& 
   m.maxTriangles = std::min({static_cast<uint64_t>(config.budgetTriangles), uint64_t{1} << 20, fullResolution});
   size_t capacity = 0;
   if (t.lod == TerrainLayerConfig::Lod::Roam) {
+    m.roamMode = t.roamMode == TerrainLayerConfig::RoamMode::Deferred ? lod::RoamMode::Deferred : lod::RoamMode::EnhMerge;
+    capacity = static_cast<size_t>(m.maxTriangles);
+    // Deferred refines the whole surroundings, not only the view (4-7x the triangles of the
+    // view, docs/terrain.md): its mesh may grow to 4x what the slots hold.
+    if (m.roamMode == lod::RoamMode::Deferred) m.maxTriangles = std::min(4 * m.maxTriangles, fullResolution);
+    m.meshCap = m.maxTriangles;
     lod::RoamConfig rc;
     rc.maxTriangles = m.maxTriangles;
     m.roam = std::make_unique<lod::Roam>(m.heights_m, m.width, m.height, m.spacing_m, m.origin_m, rc);
-    capacity = static_cast<size_t>(m.maxTriangles);
+    m.triangleRoom = static_cast<size_t>(m.maxTriangles);
   } else {
     m.block = std::make_unique<lod::BlockLod>(m.heights_m, m.width, m.height, m.spacing_m, m.origin_m);
     // Block LOD has no triangle control: room for every block at its finest level.
     const auto q = static_cast<size_t>(lod::BlockLodConfig{}.blockQuads);
     capacity = static_cast<size_t>(m.block->blocksX()) * static_cast<size_t>(m.block->blocksY()) * (2 * q * q + 8);
+    m.triangleRoom = capacity;
   }
-  m.triangles.resize(capacity);
+  m.triangles.reset(static_cast<lod::RoamTriangle*>(std::calloc(m.triangleRoom, sizeof(lod::RoamTriangle))));
+  if (!m.triangles) {
+    error = "terrain: cannot allocate the triangle list (" + std::to_string(m.triangleRoom) + " triangles)";
+    return false;
+  }
   m.slots = std::make_unique<lod::TriangleSlots>(capacity);
   m.slotTriangle.assign(capacity, lod::RoamTriangle{{{TerrainMeshLayer::kFreeSlot, 0}, {0, 0}, {0, 0}}});
-  if (t.morph_s > 0.0 && m.roam) m.morph = std::make_unique<lod::Geomorph>(16384, t.morph_s);
+  m.bufferTriangles = capacity;
+  if (t.morph_s > 0.0 && m.roam) {
+    m.morph = std::make_unique<lod::Geomorph>(16384, t.morph_s);
+    const size_t ghosts = std::min<size_t>(capacity, 1u << 16);
+    m.morphOut = std::make_unique<lod::MorphOut>(ghosts, t.morph_s);
+    m.hiddenSlot.assign(capacity, 0);
+    m.left.resize(capacity);
+    m.coverOf.resize(capacity);
+    m.removedTargets_m.resize(lod::Roam::kCreatedCapacity);
+    m.bufferTriangles += ghosts;
+  }
   m.addedTriangles.resize(capacity);
   m.addedSlots.resize(capacity);
   m.freedSlots.resize(capacity);
@@ -444,7 +588,7 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
   } else if (scene.terrain) {
     if (!createTerrainMesh(*scene.terrain, config, m.terrainMesh, error)) return nullptr;
     TerrainMeshLayer& t = *m.terrainMesh;
-    if (!m.renderer.addTerrainMesh(t.triangles.size() * 3, t.heightRange_m, error)) return nullptr;
+    if (!m.renderer.addTerrainMesh(t.bufferTriangles * 3, t.heightRange_m, error)) return nullptr;
     t.gpu = m.renderer.terrainMeshVertices();
     s->info_.layers.push_back(scene.terrain->lod == TerrainLayerConfig::Lod::Roam ? "terrain (roam)" : "terrain (block)");
     s->info_.terrainTriangles = 2ull * static_cast<uint64_t>(t.width - 1) * static_cast<uint64_t>(t.height - 1);

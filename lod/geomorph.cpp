@@ -52,6 +52,13 @@ float Geomorph::height(int x, int y, float trueHeight_m, double now_s) const {
                             (static_cast<double>(trueHeight_m) - static_cast<double>(e.startHeight_m)) * t);
 }
 
+double Geomorph::progress(int x, int y, double now_s) const {
+  if (live_ == 0) return -1.0;
+  const Entry& e = table_[slot(key(x, y))];
+  if (e.key == 0) return -1.0;
+  return std::clamp((now_s - e.start_s) / morph_s_, 0.0, 1.0);
+}
+
 void Geomorph::expire(double now_s) {
   if (live_ == 0) return;
   bool any = false;
@@ -72,6 +79,14 @@ void Geomorph::expire(double now_s) {
 
 namespace {
 
+// Twice the area of t in grid units (exact).
+int64_t area2(const RoamTriangle& t) {
+  const int64_t ax = t.v[1].x - t.v[0].x, ay = t.v[1].y - t.v[0].y;
+  const int64_t bx = t.v[2].x - t.v[0].x, by = t.v[2].y - t.v[0].y;
+  const int64_t c = ax * by - ay * bx;
+  return c < 0 ? -c : c;
+}
+
 bool same(const RoamTriangle& a, const RoamTriangle& b) {
   for (int i = 0; i < 3; ++i)
     if (a.v[i].x != b.v[i].x || a.v[i].y != b.v[i].y) return false;
@@ -88,6 +103,7 @@ MorphOut::MorphOut(size_t capacityTriangles, double morph_s)
       covers_(capacityTriangles),
       released_(capacityTriangles),
       remap_(capacityTriangles),
+      area_(capacityTriangles),
       vertices_(capacityTriangles, morph_s) {}
 
 size_t MorphOut::findCover(const RoamTriangle& t) const {
@@ -96,7 +112,10 @@ size_t MorphOut::findCover(const RoamTriangle& t) const {
   return coverCount_;
 }
 
-bool MorphOut::hidden(const RoamTriangle& t) const { return findCover(t) < coverCount_; }
+bool MorphOut::hidden(const RoamTriangle& t) const {
+  const size_t c = findCover(t);
+  return c < coverCount_ && covers_[c].hide;
+}
 
 float MorphOut::height(int x, int y, float trueHeight_m, double now_s) const {
   return vertices_.height(x, y, trueHeight_m, now_s);
@@ -139,6 +158,7 @@ MorphOut::Stats MorphOut::update(std::span<const RoamTriangle> left, std::span<c
   for (size_t i = 0; i < removedVertices.size() && i < targetHeights_m.size(); ++i)
     vertices_.startOut(removedVertices[i].x, removedVertices[i].y, targetHeights_m[i], now_s);
   // Ghosts: the triangles that left with a vertex removed by a merge (now morphing out).
+  const size_t firstCover = coverCount_, firstGhost = ghostCount_;
   size_t lastCover = coverCount_;
   for (size_t i = 0; i < left.size(); ++i) {
     const RoamTriangle& t = left[i];
@@ -155,12 +175,25 @@ MorphOut::Stats MorphOut::update(std::span<const RoamTriangle> left, std::span<c
         ++st.popped;
         continue;
       }
-      covers_[coverCount_++] = Cover{coverOf[i], now_s + morph_s_};
+      covers_[coverCount_++] = Cover{coverOf[i], now_s + morph_s_, true};
     }
     lastCover = c;
     ghosts_[ghostCount_] = t;
     ghostCover_[ghostCount_++] = static_cast<uint32_t>(c);
     ++st.ghostsAdded;
+  }
+  // A new cover is hidden only if its ghosts tile it. Where `left` lacks some of the triangles
+  // under it (a renderer that passes only the triangles it drew, the cover reaching beyond
+  // them), hiding it would open a hole: it is drawn under its ghosts instead (no hole, and no
+  // crack against its neighbours' ghosts; where a ghost lies below it, that part pops).
+  if (coverCount_ > firstCover) {
+    for (size_t c = firstCover; c < coverCount_; ++c) area_[c] = 0;
+    for (size_t g = firstGhost; g < ghostCount_; ++g)
+      if (ghostCover_[g] >= firstCover) area_[ghostCover_[g]] += area2(ghosts_[g]);
+    for (size_t c = firstCover; c < coverCount_; ++c) {
+      covers_[c].hide = area_[c] == area2(covers_[c].tri);
+      st.untiled += covers_[c].hide ? 0 : 1;
+    }
   }
   return st;
 }

@@ -29,6 +29,8 @@ class Geomorph {
   void startOut(int x, int y, float targetHeight_m, double now_s);
   // The height to draw vertex (x, y) with at now_s.
   float height(int x, int y, float trueHeight_m, double now_s) const;
+  // How far the morph of (x, y) has gone at now_s, in [0, 1]; -1 if it has no entry.
+  double progress(int x, int y, double now_s) const;
   // True if (x, y) has a morph entry (running, or finished but not yet expired).
   bool contains(int x, int y) const { return live_ > 0 && table_[slot(key(x, y))].key != 0; }
   // True while any vertex is still morphing (callers can skip the per-triangle pass).
@@ -71,7 +73,9 @@ class Geomorph {
 //   draw morph.ghosts() (vertex heights from morph.height) and the mesh without the
 //   triangles for which morph.hidden(t) is true; call morph.expire(now) at the end of a frame.
 // A ghost whose cover leaves the mesh before the morph ends (the eye came back) is dropped
-// (it pops, rarely). Fixed capacity, allocated at construction; when full, new merges pop.
+// (it pops, rarely). A cover is hidden only if the ghosts given for it tile it: `left` may
+// hold only the triangles that were drawn (view-culled); a cover reaching beyond them is drawn
+// under its ghosts rather than open a hole (hidden(t) false, coverHidden(i) false). Fixed capacity, allocated at construction; when full, new merges pop.
 // Cover look-ups are linear in the live covers; above kMaxPairTests tests a frame's merges pop.
 class MorphOut {
  public:
@@ -80,6 +84,7 @@ class MorphOut {
 
   struct Stats {
     size_t ghostsAdded = 0, ghostsDropped = 0, popped = 0;
+    size_t untiled = 0;  // new covers drawn under their ghosts (not tiled by them)
   };
   // left: triangles that left the mesh; coverOf[i]: the new mesh's triangle holding left[i]'s
   // centroid (Roam::leafAt(sum of its x, sum of its y)); removedVertices / targetHeights_m:
@@ -92,16 +97,25 @@ class MorphOut {
   bool hidden(const RoamTriangle& t) const;
   // Height to draw a ghost vertex with at now_s (true height for vertices that stay).
   float height(int x, int y, float trueHeight_m, double now_s) const;
+  // How far removed vertex (x, y) has moved towards the coarse surface, in [0, 1]; -1 for a
+  // vertex that stays. A renderer blends whatever else it draws per vertex (normals) with it.
+  double progress(int x, int y, double now_s) const { return vertices_.progress(x, y, now_s); }
   // Ends finished morphs: their ghosts go, their covers show. Returns the covers released
   // (a renderer writes them into their slots again); valid until the next call.
   std::span<const RoamTriangle> expire(double now_s);
   bool active() const { return ghostCount_ > 0; }
   size_t coverCount() const { return coverCount_; }
+  // Cover i (< coverCount()): a mesh triangle that ghosts stand in for, and whether it is to
+  // be hidden now (a renderer finds its slot and draws it degenerate).
+  const RoamTriangle& cover(size_t i) const { return covers_[i].tri; }
+  bool coverHidden(size_t i) const { return covers_[i].hide; }
+  size_t capacity() const { return capacity_; }
 
  private:
   struct Cover {
     RoamTriangle tri;
     double end_s;
+    bool hide;  // false: not tiled by its ghosts, drawn under them
   };
   size_t findCover(const RoamTriangle& t) const;  // index or coverCount_
   double morph_s_;
@@ -111,6 +125,7 @@ class MorphOut {
   std::vector<Cover> covers_;
   std::vector<RoamTriangle> released_;
   std::vector<uint32_t> remap_;
+  std::vector<int64_t> area_;  // per new cover: twice the area of its ghosts
   size_t ghostCount_ = 0, coverCount_ = 0;
   Geomorph vertices_;  // removed vertices: start height and the target, as an out-morph
 };

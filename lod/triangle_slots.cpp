@@ -53,6 +53,12 @@ void TriangleSlots::erase(size_t i) {
   table_[hole] = Entry{0, kNone, 0};
 }
 
+uint32_t TriangleSlots::slotOf(const RoamTriangle& t) const {
+  const uint64_t k = key(t);
+  const Entry& e = table_[find(k)];
+  return e.key == k ? e.slot : kNone;
+}
+
 TriangleSlots::Changes TriangleSlots::update(std::span<const RoamTriangle> triangles, std::span<uint32_t> addedTriangles,
                                              std::span<uint32_t> addedSlots, std::span<uint32_t> freedSlots) {
   assert(addedTriangles.size() >= capacity_ && addedSlots.size() >= capacity_ && freedSlots.size() >= capacity_ &&

@@ -34,6 +34,9 @@ class TriangleSlots {
   Changes update(std::span<const RoamTriangle> triangles, std::span<uint32_t> addedTriangles,
                  std::span<uint32_t> addedSlots, std::span<uint32_t> freedSlots);
 
+  // The slot holding triangle t (any vertex order), or kNone. O(1).
+  uint32_t slotOf(const RoamTriangle& t) const;
+
   size_t capacity() const { return capacity_; }
   // One past the highest slot ever used: the range a renderer draws.
   uint32_t highWater() const { return highWater_; }

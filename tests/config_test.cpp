@@ -616,6 +616,27 @@ TEST(ConfigTerrainLod, ErrorsNameKeyAndValue) {
   EXPECT_EQ(e.key, "terrain.tolerance_px");
 }
 
+TEST(ConfigTerrainLod, RoamModeParsesAndABadOneIsNamed) {
+  SceneConfig cfg;
+  ConfigError error;
+  ASSERT_TRUE(parseSceneConfig("[terrain]\nlod = \"roam\"\n", "scene.toml", "/base", cfg, error)) << error.what();
+  EXPECT_EQ(cfg.terrain->roamMode, TerrainLayerConfig::RoamMode::Deferred);  // the default
+  ASSERT_TRUE(parseSceneConfig("[terrain]\nlod = \"roam\"\nroam_mode = \"enhmerge\"\n", "scene.toml", "/base", cfg, error))
+      << error.what();
+  EXPECT_EQ(cfg.terrain->roamMode, TerrainLayerConfig::RoamMode::EnhMerge);
+  ASSERT_TRUE(parseSceneConfig("[terrain]\nroam_mode = \"deferred\"\n", "scene.toml", "/base", cfg, error)) << error.what();
+  EXPECT_EQ(cfg.terrain->roamMode, TerrainLayerConfig::RoamMode::Deferred);
+  ConfigError e = sceneError("[terrain]\nlod = \"roam\"\nroam_mode = \"mergequeue\"\n");
+  EXPECT_EQ(e.key, "terrain.roam_mode");
+  EXPECT_EQ(e.line, 3);
+  EXPECT_EQ(e.value, "\"mergequeue\"");
+  EXPECT_NE(e.message.find("\"deferred\", \"enhmerge\""), std::string::npos) << e.what();
+  EXPECT_NE(std::string(e.what()).find("roam_mode"), std::string::npos) << e.what();
+  EXPECT_NE(std::string(e.what()).find("mergequeue"), std::string::npos) << e.what();
+  e = sceneError("[terrain]\nroam_mode = 1\n");
+  EXPECT_EQ(e.key, "terrain.roam_mode");
+}
+
 }  // namespace
 }  // namespace ig
 
