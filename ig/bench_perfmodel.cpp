@@ -27,6 +27,7 @@ struct Point {
   double measuredQ1_ms = 0, errorQ1_pct = 0;  // lower quartile of the repeats (least disturbed)
   double fragments = 0;
   uint64_t triangles = 0;
+  double vertex_ms = 0, fragment_ms = 0, commands_ms = 0;  // terms of (2): T_vert, T_frag, T_buf + T_fc
   const char* bound = "";
 };
 
@@ -144,7 +145,8 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
       ob.halfSize_m *= scale;
       const double cap = 0.25 * ob.center_m.y / std::max({ob.halfSize_m.x, ob.halfSize_m.y, ob.halfSize_m.z});
       if (cap < 1.0) ob.halfSize_m *= cap;
-      fragments += lod::shadedFragments(lod::projectedBoxArea_px(vp, eyeCorners(ob, cam.eye_m), o.width_px, o.height_px), 4.0);
+      fragments += lod::shadedFragments(lod::projectedBoxArea_px(vp, eyeCorners(ob, cam.eye_m), o.width_px, o.height_px),
+                                        k.fragBlock_px);
       pass.add(ob);
     }
     for (render::DynamicStrategy s : {render::DynamicStrategy::PerCommand, render::DynamicStrategy::Octree}) {
@@ -180,6 +182,9 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
       p.errorQ1_pct = 100.0 * std::abs(pred - p.measuredQ1_ms) / std::max(p.measuredQ1_ms, 1e-9);
       p.fragments = load.fragments;
       p.triangles = st.triangles;
+      p.vertex_ms = tb.vertS * 1e-6;
+      p.fragment_ms = tb.fragS * 1e-6;
+      p.commands_ms = (tb.bufS + tb.fcS) * 1e-6;
       p.bound = boundName(tb.boundS);
       points.push_back(p);
     }
@@ -193,17 +198,18 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
   if (o.json) {
     std::printf("{\"bench\":\"perfmodel\",\"device\":\"%s\",\"viewport\":[%d,%d],\"fragment_work\":%u,\"coverage\":%g,"
                 "\"repeats\":%d,\"calibration\":{\"from_cache\":%s,\"seconds\":%.3f,\"frame_ns\":%.1f,\"tri_ns\":%.3f,"
-                "\"frag_ns\":%.4f,\"depth_frag_ns\":%.4f,\"state_ns\":%.1f,\"command_ns\":%.1f,\"rerecord_ns\":%.1f,"
+                "\"frag_ns\":%.4f,\"frag_block_px\":%.3f,\"depth_frag_ns\":%.4f,\"state_ns\":%.1f,\"command_ns\":%.1f,\"rerecord_ns\":%.1f,"
                 "\"submit_ns\":%.1f,\"cull_ns\":%.2f,\"occlusion_test_ns\":%.1f,\"overlap\":%.3f},\"points\":[",
                 cal.key.c_str(), o.width_px, o.height_px, o.fragmentWork, o.coverage, repeats,
-                cal.fromCache ? "true" : "false", cal.seconds, k.frame_ns, k.tri_ns, k.frag_ns, k.depthFrag_ns, k.state_ns,
+                cal.fromCache ? "true" : "false", cal.seconds, k.frame_ns, k.tri_ns, k.frag_ns, k.fragBlock_px, k.depthFrag_ns, k.state_ns,
                 k.command_ns, k.rerecord_ns, k.submit_ns, k.cull_ns, k.occlusionTest_ns, k.overlap);
     for (size_t i = 0; i < points.size(); ++i) {
       const Point& p = points[i];
       std::printf("%s{\"objects\":%u,\"strategy\":\"%s\",\"measured_ms\":%.4f,\"predicted_ms\":%.4f,\"error_pct\":%.2f,"
-                  "\"measured_q1_ms\":%.4f,\"error_q1_pct\":%.2f,\"triangles\":%llu,\"fragments\":%.0f,\"bound\":\"%s\"}",
+                  "\"measured_q1_ms\":%.4f,\"error_q1_pct\":%.2f,\"triangles\":%llu,\"fragments\":%.0f,\"vertex_ms\":%.4f,"
+                  "\"fragment_ms\":%.4f,\"commands_ms\":%.4f,\"bound\":\"%s\"}",
                   i ? "," : "", p.objects, p.strategy, p.measured_ms, p.predicted_ms, p.error_pct, p.measuredQ1_ms, p.errorQ1_pct,
-                  static_cast<unsigned long long>(p.triangles), p.fragments, p.bound);
+                  static_cast<unsigned long long>(p.triangles), p.fragments, p.vertex_ms, p.fragment_ms, p.commands_ms, p.bound);
     }
     std::printf("],\"error_pct_median\":%.2f,\"error_pct_max\":%.2f,\"error_q1_pct_median\":%.2f,"
                 "\"error_q1_pct_max\":%.2f,\"wall_s\":%.1f}\n",
@@ -211,15 +217,16 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
   } else {
     std::printf("perfmodel: %s, %dx%d, material work %u, calibration %s (%.1f s)\n", cal.key.c_str(), o.width_px,
                 o.height_px, o.fragmentWork, cal.fromCache ? "from cache" : "measured", cal.seconds);
-    std::printf("constants: frame %.0f ns, tri %.1f ns, frag %.2f ns, state %.0f ns, command %.0f ns, rerecord %.0f ns, "
+    std::printf("constants: frame %.0f ns, tri %.1f ns, frag %.2f ns, block %.2f px, state %.0f ns, command %.0f ns, rerecord %.0f ns, "
                 "submit %.0f ns, cull %.1f ns, occlusion test %.0f ns, overlap %.2f\n",
-                k.frame_ns, k.tri_ns, k.frag_ns, k.state_ns, k.command_ns, k.rerecord_ns, k.submit_ns, k.cull_ns,
+                k.frame_ns, k.tri_ns, k.frag_ns, k.fragBlock_px, k.state_ns, k.command_ns, k.rerecord_ns, k.submit_ns, k.cull_ns,
                 k.occlusionTest_ns, k.overlap);
-    std::printf("%9s %-11s %12s %12s %8s %12s %8s  %s\n", "objects", "strategy", "measured ms", "predicted ms", "error %",
-                "q1 ms", "error %", "bound");
+    std::printf("%9s %-11s %12s %12s %8s %12s %8s  %-8s %8s %8s %8s\n", "objects", "strategy", "measured ms", "predicted ms",
+                "error %", "q1 ms", "error %", "bound", "vert ms", "frag ms", "cmd ms");
     for (const Point& p : points)
-      std::printf("%9u %-11s %12.3f %12.3f %8.2f %12.3f %8.2f  %s\n", p.objects, p.strategy, p.measured_ms, p.predicted_ms,
-                  p.error_pct, p.measuredQ1_ms, p.errorQ1_pct, p.bound);
+      std::printf("%9u %-11s %12.3f %12.3f %8.2f %12.3f %8.2f  %-8s %8.3f %8.3f %8.3f\n", p.objects, p.strategy, p.measured_ms,
+                  p.predicted_ms, p.error_pct, p.measuredQ1_ms, p.errorQ1_pct, p.bound, p.vertex_ms, p.fragment_ms,
+                  p.commands_ms);
     std::printf("error vs median: median %.2f %%, max %.2f %%; vs lower quartile: median %.2f %%, max %.2f %% "
                 "(goal <= 5 %% / <= 10 %%), %.1f s\n",
                 med, mx, medQ1, mxQ1, wall_s);

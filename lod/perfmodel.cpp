@@ -35,7 +35,8 @@ uint64_t sceneMemoryBytes(const MemoryModelInput& in) {
 
 bool valid(const PerfConstants& c) {
   const double all[] = {c.frame_ns,   c.tri_ns,      c.frag_ns,   c.depthFrag_ns, c.state_ns,
-                        c.command_ns, c.rerecord_ns, c.submit_ns, c.cull_ns,      c.occlusionTest_ns};
+                        c.command_ns, c.rerecord_ns, c.submit_ns, c.cull_ns,      c.occlusionTest_ns,
+                        c.fragBlock_px};
   for (double v : all)
     if (!std::isfinite(v) || v < 0.0) return false;
   if (!(c.overlap >= 0.0 && c.overlap <= 1.0)) return false;

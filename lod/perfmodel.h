@@ -39,6 +39,8 @@ struct PerfConstants {
   double frame_ns = 0.0;          // fixed cost of a frame (clear, flush, finish); not in (2)
   double tri_ns = 0.0;            // T_tri: one triangle through the vertex stage (the material)
   double frag_ns = 0.0;           // T_frag: one shaded fragment (the material)
+  double fragBlock_px = 4.0;      // padding b of shadedFragments(): the partly covered shading
+                                  // blocks along a box's (and its triangles') edges, in px
   double depthFrag_ns = 0.0;      // one depth-test-only fragment (occlusion boxes: T_z-buffer)
   double state_ns = 0.0;          // T_state: one pipeline state change (one draw set-up)
   double command_ns = 0.0;        // t_c: record and issue one draw command (in GL this includes

@@ -3,11 +3,13 @@
 #include "render/perf_calibration.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <functional>
+#include <memory>
 #include <sstream>
 #include <vector>
 
@@ -19,7 +21,9 @@ namespace ig::render {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-constexpr int kCacheVersion = 1;
+// 2: measured with a settled heap (settleHeap) and with frag_block_px; version 1 caches hold a
+// T_tri ten or more times too high.
+constexpr int kCacheVersion = 2;
 
 struct Field {
   const char* name;
@@ -29,6 +33,7 @@ constexpr Field kFields[] = {
     {"frame_ns", &lod::PerfConstants::frame_ns},
     {"tri_ns", &lod::PerfConstants::tri_ns},
     {"frag_ns", &lod::PerfConstants::frag_ns},
+    {"frag_block_px", &lod::PerfConstants::fragBlock_px},
     {"depth_frag_ns", &lod::PerfConstants::depthFrag_ns},
     {"state_ns", &lod::PerfConstants::state_ns},
     {"command_ns", &lod::PerfConstants::command_ns},
@@ -87,6 +92,20 @@ struct Bench {
     return s[s.size() / 2];
   }
 };
+
+// Brings the C heap into the state of a process that has run a while. glibc trims the top of
+// its heap (brk) on free() above M_TRIM_THRESHOLD, 128 KiB until the process first frees a
+// block large enough to have been mmap-ed; from then on the threshold is twice that block.
+// llvmpipe allocates and frees memory in every draw, so in a fresh process each draw pays brk
+// calls and page faults (profiled: 7 to 10 us per 12-triangle box instead of about 1 us). The
+// service and the benchmarks free large blocks all the time (and reach the steady state within
+// their first frames), so the calibration measures in it too: one 16 MiB block, freed.
+void settleHeap() {
+  constexpr size_t kBytes = size_t{16} << 20;
+  auto block = std::make_unique<char[]>(kBytes);
+  volatile char* touch = block.get();
+  touch[0] = 1;  // an allocation with a visible store is not elided
+}
 
 // The CPU cost of recording one command: an 84-byte record (instance + indirect command)
 // written to memory, timed directly. The floor of t_c and t_s when frame slopes drown in noise.
@@ -217,6 +236,7 @@ bool calibrate(const std::string& cachePath, const CalibrationOptions& o, Calibr
     out.fromCache = true;
     return true;
   }
+  settleHeap();
   Bench b;
   b.budget_s = o.budget_s;
   if (!b.renderer.init(o.width_px, o.height_px, error)) return error = "calibration: " + error, false;
@@ -281,17 +301,40 @@ bool calibrate(const std::string& cachePath, const CalibrationOptions& o, Calibr
   // llvmpipe) as lod::shadedFragments models it, subtracted from the per-box slopes below.
   const double pxPerMetre = o.height_px / (2.0 * 21.0 * std::tan(0.5 * b.camera.fovY_deg * 0.017453292519943295));
   const double tinyFragments = lod::shadedFragments(std::pow(2.0 * kTinyHalf_m * pxPerMetre, 2.0) * 1.5, 4.0);
-  // T_tri, t_c and t_s come from differences of per-box costs, so the loads they compare are
-  // measured interleaved (one frame of each per repeat) and see the same machine load.
-  constexpr uint32_t kLow = 500, kHigh = 3000, kNodesLow = 150, kNodesHigh = 900;
-  DynamicPass low, high, nodesLow, nodesHigh, nodesDouble;
-  for (DynamicPass* p : {&low, &high})
+  // T_tri, t_c, t_s, T_state and b come from differences of per-box costs, so the loads they
+  // compare are measured interleaved (one frame of each per repeat) and see the same machine load.
+  // `many`: the cost of a per-object command grows with the objects per frame (their data and
+  // the command stream leave the caches), so t_c is measured with 20,000 boxes, a size where the
+  // choice between the strategies matters, not with the few thousand that fit in L2.
+  constexpr uint32_t kLow = 500, kHigh = 3000, kMany = 20000, kNodesHigh = 900;
+  DynamicPass low, high, many, nodesHigh, nodesDouble, small;
+  for (DynamicPass* p : {&low, &high, &small})
     if (!makePass(*p, kHigh, 6, 64.0, o.fragmentWork, error)) return false;  // 2 m leaves
-  for (DynamicPass* p : {&nodesLow, &nodesHigh, &nodesDouble})
+  if (!makePass(many, kMany, 6, 64.0, o.fragmentWork, error)) return false;
+  for (uint32_t i = 0; i < kMany; ++i) many.add(tiny(i, 21.0));
+  for (DynamicPass* p : {&nodesHigh, &nodesDouble})
     if (!makePass(*p, 4096, 6, 64.0, o.fragmentWork, error)) return false;
   for (uint32_t i = 0; i < kHigh; ++i) {
     if (i < kLow) low.add(tiny(i, 21.0));
     high.add(tiny(i, 21.0));
+  }
+  // The block padding b: `small` holds the boxes of `low` at a few pixels each (~50 px, 4.5 per
+  // 41 x 41 px cell, so they rarely overlap); the difference is their shaded fragments.
+  constexpr double kSmallHalf_m = 0.15;
+  double smallArea[kLow];
+  {
+    const glm::dmat4 vp = lod::reverseZProjection(b.camera.fovY_deg, b.camera.aspect, b.camera.near_m, b.camera.far_m) *
+                          glm::dmat4(lod::viewRotation(b.camera));
+    for (uint32_t i = 0; i < kLow; ++i) {
+      DynamicObject ob = tiny(i, 21.0);
+      ob.halfSize_m = glm::dvec3(kSmallHalf_m);
+      small.add(ob);
+      std::array<glm::dvec3, 8> corners;
+      for (int k = 0; k < 8; ++k)
+        corners[static_cast<size_t>(k)] = ob.center_m - b.camera.eye_m +
+                                          kSmallHalf_m * glm::dvec3(k & 1 ? 1 : -1, k & 2 ? 1 : -1, k & 4 ? 1 : -1);
+      smallArea[i] = std::max(0.0, lod::projectedBoxArea_px(vp, corners, o.width_px, o.height_px));
+    }
   }
   // One tiny box per octree leaf (2 m cells): one node range, one indirect call per box.
   // `perNode` boxes in each cell (the second 0.4 m beside the first, same cell).
@@ -304,50 +347,71 @@ bool calibrate(const std::string& cachePath, const CalibrationOptions& o, Calibr
             pass.add({{2.0 * xi + 1.0 + 0.4 * j, 41.0 + 2.0 * layer, 2.0 * zi + 1.0}, glm::dvec3(kTinyHalf_m), 0.0,
                       0xffffffffu});
   };
-  grid(nodesLow, kNodesLow, 1);
   grid(nodesHigh, kNodesHigh, 1);
   grid(nodesDouble, kNodesHigh, 2);
-  nodesLow.setStrategy(DynamicStrategy::Octree);
   nodesHigh.setStrategy(DynamicStrategy::Octree);
   {
     // Whole frame (ms), and in `cpu` the part until the GL calls return (before glFinish).
     double cpuLast = 0.0;
-    const auto frameMs = [&](DynamicPass& p, DynamicStrategy s) {
+    const auto frameMs = [&](DynamicPass& p, DynamicStrategy s, uint32_t stateChanges = 0) {
       p.setStrategy(s);
       const auto t0 = Clock::now();
       b.renderer.beginFrame(b.camera, b.light);
-      p.draw(b.renderer, b.frame++);
+      if (stateChanges)
+        p.drawStateChanges(b.renderer, stateChanges);
+      else
+        p.draw(b.renderer, b.frame++);
       b.renderer.endFrame();
       cpuLast = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
       b.renderer.finish();
       return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
     };
-    std::vector<double> inst, cmd, node, cpuCmd, cpuNode;
-    const int reps = b.overBudget() || b.budget_s < 3.0 ? 3 : 7;
+    // t_c and t_s are small next to a box, so each comes from one scene drawn both ways in
+    // consecutive frames (same boxes, same fragments): `many` (20,000 boxes in 112 nodes) as
+    // per-object commands and as node ranges differs by 19,888 commands, 111 submissions and
+    // the frustum tests; `nodesHigh` (900 nodes of one box) by 899 submissions and the tests.
+    // Each load's time is the lower quartile of its frames (preemption and the bursts of other
+    // processes on a shared machine only add time, and they come in phases that cover several
+    // consecutive repeats, which a median of paired differences does not survive).
+    enum Load {
+      kDouble, kManyOctree, kManyCommands, kNodesCommands, kNodesOctree, kState200, kState2000, kTiny, kSmall, kLoads
+    };
+    std::vector<double> ms[kLoads], cpu[kLoads];
+    double manyTests = 0.0, manyNodes = 112.0, nodeTests = 0.0;
+    const int reps = b.overBudget() || b.budget_s < 1.0 ? 5 : 11;
+    const auto keep = [&](Load l, double frame) { ms[l].push_back(frame), cpu[l].push_back(cpuLast); };
     for (int r = 0; r <= reps; ++r) {
       // llvmpipe's cost per instance grows with the instances in one draw: measure the box in
       // the small instanced draws of big scenes (one vs two boxes per node, same nodes).
-      const double nd = frameMs(nodesDouble, DynamicStrategy::Octree);
-      const double cl = frameMs(low, DynamicStrategy::PerCommand);
-      const double ccl = cpuLast;
-      const double ch = frameMs(high, DynamicStrategy::PerCommand);
-      const double cch = cpuLast;
-      const double nl = frameMs(nodesLow, DynamicStrategy::Octree);
-      const double cnl = cpuLast;
-      const double nh = frameMs(nodesHigh, DynamicStrategy::Octree);
-      const double cnh = cpuLast;
-      if (r == 0) continue;  // warm-up (node ranges built, shaders compiled)
-      cpuCmd.push_back((cch - ccl) * 1e6 / (kHigh - kLow));
-      cpuNode.push_back((cnh - cnl) * 1e6 / (kNodesHigh - kNodesLow));
-      inst.push_back((nd - nh) * 1e6 / kNodesHigh);
-      cmd.push_back((ch - cl) * 1e6 / (kHigh - kLow));
-      node.push_back((nh - nl) * 1e6 / (kNodesHigh - kNodesLow));
+      const bool warm = r > 0;  // r == 0: warm-up (node ranges built, shaders compiled)
+      if (const double t = frameMs(nodesDouble, DynamicStrategy::Octree); warm) keep(kDouble, t);
+      if (const double t = frameMs(many, DynamicStrategy::Octree); warm) keep(kManyOctree, t);
+      manyTests = many.stats().frustumTests, manyNodes = std::max(1u, many.stats().nodesDrawn);
+      if (const double t = frameMs(many, DynamicStrategy::PerCommand); warm) keep(kManyCommands, t);
+      if (const double t = frameMs(nodesHigh, DynamicStrategy::PerCommand); warm) keep(kNodesCommands, t);
+      if (const double t = frameMs(nodesHigh, DynamicStrategy::Octree); warm) keep(kNodesOctree, t);
+      nodeTests = nodesHigh.stats().frustumTests;
+      // T_state: one tiny box per draw, a uniform change before each (200 vs 2000 draws).
+      if (const double t = frameMs(low, DynamicStrategy::PerCommand, 200); warm) keep(kState200, t);
+      if (const double t = frameMs(low, DynamicStrategy::PerCommand, 2000); warm) keep(kState2000, t);
+      if (const double t = frameMs(low, DynamicStrategy::PerCommand); warm) keep(kTiny, t);
+      if (const double t = frameMs(small, DynamicStrategy::PerCommand); warm) keep(kSmall, t);
     }
     const auto mid = [](std::vector<double> v) {
       std::sort(v.begin(), v.end());
       return v[v.size() / 2];
     };
-    const double perBox = mid(inst), perCommandBox = mid(cmd), perNode = mid(node);
+    const auto quartile = [](std::vector<double> v) {
+      std::sort(v.begin(), v.end());
+      return v[v.size() / 4];
+    };
+    // Frame and CPU-side (until the GL calls return) differences between two loads, ns.
+    const auto diff = [&](Load a, Load z) { return (quartile(ms[a]) - quartile(ms[z])) * 1e6; };
+    const auto cpuDiff = [&](Load a, Load z) { return (quartile(cpu[a]) - quartile(cpu[z])) * 1e6; };
+    double perBox = diff(kDouble, kNodesOctree) / kNodesHigh;
+    // Noise: the CPU side, else an upper bound (the whole frame of `many` over its boxes).
+    if (!(perBox > 0.0)) perBox = cpuDiff(kDouble, kNodesOctree) / kNodesHigh;
+    if (!(perBox > 0.0)) perBox = quartile(ms[kManyOctree]) * 1e6 / kMany;
     // An instanced box: 12 triangles and its fragments. A per-object command box: the same plus
     // the command and a frustum test. A node of one box: the box, its command, its submission.
     c.tri_ns = (perBox - tinyFragments * c.frag_ns) / 12.0;
@@ -384,19 +448,35 @@ bool calibrate(const std::string& cachePath, const CalibrationOptions& o, Calibr
       volatile uint32_t sink = hits;
       (void)sink;
     }
-    // A negative difference of frame slopes is noise: fall back to the CPU-side slopes (the GL
-    // calls of llvmpipe do the per-draw and vertex work on this thread), which do not include
-    // the rasterizer threads' share.
-    c.command_ns = perCommandBox - perBox - c.cull_ns;
-    if (!(c.command_ns > 0.0)) c.command_ns = std::max(0.0, mid(cpuCmd) - perBox - c.cull_ns);
-    if (!(c.command_ns > 0.0)) c.command_ns = recordFloor_ns();
-    c.submit_ns = perNode - perBox - c.command_ns - 8.0 / 7.0 * c.cull_ns;
-    if (!(c.submit_ns > 0.0)) c.submit_ns = std::max(0.0, mid(cpuNode) - perBox - c.command_ns - 8.0 / 7.0 * c.cull_ns);
+    // octree - per-object (nodesHigh) = (n - 1) t_s + (node tests - n) T_cull;
+    // per-object - octree (many) = (N - nodes) t_c - (nodes - 1) t_s + (N - node tests) T_cull.
+    // A difference that comes out <= 0 is noise: fall back to the same difference of the CPU
+    // side (llvmpipe does the per-draw work on this thread), then to the cost of a record.
+    const double nNodes = kNodesHigh, nMany = kMany;
+    const auto submit = [&](double d) { return (d - (nodeTests - nNodes) * c.cull_ns) / (nNodes - 1.0); };
+    c.submit_ns = submit(diff(kNodesOctree, kNodesCommands));
+    if (!(c.submit_ns > 0.0)) c.submit_ns = submit(cpuDiff(kNodesOctree, kNodesCommands));
     if (!(c.submit_ns > 0.0)) c.submit_ns = recordFloor_ns();
-    // T_state: one tiny box per draw, a uniform change before each.
-    c.state_ns = std::max(0.0, b.slope([&] { low.drawStateChanges(b.renderer, 200); }, 200.0,
-                                       [&] { low.drawStateChanges(b.renderer, 2000); }, 2000.0) -
-                                   perBox);
+    const auto command = [&](double d) {
+      return (d + (manyNodes - 1.0) * c.submit_ns - (nMany - manyTests) * c.cull_ns) / (nMany - manyNodes);
+    };
+    c.command_ns = command(diff(kManyCommands, kManyOctree));
+    if (!(c.command_ns > 0.0)) c.command_ns = command(cpuDiff(kManyCommands, kManyOctree));
+    if (!(c.command_ns > 0.0)) c.command_ns = recordFloor_ns();
+    c.state_ns = std::max(0.0, diff(kState2000, kState200) / 1800.0 - perBox);
+    // b such that frag_ns x sum shadedFragments(A, b) is the extra time of the small boxes
+    // (bisection; shadedFragments grows with b). Noise can push it to the ends of [0, 32].
+    {
+      const double extra = diff(kSmall, kTiny) - kLow * tinyFragments * c.frag_ns;
+      const auto shaded = [&](double blk) {
+        double f = 0.0;
+        for (double a : smallArea) f += lod::shadedFragments(a, blk);
+        return f * c.frag_ns;
+      };
+      double lo = 0.0, hi = 32.0;
+      for (int k = 0; k < 40; ++k) (shaded(0.5 * (lo + hi)) < extra ? lo : hi) = 0.5 * (lo + hi);
+      c.fragBlock_px = 0.5 * (lo + hi);
+    }
     // t_r: every object moved (in place) each frame in octree mode: its node range is rewritten.
     high.setStrategy(DynamicStrategy::Octree);
     const auto drawHigh = [&] { high.draw(b.renderer, b.frame); };

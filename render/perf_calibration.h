@@ -4,18 +4,23 @@
 //   frag_ns      full-screen boxes drawn back to front (every fragment shaded): T_frag
 //   depthFrag_ns the same boxes depth-only, as occlusion boxes are drawn
 //   tri_ns       tiny boxes (0.2 px) in 112 fixed octree leaves, one instanced draw per node: T_tri
-//   command_ns   the same boxes as per-object commands, minus the instanced cost: t_c
-//   submit_ns    one tiny box per octree leaf, one indirect call per node, minus the above: t_s
-//   state_ns     one tiny box per draw with a uniform change between draws: T_state
+//   frag_block_px  500 boxes of ~50 px vs the same boxes tiny: b of lod::shadedFragments
+//   command_ns   20000 tiny boxes as per-object commands vs the same in their 112 node ranges: t_c
+//   submit_ns    900 tiny boxes, one per octree leaf, as node ranges vs per-object commands: t_s
+//   state_ns     one tiny box per draw with a uniform change between draws, minus the box: T_state
 //   cull_ns      per-object frustum tests of boxes behind the camera
 //   rerecord_ns  every object moved each frame in octree mode (node ranges rewritten): t_r
 //   occlusionTest_ns  q queries on tiny nodes minus the same frame without: one test
 //   overlap      vertex-bound + fragment-bound load in one frame vs each alone
 // Each constant is the slope between two loads (lower quartile of repeated frames, glFinish + a
-// monotonic clock; the median of three such slopes), so fixed costs cancel; T_tri, t_c and t_s
-// (differences of per-box costs) from loads measured interleaved frame by frame. Results are
+// monotonic clock; the median of three such slopes), so fixed costs cancel; T_tri, t_c, t_s,
+// T_state and b (small differences) from loads measured interleaved frame by frame (11 repeats, the
+// lower quartile of each load). Results are
 // cached in a small text file keyed by GL_VENDOR / GL_RENDERER / GL_VERSION, the material and
 // the viewport; a cache for another key, or one that does not parse, is ignored and rewritten.
+// The measurements run with a settled C heap (a large block freed first): glibc trims the heap
+// top eagerly until a process frees its first large block, and llvmpipe allocates in every
+// draw, so a fresh process would measure brk and page faults instead of the draws.
 #pragma once
 
 #include <cstdint>

@@ -106,6 +106,9 @@ TEST(PerfModel, NanAndNegativeInputsCountAsZero) {
   badC.overlap = 1.0;
   badC.cull_ns = -1.0;
   EXPECT_FALSE(valid(badC));
+  badC = c;
+  badC.fragBlock_px = std::nan("");  // the calibrated block padding of shadedFragments()
+  EXPECT_FALSE(valid(badC));
   EXPECT_TRUE(valid(c));
   EXPECT_FALSE(valid(PerfConstants{}));  // T_tri and T_frag must be measured
 }
