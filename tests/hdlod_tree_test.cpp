@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <vector>
 
@@ -504,4 +505,41 @@ TEST(HdlodBuild, HugeCoordinatesKeepPrecision) {
   const glm::dvec3 centre = (a.clusters[a.root].box.min + a.clusters[a.root].box.max) * 0.5;
   const SelectView v = viewOf(centre, 400, far.duration_s, 0.0);
   EXPECT_EQ(selectHdlod(a, far, v, out), selectAll(a, far, v, all));
+}
+
+// On the site: every draw's matrix is, bit for bit, the tree's (objects, merged clusters: leafMatrix) or the path's (dynamic
+// objects), at times inside and outside [0, T] and going backwards.
+TEST(HdlodSelect, SiteDrawMatricesMatchTheTree) {
+  SiteParams p;
+  p.scale = 0.05;
+  p.loadsPerFloor = 40;
+  std::string error;
+  const Scene s = makeConstructionSite(p, error);
+  ASSERT_EQ(error, "");
+  const HdlodTree tree = buildHdlod(s);
+  const Cluster& root = tree.clusters[tree.root];
+  std::vector<Draw> out(drawBound(tree));
+  const glm::dvec3 centre = (root.box.min + root.box.max) * 0.5;
+  const double R = 0.5 * glm::length(root.box.max - root.box.min);
+  const double T = s.duration_s;
+  size_t merged = 0, dynamic = 0;
+  for (double t : {0.5 * T, 0.25 * T, -T, 0.0, 0.6 * T, 2.0 * T, T, 0.1 * T, 0.9 * T}) {
+    for (double px : {0.0, 1.0, 8.0}) {
+      const SelectView v = viewOf(centre, 2.0 * R, t, toleranceFromPixels(px, 60, 1000));
+      const size_t n = selectHdlod(tree, s, v, out);
+      for (size_t k = 0; k < n; ++k) {
+        const Draw& d = out[k];
+        const Cluster& c = tree.clusters[d.cluster];
+        glm::dmat4 expected = tree.leafMatrix[d.cluster];
+        if (c.kind == ClusterKind::Dynamic) {
+          expected = objectMatrix(s.objects[c.object], t, T);
+          ++dynamic;
+        }
+        merged += c.kind == ClusterKind::Merged;
+        ASSERT_EQ(std::memcmp(&d.model, &expected, sizeof expected), 0) << d.cluster << " t " << t << " px " << px;
+      }
+    }
+  }
+  EXPECT_GT(merged, 0u);
+  EXPECT_GT(dynamic, 0u);
 }
