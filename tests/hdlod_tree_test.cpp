@@ -62,6 +62,17 @@ Scene twoObjects(double T) {
   return s;
 }
 
+// The construction site at a small scale (lod/hdlod_site.h).
+Scene smallSite(double scale, int loadsPerFloor) {
+  SiteParams p;
+  p.scale = scale;
+  p.loadsPerFloor = loadsPerFloor;
+  std::string error;
+  Scene s = makeConstructionSite(p, error);
+  EXPECT_EQ(error, "");
+  return s;
+}
+
 }  // namespace
 
 TEST(HdlodBuild, PresenceGammaAndDeltaOnAHandMadePair) {
@@ -328,12 +339,8 @@ TEST(HdlodSelect, OneObjectScene) {
 }
 
 TEST(HdlodSelect, CameraInsideABoxRefines) {
-  SiteParams p;
-  p.scale = 0.02;
-  p.loadsPerFloor = 5;
-  std::string error;
-  const Scene s = makeConstructionSite(p, error);
-  ASSERT_EQ(error, "");
+  const Scene s = smallSite(0.02, 5);
+  ASSERT_FALSE(s.objects.empty());
   const HdlodTree tree = buildHdlod(s);
   std::vector<Draw> out(drawBound(tree));
   // Inside the tower at mid height, with an r so coarse that anything not containing the eye
@@ -423,12 +430,8 @@ TEST(HdlodSite, CountsClassesAndBadParameters) {
 // set as selectAll and as a brute-force check); with everything present and in view, the
 // triangle count never rises as r grows; the build is deterministic.
 TEST(HdlodSelect, SiteExactAtZeroAndMonotoneInR) {
-  SiteParams p;
-  p.scale = 0.05;
-  p.loadsPerFloor = 40;
-  std::string error;
-  const Scene s = makeConstructionSite(p, error);
-  ASSERT_EQ(error, "");
+  const Scene s = smallSite(0.05, 40);
+  ASSERT_FALSE(s.objects.empty());
   const HdlodTree tree = buildHdlod(s);
   EXPECT_GT(tree.stats.mergedClusters, 10u);
   std::vector<Draw> out(drawBound(tree)), all(drawBound(tree));
@@ -510,12 +513,8 @@ TEST(HdlodBuild, HugeCoordinatesKeepPrecision) {
 // On the site: every draw's matrix is, bit for bit, the tree's (objects, merged clusters: leafMatrix) or the path's (dynamic
 // objects), at times inside and outside [0, T] and going backwards.
 TEST(HdlodSelect, SiteDrawMatricesMatchTheTree) {
-  SiteParams p;
-  p.scale = 0.05;
-  p.loadsPerFloor = 40;
-  std::string error;
-  const Scene s = makeConstructionSite(p, error);
-  ASSERT_EQ(error, "");
+  const Scene s = smallSite(0.05, 40);
+  ASSERT_FALSE(s.objects.empty());
   const HdlodTree tree = buildHdlod(s);
   const Cluster& root = tree.clusters[tree.root];
   std::vector<Draw> out(drawBound(tree));
