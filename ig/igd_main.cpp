@@ -7,6 +7,7 @@
 
 #include "ig/app_common.h"
 #include "ig/clock.h"
+#include "ig/realtime.h"
 #include "ig/service.h"
 
 namespace {
@@ -77,6 +78,8 @@ int main(int argc, char** argv) {
     return ig::loadConfigs(configFile, o, c, s, e);
   };
 
+  // Before the GL context: Mesa's per-frame allocations reuse freed memory (ig/realtime.h).
+  ig::keepFreedMemory();
   auto service = ig::Service::create(config, scene, error);
   if (!service) {
     std::fprintf(stderr, "igd: start-up failed: %s\n", error.c_str());

@@ -1,5 +1,6 @@
 #include "ig/realtime.h"
 
+#include <malloc.h>
 #include <pthread.h>
 #include <sched.h>
 #include <sys/mman.h>
@@ -105,6 +106,12 @@ std::string describeScheduling() {
                   : policy == SCHED_RR ? "SCHED_RR " + std::to_string(p.sched_priority)
                                        : std::string("SCHED_OTHER");
   return s + ", CPUs " + cpuList(set);
+}
+
+bool keepFreedMemory() {
+  const bool trim = mallopt(M_TRIM_THRESHOLD, 512 << 20) == 1;
+  const bool mmap = mallopt(M_MMAP_THRESHOLD, 32 << 20) == 1;
+  return trim && mmap;
 }
 
 }  // namespace ig
