@@ -87,11 +87,12 @@ lod::Camera cameraFor(const lod::Aabb& box, double linear, const HdlodBenchOptio
 class Runner {
  public:
   Runner(const hd::HdlodTree& tree, const hd::Scene& scene, bool full, render::Renderer* renderer, render::HdlodPass* pass)
-      : tree_(tree), scene_(scene), full_(full), renderer_(renderer), pass_(pass), draws_(hd::drawBound(tree)) {}
+      : tree_(tree), scene_(scene), full_(full), renderer_(renderer), pass_(pass), draws_(tree) {}
 
   hd::SelectStats select(const hd::SelectView& v, size_t& n) {
     hd::SelectStats st;
-    n = full_ ? hd::selectAll(tree_, scene_, v, draws_, &st) : hd::selectHdlod(tree_, scene_, v, draws_, &st);
+    n = full_ ? hd::selectAll(tree_, scene_, v, draws_.draws, draws_.moving, &st)
+              : hd::selectHdlod(tree_, scene_, v, draws_.draws, draws_.moving, &st);
     return st;
   }
 
@@ -117,7 +118,7 @@ class Runner {
     select(v, n);
     const auto t1 = BenchClock::now();
     renderer_->beginFrame(v.camera, light);
-    pass_->draw(*renderer_, {draws_.data(), n});
+    pass_->draw(*renderer_, {draws_.draws.data(), n});
     renderer_->endFrame();
     const auto t2 = BenchClock::now();
     renderer_->finish();
@@ -135,7 +136,7 @@ class Runner {
   bool full_;
   render::Renderer* renderer_;
   render::HdlodPass* pass_;
-  std::vector<hd::Draw> draws_;
+  hd::DrawList draws_;
 };
 
 void printSide(const char* name, const Side& s, bool render) {
@@ -416,15 +417,15 @@ int runHdlodBench(const HdlodBenchOptions& in) {
       run.mergedTriangles = os.mergedTriangles;
       run.sloppy = os.sloppyClusters;
       run.ratio116 = 1e300;
-      std::vector<hd::Draw> otherDraws(hd::drawBound(other));
+      hd::DrawList otherDraws(other);
       for (int ti = 0; ti < 4; ++ti) {
         hd::SelectView v;
         v.camera = cameraFor(other.clusters[other.root].box, 0.25, o);
         v.time_s = timeFrac[ti] * small.duration_s;
         v.tolerance_rad = r;
         hd::SelectStats a, b;
-        hd::selectHdlod(other, small, v, otherDraws, &a);
-        hd::selectAll(other, small, v, otherDraws, &b);
+        hd::selectHdlod(other, small, v, otherDraws.draws, otherDraws.moving, &a);
+        hd::selectAll(other, small, v, otherDraws.draws, otherDraws.moving, &b);
         if (a.triangles > 0) run.ratio116 = std::min(run.ratio116, static_cast<double>(b.triangles) / static_cast<double>(a.triangles));
       }
       runs.push_back(run);

@@ -54,7 +54,7 @@ std::unique_ptr<HdlodLayer> HdlodLayer::create(const HdlodLayerConfig& config, s
   layer->tree_ = hd::loadOrBuildHdlod(layer->scene_, build, config.cache, layer->outcome_, layer->cacheNote_);
   layer->buildSeconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   bar.finish();
-  layer->draws_.resize(hd::drawBound(layer->tree_));  // reserved once: select() writes into it
+  layer->draws_ = hd::DrawList(layer->tree_);  // sized once: select() writes into it
   return layer;
 }
 
@@ -71,12 +71,12 @@ void HdlodLayer::select(const lod::Camera& camera, double simulationTime_s, int 
   v.time_s = config_.timeOffset_s + config_.timeScale * simulationTime_s;
   v.tolerance_rad = hd::toleranceFromPixels(config_.tolerance_px, camera.fovY_deg, std::max(1, viewportHeight_px));
   stats_.scheduleTime_s = hd::clampTime(v.time_s, scene_.duration_s);
-  drawCount_ = hd::selectHdlod(tree_, scene_, v, draws_, &stats_.select);
+  drawCount_ = hd::selectHdlod(tree_, scene_, v, draws_->draws, draws_->moving, &stats_.select);
 }
 
 void HdlodLayer::draw(render::Renderer& renderer) {
   if (!pass_) return;
-  pass_->draw(renderer, {draws_.data(), drawCount_});
+  pass_->draw(renderer, {draws_->draws.data(), drawCount_});
   const render::HdlodPassStats& s = pass_->lastStats();
   stats_.matrixUpdates = s.matrixUpdates;
   stats_.movedAcross = s.movedAcross;

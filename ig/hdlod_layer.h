@@ -9,6 +9,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -66,7 +67,7 @@ class HdlodLayer {
   lod::hdlod::CacheOutcome outcome_ = lod::hdlod::CacheOutcome::Disabled;
   std::string cacheNote_;
   double buildSeconds_ = 0.0;
-  std::vector<lod::hdlod::Draw> draws_;
+  std::optional<lod::hdlod::DrawList> draws_;
   size_t drawCount_ = 0;
   std::unique_ptr<render::HdlodPass> pass_;
   HdlodLayerStats stats_;

@@ -452,7 +452,7 @@ class Builder {
       return std::numeric_limits<double>::infinity();
     };
     std::stable_sort(level.begin(), level.end(), [&](uint32_t a, uint32_t b) { return firstAppear(a) < firstAppear(b); });
-    const size_t g = static_cast<size_t>(std::max(2, config_.dynamicGroupSize));
+    const size_t g = static_cast<size_t>(std::clamp(config_.dynamicGroupSize, 2, 65535));
     uint16_t depth = 1;
     while (level.size() > 1) {
       std::vector<uint32_t> next;
@@ -782,7 +782,7 @@ class Builder {
     }
     L = std::clamp(L, 1, 40);
     levelsEstimate_ = L + 1;
-    const int maxChildren = std::max(2, config_.maxChildren);
+    const int maxChildren = std::clamp(config_.maxChildren, 2, 65535);
     int l = 0;
     while (active.size() > 1) {
       ++l;
@@ -972,7 +972,10 @@ double sampledHausdorff(std::span<const glm::vec3> samples, std::span<const glm:
 
 HdlodTree buildHdlod(const Scene& scene, const BuildConfig& config) {
   assert(validateScene(scene).empty());
-  return Builder(scene, config).run();
+  HdlodTree tree = Builder(scene, config).run();
+  [[maybe_unused]] const bool tree_ok = prepareSelection(tree);
+  assert(tree_ok);
+  return tree;
 }
 
 }  // namespace ig::lod::hdlod

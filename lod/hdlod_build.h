@@ -65,11 +65,13 @@
 
 #include <cstdint>
 #include <functional>
+#include <new>
 #include <span>
 #include <string>
 #include <vector>
 
 #include <glm/mat4x4.hpp>
+#include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 
 #include "lod/hdlod_scene.h"
@@ -80,14 +82,14 @@ namespace ig::lod::hdlod {
 
 struct BuildConfig {
   int levels = 0;                     // L; 0 = from the scene (see above)
-  int maxChildren = 8;                // children per merged cluster (>= 2)
+  int maxChildren = 8;                // children per merged cluster (2 ... 65535)
   double epsPerSize = 1.0 / 16.0;     // eps(l) / w(l): the simplification error target against the cluster size
   Simplifier simplifier = Simplifier::Meshoptimizer;  // parent geometry (lod/hdlod_simplify.h)
   uint32_t sloppyAboveTriangles = 64; // meshoptimizer: try the sloppy simplifier above this many triangles
   int maxHausdorffSamples = 4096;     // per merged cluster
   bool strictHausdorff = false;       // measure to the kept triangles only (see eps_c above)
   bool twoSidedHausdorff = true;      // also from the simplified triangles back to the input (the paper's D_H)
-  int dynamicGroupSize = 16;          // leaves per dynamic group
+  int dynamicGroupSize = 16;          // leaves per dynamic group (2 ... 65535)
   int candidatesPerCell = 64;         // neighbour candidates examined per grid cell (bounds the work)
   int modelLodLevels = 6;             // simplified versions per scene model (then its box)
   uint32_t modelLodMinTriangles = 16; // models with at most this many triangles get none
@@ -151,6 +153,49 @@ struct BuildStats {
   double simplifyRelativeSum = 0.0, simplifyRelativeMax = 0.0;
 };
 
+// One cache line per cluster for the selection's traversal, derived from the tree by
+// prepareSelection() (never stored in the cache). Cold caches are the selection's cost (after an
+// llvmpipe frame the tree is out of the caches): the cluster record (two lines), its f_c steps
+// (two) and the children indices were separate misses per visit; this record holds what a visit
+// reads, siblings are adjacent (one record per entry of HdlodTree::children), a leaf's short
+// step function is held inline, and a box decided within its float margin never touches the
+// cluster record (see hdlod_select.cpp).
+struct alignas(64) SelectRecord {
+  float lo[3] = {0, 0, 0};   // b_c relative to HdlodTree::selectOrigin_m, widened outward (selectWiden*)
+  float hi[3] = {0, 0, 0};
+  union {
+    struct {
+      double eps_m, size_m;  // Merged, Group: eps_c and w_c
+    } merged;
+    double leafStepTimes[2];  // leaves with kInlineSteps: the times of f_c's 2nd and 3rd steps (+inf: none)
+  } u = {{0.0, 0.0}};
+  uint32_t first = 0;        // Merged / Group: its children's first entry in `children`; leaves: Cluster::mesh
+  uint32_t stepBegin = 0;    // into HdlodTree::selectSteps
+  uint32_t stepCount = 0;
+  uint32_t childSteps = 0;   // the children's steps start here (adjacent: they are in record order)
+  uint32_t triangles = 0;
+  uint16_t count = 0;        // children
+  ClusterKind kind = ClusterKind::Object;
+  uint8_t flags = 0;            // kAlwaysPresent, kInlineSteps and the inline step values
+
+  static constexpr uint8_t kAlwaysPresent = 1;  // f_c = 1 on all of [0, T]: the steps are not read
+  static constexpr uint8_t kInlineSteps = 2;    // a leaf of at most 3 steps of 0 / 1: value k is bit 2 + k
+};
+static_assert(sizeof(SelectRecord) == 64);
+
+// Allocates on cache-line boundaries (a 128-byte matrix then spans two lines, not three).
+template <class T>
+struct CacheLineAllocator {
+  using value_type = T;
+  CacheLineAllocator() = default;
+  template <class U>
+  CacheLineAllocator(const CacheLineAllocator<U>&) {}
+  T* allocate(size_t n) { return static_cast<T*>(::operator new(n * sizeof(T), std::align_val_t{64})); }
+  void deallocate(T* p, size_t) { ::operator delete(p, std::align_val_t{64}); }
+  template <class U>
+  bool operator==(const CacheLineAllocator<U>&) const { return true; }
+};
+
 struct HdlodTree {
   double duration_s = 1.0;
   uint32_t root = ~0u;
@@ -159,7 +204,7 @@ struct HdlodTree {
   std::vector<double> stepTimes;     // per cluster, increasing, the first = 0
   std::vector<double> stepValues;    // f_c on [stepTimes[i], stepTimes[i + 1])
   std::vector<ClusterMesh> meshes;
-  std::vector<glm::dmat4> leafMatrix;  // per cluster: Object leaves' constant matrix, Merged: translate(origin)
+  std::vector<glm::dmat4, CacheLineAllocator<glm::dmat4>> leafMatrix;  // per cluster: Object leaves' constant matrix, Merged: translate(origin)
   std::vector<uint32_t> objectCluster; // per scene object: its leaf cluster or ~0u (no triangles)
   // Per scene model m: its coarser versions are modelLods[modelLodBegin[m] .. modelLodBegin[m + 1]),
   // eps increasing (modelLodBegin has models + 1 entries).
@@ -167,12 +212,27 @@ struct HdlodTree {
   std::vector<ModelLod> modelLods;
   BuildStats stats;
 
+  // Derived by prepareSelection() (buildHdlod() and the cache loader call it): the traversal's
+  // records, one per entry of `children` in the same order, then the root's; f_c as (time,
+  // value) pairs in record order, for the records whose steps are not inline; the records'
+  // boxes are relative to selectOrigin_m (the root box's centre) and each side is widened
+  // outward by at least selectWidenMin_m and at most selectWidenMax_m.
+  std::vector<SelectRecord> selectRecords;
+  std::vector<glm::dvec2> selectSteps;
+  glm::dvec3 selectOrigin_m{0.0};
+  double selectWidenMin_m = 0.0, selectWidenMax_m = 0.0;
+
   std::span<const uint32_t> childrenOf(const Cluster& c) const { return {children.data() + c.firstChild, c.childCount}; }
   std::span<const ModelLod> lodsOf(uint32_t model) const {
-    if (model + 1 >= modelLodBegin.size()) return {};
+    if (modelLodBegin.empty() || model >= modelLodBegin.size() - 1) return {};  // also ~0u (no model)
     return {modelLods.data() + modelLodBegin[model], modelLodBegin[model + 1] - modelLodBegin[model]};
   }
 };
+
+// Derives the selection records above from the clusters. False (records cleared) when the
+// clusters do not form a tree under `root` (a cluster with two parents, the root as a child, a
+// reference out of range): then selectHdlod() selects nothing.
+bool prepareSelection(HdlodTree& tree);
 
 // f_c(t), t clamped to [0, T] (NaN -> 0).
 double clusterPresence(const HdlodTree& tree, const Cluster& c, double t_s);

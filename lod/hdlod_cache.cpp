@@ -57,8 +57,8 @@ class Hasher {
     static_assert(std::is_trivially_copyable_v<T>);
     bytes(&v, sizeof v);
   }
-  template <typename T>
-  void array(const std::vector<T>& v) {
+  template <typename T, typename A>
+  void array(const std::vector<T, A>& v) {
     put(static_cast<uint64_t>(v.size()));
     if (!v.empty()) bytes(v.data(), v.size() * sizeof(T));
   }
@@ -85,8 +85,8 @@ class Writer {
     const auto* p = reinterpret_cast<const uint8_t*>(&v);
     out.insert(out.end(), p, p + sizeof v);
   }
-  template <typename T>
-  void array(const std::vector<T>& v) {
+  template <typename T, typename A>
+  void array(const std::vector<T, A>& v) {
     static_assert(std::is_trivially_copyable_v<T>);
     put(static_cast<uint64_t>(v.size()));
     const auto* p = reinterpret_cast<const uint8_t*>(v.data());
@@ -109,8 +109,8 @@ class Reader {
     }
     return v;
   }
-  template <typename T>
-  void array(std::vector<T>& v) {
+  template <typename T, typename A>
+  void array(std::vector<T, A>& v) {
     const uint64_t count = get<uint64_t>();
     if (!ok || count > (n_ - at_) / sizeof(T)) {
       ok = false;
@@ -263,7 +263,7 @@ bool deserialize(const uint8_t* p, size_t n, HdlodTree& t, std::string& why) {
     bad = m.indices.size() % 3 != 0 || (!m.materials.empty() && m.materials.size() != m.indices.size() / 3);
     for (size_t k = 0; !bad && k < m.indices.size(); ++k) bad = m.indices[k] >= m.positions.size();
   }
-  if (bad) {
+  if (bad || !prepareSelection(t)) {
     why = "inconsistent contents";
     return false;
   }

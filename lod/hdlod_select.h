@@ -21,9 +21,10 @@
 //
 // Output: (cluster, model matrix) draws into the caller's span, in traversal order; the count is
 // returned. A draw of an Object or Dynamic cluster draws the scene model `cluster.mesh` with the
-// matrix; a Merged cluster draws HdlodTree::meshes[cluster.mesh] with translate(origin). When
-// the span is full, further draws are counted in stats but not written (size it with
-// drawBound()). No allocation, no clock; recursion depth = tree depth. A box found inside a
+// matrix; a Merged cluster draws HdlodTree::meshes[cluster.mesh] with translate(origin). Dynamic
+// objects' matrices (computed for time t) go into the caller's `moving` span. When a span is
+// full, further draws are counted in stats but not written (size them with drawBound() and
+// movingBound()). No allocation, no clock; recursion depth = tree depth. A box found inside a
 // frustum plane is not tested against it again below (plane masking: same outcome, fewer tests).
 //
 // Bad input: a non-finite camera, time or tolerance, a field of view outside (0, 180) degrees, a
@@ -34,6 +35,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
+#include <vector>
 
 #include <glm/mat4x4.hpp>
 
@@ -48,7 +50,12 @@ struct Draw {
   // Object / Dynamic leaves: 0 = the scene model itself, k > 0 = its k-th coarser version
   // (HdlodTree::lodsOf(cluster.mesh)[k - 1]); always 0 for merged clusters.
   uint32_t lod = 0;
-  glm::dmat4 model{1.0};  // world matrix (double; the renderer makes it camera-relative)
+  // World matrix (double; the renderer makes it camera-relative): the tree's leafMatrix for
+  // objects and merged clusters, an entry of the selection's `moving` span for dynamic objects.
+  // Valid while the tree and that span are (until the next selection into the same span). A
+  // pointer, not a copy: copying 128 bytes per draw into the list was 40 % of a cold selection
+  // (docs/hdlod.md), and the renderer reads the matrix only for draws new to its lists.
+  const glm::dmat4* model = nullptr;
 };
 
 struct SelectView {
@@ -74,12 +81,27 @@ double toleranceFromPixels(double r_px, double fovY_deg, double viewportHeight_p
 
 // The most draws any selection can produce (leaves + merged clusters).
 size_t drawBound(const HdlodTree& tree);
+// The most dynamic-object draws (matrices in `moving`) any selection can produce.
+size_t movingBound(const HdlodTree& tree);
 
 size_t selectHdlod(const HdlodTree& tree, const Scene& scene, const SelectView& view, std::span<Draw> out,
-                   SelectStats* stats = nullptr);
+                   std::span<glm::dmat4> moving, SelectStats* stats = nullptr);
 
 // The baseline without HDLOD: every present object whose box is in the frustum (r is ignored).
 size_t selectAll(const HdlodTree& tree, const Scene& scene, const SelectView& view, std::span<Draw> out,
-                 SelectStats* stats = nullptr);
+                 std::span<glm::dmat4> moving, SelectStats* stats = nullptr);
+
+// A selection's output for one tree, sized once (no allocation per frame): the overloads below
+// select into it and set `count`.
+struct DrawList {
+  explicit DrawList(const HdlodTree& tree) : draws(drawBound(tree)), moving(movingBound(tree)) {}
+  std::vector<Draw> draws;
+  std::vector<glm::dmat4> moving;
+  size_t count = 0;
+  std::span<const Draw> selected() const { return {draws.data(), count}; }
+};
+
+size_t selectHdlod(const HdlodTree& tree, const Scene& scene, const SelectView& view, DrawList& out, SelectStats* stats = nullptr);
+size_t selectAll(const HdlodTree& tree, const Scene& scene, const SelectView& view, DrawList& out, SelectStats* stats = nullptr);
 
 }  // namespace ig::lod::hdlod

@@ -165,7 +165,7 @@ struct HdlodPass::Impl {
     const uint32_t i = static_cast<uint32_t>(n.keys.size());
     const Range r = rangeOf(d);
     n.commands.push_back({r.indexCount, 1, r.firstIndex, r.baseVertex, i});
-    n.matrices.push_back(relative(n, d.model));
+    n.matrices.push_back(relative(n, *d.model));
     n.keys.push_back(key);
     n.triangles.push_back(r.indexCount / 3);
     n.triangleSum += r.indexCount / 3;
@@ -200,12 +200,12 @@ struct HdlodPass::Impl {
     stats = {};
     ++frame;
     for (const hd::Draw& d : draws) {
-      if (d.cluster >= tree->clusters.size()) continue;
+      if (d.cluster >= tree->clusters.size() || !d.model) continue;
       const uint32_t key = d.cluster * kLodSlots + std::min(d.lod, kLodSlots - 1);
       const hd::Cluster& c = tree->clusters[d.cluster];
       const bool moving = c.kind == hd::ClusterKind::Dynamic;
       uint32_t node = clusterNode[d.cluster];
-      if (moving) node = nodeFor(hd::transformBox(scene->models[c.mesh].box, d.model));
+      if (moving) node = nodeFor(hd::transformBox(scene->models[c.mesh].box, *d.model));
       seen[key] = frame;
       if (slotNode[key] == kNone) {
         add(node, key, d);
@@ -216,7 +216,7 @@ struct HdlodPass::Impl {
         ++stats.movedAcross;
       } else if (moving) {
         Node& n = nodes[node];
-        const glm::mat4 m = relative(n, d.model);
+        const glm::mat4 m = relative(n, *d.model);
         const uint32_t i = slotIndex[key];
         if (std::memcmp(&m, &n.matrices[i], sizeof m) != 0) {
           n.matrices[i] = m;

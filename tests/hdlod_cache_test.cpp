@@ -65,10 +65,10 @@ SelectView viewOf(const HdlodTree& t, double time, double r) {
 }
 
 std::vector<std::pair<uint32_t, uint32_t>> selection(const HdlodTree& t, const Scene& s, const SelectView& v) {
-  std::vector<Draw> d(drawBound(t));
-  d.resize(selectHdlod(t, s, v, d));
+  DrawList d(t);
+  selectHdlod(t, s, v, d);
   std::vector<std::pair<uint32_t, uint32_t>> out;
-  for (const Draw& x : d) out.emplace_back(x.cluster, x.lod);
+  for (const Draw& x : d.selected()) out.emplace_back(x.cluster, x.lod);
   return out;
 }
 
@@ -279,22 +279,22 @@ TEST(HdlodBuild, ModelVersionsGetCoarserAndEveryTriangleHasAMaterial) {
 TEST(HdlodSelect, LeavesUseACoarserVersionOnlyWithinTolerance) {
   const Scene s = smallSite();
   const HdlodTree t = buildHdlod(s);
-  std::vector<Draw> d(drawBound(t));
+  DrawList d(t);
   for (double r : {0.0, 0.0005, 0.002, 0.01}) {
     const SelectView v = viewOf(t, 0.5 * s.duration_s, r);
     const size_t n = selectHdlod(t, s, v, d);
     for (size_t i = 0; i < n; ++i) {
-      const Cluster& c = t.clusters[d[i].cluster];
+      const Cluster& c = t.clusters[d.draws[i].cluster];
       if (c.kind == ClusterKind::Merged) {
-        EXPECT_EQ(d[i].lod, 0u);
+        EXPECT_EQ(d.draws[i].lod, 0u);
         continue;
       }
       const auto lods = t.lodsOf(c.mesh);
-      ASSERT_LE(d[i].lod, lods.size());
-      if (d[i].lod == 0) continue;
+      ASSERT_LE(d.draws[i].lod, lods.size());
+      if (d.draws[i].lod == 0) continue;
       EXPECT_GT(r, 0.0);
-      const Aabb box = transformBox(s.models[c.mesh].box, d[i].model);
-      EXPECT_LT(lods[d[i].lod - 1].eps_m, r * distanceToBox(box, v.camera.eye_m) * (1.0 + 1e-9));
+      const Aabb box = transformBox(s.models[c.mesh].box, *d.draws[i].model);
+      EXPECT_LT(lods[d.draws[i].lod - 1].eps_m, r * distanceToBox(box, v.camera.eye_m) * (1.0 + 1e-9));
     }
   }
 }

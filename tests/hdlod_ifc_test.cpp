@@ -81,11 +81,11 @@ TEST(HdlodIfc, ScheduleBuildsAndSelectsHouses) {
   EXPECT_GT(tree.stats.mergedClusters, 0u);
   EXPECT_GT(tree.lodsOf(0).size(), 0u);  // simplified versions of the real model
 
-  std::vector<Draw> out(drawBound(tree));
+  DrawList out(tree);
   auto drawn = [&](const SelectView& v, SelectStats& st) {
     const size_t n = selectHdlod(tree, *s, v, out, &st);
     std::vector<uint32_t> ids;
-    for (size_t i = 0; i < n; ++i) ids.push_back(out[i].cluster);
+    for (size_t i = 0; i < n; ++i) ids.push_back(out.draws[i].cluster);
     return ids;
   };
   auto has = [](const std::vector<uint32_t>& ids, uint32_t c) { return std::find(ids.begin(), ids.end(), c) != ids.end(); };

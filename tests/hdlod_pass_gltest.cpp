@@ -93,7 +93,7 @@ static void checkImageAtOnePixel(int samples, double minPsnr_db) {
   std::string error;
   ASSERT_TRUE(hdlodPass.init(t, s, 3, error)) << error;
   ASSERT_TRUE(fullPass.init(t, s, 3, error)) << error;
-  std::vector<Draw> a(drawBound(t)), b(drawBound(t));
+  DrawList a(t), b(t);
   const lod::Camera cam = cameraFor(t.clusters[t.root].box, 0.5);
   render::Image background;
   {
@@ -106,29 +106,25 @@ static void checkImageAtOnePixel(int samples, double minPsnr_db) {
     v.camera = cam;
     v.time_s = tf * s.duration_s;
     SelectStats full, exact, hd;
-    b.resize(drawBound(t));
-    b.resize(selectAll(t, s, v, b, &full));
-    const render::Image fullImage = renderOnce(gl, fullPass, cam, b);
+    selectAll(t, s, v, b, &full);
+    const render::Image fullImage = renderOnce(gl, fullPass, cam, b.selected());
     EXPECT_LT(render::psnrDb(fullImage, background), 25.0) << "the site must cover part of the picture";
     // r = 0: the same objects at full detail.
-    a.resize(drawBound(t));
-    a.resize(selectHdlod(t, s, v, a, &exact));
+    selectHdlod(t, s, v, a, &exact);
     EXPECT_EQ(exact.triangles, full.triangles);
-    EXPECT_GT(render::psnrDb(renderOnce(gl, hdlodPass, cam, a), fullImage), 45.0) << tf;
+    EXPECT_GT(render::psnrDb(renderOnce(gl, hdlodPass, cam, a.selected()), fullImage), 45.0) << tf;
     // r = 1 px: far fewer triangles, within tolerance of the full image.
     v.tolerance_rad = toleranceFromPixels(1.0, cam.fovY_deg, kH);
-    a.resize(drawBound(t));
-    a.resize(selectHdlod(t, s, v, a, &hd));
+    selectHdlod(t, s, v, a, &hd);
     EXPECT_LT(hd.triangles * 5, full.triangles) << tf;
-    const double p1 = render::psnrDb(renderOnce(gl, hdlodPass, cam, a), fullImage);
+    const double p1 = render::psnrDb(renderOnce(gl, hdlodPass, cam, a.selected()), fullImage);
     std::printf("msaa %d, t = %.2f T: full %llu triangles, HDLOD at 1 px %llu, PSNR %.2f dB\n", samples, tf,
                 static_cast<unsigned long long>(full.triangles), static_cast<unsigned long long>(hd.triangles), p1);
     EXPECT_GT(p1, minPsnr_db) << tf;
     // A coarse r (32 px) is visibly worse: the comparison can fail.
     v.tolerance_rad = toleranceFromPixels(32.0, cam.fovY_deg, kH);
-    a.resize(drawBound(t));
-    a.resize(selectHdlod(t, s, v, a, &hd));
-    EXPECT_LT(render::psnrDb(renderOnce(gl, hdlodPass, cam, a), fullImage), p1) << tf;
+    selectHdlod(t, s, v, a, &hd);
+    EXPECT_LT(render::psnrDb(renderOnce(gl, hdlodPass, cam, a.selected()), fullImage), p1) << tf;
   }
 }
 
@@ -163,14 +159,13 @@ TEST(HdlodPass, OctantArraysAreUpdatedIncrementally) {
   cam.pitch_deg = -20;
   cam.aspect = static_cast<double>(kW) / kH;
   cam.far_m = 2000;
-  std::vector<Draw> d(drawBound(t));
+  DrawList d(t);
   auto frame = [&](double time) {
     SelectView v;
     v.camera = cam;
     v.time_s = time;
-    d.resize(drawBound(t));
-    d.resize(selectAll(t, s, v, d));
-    renderOnce(gl, pass, cam, d);
+    selectAll(t, s, v, d);
+    renderOnce(gl, pass, cam, d.selected());
     return pass.lastStats();
   };
   render::HdlodPassStats st = frame(0.0);
@@ -188,16 +183,16 @@ TEST(HdlodPass, OctantArraysAreUpdatedIncrementally) {
   EXPECT_EQ(st.movedAcross, 1u);
   EXPECT_EQ(st.draws, 3u);
   // Fewer draws: the removed ones leave their octants.
-  d.resize(1);
-  renderOnce(gl, pass, cam, d);
+  renderOnce(gl, pass, cam, d.selected().first(1));
   EXPECT_EQ(pass.lastStats().removed, 2u);
   EXPECT_EQ(pass.lastStats().draws, 1u);
   EXPECT_GT(pass.bufferBytes(), 0u);
   // An octant emptied by a move and refilled in the same frame is drawn once.
   pass.clear();
-  const Draw truckAt0{t.objectCluster[2], 0, objectMatrix(s.objects[2], 0.0, s.duration_s)};
-  const Draw truckAt100{t.objectCluster[2], 0, objectMatrix(s.objects[2], 100.0, s.duration_s)};
-  const Draw boxA{t.objectCluster[0], 0, t.leafMatrix[t.objectCluster[0]]};
+  const glm::dmat4 at0 = objectMatrix(s.objects[2], 0.0, s.duration_s), at100 = objectMatrix(s.objects[2], 100.0, s.duration_s);
+  const Draw truckAt0{t.objectCluster[2], 0, &at0};
+  const Draw truckAt100{t.objectCluster[2], 0, &at100};
+  const Draw boxA{t.objectCluster[0], 0, &t.leafMatrix[t.objectCluster[0]]};
   std::vector<Draw> list{truckAt0};
   renderOnce(gl, pass, cam, list);
   EXPECT_EQ(pass.lastStats().multiDraws, 1u);
@@ -223,17 +218,17 @@ TEST(HdlodPass, FarFromTheOriginRendersTheSamePicture) {
   ASSERT_TRUE(pn.init(tn, near, 3, error)) << error;
   ASSERT_TRUE(pa.init(ta, away, 3, error)) << error;
   lod::Camera cam = cameraFor(tn.clusters[tn.root].box, 1.0);
-  std::vector<Draw> d(drawBound(tn));
+  DrawList d(tn);
   SelectView v;
   v.camera = cam;
   v.time_s = 0.5 * near.duration_s;
   v.tolerance_rad = toleranceFromPixels(1.0, cam.fovY_deg, kH);
-  d.resize(selectHdlod(tn, near, v, d));
-  const render::Image a = renderOnce(gl, pn, cam, d);
+  selectHdlod(tn, near, v, d);
+  const render::Image a = renderOnce(gl, pn, cam, d.selected());
   cam.eye_m += far;
   v.camera = cam;
-  std::vector<Draw> e(drawBound(ta));
-  e.resize(selectHdlod(ta, away, v, e));
-  EXPECT_EQ(d.size(), e.size());
-  EXPECT_GT(render::psnrDb(renderOnce(gl, pa, cam, e), a), 40.0);
+  DrawList e(ta);
+  selectHdlod(ta, away, v, e);
+  EXPECT_EQ(d.count, e.count);
+  EXPECT_GT(render::psnrDb(renderOnce(gl, pa, cam, e.selected()), a), 40.0);
 }

@@ -124,7 +124,7 @@ TEST(HdlodBuild, PresenceZeroAndStepDistance) {
   EXPECT_EQ(clusterPresence(tree, c, T), 0.0);
   // Nothing selected at t = 0 however coarse r is: f_c == 0 skips the subtree.
   SelectStats st;
-  std::vector<Draw> out(drawBound(tree));
+  DrawList out(tree);
   EXPECT_EQ(selectHdlod(tree, s, viewOf({0, 0, 0}, 50, 0, 1.0), out, &st), 0u);
   EXPECT_GE(st.absent, 1u);
   const double ta[] = {0, 5}, va[] = {0, 1}, tb[] = {0}, vb[] = {0.25};
@@ -143,19 +143,19 @@ TEST(HdlodSelect, HalfPresentClusterIsSkippedMostlyPresentIsDrawn) {
   s.objects.push_back(placed("c", 0, {0.2, 0, 0}, {{5, T}}));
   s.objects.push_back(placed("d", 0, {0.3, 0, 0}, {{20, T}}));
   const HdlodTree tree = buildHdlod(s);
-  std::vector<Draw> out(drawBound(tree));
+  DrawList out(tree);
   SelectStats st;
   // Far away, coarse r: the top cluster is good enough.
   const size_t n = selectHdlod(tree, s, viewOf({0, 0, 0}, 1000, 10, 1.0), out, &st);
   ASSERT_EQ(n, 1u);
-  EXPECT_EQ(tree.clusters[out[0].cluster].kind, ClusterKind::Merged);
-  EXPECT_NEAR(clusterPresence(tree, tree.clusters[out[0].cluster], 10), 0.75, 1e-12);
+  EXPECT_EQ(tree.clusters[out.draws[0].cluster].kind, ClusterKind::Merged);
+  EXPECT_NEAR(clusterPresence(tree, tree.clusters[out.draws[0].cluster], 10), 0.75, 1e-12);
   // At t = 2 only 'a' is present (f = 0.25 < 0.5): the good-enough cluster is skipped.
   EXPECT_EQ(selectHdlod(tree, s, viewOf({0, 0, 0}, 1000, 2, 1.0), out, &st), 0u);
   EXPECT_EQ(st.halfSkipped, 1u);
   // r = 0: exactly the present objects.
   EXPECT_EQ(selectHdlod(tree, s, viewOf({0, 0, 0}, 1000, 2, 0.0), out, &st), 1u);
-  EXPECT_EQ(out[0].cluster, tree.objectCluster[0]);
+  EXPECT_EQ(out.draws[0].cluster, tree.objectCluster[0]);
 }
 
 TEST(HdlodBuild, ZeroTriangleAndDegenerateObjects) {
@@ -177,9 +177,9 @@ TEST(HdlodBuild, ZeroTriangleAndDegenerateObjects) {
     EXPECT_TRUE(std::isfinite(c.eps_m));
     EXPECT_TRUE(std::isfinite(c.size_m));
   }
-  std::vector<Draw> out(drawBound(tree));
+  DrawList out(tree);
   const size_t n = selectHdlod(tree, s, viewOf({0, 0, 0}, 20, 5, 0.0), out);
-  EXPECT_EQ(sortedClusters({out.data(), n}), (std::vector<uint32_t>{tree.objectCluster[1], tree.objectCluster[2]}));
+  EXPECT_EQ(sortedClusters({out.draws.data(), n}), (std::vector<uint32_t>{tree.objectCluster[1], tree.objectCluster[2]}));
   // Only empty objects: no tree, nothing selected.
   Scene only;
   only.duration_s = 1;
@@ -278,7 +278,7 @@ TEST(HdlodBuild, CoincidentObjectsMergeIntoOneSmallCluster) {
   EXPECT_EQ(top.kind, ClusterKind::Merged);
   EXPECT_LE(top.triangles, 12u);  // duplicates removed
   EXPECT_LT(top.eps_m, 1.0);
-  std::vector<Draw> out(drawBound(tree));
+  DrawList out(tree);
   EXPECT_EQ(selectHdlod(tree, s, viewOf({0, 0, 0}, 20, 5, 0.0), out), 100u);
   SelectStats st;
   EXPECT_EQ(selectHdlod(tree, s, viewOf({0, 0, 0}, 1e4, 5, 0.01), out, &st), 1u);
@@ -302,7 +302,7 @@ TEST(HdlodSelect, AllDynamicScene) {
   const HdlodTree tree = buildHdlod(s);
   EXPECT_EQ(tree.stats.dynamicObjects, 40u);
   EXPECT_EQ(tree.stats.mergedClusters, 0u);
-  std::vector<Draw> out(drawBound(tree));
+  DrawList out(tree);
   for (double t : {-1.0, 0.0, 15.5, T, 2 * T}) {
     SelectView v = viewOf({200, 50, 0}, 2000, t, 1.0);
     const size_t n = selectHdlod(tree, s, v, out);
@@ -310,11 +310,21 @@ TEST(HdlodSelect, AllDynamicScene) {
     for (const Object& o : s.objects) expected += isPresent(o, t, T) ? 1 : 0;
     ASSERT_EQ(n, expected) << t;
     for (size_t i = 0; i < n; ++i) {
-      const Cluster& c = tree.clusters[out[i].cluster];
+      const Cluster& c = tree.clusters[out.draws[i].cluster];
       ASSERT_EQ(c.kind, ClusterKind::Dynamic);
-      EXPECT_EQ(out[i].model, objectMatrix(s.objects[c.object], t, T));
+      EXPECT_EQ(*out.draws[i].model, objectMatrix(s.objects[c.object], t, T));
+      EXPECT_EQ(out.draws[i].model, &out.moving[i]);  // the matrices live in the caller's span
     }
   }
+  // Room for 3 moving matrices: 3 draws written, the rest counted and flagged.
+  EXPECT_EQ(movingBound(tree), 40u);
+  SelectStats st;
+  std::vector<Draw> draws(drawBound(tree));
+  std::vector<glm::dmat4> three(3);
+  EXPECT_EQ(selectHdlod(tree, s, viewOf({200, 50, 0}, 2000, 15.5, 1.0), draws, three, &st), 3u);
+  EXPECT_TRUE(st.overflow);
+  EXPECT_EQ(st.draws, 10u);  // present at 15.5 s: objects 6 ... 15
+  for (size_t i = 0; i < 3; ++i) EXPECT_EQ(draws[i].model, &three[i]);
 }
 
 TEST(HdlodSelect, OneObjectScene) {
@@ -323,12 +333,12 @@ TEST(HdlodSelect, OneObjectScene) {
   s.models.push_back(makeBoxModel("b", {1, 1, 1}));
   s.objects.push_back(placed("only", 0, {3, 4, 5}, {{0, 5}}));
   const HdlodTree tree = buildHdlod(s);
-  std::vector<Draw> out(drawBound(tree));
-  ASSERT_EQ(out.size(), 1u);
+  DrawList out(tree);
+  ASSERT_EQ(out.draws.size(), 1u);
   for (double r : {0.0, 1.0, 1e9}) {
     ASSERT_EQ(selectHdlod(tree, s, viewOf({3, 4, 5}, 30, 2, r), out), 1u) << r;
-    EXPECT_EQ(out[0].cluster, tree.objectCluster[0]);
-    EXPECT_EQ(out[0].model[3], glm::dvec4(3, 4, 5, 1));
+    EXPECT_EQ(out.draws[0].cluster, tree.objectCluster[0]);
+    EXPECT_EQ((*out.draws[0].model)[3], glm::dvec4(3, 4, 5, 1));
   }
   // Looking away: culled.
   SelectView away = viewOf({3, 4, 5}, 30, 2, 0.0);
@@ -342,7 +352,7 @@ TEST(HdlodSelect, CameraInsideABoxRefines) {
   const Scene s = smallSite(0.02, 5);
   ASSERT_FALSE(s.objects.empty());
   const HdlodTree tree = buildHdlod(s);
-  std::vector<Draw> out(drawBound(tree));
+  DrawList out(tree);
   // Inside the tower at mid height, with an r so coarse that anything not containing the eye
   // is good enough.
   SelectView v = viewOf({0, 0, 2}, 0, s.duration_s, 1e6);
@@ -350,9 +360,9 @@ TEST(HdlodSelect, CameraInsideABoxRefines) {
   const size_t n = selectHdlod(tree, s, v, out, &st);
   ASSERT_GT(n, 0u);
   for (size_t i = 0; i < n; ++i) {
-    const Cluster& c = tree.clusters[out[i].cluster];
+    const Cluster& c = tree.clusters[out.draws[i].cluster];
     if (c.kind == ClusterKind::Merged) {
-      EXPECT_FALSE(c.box.contains(v.camera.eye_m)) << out[i].cluster;
+      EXPECT_FALSE(c.box.contains(v.camera.eye_m)) << out.draws[i].cluster;
     }
   }
 }
@@ -360,7 +370,7 @@ TEST(HdlodSelect, CameraInsideABoxRefines) {
 TEST(HdlodSelect, BadInputSelectsNothing) {
   const Scene s = twoObjects(10);
   const HdlodTree tree = buildHdlod(s);
-  std::vector<Draw> out(drawBound(tree));
+  DrawList out(tree);
   SelectStats st;
   const SelectView good = viewOf({0, 0, 0}, 20, 10.0, 0.0);
   ASSERT_EQ(selectHdlod(tree, s, good, out, &st), 2u);
@@ -396,7 +406,7 @@ TEST(HdlodSelect, BadInputSelectsNothing) {
   v = good;
   v.tolerance_rad = -1;
   EXPECT_EQ(selectHdlod(tree, s, v, out, &st), 2u);
-  EXPECT_EQ(selectHdlod(tree, s, good, std::span<Draw>(out.data(), 1), &st), 1u);
+  EXPECT_EQ(selectHdlod(tree, s, good, std::span<Draw>(out.draws.data(), 1), out.moving, &st), 1u);
   EXPECT_TRUE(st.overflow);
   EXPECT_EQ(st.draws, 2u);
 }
@@ -434,7 +444,7 @@ TEST(HdlodSelect, SiteExactAtZeroAndMonotoneInR) {
   ASSERT_FALSE(s.objects.empty());
   const HdlodTree tree = buildHdlod(s);
   EXPECT_GT(tree.stats.mergedClusters, 10u);
-  std::vector<Draw> out(drawBound(tree)), all(drawBound(tree));
+  DrawList out(tree), all(tree);
   const Cluster& root = tree.clusters[tree.root];
   const glm::dvec3 centre = (root.box.min + root.box.max) * 0.5;
   const double R = 0.5 * glm::length(root.box.max - root.box.min);
@@ -444,7 +454,7 @@ TEST(HdlodSelect, SiteExactAtZeroAndMonotoneInR) {
       const SelectView v = viewOf(centre, dist, t, 0.0);
       const size_t n = selectHdlod(tree, s, v, out);
       const size_t m = selectAll(tree, s, v, all);
-      ASSERT_EQ(sortedClusters({out.data(), n}), sortedClusters({all.data(), m})) << f << " " << dist;
+      ASSERT_EQ(sortedClusters({out.draws.data(), n}), sortedClusters({all.draws.data(), m})) << f << " " << dist;
       const Frustum fr = makeFrustum(v.camera);
       std::vector<uint32_t> brute;
       for (uint32_t i = 0; i < s.objects.size(); ++i) {
@@ -454,7 +464,7 @@ TEST(HdlodSelect, SiteExactAtZeroAndMonotoneInR) {
         if (fr.intersects(Aabb{b.min - v.camera.eye_m, b.max - v.camera.eye_m})) brute.push_back(tree.objectCluster[i]);
       }
       std::sort(brute.begin(), brute.end());
-      EXPECT_EQ(sortedClusters({out.data(), n}), brute) << f << " " << dist;
+      EXPECT_EQ(sortedClusters({out.draws.data(), n}), brute) << f << " " << dist;
     }
   }
   // Monotone in r at the end of construction (all present), the whole site in view.
@@ -504,7 +514,7 @@ TEST(HdlodBuild, HugeCoordinatesKeepPrecision) {
     }
   }
   // Selection at r = 0 near the far site matches the brute force count.
-  std::vector<Draw> out(drawBound(a)), all(drawBound(a));
+  DrawList out(a), all(a);
   const glm::dvec3 centre = (a.clusters[a.root].box.min + a.clusters[a.root].box.max) * 0.5;
   const SelectView v = viewOf(centre, 400, far.duration_s, 0.0);
   EXPECT_EQ(selectHdlod(a, far, v, out), selectAll(a, far, v, all));
@@ -517,7 +527,7 @@ TEST(HdlodSelect, SiteDrawMatricesMatchTheTree) {
   ASSERT_FALSE(s.objects.empty());
   const HdlodTree tree = buildHdlod(s);
   const Cluster& root = tree.clusters[tree.root];
-  std::vector<Draw> out(drawBound(tree));
+  DrawList out(tree);
   const glm::dvec3 centre = (root.box.min + root.box.max) * 0.5;
   const double R = 0.5 * glm::length(root.box.max - root.box.min);
   const double T = s.duration_s;
@@ -527,7 +537,7 @@ TEST(HdlodSelect, SiteDrawMatricesMatchTheTree) {
       const SelectView v = viewOf(centre, 2.0 * R, t, toleranceFromPixels(px, 60, 1000));
       const size_t n = selectHdlod(tree, s, v, out);
       for (size_t k = 0; k < n; ++k) {
-        const Draw& d = out[k];
+        const Draw& d = out.draws[k];
         const Cluster& c = tree.clusters[d.cluster];
         glm::dmat4 expected = tree.leafMatrix[d.cluster];
         if (c.kind == ClusterKind::Dynamic) {
@@ -535,10 +545,178 @@ TEST(HdlodSelect, SiteDrawMatricesMatchTheTree) {
           ++dynamic;
         }
         merged += c.kind == ClusterKind::Merged;
-        ASSERT_EQ(std::memcmp(&d.model, &expected, sizeof expected), 0) << d.cluster << " t " << t << " px " << px;
+        ASSERT_EQ(std::memcmp(d.model, &expected, sizeof expected), 0) << d.cluster << " t " << t << " px " << px;
       }
     }
   }
   EXPECT_GT(merged, 0u);
   EXPECT_GT(dynamic, 0u);
+}
+
+namespace {
+
+// Appendix 1 of paper 000 written plainly over the clusters (hdlod_select.h states the rule):
+// the traversal's records, float boxes and plane masks must decide every test as this does.
+struct ReferenceSelection {
+  const HdlodTree& tree;
+  const Scene& scene;
+  Frustum frustum;
+  glm::dvec3 eye;
+  double t, r2;
+  std::vector<Draw> out;
+
+  static double distance2(const Aabb& b, const glm::dvec3& p) {
+    const glm::dvec3 d = glm::max(glm::max(b.min - p, p - b.max), glm::dvec3(0.0));
+    return d.x * d.x + d.y * d.y + d.z * d.z;
+  }
+  bool inView(const Aabb& b) const { return frustum.intersects(Aabb{b.min - eye, b.max - eye}); }
+  void leaf(uint32_t id, const Cluster& c, const Aabb& box) {
+    uint32_t lod = 0;
+    const auto lods = tree.lodsOf(c.mesh);
+    for (size_t k = 0; k < lods.size() && r2 > 0.0; ++k) {
+      if (!(lods[k].eps_m * lods[k].eps_m < r2 * distance2(box, eye))) break;
+      lod = static_cast<uint32_t>(k + 1);
+    }
+    out.push_back({id, lod, nullptr});
+  }
+  void visit(uint32_t id) {
+    const Cluster& c = tree.clusters[id];
+    const double f = clusterPresence(tree, c, t);
+    if (f == 0.0 || !inView(c.box)) return;
+    if (c.kind == ClusterKind::Dynamic) {
+      const Object& o = scene.objects[c.object];
+      const glm::dmat4 m = objectMatrix(o, t, tree.duration_s);
+      const Aabb box = transformBox(scene.models[o.model].box, m);
+      if (inView(box)) leaf(id, c, box);
+      return;
+    }
+    if (c.kind == ClusterKind::Object) return leaf(id, c, c.box);
+    if (c.kind == ClusterKind::Merged) {
+      const double delta = clusterDelta(tree, c, t);
+      if (delta * delta < r2 * distance2(c.box, eye)) {
+        if (f >= 0.5) out.push_back({id, 0, nullptr});
+        return;
+      }
+    }
+    for (uint32_t child : tree.childrenOf(c)) visit(child);
+  }
+};
+
+// Compares selectHdlod with the reference on `views`; returns the draws compared.
+size_t expectSameAsReference(const HdlodTree& tree, const Scene& s, const std::vector<SelectView>& views) {
+  DrawList out(tree);
+  size_t compared = 0;
+  for (size_t i = 0; i < views.size(); ++i) {
+    const SelectView& v = views[i];
+    const double r = std::max(v.tolerance_rad, 0.0);
+    ReferenceSelection ref{tree, s, makeFrustum(v.camera), v.camera.eye_m, clampTime(v.time_s, s.duration_s), r * r, {}};
+    ref.visit(tree.root);
+    const size_t n = selectHdlod(tree, s, v, out);
+    EXPECT_EQ(n, ref.out.size()) << "view " << i;
+    for (size_t k = 0; k < std::min(n, ref.out.size()); ++k) {
+      EXPECT_EQ(out.draws[k].cluster, ref.out[k].cluster) << "view " << i << " draw " << k;
+      EXPECT_EQ(out.draws[k].lod, ref.out[k].lod) << "view " << i << " draw " << k;
+      if (out.draws[k].cluster != ref.out[k].cluster) break;
+    }
+    compared += n;
+  }
+  return compared;
+}
+
+// Views of the site: random eyes in and around it looking anywhere, and eyes placed where the
+// float boxes of the traversal leave a test undecided and the cluster record decides: the near
+// plane through a cluster's face, the eye on a box corner, the eye at the distance where a
+// merged cluster's delta or a model version's eps equals r x distance.
+std::vector<SelectView> testViews(const HdlodTree& tree, const Scene& s, uint32_t seed) {
+  uint32_t state = seed;
+  auto next = [&] {
+    state = state * 1664525u + 1013904223u;
+    return (state >> 8) * (1.0 / 16777216.0);
+  };
+  const Cluster& root = tree.clusters[tree.root];
+  const glm::dvec3 size = root.box.max - root.box.min;
+  std::vector<SelectView> views;
+  for (int i = 0; i < 480; ++i) {
+    SelectView v;
+    v.camera.fovY_deg = 20 + 100 * next();
+    v.camera.aspect = 0.5 + 2 * next();
+    v.camera.near_m = i % 7 == 0 ? 0.1 : 0.1 + 5 * next();
+    v.camera.far_m = i % 5 == 0 ? 1e5 : v.camera.near_m + 3 * glm::length(size) * next();
+    v.camera.heading_deg = 360 * next();
+    v.camera.pitch_deg = -80 + 160 * next();
+    v.camera.roll_deg = i % 3 == 0 ? 0.0 : 90 * next();
+    v.time_s = (-0.1 + 1.2 * next()) * s.duration_s;
+    v.tolerance_rad = toleranceFromPixels(i % 4 == 0 ? 0.0 : 30 * next() * next(), 60, 1000);
+    const Cluster& c = tree.clusters[static_cast<size_t>(next() * static_cast<double>(tree.clusters.size()))];
+    // Some at 0, at T and exactly at one of c's step times (the steps are half-open).
+    if (i % 10 == 0) v.time_s = i % 20 == 0 ? 0.0 : s.duration_s;
+    if (i % 5 == 4 && c.stepCount > 1) v.time_s = tree.stepTimes[c.stepBegin + 1 + static_cast<size_t>(next() * (c.stepCount - 1))];
+    const auto lods = c.kind == ClusterKind::Object ? tree.lodsOf(c.mesh) : std::span<const ModelLod>{};
+    const double r = v.tolerance_rad;
+    double threshold = 0.0;  // distance at which c's test flips
+    if (c.kind == ClusterKind::Merged && r > 0.0) threshold = clusterDelta(tree, c, v.time_s) / r;
+    if (c.kind == ClusterKind::Object && r > 0.0 && !lods.empty()) threshold = lods[static_cast<size_t>(next() * lods.size())].eps_m / r;
+    if (i % 4 == 3 && threshold > 0.0) {
+      v.camera.heading_deg = v.camera.pitch_deg = v.camera.roll_deg = 0.0;
+      v.camera.near_m = 0.1;
+      const glm::dvec3 mid = 0.5 * (c.box.min + c.box.max);
+      v.camera.eye_m = {mid.x, c.box.min.y - threshold, mid.z};
+    } else if (i % 3 == 1) {
+      // Heading 0, level: the near plane is y = eye.y + near, here through the box's south face.
+      v.camera.heading_deg = v.camera.pitch_deg = v.camera.roll_deg = 0.0;
+      v.camera.eye_m = {c.box.min.x + (c.box.max.x - c.box.min.x) * next(), c.box.min.y - v.camera.near_m, c.box.min.z};
+    } else if (i % 3 == 2) {
+      v.camera.eye_m = i % 2 ? c.box.max : c.box.min;
+    } else {
+      v.camera.eye_m = root.box.min - 0.5 * size + 2.0 * size * glm::dvec3(next(), next(), next());
+    }
+    views.push_back(v);
+  }
+  return views;
+}
+
+}  // namespace
+
+// The traversal (one 64-byte record per cluster with a widened float box, plane masks, distance
+// bounds) selects exactly the draws, in the same order and with the same model versions, as
+// the rule evaluated on the clusters' double boxes, on the site near the origin and 1e6 m away.
+TEST(HdlodSelect, TraversalRecordsDecideExactlyAsTheClusters) {
+  for (const glm::dvec3 origin : {glm::dvec3(0.0), glm::dvec3(1.0e6, -2.0e6, 300.0)}) {
+    SiteParams p;
+    p.scale = 0.05;
+    p.loadsPerFloor = 40;
+    p.origin_m = origin;
+    std::string error;
+    const Scene s = makeConstructionSite(p, error);
+    ASSERT_EQ(error, "");
+    const HdlodTree tree = buildHdlod(s);
+    ASSERT_EQ(tree.selectRecords.size(), tree.children.size() + 1);
+    EXPECT_GE(tree.selectWidenMin_m, 1e-4);
+    EXPECT_LT(tree.selectWidenMax_m, 1e-2);
+    EXPECT_GT(expectSameAsReference(tree, s, testViews(tree, s, 7)), 5000u) << origin.x;
+  }
+}
+
+// A tree whose derived records are missing or stale (not from buildHdlod or the cache loader)
+// selects nothing rather than reading past them; a child listed twice is not a tree.
+TEST(HdlodSelect, UnpreparedOrBrokenTreesSelectNothing) {
+  const Scene s = twoObjects(100.0);
+  HdlodTree tree = buildHdlod(s);
+  DrawList out(tree);
+  const SelectView v = viewOf({0.75, 0, 0}, 20, 100, 0.0);
+  EXPECT_EQ(selectHdlod(tree, s, v, out), 2u);
+  HdlodTree stale = tree;
+  stale.selectRecords.pop_back();
+  EXPECT_EQ(selectHdlod(stale, s, v, out), 0u);
+  HdlodTree twice = tree;
+  ASSERT_GE(twice.children.size(), 2u);
+  twice.children[1] = twice.children[0];
+  EXPECT_FALSE(prepareSelection(twice));
+  EXPECT_TRUE(twice.selectRecords.empty());
+  EXPECT_EQ(selectHdlod(twice, s, v, out), 0u);
+  HdlodTree rootAsChild = tree;
+  rootAsChild.children[0] = rootAsChild.root;
+  EXPECT_FALSE(prepareSelection(rootAsChild));
+  EXPECT_TRUE(prepareSelection(tree));
+  EXPECT_EQ(selectHdlod(tree, s, v, out), 2u);
 }
