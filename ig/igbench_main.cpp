@@ -16,7 +16,6 @@
 #include "ig/bench_perfmodel.h"
 #include "ig/bench_terrain.h"
 #include "ig/clock.h"
-#include "ig/realtime.h"
 #include "ig/service.h"
 
 namespace {
@@ -387,10 +386,6 @@ int main(int argc, char** argv) {
                 "Measure frame work in process CPU time (all threads) instead of wall time, for shared machines");
   gov->add_flag("--json", govOptions.json, "Print one JSON object instead of the human summary");
   if (const auto rc = ig::parseCommandLine(app, argc, argv)) return *rc;
-  // As igd runs (ig/realtime.h): glibc keeps freed memory for reuse instead of returning it to
-  // the kernel, so llvmpipe's per-frame allocations do not page-fault every frame. Before any GL
-  // context is made.
-  ig::keepFreedMemory();
   if (perf->parsed()) {
     for (size_t i = 0; i < perfSizes.size();) {
       size_t j = perfSizes.find(',', i);
