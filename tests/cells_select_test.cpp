@@ -178,6 +178,29 @@ Frame runSelect(CellSelector& sel, const CellTree& t, const CellView& v, std::sp
   return f;
 }
 
+std::vector<uint32_t> sortedCells(std::span<const CellDraw> draws) {
+  std::vector<uint32_t> cells;
+  for (const CellDraw& d : draws) cells.push_back(d.cell);
+  std::sort(cells.begin(), cells.end());
+  return cells;
+}
+
+// One frame of the incremental selector `sel` against a fresh selector for the same view: the
+// same feasibility, largest voxel, voxel count and set of drawn cells, and a valid realization.
+// `f` is the incremental frame.
+void expectSameAsFresh(const CellTree& t, CellSelector& sel, const CellView& v, const std::string& what, Frame& f) {
+  f = runSelect(sel, t, v);
+  CellSelector fresh(t);
+  const Frame g = runSelect(fresh, t, v);
+  ASSERT_TRUE(f.stats.valid && g.stats.valid) << what;
+  ASSERT_EQ(f.stats.feasible, g.stats.feasible) << what;
+  EXPECT_EQ(f.stats.maxVoxel_px, g.stats.maxVoxel_px) << what;
+  EXPECT_EQ(f.stats.drawnVoxels, g.stats.drawnVoxels) << what;
+  ASSERT_EQ(sortedCells(f.draw), sortedCells(g.draw)) << what;
+  expectValidRealization(t, sel);
+  EXPECT_EQ(f.stats.cutCells, g.stats.cutCells) << what;
+}
+
 void expectOptimal(const CellTree& t, const CellView& v, const CellSelectStats& s, const std::string& what) {
   const std::vector<Cut> cuts = allCuts(t, v, 0);
   bool feasible = false;
@@ -301,24 +324,12 @@ TEST(CellSelect, IncrementalDrawsTheSameCellsAsFromScratch) {
       }
       if (frame % 7 == 3) v.voxelBudget = v.voxelBudget * (70 + rng() % 61) / 100;
       if (frame % 11 == 5) v.minVoxel_px = v.minVoxel_px > 0.0 ? 0.0 : 2.0;
-      const Frame f = runSelect(sel, t, v);
-      CellSelector fresh(t);
-      const Frame g = runSelect(fresh, t, v);
       const std::string what = "trial " + std::to_string(trial) + " frame " + std::to_string(frame);
-      ASSERT_TRUE(f.stats.valid && g.stats.valid) << what;
-      ASSERT_EQ(f.stats.feasible, g.stats.feasible) << what;
-      EXPECT_EQ(f.stats.maxVoxel_px, g.stats.maxVoxel_px) << what;
-      EXPECT_EQ(f.stats.drawnVoxels, g.stats.drawnVoxels) << what;
-      EXPECT_EQ(f.stats.cutCells, g.stats.cutCells) << what;
-      std::vector<uint32_t> a, b;
-      for (const CellDraw& d : f.draw) a.push_back(d.cell);
-      for (const CellDraw& d : g.draw) b.push_back(d.cell);
-      std::sort(a.begin(), a.end());
-      std::sort(b.begin(), b.end());
-      ASSERT_EQ(a, b) << what;
+      Frame f;
+      expectSameAsFresh(t, sel, v, what, f);
       for (size_t i = 0; i < f.draw.size(); ++i)
         EXPECT_EQ(f.draw[i].voxel_px, evaluateCell(t, f.draw[i].cell, v).voxel_px) << what;
-      expectValidRealization(t, sel);
+      const std::vector<uint32_t> a = sortedCells(f.draw);
       if (a != last) ++differentCuts;
       last = a;
       if (f.stats.cutCells > f.stats.drawnCells) ++invisible;
@@ -364,25 +375,11 @@ TEST(CellSelect, IncrementalEqualsFromScratchOnDeepTrees) {
       v.camera.eye_m += glm::dvec3(0.002, 0.001, -0.0005) * static_cast<double>(frame);
       v.camera.heading_deg = 9.0 * frame;
       v.camera.pitch_deg = -30.0 + 2.0 * frame;
-      const Frame f = runSelect(sel, t, v);
-      CellSelector fresh(t);
-      const Frame g = runSelect(fresh, t, v);
       const std::string what = "trial " + std::to_string(trial) + " frame " + std::to_string(frame);
-      ASSERT_TRUE(f.stats.valid && g.stats.valid) << what;
-      ASSERT_EQ(f.stats.feasible, g.stats.feasible) << what;
-      EXPECT_EQ(f.stats.maxVoxel_px, g.stats.maxVoxel_px) << what;
-      EXPECT_EQ(f.stats.drawnVoxels, g.stats.drawnVoxels) << what;
-      std::vector<uint32_t> a, b;
+      Frame f;
+      expectSameAsFresh(t, sel, v, what, f);
       int deepest = 0;
-      for (const CellDraw& d : f.draw) {
-        a.push_back(d.cell);
-        deepest = std::max(deepest, t.level(d.cell));
-      }
-      for (const CellDraw& d : g.draw) b.push_back(d.cell);
-      std::sort(a.begin(), a.end());
-      std::sort(b.begin(), b.end());
-      ASSERT_EQ(a, b) << what;
-      expectValidRealization(t, sel);
+      for (const CellDraw& d : f.draw) deepest = std::max(deepest, t.level(d.cell));
       if (deepest >= 12) ++deep;
       ++frames;
     }
