@@ -64,6 +64,7 @@
 #pragma once
 
 #include <cstdint>
+#include <cstdlib>
 #include <functional>
 #include <new>
 #include <span>
@@ -183,15 +184,24 @@ struct alignas(64) SelectRecord {
 };
 static_assert(sizeof(SelectRecord) == 64);
 
-// Allocates on cache-line boundaries (a 128-byte matrix then spans two lines, not three).
+// Memory for the arrays a selection walks: 64-byte aligned (a 128-byte matrix spans two lines,
+// not three); 1 MiB and more also 2 MiB aligned and advised as transparent huge pages, so that
+// with cold caches and TLBs (after a rendered llvmpipe frame) the traversal does not take a page
+// walk for every record it visits. Freed with selectionFree().
+void* selectionAllocate(size_t bytes);
+void selectionFree(void* p);
+
 template <class T>
 struct CacheLineAllocator {
   using value_type = T;
   CacheLineAllocator() = default;
   template <class U>
   CacheLineAllocator(const CacheLineAllocator<U>&) {}
-  T* allocate(size_t n) { return static_cast<T*>(::operator new(n * sizeof(T), std::align_val_t{64})); }
-  void deallocate(T* p, size_t) { ::operator delete(p, std::align_val_t{64}); }
+  T* allocate(size_t n) {
+    if (n > SIZE_MAX / sizeof(T)) throw std::bad_array_new_length();
+    return static_cast<T*>(selectionAllocate(n * sizeof(T)));
+  }
+  void deallocate(T* p, size_t) { selectionFree(p); }
   template <class U>
   bool operator==(const CacheLineAllocator<U>&) const { return true; }
 };
@@ -217,8 +227,8 @@ struct HdlodTree {
   // value) pairs in record order, for the records whose steps are not inline; the records'
   // boxes are relative to selectOrigin_m (the root box's centre) and each side is widened
   // outward by at least selectWidenMin_m and at most selectWidenMax_m.
-  std::vector<SelectRecord> selectRecords;
-  std::vector<glm::dvec2> selectSteps;
+  std::vector<SelectRecord, CacheLineAllocator<SelectRecord>> selectRecords;
+  std::vector<glm::dvec2, CacheLineAllocator<glm::dvec2>> selectSteps;
   glm::dvec3 selectOrigin_m{0.0};
   double selectWidenMin_m = 0.0, selectWidenMax_m = 0.0;
 

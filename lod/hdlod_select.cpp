@@ -5,6 +5,9 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <new>
+
+#include <sys/mman.h>
 #include <limits>
 #include <vector>
 
@@ -332,6 +335,20 @@ size_t run(const HdlodTree& tree, const Scene& scene, const SelectView& view, st
 }
 
 }  // namespace
+
+void* selectionAllocate(size_t bytes) {
+  constexpr size_t kHuge = size_t{2} << 20;
+  const size_t align = bytes >= (size_t{1} << 20) ? kHuge : 64;
+  const size_t rounded = (std::max<size_t>(bytes, 1) + align - 1) / align * align;
+  void* p = std::aligned_alloc(align, rounded);
+  if (!p) throw std::bad_alloc();
+#ifdef MADV_HUGEPAGE
+  if (align == kHuge) ::madvise(p, rounded, MADV_HUGEPAGE);  // advice only: ignored where THP is off
+#endif
+  return p;
+}
+
+void selectionFree(void* p) { std::free(p); }
 
 bool prepareSelection(HdlodTree& tree) {
   tree.selectRecords.clear();
