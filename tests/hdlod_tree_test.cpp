@@ -655,7 +655,7 @@ std::vector<SelectView> testViews(const HdlodTree& tree, const Scene& s, uint32_
     const double r = v.tolerance_rad;
     double threshold = 0.0;  // distance at which c's test flips
     if (c.kind == ClusterKind::Merged && r > 0.0) threshold = clusterDelta(tree, c, v.time_s) / r;
-    if (c.kind == ClusterKind::Object && r > 0.0 && !lods.empty()) threshold = lods[static_cast<size_t>(next() * lods.size())].eps_m / r;
+    if (c.kind == ClusterKind::Object && r > 0.0 && !lods.empty()) threshold = lods[static_cast<size_t>(next() * static_cast<double>(lods.size()))].eps_m / r;
     if (i % 4 == 3 && threshold > 0.0) {
       v.camera.heading_deg = v.camera.pitch_deg = v.camera.roll_deg = 0.0;
       v.camera.near_m = 0.1;
