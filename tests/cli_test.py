@@ -494,11 +494,23 @@ class Control(Tmp):
         # against 1 us, every frame before against the 100 ms period was not.
         after = [r for f, r in by_frame.items() if f > reload_frame]
         self.assertTrue(after and all(r["overrun"] == "1" for r in after), "budget.frame_ms was not applied")
-        # No frame was dropped around the reload: the frames from 3 before to 3 after are all there
-        # and none ran into the next slot.
+        # No frame was dropped because of the reload: from 3 frames before to 3 after, a frame ran
+        # into the next slot only when its own work took longer than the period (a loaded machine,
+        # e.g. the sanitizer build next to other tests), and a missing frame number is a slot the
+        # frame before it ran past. On an idle machine (work ~10 ms of 100) all are there.
         for f in range(max(0, reload_frame - 3), reload_frame + 4):
-            self.assertIn(f, by_frame, f"frame {f} missing around the reload at frame {reload_frame}")
-            self.assertEqual(by_frame[f]["missed_slots"], "0", f"frame {f} missed slots around the reload")
+            r = by_frame.get(f)
+            if r is None:
+                before = [p for p in by_frame if p < f]
+                self.assertTrue(before, f"frame {f} missing around the reload at frame {reload_frame}")
+                p = max(before)
+                self.assertGreaterEqual(p + int(by_frame[p]["missed_slots"]), f,
+                                        f"frame {f} missing around the reload at frame {reload_frame}, not skipped by frame {p}")
+                r = by_frame[p]
+            if r["missed_slots"] != "0":
+                self.assertGreater(float(r["work_ms"]), float(r["period_ms"]),
+                                   f"frame {r['frame']} missed a slot around the reload at frame {reload_frame} "
+                                   f"though its work fit the period: {r}")
 
     def test_status_file(self):
         config, _ = self.configs()
