@@ -156,6 +156,7 @@ struct FrameRow {
   bool overrun = false;
   bool afterStep = false;  // a jump of the eye in this frame or the three before
   double cpu_ms = 0;       // process CPU time over the frame (all threads)
+  bool capped = false;     // ROAM stopped at the governor's load cap
 };
 
 // One configuration: its own ROAM, triangle slots and renderer (FBO + mapped vertex buffer).
@@ -168,6 +169,7 @@ struct Run {
   render::Renderer renderer;
   std::span<lod::TerrainVertex> gpu;
   lod::UnitCost opCost{2000.0};
+  double meshPerVisible = 1.0;  // ROAM's mesh over the visible triangles, last frame
   std::vector<FrameRow> rows;
 
   explicit Run(const Relief& r) : relief(r) {}
@@ -189,11 +191,13 @@ struct Run {
   struct Phases {
     double terrain_ms = 0, submit_ms = 0, gpu_ms = 0, frame_ms = 0, cpu_ms = 0;
     uint64_t triangles = 0;
+    bool capped = false;  // ROAM stopped at the triangle cap
   };
   // One frame: ROAM update within `budget`, emit the visible triangles, upload what changed,
-  // draw, glFinish. Wall-clock phase times.
+  // draw, glFinish. Wall-clock phase times. `visibleCap`: the governor's cap on the visible
+  // triangles (+inf: none), turned into ROAM's mesh cap by the last frame's mesh / visible ratio.
   Phases frame(const lod::Camera& cam, double tolerance_px, lod::WorkBudget budget, int height_px,
-               const render::Lighting& light) {
+               const render::Lighting& light, double visibleCap = std::numeric_limits<double>::infinity()) {
     Phases p;
     const double cpu0 = processCpuMs();
     const int64_t t0 = nowNs();
@@ -202,10 +206,12 @@ struct Run {
     view.viewportHeight_px = height_px;
     view.tolerance_px = tolerance_px;
     view.maxOperations = budget.operations(nowNs(), opCost.ns());
+    if (visibleCap < 1e18) view.maxTriangles = std::max<uint64_t>(2 * roam->baseTriangles(), static_cast<uint64_t>(visibleCap * meshPerVisible));
     const int64_t u0 = nowNs();
     const lod::RoamStats st = roam->update(view, lod::RoamMode::EnhMerge);
     opCost.observe(static_cast<uint64_t>(st.splits) + st.merges + st.enhMerges, nowNs() - u0);
     const size_t n = roam->emitVisible(cam, triangles);
+    meshPerVisible = n > 0 ? std::max(1.0, static_cast<double>(st.triangles) / static_cast<double>(n)) : 1.0;
     // As the service: the buffer is drawn up to the slots' high-water mark (freed slots are
     // degenerate triangles), which never shrinks. (Compacting by building a new TriangleSlots
     // costs ~130 ms on the shared machine: it wants a TriangleSlots::clear().)
@@ -231,6 +237,7 @@ struct Run {
     p.frame_ms = msBetween(t0, t3);
     p.cpu_ms = processCpuMs() - cpu0;
     p.triangles = n;
+    p.capped = st.triangleCapped;
     return p;
   }
 };
@@ -333,6 +340,7 @@ int runGovernorBench(const GovernorBenchOptions& o0) {
   knob.max = o.maxTolerance_px;
   knob.loadExponent = -1.5;  // ROAM on this relief: triangles ~ tolerance^-1.2 ... -1.6
   knob.loadUnit = 1e5;
+  gc.spikeWindow_frames = o.spikeWindow_frames;
   if (const std::string why = lod::Governor::validate(gc); !why.empty()) {
     std::fprintf(stderr, "igbench governor: governor config: %s\n", why.c_str());
     return 2;
@@ -358,22 +366,12 @@ int runGovernorBench(const GovernorBenchOptions& o0) {
   }
   const double loadAvgStart = loadAverage();
 
-  // Settle: the first view refined to the scene's tolerance (not timed, not counted), so both
-  // runs start from a converged mesh and compiled shaders.
-  const lod::Camera first = flightCamera(relief, 0.0, lap_s, aspect);
-  for (int i = 0; i < (o.quick ? 10 : 30); ++i) {
-    governed.frame(first, governor.knob(lod::GovLayer::Terrain), {}, o.height_px, light);
-    fixed.frame(first, o.tolerance_px, {}, o.height_px, light);
-  }
-
-  std::vector<double> predictionError;
-  for (int f = 0; f < frames; ++f) {
-    const lod::Camera cam = flightCamera(relief, f / o.rate_hz, lap_s, aspect);
-    // Governed: the knob and the deferrable-work deadline come from the governor.
-    const double tol = governor.knob(lod::GovLayer::Terrain);
-    const double predicted = governor.predicted_ms();
+  // One governed frame: the knob, the deferrable-work deadline and the load cap come from the
+  // governor, which then learns from the frame.
+  const auto governedFrame = [&](const lod::Camera& cam) {
     const lod::WorkBudget budget = governor.workBudget(lod::GovPhase::Terrain, nowNs(), {&readNs, nullptr});
-    const Run::Phases g = governed.frame(cam, tol, budget, o.height_px, light);
+    const Run::Phases g = governed.frame(cam, governor.knob(lod::GovLayer::Terrain), budget, o.height_px, light,
+                                         o.noLoadCap ? std::numeric_limits<double>::infinity() : governor.loadCap(lod::GovLayer::Terrain));
     lod::GovSample s;
     s.phase_ms[static_cast<size_t>(lod::GovPhase::Input)] = 0.0;
     s.phase_ms[static_cast<size_t>(lod::GovPhase::Terrain)] = g.terrain_ms;
@@ -382,11 +380,30 @@ int runGovernorBench(const GovernorBenchOptions& o0) {
     s.load[static_cast<size_t>(lod::GovLayer::Terrain)] = static_cast<double>(g.triangles);
     s.frame_ms = g.frame_ms;
     governor.update(s);
+    return g;
+  };
+
+  // Settle (not timed, not counted): both runs start from the first view refined and shaders
+  // compiled; the fixed run converged at its tolerance, the governed one under its governor from
+  // the first settle frame on, as in a service that has been running before the flight starts
+  // (its cold start, the warm-up frames, is not what the swing replay measures).
+  const lod::Camera first = flightCamera(relief, 0.0, lap_s, aspect);
+  for (int i = 0; i < (o.quick ? 10 : 30); ++i) {
+    governedFrame(first);
+    fixed.frame(first, o.tolerance_px, {}, o.height_px, light);
+  }
+
+  std::vector<double> predictionError;
+  for (int f = 0; f < frames; ++f) {
+    const lod::Camera cam = flightCamera(relief, f / o.rate_hz, lap_s, aspect);
+    const double tol = governor.knob(lod::GovLayer::Terrain);
+    const double predicted = governor.predicted_ms();
+    const Run::Phases g = governedFrame(cam);
     // The step frame and the three after it: ROAM under its work budget takes a few frames to
     // refine the new view, so the load of a jump arrives over those frames.
     bool afterStep = false;
     for (int k = 0; k <= 3 && k <= f; ++k) afterStep = afterStep || flightStep(f - k, o.rate_hz, lap_s);
-    governed.rows.push_back({g.frame_ms, predicted, tol, g.triangles, g.frame_ms > budget_ms, afterStep, g.cpu_ms});
+    governed.rows.push_back({g.frame_ms, predicted, tol, g.triangles, g.frame_ms > budget_ms, afterStep, g.cpu_ms, g.capped});
     if (f > 0) predictionError.push_back(std::abs(g.frame_ms - predicted));
     // Fixed: the scene's tolerance and the service's ROAM work budget.
     const lod::WorkBudget fixedBudget =
@@ -401,6 +418,8 @@ int runGovernorBench(const GovernorBenchOptions& o0) {
   }
 
   Summary gs = summarize(governed.rows, budget_ms);
+  int64_t cappedFrames = 0;
+  for (const FrameRow& r : governed.rows) cappedFrames += r.capped ? 1 : 0;
   const Summary fs = summarize(fixed.rows, budget_ms);
   for (const FrameRow& r : governed.rows) gs.overrunsAtCoarsest += r.overrun && r.tolerance_px >= o.maxTolerance_px ? 1 : 0;
   const double loadAvgEnd = loadAverage();
@@ -430,11 +449,13 @@ int runGovernorBench(const GovernorBenchOptions& o0) {
     std::snprintf(buf, sizeof buf,
                   "\"prediction_error_ms_p50\":%.3f,\"prediction_error_ms_p99\":%.3f,\"emergencies\":%lld,"
                   "\"decreases\":%lld,\"increases\":%lld,\"direction_changes\":%lld,\"load_swing\":%.2f,"
-                  "\"load_light_triangles\":%.0f,\"load_heavy_triangles\":%.0f,",
+                  "\"load_light_triangles\":%.0f,\"load_heavy_triangles\":%.0f,\"load_cap\":%s,\"capped_frames\":%lld,"
+                  "\"spike_window_frames\":%d,\"spike_ms\":%.3f,",
                   percentile(predictionError, 50), percentile(predictionError, 99),
                   static_cast<long long>(st.emergencies), static_cast<long long>(st.decreases),
                   static_cast<long long>(st.increases), static_cast<long long>(st.directionChanges[0]), swing,
-                  lightLoad, heavyLoad);
+                  lightLoad, heavyLoad, o.noLoadCap ? "false" : "true", static_cast<long long>(cappedFrames),
+                  o.spikeWindow_frames, st.spike_ms);
     json += buf;
     std::snprintf(buf, sizeof buf,
                   "\"fixed\":{\"tolerance_px\":%.3f,\"frames\":%zu,\"overruns\":%lld,\"overrun_pct\":%.3f,"
@@ -448,10 +469,10 @@ int runGovernorBench(const GovernorBenchOptions& o0) {
       const FrameRow& r = governed.rows[i];
       std::snprintf(buf, sizeof buf,
                     "%s{\"frame\":%zu,\"ms\":%.3f,\"predicted_ms\":%.3f,\"tolerance_px\":%.4f,\"triangles\":%llu,"
-                    "\"fixed_ms\":%.3f,\"fixed_triangles\":%llu,\"cpu_ms\":%.3f,\"fixed_cpu_ms\":%.3f}",
+                    "\"fixed_ms\":%.3f,\"fixed_triangles\":%llu,\"cpu_ms\":%.3f,\"fixed_cpu_ms\":%.3f,\"capped\":%d}",
                     i ? "," : "", i, r.ms, r.predicted_ms, r.tolerance_px, static_cast<unsigned long long>(r.triangles),
                     fixed.rows[i].ms, static_cast<unsigned long long>(fixed.rows[i].triangles), r.cpu_ms,
-                    fixed.rows[i].cpu_ms);
+                    fixed.rows[i].cpu_ms, r.capped ? 1 : 0);
       json += buf;
     }
     json += "]}";

@@ -36,6 +36,10 @@ struct GovernorBenchOptions {
   // (all threads) instead of wall time: the work the frame needed, without the time it waited
   // for CPUs that other processes held. For a shared machine; production is wall time.
   bool cpuTime = false;
+  // The governed run without the governor's load cap (ROAM's triangle cap): knobs alone, as
+  // before the caps, for comparison.
+  bool noLoadCap = false;
+  int spikeWindow_frames = 0;      // the governor's spike headroom window; 0 = off
   bool json = false;
   std::string plotFile;            // "": no plot; else a PNG of the tolerance trace
 };

@@ -543,7 +543,7 @@ bool parseService(const std::string& text, const std::string& name, const std::s
 
   const Table gov = r.table(root, "governor", {"enabled", "decrease_above", "increase_below", "margin_sigmas",
                                               "max_decrease", "max_increase", "raise_interval_frames",
-                                              "hold_after_decrease_frames", "terrain"});
+                                              "hold_after_decrease_frames", "spike_window_frames", "terrain"});
   GovernorSettings& g = cfg.governor;
   r.get(gov, "enabled", g.enabled);
   r.get(gov, "decrease_above", g.decreaseAbove, openClosed(0.0, 1.5));
@@ -553,6 +553,7 @@ bool parseService(const std::string& text, const std::string& name, const std::s
   r.get(gov, "max_increase", g.maxIncrease, closed(1.001, 4.0));
   r.get(gov, "raise_interval_frames", g.raiseInterval_frames, IntRange{1, 100000});
   r.get(gov, "hold_after_decrease_frames", g.holdAfterDecrease_frames, IntRange{0, 100000});
+  r.get(gov, "spike_window_frames", g.spikeWindow_frames, IntRange{0, 1000000});
   const Table govTerrain = r.table(gov, "terrain", {"min_px", "max_px", "load_exponent"});
   r.get(govTerrain, "min_px", g.terrainMin_px, closed(0.0, 1000.0));
   r.get(govTerrain, "max_px", g.terrainMax_px, openClosed(0.0, 1000.0));

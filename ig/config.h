@@ -45,6 +45,7 @@ struct GovernorSettings {
   double maxIncrease = 1.1;           // largest load multiplier of one raise
   int raiseInterval_frames = 6;
   int holdAfterDecrease_frames = 30;
+  int spikeWindow_frames = 0;         // spike headroom (lod::GovernorConfig::spikeWindow_frames); 0 = off
   double terrainMin_px = 0.0;         // [governor.terrain] min_px; 0 = the scene's tolerance_px
   double terrainMax_px = 32.0;
   double terrainLoadExponent = -1.5;

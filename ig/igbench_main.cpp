@@ -384,6 +384,11 @@ int main(int argc, char** argv) {
   gov->add_flag("--quick", govOptions.quick, "CI size: 513 posts, one 6 s lap");
   gov->add_flag("--cpu-time", govOptions.cpuTime,
                 "Measure frame work in process CPU time (all threads) instead of wall time, for shared machines");
+  gov->add_option("--spike-window", govOptions.spikeWindow_frames,
+                  "Governor's spike headroom: frames over which the largest excess over the prediction is kept (0 = off)")
+      ->capture_default_str()->check(CLI::Range(0, 1000000));
+  gov->add_flag("--no-load-cap", govOptions.noLoadCap,
+                "Governed run without the governor's load cap (ROAM's triangle cap while it converges): knobs alone");
   gov->add_flag("--json", govOptions.json, "Print one JSON object instead of the human summary");
   if (const auto rc = ig::parseCommandLine(app, argc, argv)) return *rc;
   if (perf->parsed()) {

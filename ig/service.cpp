@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <cstdlib>
 #include <filesystem>
 #include <span>
@@ -113,6 +114,10 @@ struct TerrainMeshLayer {
   double nsPerVisit = 100.0;       // Deferred: the same for node visits
   uint64_t maxTriangles = 0;       // ROAM mesh cap (Deferred: the whole surroundings)
   uint64_t meshCap = 0;            // Deferred: this frame's cap, lowered while the view overflows the slots
+  // The governor's cap on the visible triangles (lod::Governor::loadCap; +inf: none), turned into
+  // a cap on ROAM's mesh by the last frame's mesh / visible ratio.
+  double visibleCap = std::numeric_limits<double>::infinity();
+  double meshPerVisible = 1.0;
 
   static constexpr int32_t kFreeSlot = INT32_MIN;
 
@@ -174,10 +179,14 @@ struct TerrainMeshLayer {
     size_t n = 0;
     if (roam) {
       const int64_t t0 = clock ? clock->now_ns() : 0;
+      if (roamMode == lod::RoamMode::Deferred) view.maxTriangles = meshCap;
+      if (std::isfinite(visibleCap)) {
+        const auto limit = static_cast<uint64_t>(std::max(2.0 * static_cast<double>(roam->baseTriangles()), visibleCap * meshPerVisible));
+        view.maxTriangles = view.maxTriangles != 0 ? std::min(view.maxTriangles, limit) : limit;
+      }
       if (roamMode == lod::RoamMode::Deferred) {
         // Work in node visits, from the time budget and the measured time per visit; what is
         // left stays queued for the next frame (the mesh is valid at every stop).
-        view.maxTriangles = meshCap;
         if (clock && budget_ms > 0.0)
           view.maxVisits = static_cast<uint32_t>(std::clamp(budget_ms * 1e6 / nsPerVisit, 1024.0, 1e9));
         const lod::RoamStats st = roam->update(view, lod::RoamMode::Deferred);
@@ -200,6 +209,7 @@ struct TerrainMeshLayer {
         }
       }
       n = roam->emitVisible(cam, std::span(triangles.get(), triangleRoom));
+      meshPerVisible = n > 0 ? std::max(1.0, static_cast<double>(roam->triangleCount()) / static_cast<double>(n)) : 1.0;
       if (roamMode == lod::RoamMode::Deferred) {
         // Deferred refines the whole surroundings: keep the visible part within the slots by
         // lowering the mesh cap while it overflows, raising it back slowly.
@@ -435,6 +445,7 @@ struct Service::Impl {
     c.decreaseAbove = g.decreaseAbove;
     c.increaseBelow = g.increaseBelow;
     c.marginSigmas = g.marginSigmas;
+    c.spikeWindow_frames = g.spikeWindow_frames;
     c.maxDecrease = g.maxDecrease;
     c.maxIncrease = g.maxIncrease;
     c.raiseInterval_frames = g.raiseInterval_frames;
@@ -488,6 +499,7 @@ struct Service::Impl {
         const double phase_ms = governor->phaseBudget_ms(lod::GovPhase::Terrain);
         const double own_ms = scene.terrain ? scene.terrain->lodBudget_ms : 0.0;
         terrainMesh->budget_ms = own_ms > 0.0 ? std::min(own_ms, phase_ms) : phase_ms;
+        terrainMesh->visibleCap = governor->loadCap(lod::GovLayer::Terrain);
       }
       terrainMesh->select(cam, config.height_px, clock, now_s);
       terrainSelect_ms = clock ? static_cast<double>(clock->now_ns() - t0) * 1e-6 : 0.0;

@@ -12,6 +12,7 @@ namespace {
 // Largest load growth per frame the trend extrapolates (10 %): a ramp of 10x in 3 s at 30 Hz is
 // 2.6 % a frame; a step is not a trend (the emergency step handles it).
 constexpr double kMaxTrend = 0.1;
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
 
 bool goodMeasurement(double v) { return std::isfinite(v) && v >= 0.0; }
 
@@ -186,6 +187,8 @@ std::string Governor::validate(const GovernorConfig& c) {
   if (!(std::isfinite(c.trendHorizon_frames) && c.trendHorizon_frames >= 0.0 && c.trendHorizon_frames <= 100.0))
     return bad("trend_horizon_frames", c.trendHorizon_frames, "out of range (0 ..= 100)");
   if (c.warmup_frames < 0) return bad("warmup_frames", c.warmup_frames, "out of range (>= 0)");
+  if (!(c.spikeWindow_frames >= 0 && c.spikeWindow_frames <= 1000000))
+    return bad("spike_window_frames", c.spikeWindow_frames, "out of range (0 ..= 1000000)");
   for (int l = 0; l < kGovLayers; ++l) {
     const GovKnob& k = c.knobs[static_cast<size_t>(l)];
     if (!k.present) continue;
@@ -249,6 +252,8 @@ void Governor::configure(const GovernorConfig& c, bool keepState) {
   if (!keepState) {
     // Prior on the prediction error: 5 % of the budget, so the first frames keep a margin.
     errorScale_ = 0.05 * budget_ms_;
+    spikeBlocks_.fill(0.0);
+    spikeFrames_ = 0;
     phaseScale_.fill(0.0);
     other_ms_ = 0.0;
     havePrediction_ = false;
@@ -259,6 +264,8 @@ void Governor::configure(const GovernorConfig& c, bool keepState) {
     lastDecision_ = {};
   }
   lastDecision_.knob = knob_;
+  for (size_t l = 0; l < static_cast<size_t>(kGovLayers); ++l)
+    if (!(keepState && wasPresent[l] && layerPresent_[l])) lastDecision_.loadCap[l] = layerPresent_[l] ? kInfinity : kGovNaN;
 }
 
 WorkBudget Governor::workBudget(GovPhase p, int64_t phaseStart_ns, TimeSource source) const {
@@ -348,6 +355,14 @@ void Governor::applyScale(double s, bool decrease, std::array<double, kGovLayers
   }
 }
 
+double Governor::margin() const { return config_.marginSigmas * errorScale_; }
+
+double Governor::bandTop_ms() const {
+  return config_.decreaseAbove * budget_ms_ - std::max(0.0, spike() - (1.0 - config_.decreaseAbove) * budget_ms_);
+}
+
+double Governor::spike() const { return *std::max_element(spikeBlocks_.begin(), spikeBlocks_.end()); }
+
 const GovDecision& Governor::update(const GovSample& sample) {
   ++stats_.frames;
   const GovernorConfig& c = config_;
@@ -406,8 +421,24 @@ const GovDecision& Governor::update(const GovSample& sample) {
   if (frameGood && havePrediction_) {
     const double err = std::min(std::abs(frame_ms - lastDecision_.predicted_ms), 4.0 * errorScale_ + 0.01 * budget_ms_);
     errorScale_ = c.errorSmoothing * errorScale_ + (1.0 - c.errorSmoothing) * 1.25 * err;
+    // Spikes: a load jump explains its excess (that is the emergency's business), noise does not.
+    // One larger than the whole band's headroom, (1 - increaseBelow) * B, would overrun from
+    // anywhere in the band (another process holding the cores for a while): not planned for.
+    const double excess = frame_ms - lastDecision_.predicted_ms;
+    const bool planned = !loadJump && excess <= (1.0 - c.increaseBelow) * budget_ms_;
+    if (c.spikeWindow_frames > 0) {
+      const int64_t block = std::max<int64_t>(1, c.spikeWindow_frames / static_cast<int64_t>(spikeBlocks_.size()));
+      if (spikeFrames_ >= block) {  // the oldest block leaves the window
+        std::rotate(spikeBlocks_.rbegin(), spikeBlocks_.rbegin() + 1, spikeBlocks_.rend());
+        spikeBlocks_[0] = 0.0;
+        spikeFrames_ = 0;
+      }
+      ++spikeFrames_;
+      if (planned) spikeBlocks_[0] = std::max(spikeBlocks_[0], excess);
+    }
   }
   stats_.errorScale_ms = errorScale_;
+  stats_.spike_ms = spike();
   // Load trend, with the knob's own effect removed.
   for (size_t l = 0; l < static_cast<size_t>(kGovLayers); ++l) {
     if (!layerPresent_[l] || !goodMeasurement(sample.load[l])) continue;
@@ -428,7 +459,8 @@ const GovDecision& Governor::update(const GovSample& sample) {
     d.action = GovAction::Invalid;
     const Prediction held = predict({1.0, 1.0, 1.0});
     d.predicted_ms = d.predictedHeld_ms = held.total_ms;
-    d.margin_ms = c.marginSigmas * errorScale_;
+    d.margin_ms = margin();
+    d.loadCap = lastDecision_.loadCap;  // nothing learnt: the caps stand
     lastDecision_ = d;
     return lastDecision_;
   }
@@ -438,9 +470,15 @@ const GovDecision& Governor::update(const GovSample& sample) {
   // Decide.
   const Prediction held = predict({1.0, 1.0, 1.0});
   d.predictedHeld_ms = held.total_ms;
-  d.margin_ms = c.marginSigmas * errorScale_;
+  d.margin_ms = margin();
+  d.spike_ms = spike();
   const double withMargin = held.total_ms + d.margin_ms;
-  const double aim = 0.5 * (c.decreaseAbove + c.increaseBelow) * budget_ms_ - d.margin_ms;
+  // The dead band [bottom, top]: the spike headroom lowers its top, and its bottom with it only
+  // where the band would otherwise shrink below half its width (a raise must not cross it).
+  const double top = bandTop_ms();
+  const double bottom = std::min(c.increaseBelow * budget_ms_, top - 0.5 * (c.decreaseAbove - c.increaseBelow) * budget_ms_);
+  const double aim = 0.5 * (top + bottom) - d.margin_ms;
+  d.bandTop_ms = top;
   ++framesSinceRaise_;
   if (hold_ > 0) --hold_;
   if (emergencyLeft_ > 0) --emergencyLeft_;
@@ -463,6 +501,13 @@ const GovDecision& Governor::update(const GovSample& sample) {
   double s = 1.0;
   if (stats_.frames <= c.warmup_frames && !d.overrun) {
     d.action = GovAction::Warmup;
+    if (frame_ms > top) {
+      // No model yet: a frame above the band is cut in proportion (the whole frame taken as load).
+      d.action = GovAction::Decrease;
+      s = std::clamp((aim + d.margin_ms) / frame_ms, c.maxDecrease, 1.0);
+      applyScale(s, true, next);
+      hold_ = c.holdAfterDecrease_frames;
+    }
   } else if (d.overrun) {
     d.action = GovAction::Emergency;
     ++stats_.emergencies;
@@ -470,12 +515,12 @@ const GovDecision& Governor::update(const GovSample& sample) {
     applyScale(s, true, next);
     hold_ = c.holdAfterDecrease_frames;
     emergencyLeft_ = c.emergencyFrames;
-  } else if (withMargin > c.decreaseAbove * budget_ms_) {
+  } else if (withMargin > top) {
     d.action = GovAction::Decrease;
     s = std::clamp(solveScale(held, aim, movable(true)), c.maxDecrease, 1.0);
     applyScale(s, true, next);
     hold_ = c.holdAfterDecrease_frames;
-  } else if (withMargin < c.increaseBelow * budget_ms_ && hold_ == 0 && framesSinceRaise_ >= c.raiseInterval_frames) {
+  } else if (withMargin < bottom && hold_ == 0 && framesSinceRaise_ >= c.raiseInterval_frames) {
     d.action = GovAction::Increase;
     s = std::clamp(solveScale(held, aim, movable(false)), 1.0, c.maxIncrease);
     applyScale(s, false, next);
@@ -536,6 +581,14 @@ const GovDecision& Governor::update(const GovSample& sample) {
   d.knob = knob_;
   d.loadScale = s;
   d.predicted_ms = predict(scale).total_ms;
+  // Load caps: this frame's loads, grown by at most the frame's headroom to the top of the dead
+  // band. Proportional (no intercept): the least growth any cost line through this frame allows,
+  // so a badly fitted model cannot loosen it; never below this frame's load.
+  const double growth = frame_ms > 0.0 ? std::max(1.0, (top - d.margin_ms) / frame_ms) : kInfinity;
+  for (size_t l = 0; l < static_cast<size_t>(kGovLayers); ++l) {
+    if (!layerPresent_[l]) continue;
+    d.loadCap[l] = stats_.frames <= c.warmup_frames || !(frameLoad[l] > 0.0) ? kInfinity : frameLoad[l] * growth;
+  }
   havePrediction_ = true;
   lastDecision_ = d;
   return lastDecision_;

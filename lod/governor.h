@@ -32,22 +32,32 @@
 // Control law (B = frame budget; P(s) = predicted work with every adjustable layer's load
 // multiplied by s, plus margin = marginSigmas * a robust scale of past prediction errors,
 // 1.25 * smoothed |error| with each error clipped at 4 scales: heavy-tailed noise from a busy
-// machine widens it less than an RMS would):
+// machine widens it less than an RMS would). The dead band is [bottom, top]: top =
+// decreaseAbove * B less the spike headroom (what the largest recent spike, the maximum of
+// (measured - predicted) over spikeWindow_frames, exceeds (1 - decreaseAbove) * B), bottom =
+// increaseBelow * B, lowered only to keep the band at least half its configured width:
 //   - the frame overran (frame_ms > B): EMERGENCY: s = clamp(solve(aim), emergencyMaxDecrease,
 //     emergencyScale); no raise for holdAfterDecrease_frames; deferrable budgets *
 //     emergencyDeferScale for emergencyFrames frames;
-//   - P(1) > decreaseAbove * B: DECREASE to s = clamp(solve(aim), maxDecrease, 1); no raise for
+//   - warm-up (the first warmup_frames, no model yet): HOLD, but a frame above top is cut in
+//     proportion, s = clamp(aim / frame_ms, maxDecrease, 1);
+//   - P(1) > top: DECREASE to s = clamp(solve(aim), maxDecrease, 1); no raise for
 //     holdAfterDecrease_frames;
-//   - P(1) < increaseBelow * B, no raise for raiseInterval_frames and no hold: INCREASE to
+//   - P(1) < bottom, no raise for raiseInterval_frames and no hold: INCREASE to
 //     s = min(solve(aim), maxIncrease);
 //   - otherwise HOLD (the dead band).
-// aim = (decreaseAbove + increaseBelow) / 2 * B, the middle of the dead band; solve(aim) is the
+// aim = (top + bottom) / 2, the middle of the dead band; solve(aim) is the
 // s with P(s) = aim (at least a quarter of the predicted frame counts as load-dependent, so an
 // unfitted model still moves the knobs). A decision that moves no knob counts as HOLD. Each layer's knob moves by (v'/v) = s^(1 / loadExponent), clamped to
 // [min, max] and rounded to `quantum` towards less detail (a quantised knob may step one quantum
 // towards more detail when P after that step stays below aim). Layers at their bound in the
 // wanted direction drop out and the others take up the slack. Bounded steps, the dead band and
 // the rate limit on raises keep the knobs from oscillating.
+//
+// Load caps: besides the knobs, each decision gives every layer a cap on its next load, the last
+// load grown by at most the frame's headroom to the band's top (loadCap()). Knobs act on the
+// converged load; a layer that is still converging (ROAM after a jump, under its work budget)
+// grows by itself for several frames, faster than the knobs can follow, and stops at the cap.
 //
 // Phase budgets: B * phaseShare_p, the shares renormalised over the present phases (a phase of
 // an absent layer has budget 0 and no model, and its measurements are ignored). They bound the
@@ -110,7 +120,16 @@ struct GovernorConfig {
   double forgetting = 0.97;          // RLS forgetting factor per frame, in (0.5, 1]
   double errorSmoothing = 0.9;       // EWMA factor of the prediction error scale, in [0, 1)
   double trendHorizon_frames = 2.0;  // frames of load growth anticipated (>= 0)
-  int warmup_frames = 3;             // frames only measured (knobs held unless overrun)
+  int warmup_frames = 3;             // frames only measured (knobs held unless above the band)
+  // Spike headroom: the largest excess of a frame over its prediction in the last this many
+  // frames (frames without a load jump; excesses above (1 - increaseBelow) * budget, which would
+  // overrun from anywhere in the band, are not counted) lowers the top of the dead band by what
+  // it exceeds the band's own headroom, (1 - decreaseAbove) * budget: a frame at the top plus the
+  // spikes this machine produces stays within the budget. The band's bottom moves down with it
+  // only where the band would shrink below half its width, so light scenes keep their detail.
+  // Kept as the maxima of ten blocks of window / 10 frames. 0 = off (default: it costs detail
+  // wherever the scene is heavy; docs/governor.md has the trade measured).
+  int spikeWindow_frames = 0;
   std::array<GovKnob, kGovLayers> knobs{};  // Terrain, Forest, Hdlod
 };
 
@@ -132,9 +151,14 @@ struct GovDecision {
   std::array<double, kGovLayers> knob{};  // values for the next frame (NaN for absent layers)
   double predicted_ms = 0.0;       // next frame's work at the new knobs (no margin)
   double predictedHeld_ms = 0.0;   // ... had the knobs stayed
-  double margin_ms = 0.0;          // marginSigmas * RMS error
+  double margin_ms = 0.0;          // marginSigmas * robust error scale
+  double spike_ms = 0.0;           // the largest excess over the prediction in the window (spikeWindow_frames)
+  double bandTop_ms = 0.0;         // the dead band's top: decreaseAbove * budget, less the spike headroom
   double loadScale = 1.0;          // the common load multiplier s chosen (1: hold)
   bool overrun = false;            // the measured frame exceeded the budget
+  // Per layer, the most load the next frame may take on (Governor::loadCap); +inf: no cap
+  // (warm-up), NaN: absent layer.
+  std::array<double, kGovLayers> loadCap{kGovNaN, kGovNaN, kGovNaN};
 };
 
 struct GovStats {
@@ -147,6 +171,7 @@ struct GovStats {
   std::array<int64_t, kGovLayers> directionChanges{};  // knob moves opposite to the previous move
   std::array<int64_t, kGovPhases> phaseOverruns{};     // phase time > its budget
   double errorScale_ms = 0.0;      // robust scale of (measured - predicted) frame work
+  double spike_ms = 0.0;           // the largest (measured - predicted) in the window, see spikeWindow_frames
 };
 
 // Recursive least squares with exponential forgetting over at most kMax parameters, y ~ theta . x.
@@ -237,6 +262,16 @@ class Governor {
 
   // The knob value for this frame's selection (NaN for an absent layer).
   double knob(GovLayer l) const { return knob_[static_cast<size_t>(l)]; }
+  // The most load (in the layer's own units: triangles drawn) layer l may take on in this frame:
+  // the last frame's load grown by at most that frame's headroom, (band top - margin) / frame
+  // work (GovDecision::bandTop_ms), and never below it. Knobs act on the converged load; a layer whose
+  // load grows while its knob stands still (ROAM refining a new view under its work budget after
+  // a jump, paging) grows faster than the knobs can follow, and stops here instead (ROAM: its
+  // triangle cap, RoamView::maxTriangles, keeps the best mesh of that size). Proportional, with
+  // no intercept: the least growth that any cost line through the last frame allows, so a badly
+  // fitted model cannot loosen it, and it never removes what is drawn. +inf during warm-up;
+  // NaN for an absent layer.
+  double loadCap(GovLayer l) const { return lastDecision_.loadCap[static_cast<size_t>(l)]; }
   double frameBudget_ms() const { return budget_ms_; }
   double phaseBudget_ms(GovPhase p) const { return phaseBudget_ms_[static_cast<size_t>(p)]; }
   bool phasePresent(GovPhase p) const { return phasePresent_[static_cast<size_t>(p)]; }
@@ -261,6 +296,9 @@ class Governor {
   void configure(const GovernorConfig& config, bool keepState);
   int features(GovPhase p, const std::array<double, kGovLayers>& load, double* x) const;
   Prediction predict(const std::array<double, kGovLayers>& loadScale) const;
+  double margin() const;      // see GovDecision::margin_ms
+  double bandTop_ms() const;  // see GovDecision::bandTop_ms
+  double spike() const;   // the largest excess in the spike window
   double solveScale(const Prediction& held, double aim_ms, const std::array<bool, kGovLayers>& movable) const;
   double quantise(GovLayer l, double v, bool towardsLess) const;
   void applyScale(double s, bool decrease, std::array<double, kGovLayers>& next) const;
@@ -279,6 +317,8 @@ class Governor {
   std::array<int, kGovLayers> lastDirection_{};  // +1 more detail, -1 less, 0 none yet
   double other_ms_ = 0.0;       // frame work outside the modelled phases, smoothed
   double errorScale_ = 0.0;     // 1.25 * smoothed |prediction error| (a robust sigma)
+  std::array<double, 10> spikeBlocks_{};  // largest excess over the prediction per block of the window
+  int64_t spikeFrames_ = 0;                // frames into the window's newest block
   std::array<double, kGovPhases> phaseScale_{};  // smoothed |residual| of each phase model
   bool havePrediction_ = false;
   int64_t framesSinceRaise_ = 0;

@@ -742,6 +742,7 @@ namespace {
 TEST(ConfigGovernor, KeysAreReadAndCrossChecked) {
   const ServiceConfig cfg = parseServiceOk(std::string(kMinimalService) +
                                            "[governor]\nenabled = true\ndecrease_above = 0.9\nincrease_below = 0.5\n"
+                                           "spike_window_frames = 120\n"
                                            "[governor.terrain]\nmin_px = 0.5\nmax_px = 16\nload_exponent = -2\n",
                                            "/cfg");
   EXPECT_TRUE(cfg.governor.enabled);
@@ -750,6 +751,7 @@ TEST(ConfigGovernor, KeysAreReadAndCrossChecked) {
   EXPECT_EQ(cfg.governor.terrainMin_px, 0.5);
   EXPECT_EQ(cfg.governor.terrainMax_px, 16.0);
   EXPECT_EQ(cfg.governor.terrainLoadExponent, -2.0);
+  EXPECT_EQ(cfg.governor.spikeWindow_frames, 120);
   ConfigError e = serviceError(std::string(kMinimalService) + "[governor]\ndecrease_above = 0.6\nincrease_below = 0.7\n");
   EXPECT_EQ(e.key, "governor.increase_below");
   EXPECT_NE(e.message.find("decrease_above"), std::string::npos) << e.what();
@@ -759,6 +761,9 @@ TEST(ConfigGovernor, KeysAreReadAndCrossChecked) {
   EXPECT_EQ(e.key, "governor.max_increase");
   e = serviceError(std::string(kMinimalService) + "[governor.terrain]\nload_exponent = 2\n");
   EXPECT_EQ(e.key, "governor.terrain.load_exponent");
+  e = serviceError(std::string(kMinimalService) + "[governor]\nspike_window_frames = -1\n");
+  EXPECT_EQ(e.key, "governor.spike_window_frames");
+  EXPECT_EQ(e.value, "-1");
 }
 
 }  // namespace

@@ -53,8 +53,11 @@ struct FakeWorld {
 
   // Runs one frame on the fake clock with the governor's knob and budgets; returns the sample.
   GovSample frame(const Governor& g, double scene, double extra_ms = 0.0) {
+    return frameOf(g, triangles(scene, g.knob(GovLayer::Terrain)), extra_ms);
+  }
+  // The same for a given triangle count (a layer whose load is not the knob's converged one).
+  GovSample frameOf(const Governor& g, double tris, double extra_ms = 0.0) {
     GovSample s;
-    const double tris = triangles(scene, g.knob(GovLayer::Terrain));
     const int64_t start = clock.now_ns;
     clock.advance_ms((input_ms + extra_ms) * jitter());
     s.phase_ms[0] = static_cast<double>(clock.now_ns - start) * 1e-6;
@@ -232,6 +235,85 @@ TEST(Governor, HoldsTheRateWhileTheLoadSwings10x) {
   EXPECT_LE(overruns, 7);        // <= 0.1 % of the frames outside the step frames
   EXPECT_LE(overrunsAfterStep, 12);  // one per step up at most (12 steps)
   EXPECT_EQ(g.stats().ignored, 0);
+}
+
+// A layer that converges after each jump of the eye (ROAM under its work budget): the eye
+// jumps between a light and a heavy view every 300 frames; after a jump the load starts at a
+// twentieth of the last one and grows 45 % a frame towards what the knob asks for in the new
+// view, whatever the knob does meanwhile. Converged at the light view's tolerance, the heavy
+// view takes ~85 ms a frame. Honouring loadCap() keeps every frame within the budget; ignoring
+// it overruns after the jumps into the heavy view.
+TEST(Governor, LoadCapStopsAConvergingLayerBeforeItOverruns) {
+  for (const bool honour : {true, false}) {
+    Governor g(terrainConfig());
+    FakeWorld w;
+    double scene = 100e3, load = w.triangles(scene, 1.0);
+    int overruns = 0, capped = 0;
+    for (int i = 0; i < 1500; ++i) {
+      if (i % 300 == 150) {  // a jump: the new view starts coarse
+        scene = scene > 200e3 ? 100e3 : 800e3;
+        load *= 0.05;
+      }
+      const double wanted = w.triangles(scene, g.knob(GovLayer::Terrain));
+      load = std::min(wanted, load * 1.45);
+      const double cap = g.loadCap(GovLayer::Terrain);
+      ASSERT_FALSE(std::isnan(cap)) << i;
+      if (honour && load > cap) load = cap, ++capped;
+      const GovDecision& d = g.update(w.frameOf(g, load));
+      if (d.action == GovAction::Warmup) {
+        EXPECT_TRUE(std::isinf(g.loadCap(GovLayer::Terrain))) << "warm-up: no cap, frame " << i;
+      } else {
+        // Never below what the frame drew: the cap stops growth, it does not remove detail.
+        EXPECT_GE(g.loadCap(GovLayer::Terrain), load) << i;
+      }
+      if (d.overrun && i >= 30) ++overruns;
+    }
+    if (honour) {
+      EXPECT_EQ(overruns, 0);
+      EXPECT_GT(capped, 0);  // the cap, not the knob alone, held the jumps
+    } else {
+      EXPECT_GE(overruns, 2);  // the knob alone lags behind the convergence
+    }
+    EXPECT_TRUE(std::isnan(g.loadCap(GovLayer::Forest)));  // absent layer
+  }
+}
+
+// A machine that slows one frame in a hundred by 8 ms (24 % of the budget), whatever it
+// draws, while the load drifts slowly up and down by a third, so that frames pass through the
+// whole dead band: with the spike headroom the band moves down by what the spikes exceed its
+// own headroom, and after the first spike they fit; without it they overrun near the top.
+TEST(Governor, SpikeHeadroomKeepsRecurringSpikesWithinTheBudget) {
+  int overruns[2] = {0, 0};
+  double tolerance[2] = {0.0, 0.0};
+  for (const int window : {600, 0}) {
+    GovernorConfig c = terrainConfig();
+    c.spikeWindow_frames = window;
+    Governor g(c);
+    FakeWorld w;
+    double spike = 0.0;
+    int frames = 0;
+    for (int i = 0; i < 3000; ++i) {
+      const double extra = i % 101 == 50 ? 8.0 : 0.0;
+      const double drift = 1.0 + 0.35 * std::sin(6.283185307179586 * i / 400.0);
+      const GovDecision& d = g.update(w.frame(g, 320e3 * drift, extra));
+      if (i >= 160) {  // after the first spike
+        overruns[window == 0] += d.overrun ? 1 : 0;
+        tolerance[window == 0] += g.knob(GovLayer::Terrain);
+        ++frames;
+      }
+      spike = std::max(spike, g.stats().spike_ms);
+    }
+    tolerance[window == 0] /= frames;
+    if (window > 0) {
+      EXPECT_GT(spike, 6.0);  // it saw the spikes
+    } else {
+      EXPECT_EQ(spike, 0.0);
+    }
+  }
+  EXPECT_EQ(overruns[0], 0);
+  EXPECT_GE(overruns[1], 5);
+  // The price: somewhat coarser on average, not a collapse.
+  EXPECT_LT(tolerance[0], 1.5 * tolerance[1]);
 }
 
 TEST(Governor, LowersDetailBeforeTheOverrunOnARamp) {
