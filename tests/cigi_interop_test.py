@@ -91,6 +91,23 @@ def main():
         dumpcap.kill()
         print("dumpcap did not start capturing on lo:", started, dumpcap.stderr.read())
         return 1
+    # "Capturing on" can come before the capture filter is live (seen on Linux 6.18): send
+    # markers to a socket of our own until dumpcap has written one, so that the link's first
+    # Start of Frame is not lost. tshark's filters below select the CIGI ports only.
+    def written():
+        return os.path.getsize(cap) if os.path.exists(cap) else 0
+
+    marker = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    marker.bind(("127.0.0.1", 0))
+    end = time.monotonic() + 30
+    while written() <= 24 and time.monotonic() < end:  # 24: the pcap file header
+        marker.sendto(b"capture marker", marker.getsockname())
+        time.sleep(0.02)
+    marker.close()
+    if written() <= 24:
+        dumpcap.kill()
+        print("dumpcap wrote no packet within 30 s:", dumpcap.stderr.read())
+        return 1
 
     rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     rx.bind(("127.0.0.1", 0))

@@ -18,8 +18,21 @@ if [ -z "$kernel" ]; then
   exit 127
 fi
 mkdir -p "$work/uml"
+# On CPUs with AVX-512 or AMX the host's XSAVE area is larger than this UML kernel's, and its
+# first FPU restore through ptrace fails: IG_UML_SHIM (tests/uml/xstate_shim.cpp, built with the
+# tests) fixes the buffer sizes, and the guest's glibc leaves AVX-512 alone (init.sh).
+preload=()
+if grep -qwE 'avx512f|amx_tile' /proc/cpuinfo; then
+  IG_UML_SHIM=${IG_UML_SHIM:-$here/../../build/tests/libuml_xstate_shim.so}  # scripts run by hand
+  [ -f "$IG_UML_SHIM" ] || {
+    echo "boot.sh: this CPU has AVX-512 or AMX: user-mode Linux needs IG_UML_SHIM (the uml_xstate_shim library)" >"$work/console.log"
+    exit 127
+  }
+  preload=(env LD_PRELOAD="$IG_UML_SHIM")
+  set -- "$@" IG_NO_AVX512=1
+fi
 # mem: the probe, can-utils and python3 fit easily. uml_dir: the mconsole socket folder, not
 # ~/.uml. con0 on our stdin/stdout, every other console off.
-TMPDIR=$work timeout -k 5 "${IG_UML_TIMEOUT:-90}" "$kernel" mem=384M rootfstype=hostfs rootflags=/ rw \
+TMPDIR=$work timeout -k 5 "${IG_UML_TIMEOUT:-90}" "${preload[@]}" "$kernel" mem=384M rootfstype=hostfs rootflags=/ rw \
   init="$here/init.sh" uml_dir="$work/uml" con=null con0=fd:0,fd:1 \
   IG_WORK="$work" IG_RUN="$run" "$@" </dev/null >"$work/console.log" 2>&1

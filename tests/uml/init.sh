@@ -8,6 +8,9 @@
 # UML console, which boot.sh keeps as $IG_WORK/console.log.
 export PATH=/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin
 export HOME=/root LC_ALL=C
+# boot.sh on a CPU with AVX-512: UML switches only the FPU state it knows (up to AVX) between the
+# threads of a process, so glibc must not keep string data in the AVX-512 registers.
+[ "${IG_NO_AVX512:-}" = 1 ] && export GLIBC_TUNABLES=glibc.cpu.hwcaps=-AVX512F,-AVX512VL,-AVX512BW,-AVX512DQ,-AVX512CD
 here=$(dirname "$0")
 
 off() {
