@@ -26,6 +26,9 @@ struct Point {
   double measured_ms = 0, predicted_ms = 0, error_pct = 0;
   double measuredQ1_ms = 0, errorQ1_pct = 0;  // lower quartile of the repeats (least disturbed)
   double fragments = 0;
+  double area_px = 0, sqrtArea_px = 0;  // sums over the boxes drawn: projected area, its square root
+  double submit_ms = 0;  // median time until the GL calls returned (the rest is glFinish)
+  uint64_t samples = 0;  // samples that passed the depth test (GL_SAMPLES_PASSED, last timed frame)
   uint64_t triangles = 0;
   double vertex_ms = 0, fragment_ms = 0, commands_ms = 0;  // terms of (2): T_vert, T_frag, T_buf + T_fc
   const char* bound = "";
@@ -79,7 +82,7 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
   co.width_px = o.width_px;
   co.height_px = o.height_px;
   co.fragmentWork = o.fragmentWork;
-  co.budget_s = o.quick ? 1.5 : 4.0;
+  co.budget_s = o.quick ? 1.5 : 10.0;
   render::CalibrationResult cal;
   std::string warning;
   if (!render::calibrate(o.cachePath, co, cal, error, &warning)) {
@@ -139,32 +142,46 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
     double area1 = 0.0;
     for (const auto& ob : objs) area1 += std::max(0.0, lod::projectedBoxArea_px(vp, eyeCorners(ob, cam.eye_m), o.width_px, o.height_px));
     const double scale = std::sqrt(o.coverage * screen / std::max(area1, 1e-9));
-    double fragments = 0.0;
+    double areaSum = 0.0, sqrtSum = 0.0;
     pass.clear();
     for (auto& ob : objs) {
       ob.halfSize_m *= scale;
       const double cap = 0.25 * ob.center_m.y / std::max({ob.halfSize_m.x, ob.halfSize_m.y, ob.halfSize_m.z});
       if (cap < 1.0) ob.halfSize_m *= cap;
-      fragments += lod::shadedFragments(lod::projectedBoxArea_px(vp, eyeCorners(ob, cam.eye_m), o.width_px, o.height_px),
-                                        k.fragBlock_px);
+      const double a = std::max(0.0, lod::projectedBoxArea_px(vp, eyeCorners(ob, cam.eye_m), o.width_px, o.height_px));
+      areaSum += a;
+      sqrtSum += std::sqrt(a);
       pass.add(ob);
     }
     for (render::DynamicStrategy s : {render::DynamicStrategy::PerCommand, render::DynamicStrategy::Octree}) {
       pass.setStrategy(s);
-      std::vector<double> ms;
-      const int warm = 2;
+      std::vector<double> ms, subMs;
+      // llvmpipe runs the first frames after the calibration (its large scenes freed) and after
+      // a change of strategy slowly: 20 frames before the first point, 5 before the others.
+      const int warm = points.empty() ? 20 : 5;
       for (int r = 0; r < warm + repeats; ++r) {
+        // The first warm-up frame counts the samples that pass the depth test (counting costs
+        // the rasterizer time, so the timed frames do not); the next frame reads the count.
+        pass.setMeasureSamples(r == 0);
         const auto a = BenchClock::now();
         renderer.beginFrame(cam, light);
         pass.draw(renderer, frame++);
         renderer.endFrame();
+        const auto submitted = BenchClock::now();
         renderer.finish();
-        if (r >= warm) ms.push_back(std::chrono::duration<double, std::milli>(BenchClock::now() - a).count());
+        if (r >= warm) {
+          ms.push_back(std::chrono::duration<double, std::milli>(BenchClock::now() - a).count());
+          subMs.push_back(std::chrono::duration<double, std::milli>(submitted - a).count());
+        }
       }
+      // The frame's statistics: the pass's counters, the fragments that passed the depth test (a
+      // GL_SAMPLES_PASSED count of an earlier frame of the same scene), the boxes' edges.
       const render::DynamicFrameStats& st = pass.stats();
+      const double drawnShare = st.objects ? static_cast<double>(st.objectsDrawn) / st.objects : 0.0;
       lod::PassLoad load;
       load.triangles = static_cast<double>(st.triangles);
-      load.fragments = fragments * (st.objects ? static_cast<double>(st.objectsDrawn) / st.objects : 0.0);
+      load.fragments = static_cast<double>(pass.samplesPassed());
+      load.edgePx = sqrtSum * drawnShare;
       load.stateChanges = 1;
       load.commands = st.commands;
       load.rerecorded = st.rerecorded;
@@ -179,8 +196,12 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
       p.predicted_ms = pred;
       p.error_pct = 100.0 * std::abs(pred - p.measured_ms) / std::max(p.measured_ms, 1e-9);
       p.measuredQ1_ms = percentile(ms, 25);
+      p.submit_ms = percentile(subMs, 50);
+      p.samples = pass.samplesPassed();
       p.errorQ1_pct = 100.0 * std::abs(pred - p.measuredQ1_ms) / std::max(p.measuredQ1_ms, 1e-9);
       p.fragments = load.fragments;
+      p.area_px = areaSum * drawnShare;
+      p.sqrtArea_px = sqrtSum * drawnShare;
       p.triangles = st.triangles;
       p.vertex_ms = tb.vertS * 1e-6;
       p.fragment_ms = tb.fragS * 1e-6;
@@ -198,18 +219,19 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
   if (o.json) {
     std::printf("{\"bench\":\"perfmodel\",\"device\":\"%s\",\"viewport\":[%d,%d],\"fragment_work\":%u,\"coverage\":%g,"
                 "\"repeats\":%d,\"calibration\":{\"from_cache\":%s,\"seconds\":%.3f,\"frame_ns\":%.1f,\"tri_ns\":%.3f,"
-                "\"frag_ns\":%.4f,\"frag_block_px\":%.3f,\"depth_frag_ns\":%.4f,\"state_ns\":%.1f,\"command_ns\":%.1f,\"rerecord_ns\":%.1f,"
-                "\"submit_ns\":%.1f,\"cull_ns\":%.2f,\"occlusion_test_ns\":%.1f,\"overlap\":%.3f},\"points\":[",
+                "\"frag_ns\":%.4f,\"raster_tri_ns\":%.3f,\"edge_ns\":%.3f,\"depth_frag_ns\":%.4f,\"state_ns\":%.1f,\"command_ns\":%.1f,\"rerecord_ns\":%.1f,"
+                "\"submit_ns\":%.1f,\"cull_ns\":%.2f,\"occlusion_test_ns\":%.1f,\"overlap\":%.3f,\"overlap_triangles\":%.0f},\"points\":[",
                 cal.key.c_str(), o.width_px, o.height_px, o.fragmentWork, o.coverage, repeats,
-                cal.fromCache ? "true" : "false", cal.seconds, k.frame_ns, k.tri_ns, k.frag_ns, k.fragBlock_px, k.depthFrag_ns, k.state_ns,
-                k.command_ns, k.rerecord_ns, k.submit_ns, k.cull_ns, k.occlusionTest_ns, k.overlap);
+                cal.fromCache ? "true" : "false", cal.seconds, k.frame_ns, k.tri_ns, k.frag_ns, k.rasterTri_ns, k.edge_ns, k.depthFrag_ns,
+                k.state_ns, k.command_ns, k.rerecord_ns, k.submit_ns, k.cull_ns, k.occlusionTest_ns, k.overlap, k.overlapTriangles);
     for (size_t i = 0; i < points.size(); ++i) {
       const Point& p = points[i];
       std::printf("%s{\"objects\":%u,\"strategy\":\"%s\",\"measured_ms\":%.4f,\"predicted_ms\":%.4f,\"error_pct\":%.2f,"
                   "\"measured_q1_ms\":%.4f,\"error_q1_pct\":%.2f,\"triangles\":%llu,\"fragments\":%.0f,\"vertex_ms\":%.4f,"
-                  "\"fragment_ms\":%.4f,\"commands_ms\":%.4f,\"bound\":\"%s\"}",
+                  "\"fragment_ms\":%.4f,\"commands_ms\":%.4f,\"bound\":\"%s\",\"area_px\":%.0f,\"sqrt_area_px\":%.0f,\"submit_ms\":%.4f,\"samples\":%llu}",
                   i ? "," : "", p.objects, p.strategy, p.measured_ms, p.predicted_ms, p.error_pct, p.measuredQ1_ms, p.errorQ1_pct,
-                  static_cast<unsigned long long>(p.triangles), p.fragments, p.vertex_ms, p.fragment_ms, p.commands_ms, p.bound);
+                  static_cast<unsigned long long>(p.triangles), p.fragments, p.vertex_ms, p.fragment_ms, p.commands_ms, p.bound,
+                  p.area_px, p.sqrtArea_px, p.submit_ms, static_cast<unsigned long long>(p.samples));
     }
     std::printf("],\"error_pct_median\":%.2f,\"error_pct_max\":%.2f,\"error_q1_pct_median\":%.2f,"
                 "\"error_q1_pct_max\":%.2f,\"wall_s\":%.1f}\n",
@@ -217,10 +239,10 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
   } else {
     std::printf("perfmodel: %s, %dx%d, material work %u, calibration %s (%.1f s)\n", cal.key.c_str(), o.width_px,
                 o.height_px, o.fragmentWork, cal.fromCache ? "from cache" : "measured", cal.seconds);
-    std::printf("constants: frame %.0f ns, tri %.1f ns, frag %.2f ns, block %.2f px, state %.0f ns, command %.0f ns, rerecord %.0f ns, "
-                "submit %.0f ns, cull %.1f ns, occlusion test %.0f ns, overlap %.2f\n",
-                k.frame_ns, k.tri_ns, k.frag_ns, k.fragBlock_px, k.state_ns, k.command_ns, k.rerecord_ns, k.submit_ns, k.cull_ns,
-                k.occlusionTest_ns, k.overlap);
+    std::printf("constants: frame %.0f ns, tri %.1f ns, frag %.2f ns, raster tri %.1f ns, edge %.1f ns, state %.0f ns, command %.0f ns, "
+                "rerecord %.0f ns, submit %.0f ns, cull %.1f ns, occlusion test %.0f ns, overlap %.2f above %.0f triangles\n",
+                k.frame_ns, k.tri_ns, k.frag_ns, k.rasterTri_ns, k.edge_ns, k.state_ns, k.command_ns, k.rerecord_ns, k.submit_ns,
+                k.cull_ns, k.occlusionTest_ns, k.overlap, k.overlapTriangles);
     std::printf("%9s %-11s %12s %12s %8s %12s %8s  %-8s %8s %8s %8s\n", "objects", "strategy", "measured ms", "predicted ms",
                 "error %", "q1 ms", "error %", "bound", "vert ms", "frag ms", "cmd ms");
     for (const Point& p : points)

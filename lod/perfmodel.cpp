@@ -34,9 +34,9 @@ uint64_t sceneMemoryBytes(const MemoryModelInput& in) {
 }
 
 bool valid(const PerfConstants& c) {
-  const double all[] = {c.frame_ns,   c.tri_ns,      c.frag_ns,   c.depthFrag_ns, c.state_ns,
-                        c.command_ns, c.rerecord_ns, c.submit_ns, c.cull_ns,      c.occlusionTest_ns,
-                        c.fragBlock_px};
+  const double all[] = {c.frame_ns,   c.tri_ns,      c.frag_ns,   c.rasterTri_ns, c.edge_ns,          c.depthFrag_ns,
+                        c.state_ns,   c.command_ns,  c.rerecord_ns, c.submit_ns,  c.cull_ns,          c.occlusionTest_ns,
+                        c.overlapTriangles};
   for (double v : all)
     if (!std::isfinite(v) || v < 0.0) return false;
   if (!(c.overlap >= 0.0 && c.overlap <= 1.0)) return false;
@@ -50,19 +50,21 @@ double predictFrame_ns(const PerfConstants& c, const PassLoad& s, const PassLoad
   b.bufS = clean(s.commands) * tc + clean(s.rerecorded) * tr + clean(s.submissions) * ts + clean(s.occlusionTests) * tv;
   b.stateS = clean(s.stateChanges) * clean(c.state_ns);
   b.vertS = clean(s.triangles) * clean(c.tri_ns);
-  b.fragS = clean(s.fragments) * clean(c.frag_ns) + clean(s.depthFragments) * clean(c.depthFrag_ns);
+  const double trS = clean(s.triangles), trH = clean(h.triangles);
+  b.fragS = clean(s.fragments) * clean(c.frag_ns) + clean(s.depthFragments) * clean(c.depthFrag_ns) +
+            trS * clean(c.rasterTri_ns) + clean(s.edgePx) * clean(c.edge_ns);
   b.fcS = clean(s.frustumTests) * clean(c.cull_ns);
   b.bufH = clean(h.commands) * tc + clean(h.rerecorded) * tr + clean(h.submissions) * ts + clean(h.occlusionTests) * tv;
   b.stateH = clean(h.stateChanges) * clean(c.state_ns);
   b.vertH = clean(h.triangles) * clean(c.tri_ns);
-  b.fragH = clean(h.fragments) * clean(c.frag_ns);
+  b.fragH = clean(h.fragments) * clean(c.frag_ns) + trH * clean(c.rasterTri_ns) + clean(h.edgePx) * clean(c.edge_ns);
   b.zbufH = clean(h.depthFragments) * clean(c.depthFrag_ns);
   b.fcH = clean(h.frustumTests) * clean(c.cull_ns);
   const double argS[3] = {b.stateS, b.vertS, b.fragS};
   const double argH[4] = {b.stateH, b.vertH, b.fragH, b.zbufH};
   b.boundS = static_cast<int>(std::max_element(argS, argS + 3) - argS);
   b.boundH = static_cast<int>(std::max_element(argH, argH + 4) - argH);
-  const double w = std::isfinite(c.overlap) ? std::clamp(c.overlap, 0.0, 1.0) : 1.0;
+  const double w = stageOverlap(c, trS + trH);
   b.gpuS = argS[b.boundS] + (1.0 - w) * (argS[0] + argS[1] + argS[2] - argS[b.boundS]);
   b.gpuH = argH[b.boundH] + (1.0 - w) * (argH[0] + argH[1] + argH[2] + argH[3] - argH[b.boundH]);
   b.total = clean(c.frame_ns) + b.bufS + b.fcS + b.gpuS + b.fcH + b.bufH + b.gpuH;
@@ -122,10 +124,11 @@ double projectedBoxArea_px(const glm::dmat4& vp, const std::array<glm::dvec3, 8>
   return std::abs(area) * 0.5;
 }
 
-double shadedFragments(double area_px, double block_px) {
-  if (!(area_px > 0.0) || !std::isfinite(area_px)) return 0.0;
-  const double r = std::sqrt(area_px) + clean(block_px);
-  return r * r * std::min(1.0, area_px);  // below a pixel: the chance of covering a sample
+double stageOverlap(const PerfConstants& c, double triangles) {
+  const double w = std::isfinite(c.overlap) ? std::clamp(c.overlap, 0.0, 1.0) : 1.0;
+  const double t0 = clean(c.overlapTriangles), n = clean(triangles);
+  if (t0 == 0.0) return w;
+  return n > t0 ? w * (1.0 - t0 / n) : 0.0;
 }
 
 const char* modeName(DynamicMode m) {

@@ -36,11 +36,15 @@ uint64_t sceneMemoryBytes(const MemoryModelInput& in);
 // ---------------------------------------------------------------------------------------------
 // Time model (2), calibrated constants. All in nanoseconds, per unit named.
 struct PerfConstants {
-  double frame_ns = 0.0;          // fixed cost of a frame (clear, flush, finish); not in (2)
+  double frame_ns = 0.0;          // fixed cost of a frame (clear, flush, finish, the tiles'
+                                  // load and store); not in (2)
   double tri_ns = 0.0;            // T_tri: one triangle through the vertex stage (the material)
   double frag_ns = 0.0;           // T_frag: one shaded fragment (the material)
-  double fragBlock_px = 4.0;      // padding b of shadedFragments(): the partly covered shading
-                                  // blocks along a box's (and its triangles') edges, in px
+  double rasterTri_ns = 0.0;      // one triangle through the rasterizer's set-up (edge equations,
+                                  // binning into tiles), counted with the fragment stage
+  double edge_ns = 0.0;           // per pixel of an object's footprint edge, sqrt(area): the
+                                  // partly covered shading blocks along its (and its triangles')
+                                  // edges, counted with the fragment stage
   double depthFrag_ns = 0.0;      // one depth-test-only fragment (occlusion boxes: T_z-buffer)
   double state_ns = 0.0;          // T_state: one pipeline state change (one draw set-up)
   double command_ns = 0.0;        // t_c: record and issue one draw command (in GL this includes
@@ -51,18 +55,26 @@ struct PerfConstants {
   double cull_ns = 0.0;           // one frustum test of a bounding box (T_fc per box)
   double occlusionTest_ns = 0.0;  // fixed cost of one occlusion test (query, box draw, read)
   // How much the pipeline stages inside each max() of (2) overlap: 1 = fully (the paper's max),
-  // 0 = not at all (they add up, e.g. a software rasterizer sharing the CPU cores with the
-  // vertex stage). Calibrated from a mixed vertex + fragment load.
+  // 0 = not at all (they add up). A software rasterizer (llvmpipe) bins the whole frame on the
+  // application thread and rasterizes it at the flush, so the stages of a small frame add up;
+  // once a frame's triangles overflow its scene buffer, earlier scenes are rasterized while
+  // later ones are binned. So the overlap is w (1 - overlapTriangles / N_tri) for a frame of
+  // N_tri triangles (0 below overlapTriangles); overlapTriangles = 0: always w (a GPU's pipeline).
   double overlap = 1.0;
+  double overlapTriangles = 0.0;
 };
 // True if every constant is finite and >= 0, overlap is in [0, 1] and T_tri, T_frag are > 0.
+// (The overlap of a frame is stageOverlap().)
 bool valid(const PerfConstants& c);
 
 // Statistics of one set drawn in a frame: the objects S or the hierarchy H (bounding boxes of
 // tested nodes). Counts, not times.
 struct PassLoad {
   double triangles = 0;        // triangles submitted
-  double fragments = 0;        // shaded fragments (rasterized, before the depth test)
+  double fragments = 0;        // shaded fragments: samples that pass the depth test (a
+                               // GL_SAMPLES_PASSED count of an earlier frame, or the projected
+                               // areas where nothing is hidden)
+  double edgePx = 0;           // sum over the objects drawn of sqrt(projected area in px)
   double depthFragments = 0;   // depth-only fragments (occlusion boxes)
   double stateChanges = 0;     // draw set-ups / state changes
   double commands = 0;         // draw commands recorded / issued this frame
@@ -86,14 +98,20 @@ struct TimeBreakdown {
 //        + T_fc(H) + T_buf(H) + max(T_state(H), T_vert(H), T_frag(H), T_z(H))           (2)
 // with T_buf = commands t_c + rerecorded t_r + submissions t_s + occlusionTests T_vis,
 // T_vert = N_tri T_tri (3),
-// T_frag = f T_frag (4), T_state = stateChanges T_state, T_fc = frustumTests T_cull.
-// T_fc(S) (per-object culling of strategy 1) and T_frame are this implementation's additions:
-// (2) has T_fc only for H, and no fixed per-frame cost. Each max() is generalised by the
-// calibrated overlap w: max(a, b, ..) + (1 - w) (a + b + .. - max(a, b, ..)), which is (2) for
-// w = 1. Returns ns; `out` gets the terms.
+// T_frag = f T_frag (4) + N_tri T_rtri + edgePx T_edge, T_state = stateChanges T_state,
+// T_fc = frustumTests T_cull.
+// This implementation's additions: T_fc(S) (per-object culling of strategy 1) and T_frame ((2)
+// has T_fc only for H, and no fixed per-frame cost); in T_frag the rasterizer's cost per
+// triangle and per edge pixel (the paper's "fragments" of a small object are mostly its edges:
+// a rasterizer shades whole blocks); f counts the fragments that pass the depth test. Each max()
+// is generalised by the overlap w of the frame, stageOverlap(): max(a, b, ..) + (1 - w)
+// (a + b + .. - max(a, b, ..)), which is (2) for w = 1. Returns ns; `out` gets the terms.
 // Invalid inputs (NaN, < 0) are clamped to 0; the return value is always finite and >= 0.
 double predictFrame_ns(const PerfConstants& c, const PassLoad& objects, const PassLoad& hierarchy,
                        TimeBreakdown* out = nullptr);
+// The overlap of the stages in a frame of `triangles` triangles: overlap * (1 - overlapTriangles /
+// triangles), at least 0 (overlap when overlapTriangles is 0).
+double stageOverlap(const PerfConstants& c, double triangles);
 
 // ---------------------------------------------------------------------------------------------
 // Scene statistics helpers.
@@ -104,11 +122,7 @@ double predictFrame_ns(const PerfConstants& c, const PassLoad& objects, const Pa
 // Returns -1 if a corner is behind the near plane (the caller decides; e.g. full screen).
 double projectedBoxArea_px(const glm::dmat4& viewProjection, const std::array<glm::dvec3, 8>& corners,
                            double width_px, double height_px);
-// Fragments the fragment stage processes for a convex footprint of `area_px` when it shades
-// blocks of block_px x block_px pixels (2 for GPU quads, 4 for llvmpipe): (sqrt(A) + b)^2,
-// the covered area padded by the partly covered blocks along the edges, times min(1, A) (a
-// sub-pixel footprint covers a sample with probability A). 0 for area <= 0 or NaN.
-double shadedFragments(double area_px, double block_px);
+
 
 // ---------------------------------------------------------------------------------------------
 // The three strategies for dynamic objects and the switching conditions (5) and (6).

@@ -566,6 +566,9 @@ lod::DynamicMode DynamicPass::chooseMode() {
   lod::PassLoad all;
   all.triangles = visS * kBoxTriangles;
   all.fragments = frags;
+  // The edges, as if the objects drawn were of one size: sum sqrt(A_i) = sqrt(n sum A_i) then
+  // (an upper bound for any sizes, by Cauchy-Schwarz); projecting every box would cost more.
+  all.edgePx = std::sqrt(frags * visS);
   all.stateChanges = 1;
   all.rerecorded = std::min(rewritten, n);
   all.commands = nodes;
@@ -576,6 +579,7 @@ lod::DynamicMode DynamicPass::chooseMode() {
   const double hidden = std::min<double>(static_cast<double>(h.hiddenEstimate), visS);
   const double keep = visS > 0 ? (visS - hidden) / visS : 1.0;
   vis.triangles *= keep;
+  vis.edgePx *= keep;
   vis.commands = vis.submissions = std::max(1.0, nodes * keep);
   in.frameVisible_ns = lod::predictFrame_ns(c, vis, {});
   // T_vis(H): the tests that found the hidden objects (the estimator's), not the exploration's.
@@ -652,7 +656,7 @@ void DynamicPass::draw(Renderer& r, uint64_t frame) {
   gl.ProgramUniform1i(p, g.uWork, static_cast<GLint>(config_.fragmentWork));
   bindBoxState(p, g.vao.id(), g.commands.id());
   const int sq = static_cast<int>(frame & 1u);
-  samplesActive_ = strategy_ == DynamicStrategy::Adaptive && !g.samplesPending[sq];
+  samplesActive_ = (strategy_ == DynamicStrategy::Adaptive || measureSamples_) && !g.samplesPending[sq];
   if (samplesActive_) {
     gl.BeginQuery(GL_SAMPLES_PASSED, g.samplesQuery[sq]);
     g.samplesPending[sq] = true;

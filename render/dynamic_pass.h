@@ -111,6 +111,11 @@ class DynamicPass {
   // Occlusion strategy: tests per frame (Adaptive chooses its own).
   void setOcclusionTests(uint32_t q) { fixedQ_ = q; }
   void setConstants(const lod::PerfConstants& c) { config_.constants = c; }
+  // Count the samples that pass the depth test (GL_SAMPLES_PASSED) in every frame, not only in
+  // Adaptive (which always does); read back frames later, never waiting.
+  void setMeasureSamples(bool on) { measureSamples_ = on; }
+  // The last samples-passed count that has arrived (0 before the first).
+  uint64_t samplesPassed() const { return lastSamples_; }
 
   // Draws every object with the current strategy; call between Renderer::beginFrame and
   // endFrame. `frame` numbers frames (increasing by one) for the age of query results.
@@ -174,6 +179,7 @@ class DynamicPass {
   uint64_t blockingReads_ = 0;
   uint64_t lastSamples_ = 0;
   bool samplesActive_ = false;
+  bool measureSamples_ = false;
   DynamicFrameStats stats_;
   DynamicFrameStats lastNodeStats_;  // from the last octree traversal (Adaptive in PerCommand)
   uint64_t lastTraversalFrame_ = 0;

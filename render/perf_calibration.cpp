@@ -22,8 +22,9 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 // 2: measured with a settled heap (settleHeap) and with frag_block_px; version 1 caches hold a
-// T_tri ten or more times too high.
-constexpr int kCacheVersion = 2;
+// T_tri ten or more times too high. 3: the rasterizer's costs per triangle and per edge pixel
+// instead of frag_block_px, T_tri from the application thread's side, overlap by frame size.
+constexpr int kCacheVersion = 3;
 
 struct Field {
   const char* name;
@@ -33,7 +34,8 @@ constexpr Field kFields[] = {
     {"frame_ns", &lod::PerfConstants::frame_ns},
     {"tri_ns", &lod::PerfConstants::tri_ns},
     {"frag_ns", &lod::PerfConstants::frag_ns},
-    {"frag_block_px", &lod::PerfConstants::fragBlock_px},
+    {"raster_tri_ns", &lod::PerfConstants::rasterTri_ns},
+    {"edge_ns", &lod::PerfConstants::edge_ns},
     {"depth_frag_ns", &lod::PerfConstants::depthFrag_ns},
     {"state_ns", &lod::PerfConstants::state_ns},
     {"command_ns", &lod::PerfConstants::command_ns},
@@ -42,6 +44,7 @@ constexpr Field kFields[] = {
     {"cull_ns", &lod::PerfConstants::cull_ns},
     {"occlusion_test_ns", &lod::PerfConstants::occlusionTest_ns},
     {"overlap", &lod::PerfConstants::overlap},
+    {"overlap_triangles", &lod::PerfConstants::overlapTriangles},
 };
 
 std::string glString(GLenum e) {
@@ -247,10 +250,9 @@ bool calibrate(const std::string& cachePath, const CalibrationOptions& o, Calibr
   const double pixels = static_cast<double>(o.width_px) * o.height_px;
   lod::PerfConstants c;
 
-  // Fixed cost of a frame.
-  c.frame_ns = b.median([] {}) * 1e6;
-
-  // T_frag: full-screen boxes, far first, one per-object command each.
+  // T_frag: full-screen boxes, far first, one per-object command each. The fixed cost of a frame
+  // is the intercept of the same line: a frame that draws anything loads and stores its tiles,
+  // which an empty one does not.
   {
     DynamicPass pass;
     if (!makePass(pass, 64, 0, 1000.0, o.fragmentWork, error)) return false;
@@ -263,16 +265,19 @@ bool calibrate(const std::string& cachePath, const CalibrationOptions& o, Calibr
       }
     };
     const auto draw = [&] { pass.draw(b.renderer, b.frame); };
-    std::vector<double> s;
+    std::vector<double> s, fixed;
     for (int k = 0; k < b.rounds; ++k) {
       layers(1);
       const double a = b.median(draw);
       layers(4);
       const double z = b.median(draw);
       s.push_back((z - a) * 1e6 / (3.0 * pixels));
+      fixed.push_back((a - (z - a) / 3.0) * 1e6);
     }
     std::sort(s.begin(), s.end());
+    std::sort(fixed.begin(), fixed.end());
     c.frag_ns = s[s.size() / 2];
+    c.frame_ns = std::max(0.0, fixed[fixed.size() / 2]);
     // Depth-only fragments of occlusion boxes over a depth buffer at the far plane.
     std::vector<lod::Aabb> boxes;
     for (int i = 0; i < 8; ++i) {
@@ -297,19 +302,17 @@ bool calibrate(const std::string& cachePath, const CalibrationOptions& o, Calibr
     const double z = -7.0 + 2.0 * ((i / 14u) % 8u) + jitter(i * 2246822519u);
     return DynamicObject{{x, y + jitter(i * 3266489917u), z}, glm::dvec3(kTinyHalf_m), 0.0, 0xffffffffu};
   };
-  // Their fragments: a box of 2 x 0.01 m at 21 m covers ~0.2 px; shaded in blocks (4 x 4 on
-  // llvmpipe) as lod::shadedFragments models it, subtracted from the per-box slopes below.
-  const double pxPerMetre = o.height_px / (2.0 * 21.0 * std::tan(0.5 * b.camera.fovY_deg * 0.017453292519943295));
-  const double tinyFragments = lod::shadedFragments(std::pow(2.0 * kTinyHalf_m * pxPerMetre, 2.0) * 1.5, 4.0);
-  // T_tri, t_c, t_s, T_state and b come from differences of per-box costs, so the loads they
+  // T_tri, t_c, t_s, T_state, T_rtri and T_edge come from differences of per-box costs, so the loads they
   // compare are measured interleaved (one frame of each per repeat) and see the same machine load.
   // `many`: the cost of a per-object command grows with the objects per frame (their data and
   // the command stream leave the caches), so t_c is measured with 20,000 boxes, a size where the
   // choice between the strategies matters, not with the few thousand that fit in L2.
-  constexpr uint32_t kLow = 500, kHigh = 3000, kMany = 20000, kNodesHigh = 900;
-  DynamicPass low, high, many, nodesHigh, nodesDouble, small;
-  for (DynamicPass* p : {&low, &high, &small})
-    if (!makePass(*p, kHigh, 6, 64.0, o.fragmentWork, error)) return false;  // 2 m leaves
+  constexpr uint32_t kLow = 500, kHigh = 3000, kMany = 20000, kNodesHigh = 900, kLayered = 6000;
+  DynamicPass low, high, many, nodesHigh, nodesDouble, layerOnly, layerSmall, layerMid;
+  for (DynamicPass* p : {&low, &high, &layerOnly})
+    if (!makePass(*p, kHigh + 1, 6, 64.0, o.fragmentWork, error)) return false;  // 2 m leaves
+  for (DynamicPass* p : {&layerSmall, &layerMid})
+    if (!makePass(*p, kLayered + 1, 6, 64.0, o.fragmentWork, error)) return false;
   if (!makePass(many, kMany, 6, 64.0, o.fragmentWork, error)) return false;
   for (uint32_t i = 0; i < kMany; ++i) many.add(tiny(i, 21.0));
   for (DynamicPass* p : {&nodesHigh, &nodesDouble})
@@ -318,23 +321,47 @@ bool calibrate(const std::string& cachePath, const CalibrationOptions& o, Calibr
     if (i < kLow) low.add(tiny(i, 21.0));
     high.add(tiny(i, 21.0));
   }
-  // The block padding b: `small` holds the boxes of `low` at a few pixels each (~50 px, 4.5 per
-  // 41 x 41 px cell, so they rarely overlap); the difference is their shaded fragments.
-  constexpr double kSmallHalf_m = 0.15;
-  double smallArea[kLow];
-  {
-    const glm::dmat4 vp = lod::reverseZProjection(b.camera.fovY_deg, b.camera.aspect, b.camera.near_m, b.camera.far_m) *
-                          glm::dmat4(lod::viewRotation(b.camera));
-    for (uint32_t i = 0; i < kLow; ++i) {
-      DynamicObject ob = tiny(i, 21.0);
-      ob.halfSize_m = glm::dvec3(kSmallHalf_m);
-      small.add(ob);
+  // The rasterizer's costs per triangle and per edge pixel: in front of one full-screen layer
+  // (every tile has work in all three, so the tiles' fixed costs cancel), 6,000 boxes of a few
+  // pixels (`layerSmall`, ~6 px) and of a few tens (`layerMid`, ~30 px) against the layer alone.
+  // Only the part of the frame after the GL calls returned counts (the rasterizer's: these
+  // frames are binned whole and rasterized at the finish), and the fragments are counted with
+  // GL_SAMPLES_PASSED. Same boxes, same triangles: the difference of the two sizes is their edges
+  // and fragments, the difference to the layer alone also their triangles.
+  constexpr double kSmallHalf_m = 0.05, kMidHalf_m = 0.11;
+  const glm::dmat4 vp = lod::reverseZProjection(b.camera.fovY_deg, b.camera.aspect, b.camera.near_m, b.camera.far_m) *
+                        glm::dmat4(lod::viewRotation(b.camera));
+  // Sum over `boxes` of sqrt(projected area in px): lod::PassLoad::edgePx.
+  const auto edgeSum = [&](const std::vector<DynamicObject>& boxes) {
+    double q = 0.0;
+    for (const DynamicObject& ob : boxes) {
       std::array<glm::dvec3, 8> corners;
       for (int k = 0; k < 8; ++k)
         corners[static_cast<size_t>(k)] = ob.center_m - b.camera.eye_m +
-                                          kSmallHalf_m * glm::dvec3(k & 1 ? 1 : -1, k & 2 ? 1 : -1, k & 4 ? 1 : -1);
-      smallArea[i] = std::max(0.0, lod::projectedBoxArea_px(vp, corners, o.width_px, o.height_px));
+                                          ob.halfSize_m * glm::dvec3(k & 1 ? 1 : -1, k & 2 ? 1 : -1, k & 4 ? 1 : -1);
+      q += std::sqrt(std::max(0.0, lod::projectedBoxArea_px(vp, corners, o.width_px, o.height_px)));
     }
+    return q;
+  };
+  double edgeSmall = 0.0, edgeMid = 0.0;
+  {
+    const DynamicObject back{{0.0, 50.0, 0.0}, {150.0, 0.4, 150.0}, 0.0, 0xff8080ffu};
+    std::vector<DynamicObject> smallBoxes, midBoxes;
+    for (DynamicPass* p : {&layerOnly, &layerSmall, &layerMid}) {
+      p->add(back);  // first: drawn behind everything
+      p->setMeasureSamples(true);
+    }
+    for (uint32_t i = 0; i < kLayered; ++i) {
+      DynamicObject ob = tiny(i, 21.0);
+      ob.halfSize_m = glm::dvec3(kSmallHalf_m);
+      smallBoxes.push_back(ob);
+      ob.halfSize_m = glm::dvec3(kMidHalf_m);
+      midBoxes.push_back(ob);
+    }
+    for (const DynamicObject& ob : smallBoxes) layerSmall.add(ob);
+    for (const DynamicObject& ob : midBoxes) layerMid.add(ob);
+    edgeSmall = edgeSum(smallBoxes);
+    edgeMid = edgeSum(midBoxes);
   }
   // One tiny box per octree leaf (2 m cells): one node range, one indirect call per box.
   // `perNode` boxes in each cell (the second 0.4 m beside the first, same cell).
@@ -374,12 +401,15 @@ bool calibrate(const std::string& cachePath, const CalibrationOptions& o, Calibr
     // processes on a shared machine only add time, and they come in phases that cover several
     // consecutive repeats, which a median of paired differences does not survive).
     enum Load {
-      kDouble, kManyOctree, kManyCommands, kNodesCommands, kNodesOctree, kState200, kState2000, kTiny, kSmall, kLoads
+      kDouble, kManyOctree, kManyCommands, kNodesCommands, kNodesOctree, kState200, kState2000, kLayer, kLayerSmall,
+      kLayerMid, kLoads
     };
-    std::vector<double> ms[kLoads], cpu[kLoads];
+    std::vector<double> ms[kLoads], cpu[kLoads], fin[kLoads];
     double manyTests = 0.0, manyNodes = 112.0, nodeTests = 0.0;
-    const int reps = b.overBudget() || b.budget_s < 1.0 ? 5 : 11;
-    const auto keep = [&](Load l, double frame) { ms[l].push_back(frame), cpu[l].push_back(cpuLast); };
+    const int reps = b.overBudget() || b.budget_s < 1.0 ? 5 : b.budget_s >= 8.0 ? 25 : 11;
+    const auto keep = [&](Load l, double frame) {
+      ms[l].push_back(frame), cpu[l].push_back(cpuLast), fin[l].push_back(frame - cpuLast);
+    };
     for (int r = 0; r <= reps; ++r) {
       // llvmpipe's cost per instance grows with the instances in one draw: measure the box in
       // the small instanced draws of big scenes (one vs two boxes per node, same nodes).
@@ -394,8 +424,12 @@ bool calibrate(const std::string& cachePath, const CalibrationOptions& o, Calibr
       // T_state: one tiny box per draw, a uniform change before each (200 vs 2000 draws).
       if (const double t = frameMs(low, DynamicStrategy::PerCommand, 200); warm) keep(kState200, t);
       if (const double t = frameMs(low, DynamicStrategy::PerCommand, 2000); warm) keep(kState2000, t);
-      if (const double t = frameMs(low, DynamicStrategy::PerCommand); warm) keep(kTiny, t);
-      if (const double t = frameMs(small, DynamicStrategy::PerCommand); warm) keep(kSmall, t);
+      if (const double t = frameMs(layerOnly, DynamicStrategy::PerCommand); warm) keep(kLayer, t);
+      if (const double t = frameMs(layerSmall, DynamicStrategy::PerCommand); warm) keep(kLayerSmall, t);
+      if (const double t = frameMs(layerMid, DynamicStrategy::PerCommand); warm) keep(kLayerMid, t);
+      // Samples are counted in the warm-up frame only: counting costs the rasterizer time.
+      if (r == 0)
+        for (DynamicPass* p : {&layerOnly, &layerSmall, &layerMid}) p->setMeasureSamples(false);
     }
     const auto mid = [](std::vector<double> v) {
       std::sort(v.begin(), v.end());
@@ -408,14 +442,15 @@ bool calibrate(const std::string& cachePath, const CalibrationOptions& o, Calibr
     // Frame and CPU-side (until the GL calls return) differences between two loads, ns.
     const auto diff = [&](Load a, Load z) { return (quartile(ms[a]) - quartile(ms[z])) * 1e6; };
     const auto cpuDiff = [&](Load a, Load z) { return (quartile(cpu[a]) - quartile(cpu[z])) * 1e6; };
-    double perBox = diff(kDouble, kNodesOctree) / kNodesHigh;
-    // Noise: the CPU side, else an upper bound (the whole frame of `many` over its boxes).
-    if (!(perBox > 0.0)) perBox = cpuDiff(kDouble, kNodesOctree) / kNodesHigh;
+    // T_tri: the application thread's side of an instanced tiny box (its 12 triangles shaded,
+    // clipped, set up and binned; the rasterizer works at the finish, counted below). Noise: the
+    // whole frame's difference, else an upper bound (the whole frame of `many` over its boxes).
+    double perBox = cpuDiff(kDouble, kNodesOctree) / kNodesHigh;
+    if (!(perBox > 0.0)) perBox = diff(kDouble, kNodesOctree) / kNodesHigh;
     if (!(perBox > 0.0)) perBox = quartile(ms[kManyOctree]) * 1e6 / kMany;
-    // An instanced box: 12 triangles and its fragments. A per-object command box: the same plus
-    // the command and a frustum test. A node of one box: the box, its command, its submission.
-    c.tri_ns = (perBox - tinyFragments * c.frag_ns) / 12.0;
-    if (!(c.tri_ns > 0.0)) c.tri_ns = perBox / 12.0;
+    // An instanced box: 12 triangles. A per-object command box: the same plus the command and a
+    // frustum test. A node of one box: the box, its command, its submission.
+    c.tri_ns = perBox / 12.0;
     // Frustum tests: per-object culling of boxes behind the camera.
     DynamicPass behindPass;
     if (!makePass(behindPass, kHigh, 6, 64.0, o.fragmentWork, error)) return false;
@@ -464,18 +499,14 @@ bool calibrate(const std::string& cachePath, const CalibrationOptions& o, Calibr
     if (!(c.command_ns > 0.0)) c.command_ns = command(cpuDiff(kManyCommands, kManyOctree));
     if (!(c.command_ns > 0.0)) c.command_ns = recordFloor_ns();
     c.state_ns = std::max(0.0, diff(kState2000, kState200) / 1800.0 - perBox);
-    // b such that frag_ns x sum shadedFragments(A, b) is the extra time of the small boxes
-    // (bisection; shadedFragments grows with b). Noise can push it to the ends of [0, 32].
+    // T_edge and T_rtri from the rasterizer's side of the layered loads (see above).
     {
-      const double extra = diff(kSmall, kTiny) - kLow * tinyFragments * c.frag_ns;
-      const auto shaded = [&](double blk) {
-        double f = 0.0;
-        for (double a : smallArea) f += lod::shadedFragments(a, blk);
-        return f * c.frag_ns;
-      };
-      double lo = 0.0, hi = 32.0;
-      for (int k = 0; k < 40; ++k) (shaded(0.5 * (lo + hi)) < extra ? lo : hi) = 0.5 * (lo + hi);
-      c.fragBlock_px = 0.5 * (lo + hi);
+      const auto finDiff = [&](Load a, Load z) { return (quartile(fin[a]) - quartile(fin[z])) * 1e6; };
+      const double s0 = static_cast<double>(layerOnly.samplesPassed()), s1 = static_cast<double>(layerSmall.samplesPassed()),
+                   s2 = static_cast<double>(layerMid.samplesPassed());
+      c.edge_ns = std::max(0.0, (finDiff(kLayerMid, kLayerSmall) - c.frag_ns * (s2 - s1)) / std::max(1.0, edgeMid - edgeSmall));
+      c.rasterTri_ns =
+          std::max(0.0, (finDiff(kLayerSmall, kLayer) - c.frag_ns * (s1 - s0) - c.edge_ns * edgeSmall) / (12.0 * kLayered));
     }
     // t_r: every object moved (in place) each frame in octree mode: its node range is rewritten.
     high.setStrategy(DynamicStrategy::Octree);
@@ -515,37 +546,59 @@ bool calibrate(const std::string& cachePath, const CalibrationOptions& o, Calibr
     c.occlusionTest_ns = std::max(0.0, sq[sq.size() / 2]);
   }
   {
-    // Overlap of the stages inside the max() of (2): a vertex-bound load V (tiny boxes) and a
-    // fragment-bound load F (full-screen boxes) of similar cost, then both in one frame M.
-    // w = (V + F - M - frame) / min(V - frame, F - frame): 1 if the stages run in parallel.
+    // Overlap of the stages, by the size of the frame: boxes of a few pixels in the octree (the
+    // vertex stage and the rasterizer both busy), 45,000 and 135,000 of them (llvmpipe begins
+    // to overlap near 500,000 triangles, 40,000 boxes). Each frame's
+    // overlap is what (2) without overlap over-predicts, as a share of the smaller stage; w and
+    // overlapTriangles are the line w (1 - T0 / N_tri) through the two.
+    constexpr uint32_t kBig[2] = {45000, 135000};
+    constexpr double kBigHalf_m = 0.03;
     DynamicPass pass;
-    if (!makePass(pass, 40000, 0, 1000.0, o.fragmentWork, error)) return false;
+    if (!makePass(pass, kBig[1], 6, 64.0, o.fragmentWork, error)) return false;
     pass.setStrategy(DynamicStrategy::Octree);
-    const double tf = 3.0 * pixels * c.frag_ns;
-    const auto m = static_cast<uint32_t>(std::clamp(tf / std::max(12.0 * c.tri_ns, 1e-3), 100.0, 40000.0));
-    const auto fill = [&](bool layers, bool boxes) {
-      pass.clear();
-      if (layers)
-        for (int i = 0; i < 3; ++i) {
-          const double d = 50.0 - i;
-          pass.add({{0.0, d, 0.0}, {3.0 * d, 0.4, 3.0 * d}, 0.0, 0xff8080ffu});
-        }
-      if (boxes)
-        for (uint32_t i = 0; i < m; ++i) pass.add(tiny(i, 21.0));
-    };
-    const auto draw = [&] { pass.draw(b.renderer, b.frame); };
-    std::vector<double> w;
-    for (int k = 0; k < b.rounds; ++k) {
-      fill(false, true);
-      const double v = b.median(draw) * 1e6 - c.frame_ns;
-      fill(true, false);
-      const double f = b.median(draw) * 1e6 - c.frame_ns;
-      fill(true, true);
-      const double both = b.median(draw) * 1e6 - c.frame_ns;
-      w.push_back(std::clamp((v + f - both) / std::max(std::min(v, f), 1.0), 0.0, 1.0));
+    std::vector<DynamicObject> boxes;
+    double w[2] = {0.0, 0.0}, tris[2] = {0.0, 0.0};
+    for (int k = 0; k < 2; ++k) {
+      while (boxes.size() < kBig[k]) {
+        DynamicObject ob = tiny(static_cast<uint32_t>(boxes.size()), 21.0);
+        ob.halfSize_m = glm::dvec3(kBigHalf_m);
+        boxes.push_back(ob);
+        pass.add(ob);
+      }
+      // One frame counts the samples (counting costs time), then the timed ones.
+      pass.setMeasureSamples(true);
+      b.renderer.beginFrame(b.camera, b.light);
+      pass.draw(b.renderer, b.frame++);
+      b.renderer.endFrame();
+      b.renderer.finish();
+      pass.setMeasureSamples(false);
+      const double ms = b.median([&] { pass.draw(b.renderer, b.frame); });
+      const DynamicFrameStats& st = pass.stats();
+      lod::PassLoad load;
+      load.triangles = static_cast<double>(st.triangles);
+      load.fragments = static_cast<double>(pass.samplesPassed());
+      load.edgePx = edgeSum(boxes);
+      load.commands = st.commands;
+      load.submissions = st.submissions;
+      load.frustumTests = st.frustumTests;
+      lod::PerfConstants serial = c;
+      serial.overlap = 0.0;
+      serial.overlapTriangles = 0.0;
+      lod::TimeBreakdown tb;
+      const double sum = lod::predictFrame_ns(serial, load, {}, &tb);
+      const double smaller = std::min(tb.vertS + tb.stateS, tb.fragS);
+      w[k] = smaller > 0.0 ? std::clamp((sum - ms * 1e6) / smaller, 0.0, 1.0) : 0.0;
+      tris[k] = load.triangles;
     }
-    std::sort(w.begin(), w.end());
-    c.overlap = w[w.size() / 2];
+    // w_k N_k = w (N_k - T0): two equations in w and T0.
+    const double wMax = tris[1] > tris[0] ? (w[1] * tris[1] - w[0] * tris[0]) / (tris[1] - tris[0]) : w[1];
+    if (wMax > 0.0 && w[0] < wMax) {
+      c.overlap = std::min(1.0, wMax);
+      c.overlapTriangles = std::max(0.0, tris[0] * (1.0 - w[0] / wMax));
+    } else {
+      c.overlap = std::max(w[0], w[1]);  // no growth with the size seen: a constant overlap
+      c.overlapTriangles = 0.0;
+    }
   }
   const std::string e = glErrors();
   if (!e.empty()) return error = "calibration: GL errors " + e, false;

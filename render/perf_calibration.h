@@ -1,21 +1,27 @@
 // Start-up calibration of the performance model of paper 002 (lod/perfmodel.h) on the GL
 // implementation actually in use, with the material and box mesh of render/dynamic_pass.h:
-//   frame_ns     an empty frame (clear, finish)
 //   frag_ns      full-screen boxes drawn back to front (every fragment shaded): T_frag
+//   frame_ns     the intercept of the same line (a frame that draws: clear, tiles, finish)
 //   depthFrag_ns the same boxes depth-only, as occlusion boxes are drawn
-//   tri_ns       tiny boxes (0.2 px) in 112 fixed octree leaves, one instanced draw per node: T_tri
-//   frag_block_px  500 boxes of ~50 px vs the same boxes tiny: b of lod::shadedFragments
+//   tri_ns       tiny boxes (0.2 px) in 112 fixed octree leaves, one instanced draw per node,
+//                the application thread's side (until the GL calls return): T_tri
+//   raster_tri_ns, edge_ns  3000 boxes of ~6 px and of ~60 px in front of a full-screen layer
+//                against the layer alone, the rasterizer's side (after the GL calls returned),
+//                fragments counted by GL_SAMPLES_PASSED: per triangle and per edge pixel
 //   command_ns   20000 tiny boxes as per-object commands vs the same in their 112 node ranges: t_c
 //   submit_ns    900 tiny boxes, one per octree leaf, as node ranges vs per-object commands: t_s
 //   state_ns     one tiny box per draw with a uniform change between draws, minus the box: T_state
 //   cull_ns      per-object frustum tests of boxes behind the camera
 //   rerecord_ns  every object moved each frame in octree mode (node ranges rewritten): t_r
 //   occlusionTest_ns  q queries on tiny nodes minus the same frame without: one test
-//   overlap      vertex-bound + fragment-bound load in one frame vs each alone
+//   overlap, overlap_triangles  30,000 and 90,000 boxes of a few pixels: how much (2) without
+//                overlap over-predicts each, as a share of the smaller stage; the line
+//                w (1 - T0 / N_tri) through the two (a software rasterizer overlaps its stages
+//                only once a frame overflows its scene buffer)
 // Each constant is the slope between two loads (lower quartile of repeated frames, glFinish + a
 // monotonic clock; the median of three such slopes), so fixed costs cancel; T_tri, t_c, t_s,
-// T_state and b (small differences) from loads measured interleaved frame by frame (11 repeats, the
-// lower quartile of each load). Results are
+// T_state, T_rtri and T_edge (small differences) from loads measured interleaved frame by frame
+// (11 repeats, the lower quartile of each load). Results are
 // cached in a small text file keyed by GL_VENDOR / GL_RENDERER / GL_VERSION, the material and
 // the viewport; a cache for another key, or one that does not parse, is ignored and rewritten.
 // The measurements run with a settled C heap (a large block freed first): glibc trims the heap

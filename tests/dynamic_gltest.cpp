@@ -242,7 +242,9 @@ TEST_F(DynamicGl, CalibrationCacheRoundTripsAndRejectsCorruptFiles) {
   c.cull_ns = 6.5;
   c.occlusionTest_ns = 7000;
   c.overlap = 0.25;
-  c.fragBlock_px = 5.75;
+  c.overlapTriangles = 250000;
+  c.rasterTri_ns = 3.5;
+  c.edge_ns = 150.5;
   const std::string path = tempPath("cache.txt"), key = "vendor|renderer|4.5|work=0|64x64";
   std::string error, why;
   ASSERT_TRUE(render::writeCalibrationCache(path, key, c, error)) << error;
@@ -252,7 +254,9 @@ TEST_F(DynamicGl, CalibrationCacheRoundTripsAndRejectsCorruptFiles) {
   EXPECT_DOUBLE_EQ(r.tri_ns, c.tri_ns);
   EXPECT_DOUBLE_EQ(r.overlap, c.overlap);
   EXPECT_DOUBLE_EQ(r.occlusionTest_ns, c.occlusionTest_ns);
-  EXPECT_DOUBLE_EQ(r.fragBlock_px, c.fragBlock_px);
+  EXPECT_DOUBLE_EQ(r.overlapTriangles, c.overlapTriangles);
+  EXPECT_DOUBLE_EQ(r.rasterTri_ns, c.rasterTri_ns);
+  EXPECT_DOUBLE_EQ(r.edge_ns, c.edge_ns);
   EXPECT_FALSE(render::readCalibrationCache(path, "other|device", r, why));
   EXPECT_NE(why.find("key"), std::string::npos) << why;
   std::string text;
@@ -277,9 +281,11 @@ TEST_F(DynamicGl, CalibrationCacheRoundTripsAndRejectsCorruptFiles) {
   corrupt("tri_ns 33.25", "tri_ns 33.25x");
   corrupt("tri_ns 33.25\n", "");                 // missing
   corrupt("cull_ns", "cull_ms");                 // unknown field
-  corrupt("version 2", "version 7");
-  corrupt("version 2", "version 1");             // an older calibration (heap not settled)
+  corrupt("version 3", "version 7");
+  corrupt("version 3", "version 1");             // an older calibration (heap not settled)
+  corrupt("version 3", "version 2");             // an older model (frag_block_px, no rasterizer terms)
   corrupt("overlap 0.25", "overlap 3");          // out of range
+  corrupt("overlap_triangles 250000", "overlap_triangles -1");
   corrupt("frag_ns 1.125", "frag_ns 1.125\nfrag_ns 2");  // repeated
   std::ofstream(path, std::ios::trunc) << text.substr(0, text.size() / 2);  // truncated
   EXPECT_FALSE(render::readCalibrationCache(path, key, r, why));

@@ -83,6 +83,35 @@ TEST(PerfModel, TimeModelOnHandMadeNumbers) {
   serial.overlap = 0.5;
   EXPECT_DOUBLE_EQ(predictFrame_ns(serial, s, h),
                    10000 + 100500 + 2000 + (20000 + 0.5 * 12200) + 160 + 30000 + (2000 + 0.5 * 1200));
+  // The rasterizer's triangles and edges belong to the fragment stage.
+  PerfConstants raster = c;
+  raster.rasterTri_ns = 5.0;  // objects 6000, hierarchy 600
+  raster.edge_ns = 2.0;
+  s.edgePx = 1000;            // 2000
+  h.edgePx = 100;             // 200
+  EXPECT_DOUBLE_EQ(predictFrame_ns(raster, s, h, &b), 10000 + 100500 + 2000 + (20000 + 6000 + 2000) + 160 + 30000 + 2000);
+  EXPECT_EQ(b.boundS, 2);
+  EXPECT_DOUBLE_EQ(b.fragS, 28000);
+  EXPECT_DOUBLE_EQ(b.fragH, 800);
+}
+
+// A software rasterizer overlaps its stages only once a frame overflows its scene: the overlap
+// of a frame grows from 0 at overlapTriangles towards w.
+TEST(PerfModel, OverlapGrowsWithTheFrameBeyondOverlapTriangles) {
+  PerfConstants c = handConstants();
+  c.overlap = 0.8;
+  EXPECT_DOUBLE_EQ(stageOverlap(c, 1000), 0.8);  // no threshold: the constant w (a GPU)
+  c.overlapTriangles = 100000;
+  EXPECT_DOUBLE_EQ(stageOverlap(c, 50000), 0.0);
+  EXPECT_DOUBLE_EQ(stageOverlap(c, 100000), 0.0);
+  EXPECT_DOUBLE_EQ(stageOverlap(c, 400000), 0.8 * 0.75);
+  EXPECT_DOUBLE_EQ(stageOverlap(c, std::nan("")), 0.0);
+  PassLoad s;
+  s.triangles = 400000;  // vert 4e6
+  s.fragments = 2e6;     // frag 2e6
+  EXPECT_DOUBLE_EQ(predictFrame_ns(c, s, {}), 10000 + 4e6 + (1.0 - 0.6) * 2e6);
+  s.triangles = 50000;   // vert 5e5: below the threshold the stages add up
+  EXPECT_DOUBLE_EQ(predictFrame_ns(c, s, {}), 10000 + 5e5 + 2e6);
 }
 
 TEST(PerfModel, NanAndNegativeInputsCountAsZero) {
@@ -107,7 +136,10 @@ TEST(PerfModel, NanAndNegativeInputsCountAsZero) {
   badC.cull_ns = -1.0;
   EXPECT_FALSE(valid(badC));
   badC = c;
-  badC.fragBlock_px = std::nan("");  // the calibrated block padding of shadedFragments()
+  badC.edge_ns = std::nan("");
+  EXPECT_FALSE(valid(badC));
+  badC = c;
+  badC.overlapTriangles = -1.0;
   EXPECT_FALSE(valid(badC));
   EXPECT_TRUE(valid(c));
   EXPECT_FALSE(valid(PerfConstants{}));  // T_tri and T_frag must be measured
@@ -132,10 +164,6 @@ TEST(PerfModel, ProjectedBoxArea) {
   EXPECT_DOUBLE_EQ(projectedBoxArea_px(vp, box({0, -10, 0}, {1, 1, 1}), 200, 200), -1.0);          // behind
   EXPECT_NEAR(projectedBoxArea_px(vp, box({500, 10, 0}, {1, 0.001, 1}), 200, 200), 0.0, 1e-9);     // off screen
   EXPECT_DOUBLE_EQ(projectedBoxArea_px(vp, box({0, 10, 0}, {0, 0, 0}), 200, 200), 0.0);            // degenerate
-  EXPECT_DOUBLE_EQ(shadedFragments(100.0, 4.0), 196.0);
-  EXPECT_DOUBLE_EQ(shadedFragments(0.25, 4.0), 4.5 * 4.5 * 0.25);
-  EXPECT_DOUBLE_EQ(shadedFragments(std::nan(""), 4.0), 0.0);
-  EXPECT_DOUBLE_EQ(shadedFragments(-3.0, 4.0), 0.0);
 }
 
 ModeInputs inputs(double l5, double r5, double l6, double r6) {
