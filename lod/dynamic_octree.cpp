@@ -38,6 +38,7 @@ bool DynamicOctree::init(const OctreeConfig& config) {
   queue_.reserve(nodes_.capacity());
   queueHidden_.reserve(nodes_.capacity());
   others_.reserve(nodes_.capacity());
+  expensive_.reserve(nodes_.capacity());
   Node root;
   std::fill(std::begin(root.children), std::end(root.children), kNone);
   root.cell = config.bounds;
@@ -230,6 +231,7 @@ DynamicOctree::TraversalResult DynamicOctree::traverse(const Frustum& frustum, c
   queue_.clear();
   queueHidden_.clear();
   others_.clear();
+  expensive_.clear();
   if (nodes_.empty() || nodes_[0].subtreeCount == 0) return r;
   queue_.push_back(0);
   queueHidden_.push_back(0);
@@ -260,7 +262,7 @@ DynamicOctree::TraversalResult DynamicOctree::traverse(const Frustum& frustum, c
     const bool freshVisible = node.resultFrame != 0 && !node.occluded && node.resultFrame + config_.occlusionMaxAge >= t.frame;
     if (testable && !node.queryPending && !freshVisible && n != 0) {
       if (node.expensive) {
-        if (r.candidates < test.size()) test[r.candidates++] = n;
+        expensive_.push_back(n);
       } else if (!node.objects.empty() && node.subtreeCount >= config_.expensiveMinObjects) {
         others_.push_back(n);  // a test costs more than drawing a handful of objects
       }
@@ -275,10 +277,13 @@ DynamicOctree::TraversalResult DynamicOctree::traverse(const Frustum& frustum, c
         queueHidden_.push_back(underHidden);
       }
   }
-  for (uint32_t n : others_) {
-    if (r.candidates >= test.size()) break;
-    test[r.candidates++] = n;
-  }
+  // The re-tests of hidden nodes are in `test` already (written during the walk), then the rest.
+  r.retests = r.candidates;
+  for (const std::vector<uint32_t>* list : {&expensive_, &others_})
+    for (uint32_t n : *list) {
+      if (r.candidates >= test.size()) break;
+      test[r.candidates++] = n;
+    }
   return r;
 }
 

@@ -96,12 +96,14 @@ class DynamicOctree {
     uint32_t drawn = 0;          // nodes written to `draw` (non-empty, visible)
     uint32_t frustumTests = 0;   // node boxes tested against the frustum
     uint32_t candidates = 0;     // nodes written to `test`
+    uint32_t retests = 0;        // of them, first: nodes known hidden, re-tested to stay culled
     uint64_t objectsDrawn = 0;   // objects in the drawn nodes
     uint64_t hiddenObjects = 0;  // objects under nodes skipped as occluded (the estimate)
   };
   // Writes the non-empty visible nodes to `draw` and the nodes whose visibility may be tested
-  // this frame to `test`: expensive nodes first (top-down), then the other non-empty nodes with
-  // at least expensiveMinObjects objects below them,
+  // this frame to `test`: with useOcclusion the nodes known hidden first (their re-tests keep
+  // them culled: `retests` of them), then expensive nodes (top-down), then the other non-empty
+  // nodes with at least expensiveMinObjects objects below them,
   // excluding nodes with a query in flight, nodes with a fresh "visible" result (so over a few
   // frames the tests move down the tree below visible nodes; hidden nodes are re-tested every
   // frame), and nodes whose box contains the eye or reaches behind the near plane (a box test
@@ -131,6 +133,7 @@ class DynamicOctree {
   std::vector<uint32_t> dirtyList_;
   std::vector<uint32_t> queue_;     // traversal scratch
   std::vector<uint32_t> others_;    // traversal scratch: non-expensive candidates
+  std::vector<uint32_t> expensive_; // traversal scratch: expensive candidates (after the re-tests)
   std::vector<uint8_t> queueHidden_;  // traversal scratch: an ancestor was counted as hidden
   uint32_t objectCount_ = 0;
   uint32_t nonEmpty_ = 0;

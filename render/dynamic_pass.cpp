@@ -4,6 +4,8 @@
 
 
 #include <algorithm>
+#include <array>
+#include <limits>
 #include <bit>
 #include <cmath>
 #include <cstring>
@@ -433,7 +435,7 @@ void DynamicPass::pollQueries() {
   pending_.resize(keep);
 }
 
-void DynamicPass::issueQueries(Renderer& r, uint64_t frame, uint32_t q) {
+void DynamicPass::issueQueries(Renderer& r, uint64_t frame, uint32_t q, double budget_ns) {
   const auto candidates = std::min<uint32_t>(q, stats_.occlusionTests);
   if (candidates == 0) {
     stats_.occlusionTests = 0;
@@ -442,6 +444,12 @@ void DynamicPass::issueQueries(Renderer& r, uint64_t frame, uint32_t q) {
   Gpu& g = *gpu_;
   const GLuint qp = g.queryProgram.id();
   const glm::mat4 vp = viewProjection(r.camera());
+  // A test's cost: the query and box draw (occlusionTest_ns, calibrated on small nodes) and the
+  // box's depth-only fragments; the estimator's nodes are the large ones near the root.
+  const lod::Camera& cam = r.camera();
+  const glm::dmat4 vpd = lod::reverseZProjection(cam.fovY_deg, cam.aspect, cam.near_m, cam.far_m) * glm::dmat4(lod::viewRotation(cam));
+  const lod::PerfConstants& k = config_.constants;
+  double spent_ns = 0.0;
   gl.ProgramUniformMatrix4fv(qp, g.qVp, 1, GL_FALSE, glm::value_ptr(vp));
   gl.UseProgram(qp);
   gl.ColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
@@ -450,6 +458,15 @@ void DynamicPass::issueQueries(Renderer& r, uint64_t frame, uint32_t q) {
   for (uint32_t i = 0; i < candidates && !freeQueries_.empty(); ++i) {
     const uint32_t n = testList_[i];
     const lod::Aabb& b = octree_.node(n).bounds;
+    if (std::isfinite(budget_ns)) {
+      std::array<glm::dvec3, 8> corners;
+      for (int c = 0; c < 8; ++c)
+        corners[static_cast<size_t>(c)] = glm::dvec3((c & 1) ? b.max.x : b.min.x, (c & 2) ? b.max.y : b.min.y, (c & 4) ? b.max.z : b.min.z) - cam.eye_m;
+      const double area = lod::projectedBoxArea_px(vpd, corners, r.width(), r.height());
+      const double px = area < 0.0 ? static_cast<double>(r.width()) * r.height() : area;
+      spent_ns += k.occlusionTest_ns + k.depthFrag_ns * px;
+      if (spent_ns > budget_ns && issued > 0) break;
+    }
     const glm::vec3 centre(0.5 * (b.min + b.max) - r.camera().eye_m);
     const glm::vec3 half(glm::max(0.5 * (b.max - b.min), glm::dvec3(1e-4)));
     gl.ProgramUniform3fv(qp, g.qCentre, 1, glm::value_ptr(centre));
@@ -469,7 +486,7 @@ void DynamicPass::issueQueries(Renderer& r, uint64_t frame, uint32_t q) {
   stats_.triangles += uint64_t{issued} * kBoxTriangles;
 }
 
-void DynamicPass::drawNodes(Renderer& r, bool occlusion, uint64_t frame, uint32_t q) {
+void DynamicPass::drawNodes(Renderer& r, bool occlusion, uint64_t frame, uint32_t q, double budget_ns) {
   lod::DynamicOctree::Traversal t;
   t.frame = frame;
   t.useOcclusion = occlusion;
@@ -491,8 +508,9 @@ void DynamicPass::drawNodes(Renderer& r, bool occlusion, uint64_t frame, uint32_
   lastTraversalFrame_ = frame;
   endSamples();  // one occlusion query target at a time
   stats_.occlusionTests = tr.candidates;  // issueQueries() turns this into the tests issued
+  if (occlusion) lastRetests_ = tr.retests;
   if (q > 0) {
-    issueQueries(r, frame, q);
+    issueQueries(r, frame, q, budget_ns);
   } else {
     stats_.occlusionTests = 0;
   }
@@ -612,6 +630,7 @@ void DynamicPass::draw(Renderer& r, uint64_t frame) {
 
   lod::DynamicMode mode = lod::DynamicMode::Octree;
   uint32_t q = 0;
+  double estimateBudget_ns = std::numeric_limits<double>::infinity();
   switch (strategy_) {
     case DynamicStrategy::PerCommand: mode = lod::DynamicMode::PerCommand; break;
     case DynamicStrategy::Octree: mode = lod::DynamicMode::Octree; break;
@@ -620,8 +639,10 @@ void DynamicPass::draw(Renderer& r, uint64_t frame) {
       mode = chooseMode();
       const lod::PerfConstants& c = config_.constants;
       if (mode == lod::DynamicMode::Octree) {
-        // The estimate of hidden objects: tests worth about 5 % of the predicted frame.
-        const double budget = 0.05 * lastInputs_.frameAll_ns / std::max(c.occlusionTest_ns, 1.0);
+        // The estimate of hidden objects: tests worth about 5 % of the predicted frame, each
+        // costed with its box's fragments (issueQueries stops there).
+        estimateBudget_ns = 0.05 * lastInputs_.frameAll_ns;
+        const double budget = estimateBudget_ns / std::max(c.occlusionTest_ns, 1.0);
         q = static_cast<uint32_t>(std::clamp(budget, static_cast<double>(config_.estimatorTests), 1024.0));
         estimatorQ_ = q;
       } else if (mode == lod::DynamicMode::Occlusion) {
@@ -633,7 +654,9 @@ void DynamicPass::draw(Renderer& r, uint64_t frame) {
         if (fits_.solve(k)) base = lod::optimalQ(k, t, n0);
         const double factors[4] = {1.0, 0.5, 1.0, 2.0};
         q = static_cast<uint32_t>(std::lround(std::max(1.0, base * factors[(frame / 4) % 4])));
-        q = std::min(q, n0);
+        // Never fewer than the re-tests of the nodes known hidden: one left out is drawn again
+        // once its result is stale, and costs what the test would have saved.
+        q = std::min(std::max(q, lastRetests_ + config_.estimatorTests), n0);
       }
       break;
     }
@@ -656,7 +679,9 @@ void DynamicPass::draw(Renderer& r, uint64_t frame) {
   gl.ProgramUniform1i(p, g.uWork, static_cast<GLint>(config_.fragmentWork));
   bindBoxState(p, g.vao.id(), g.commands.id());
   const int sq = static_cast<int>(frame & 1u);
-  samplesActive_ = (strategy_ == DynamicStrategy::Adaptive || measureSamples_) && !g.samplesPending[sq];
+  // Adaptive counts the fragments every 8th frame: counting costs the rasterizer time on every
+  // fragment (llvmpipe: several per cent of a fragment-bound frame), and they change slowly.
+  samplesActive_ = ((strategy_ == DynamicStrategy::Adaptive && frame % 8 == 0) || measureSamples_) && !g.samplesPending[sq];
   if (samplesActive_) {
     gl.BeginQuery(GL_SAMPLES_PASSED, g.samplesQuery[sq]);
     g.samplesPending[sq] = true;
@@ -678,7 +703,7 @@ void DynamicPass::draw(Renderer& r, uint64_t frame) {
     }
   } else {
     rebuildDirtyNodes();
-    drawNodes(r, mode == lod::DynamicMode::Occlusion, frame, q);
+    drawNodes(r, mode == lod::DynamicMode::Occlusion, frame, q, estimateBudget_ns);
   }
   endSamples();
   unbindBoxState();

@@ -143,9 +143,11 @@ class DynamicPass {
   void writeInstance(uint32_t id);
   void rebuildDirtyNodes();
   void drawPerCommand(Renderer& r);
-  void drawNodes(Renderer& r, bool occlusion, uint64_t frame, uint32_t q);
+  // budget_ns: the tests stop once their estimated cost (occlusionTest_ns plus the box's
+  // depth-only fragments) would exceed it; +inf: q alone decides.
+  void drawNodes(Renderer& r, bool occlusion, uint64_t frame, uint32_t q, double budget_ns);
   void pollQueries();
-  void issueQueries(Renderer& r, uint64_t frame, uint32_t q);
+  void issueQueries(Renderer& r, uint64_t frame, uint32_t q, double budget_ns);
   lod::DynamicMode chooseMode();
   void endSamples();
 
@@ -174,6 +176,7 @@ class DynamicPass {
   uint32_t fixedQ_ = 64;
   uint32_t lastQ_ = 0;
   uint32_t estimatorQ_ = 0;       // tests of the last hidden estimate (Octree mode)
+  uint32_t lastRetests_ = 0;      // hidden nodes re-tested in the last occlusion traversal
   double movedEma_ = 0.0;         // objects changed per frame (Adaptive: alpha_n)
   uint32_t movedThisFrame_ = 0;
   uint64_t blockingReads_ = 0;
