@@ -28,7 +28,7 @@ struct Point {
   double fragments = 0;
   double area_px = 0, sqrtArea_px = 0;  // sums over the boxes drawn: projected area, its square root
   double submit_ms = 0;  // median time until the GL calls returned (the rest is glFinish)
-  uint64_t samples = 0;  // samples that passed the depth test (GL_SAMPLES_PASSED, last timed frame)
+  uint64_t samples = 0;  // samples that passed the depth test (GL_SAMPLES_PASSED, first warm-up frame)
   uint64_t triangles = 0;
   double vertex_ms = 0, fragment_ms = 0, commands_ms = 0;  // terms of (2): T_vert, T_frag, T_buf + T_fc
   const char* bound = "";
@@ -197,7 +197,7 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
       p.error_pct = 100.0 * std::abs(pred - p.measured_ms) / std::max(p.measured_ms, 1e-9);
       p.measuredQ1_ms = percentile(ms, 25);
       p.submit_ms = percentile(subMs, 50);
-      p.samples = pass.samplesPassed();
+      p.samples = static_cast<uint64_t>(load.fragments);
       p.errorQ1_pct = 100.0 * std::abs(pred - p.measuredQ1_ms) / std::max(p.measuredQ1_ms, 1e-9);
       p.fragments = load.fragments;
       p.area_px = areaSum * drawnShare;
