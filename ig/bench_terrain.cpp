@@ -305,6 +305,10 @@ struct RasterResult {
   bool ran = false;
   double rasterMs = 0, trianglesPerS = 0, frameMsP50 = 0, updateMsP50 = 0, emitMsP50 = 0, uploadMsP50 = 0,
          drawMsP50 = 0, ratio = 0;
+  // lod::TerrainChunks: chunk size, mesh in the buffer, slots written and drawn a frame.
+  int chunkSide = 0;
+  size_t chunks = 0, meshTriangles = 0;
+  double dirtySlotsP50 = 0, drawnSlotsP50 = 0, drawnLiveP50 = 0, rangesP50 = 0;
   uint64_t triangles = 0;
 };
 
@@ -450,7 +454,9 @@ int runTerrainBench(const TerrainBenchOptions& o) {
   light.fogVisibility_m = 60000.0;
   std::vector<lod::TerrainVertex> vertices;
   std::string contextName = "none";
-  constexpr size_t kRasterCapacity = 3u << 20;  // triangles the frame experiment may draw
+  // Triangle slots of the frame experiment: the whole Deferred mesh (lod::TerrainChunks keeps
+  // every leaf in the buffer, and draws the chunks in view).
+  const size_t rasterCapacity = static_cast<size_t>(roamConfig(lod::RoamMode::Deferred).maxTriangles) / 2 * 3;
   auto vertexAt = [&](int x, int y) { return lod::heightFieldVertex(dem.heights, dem.width, dem.height, dem.spacing_m, x, y); };
   // Median of 5 draws (upload + draw + glFinish): one frame alone is too noisy here.
   auto renderMesh = [&](std::span<const lod::RoamTriangle> list, render::Image& out) {
@@ -472,7 +478,7 @@ int runTerrainBench(const TerrainBenchOptions& o) {
   if (o.render) {
     context = render::createContext(render::ContextKind::Headless, o.width_px, o.height_px, error);
     renderer = std::make_unique<render::Renderer>();
-    const size_t capacity = std::max<size_t>(renderSweep ? full : 0, kRasterCapacity);
+    const size_t capacity = std::max<size_t>(renderSweep ? full : 0, o.rasterFrames > 0 ? rasterCapacity : size_t{1} << 16);
     if (!context || !renderer->init(o.width_px, o.height_px, error) ||
         !renderer->addTerrainMesh(capacity * 3, static_cast<double>(dem.hi - dem.lo), error)) {
       std::fprintf(stderr, "igbench terrain: %s\n", error.c_str());
@@ -527,14 +533,41 @@ int runTerrainBench(const TerrainBenchOptions& o) {
     const size_t start = static_cast<size_t>(o.frames / 4);
     const size_t count = std::min<size_t>(static_cast<size_t>(o.rasterFrames), path.size() - start - 1);
     lod::Roam roam(bounds, roamConfig(lod::RoamMode::Deferred));
-    lod::RoamView startView = viewFor(path[start].camera, o.height_px, 1.0);
+    // Start-up at the path's first view, then the flight up to `start` untimed, so that the
+    // timed frames change the mesh as a steady flight does (a fresh schedule has nothing due
+    // for the first hundred metres).
+    lod::RoamView startView = viewFor(path[0].camera, o.height_px, 1.0);
     startView.lateness = o.lateness;
-    roam.update(startView, lod::RoamMode::Deferred);  // start-up
-    lod::TriangleSlots slots(kRasterCapacity);
+    roam.update(startView, lod::RoamMode::Deferred);
+    // The mesh lives in the vertex buffer by chunk (lod/terrain_chunks.h): a frame writes the
+    // slots ROAM changed and draws the chunks inside the frustum.
+    lod::TerrainChunksConfig chunkConfig;
+    chunkConfig.capacityTriangles = rasterCapacity;
+    lod::TerrainChunks chunks(roam, chunkConfig);
     std::vector<lod::RoamTriangle> tris(roam.nodeCapacity() / 2 + 16);
-    std::vector<uint32_t> added(kRasterCapacity), addedSlots(kRasterCapacity), freed(kRasterCapacity);
+    std::vector<lod::TerrainDrawRange> ranges;
     const std::span<lod::TerrainVertex> gpu = renderer->terrainMeshVertices();
-    std::vector<double> frameMs, updateMs, emitMs, uploadMs, drawMs;
+    auto writeDirty = [&] {
+      for (const uint32_t s : chunks.dirtySlots()) {
+        const uint32_t node = chunks.slotNode(s);
+        lod::RoamTriangle t;
+        if (node != lod::TerrainChunks::kNone && roam.leafTriangle(node, &t)) {
+          for (size_t v = 0; v < 3; ++v) gpu[s * 3 + v] = vertexAt(t.v[v].x, t.v[v].y);
+        } else {
+          for (size_t v = 0; v < 3; ++v) gpu[s * 3 + v] = lod::TerrainVertex{};
+        }
+      }
+    };
+    chunks.apply();  // start-up: every leaf
+    writeDirty();
+    for (size_t k = 1; k <= start; ++k) {
+      lod::RoamView fv = viewFor(path[k].camera, o.height_px, 1.0, o.deferredVisits);
+      fv.lateness = o.lateness;
+      roam.update(fv, lod::RoamMode::Deferred);
+      chunks.apply();
+      writeDirty();
+    }
+    std::vector<double> frameMs, updateMs, emitMs, uploadMs, drawMs, dirty, drawnSlots, drawnLive, rangeCount;
     size_t lastN = 0;
     for (size_t k = 1; k <= count; ++k) {
       const lod::Camera& cam = path[start + k].camera;
@@ -543,16 +576,13 @@ int runTerrainBench(const TerrainBenchOptions& o) {
       fv.lateness = o.lateness;
       roam.update(fv, lod::RoamMode::Deferred);
       const auto t1 = BenchClock::now();
-      const size_t n = roam.emitVisible(cam, tris);
+      const lod::TerrainChunks::Changes c = chunks.apply();
+      const size_t live = chunks.cull(cam, ranges);
       const auto t2 = BenchClock::now();
-      const lod::TriangleSlots::Changes c = slots.update(std::span(tris.data(), std::min(n, kRasterCapacity)), added, addedSlots, freed);
-      for (size_t i = 0; i < c.freed; ++i)
-        for (size_t v = 0; v < 3; ++v) gpu[freed[i] * 3 + v] = lod::TerrainVertex{};
-      for (size_t i = 0; i < c.added; ++i)
-        for (size_t v = 0; v < 3; ++v) gpu[addedSlots[i] * 3 + v] = vertexAt(tris[added[i]].v[v].x, tris[added[i]].v[v].y);
+      writeDirty();
       const auto t3 = BenchClock::now();
       renderer->beginFrame(cam, light);
-      renderer->drawTerrainMesh({0, 0, 0}, static_cast<size_t>(slots.highWater()) * 3);
+      renderer->drawTerrainMeshRanges({0, 0, 0}, ranges);
       renderer->endFrame();
       renderer->finish();
       const auto t4 = BenchClock::now();
@@ -562,8 +592,22 @@ int runTerrainBench(const TerrainBenchOptions& o) {
       emitMs.push_back(d(t1, t2));
       uploadMs.push_back(d(t2, t3));
       drawMs.push_back(d(t3, t4));
-      lastN = std::min(n, kRasterCapacity);
+      double slotsDrawn = 0;
+      for (const lod::TerrainDrawRange& r : ranges) slotsDrawn += r.count;
+      dirty.push_back(static_cast<double>(c.dirty));
+      drawnSlots.push_back(slotsDrawn);
+      drawnLive.push_back(static_cast<double>(live));
+      rangeCount.push_back(static_cast<double>(ranges.size()));
     }
+    // The reference is what ROAM emits for the view: the visible leaves, packed, static.
+    lastN = std::min(roam.emitVisible(path[start + count].camera, tris), rasterCapacity);
+    raster.chunkSide = chunks.chunkSide();
+    raster.chunks = chunks.chunkCount();
+    raster.meshTriangles = chunks.liveTriangles();
+    raster.dirtySlotsP50 = percentile(dirty, 50);
+    raster.drawnSlotsP50 = percentile(drawnSlots, 50);
+    raster.drawnLiveP50 = percentile(drawnLive, 50);
+    raster.rangesP50 = percentile(rangeCount, 50);
     if (count > 0 && lastN > 0) {
       // Static: the last frame's visible triangles packed at the front of the buffer.
       for (size_t i = 0; i < lastN; ++i)
@@ -642,7 +686,11 @@ int runTerrainBench(const TerrainBenchOptions& o) {
          std::to_string(raster.triangles) + ",\"raster_ms\":" + num(raster.rasterMs) + ",\"triangles_per_s\":" +
          num(raster.trianglesPerS, 0) + ",\"frame_ms_p50\":" + num(raster.frameMsP50) + ",\"update_ms_p50\":" +
          num(raster.updateMsP50) + ",\"emit_ms_p50\":" + num(raster.emitMsP50) + ",\"upload_ms_p50\":" +
-         num(raster.uploadMsP50) + ",\"draw_ms_p50\":" + num(raster.drawMsP50) + "},\"frame_vs_raster_ratio\":" +
+         num(raster.uploadMsP50) + ",\"draw_ms_p50\":" + num(raster.drawMsP50) +
+         ",\"chunk_side\":" + std::to_string(raster.chunkSide) + ",\"chunks\":" + std::to_string(raster.chunks) +
+         ",\"mesh_triangles\":" + std::to_string(raster.meshTriangles) + ",\"dirty_slots_p50\":" + num(raster.dirtySlotsP50, 0) +
+         ",\"drawn_slots_p50\":" + num(raster.drawnSlotsP50, 0) + ",\"drawn_live_p50\":" + num(raster.drawnLiveP50, 0) +
+         ",\"draw_ranges_p50\":" + num(raster.rangesP50, 0) + "},\"frame_vs_raster_ratio\":" +
          num(raster.ratio, 3);
     std::snprintf(b, sizeof b, ",\"block_triangles_at_equal_error\":%llu,\"roam_triangles_at_equal_error\":%llu,"
                   "\"sweep_rendered\":%s,\"sweep\":[",
@@ -679,9 +727,13 @@ int runTerrainBench(const TerrainBenchOptions& o) {
                 tp.framesToVisible, tp.visibleMs, tp.framesToFinished, tp.finishedMs);
     if (raster.ran)
       std::printf("  frame vs raster: frame p50 %.2f ms (update %.2f, emit %.2f, upload %.2f, draw %.2f) for %llu "
-                  "triangles; static draw %.2f ms (%.1f M triangles/s): ratio %.2f\n",
+                  "triangles; static draw %.2f ms (%.1f M triangles/s): ratio %.2f\n"
+                  "    chunks of %d samples (%zu), mesh %zu triangles in the buffer; a frame writes %.0f slots, draws %.0f "
+                  "slots (%.0f live) in %.0f ranges\n",
                   raster.frameMsP50, raster.updateMsP50, raster.emitMsP50, raster.uploadMsP50, raster.drawMsP50,
-                  static_cast<unsigned long long>(raster.triangles), raster.rasterMs, raster.trianglesPerS / 1e6, raster.ratio);
+                  static_cast<unsigned long long>(raster.triangles), raster.rasterMs, raster.trianglesPerS / 1e6, raster.ratio,
+                  raster.chunkSide, raster.chunks, raster.meshTriangles, raster.dirtySlotsP50, raster.drawnSlotsP50,
+                  raster.drawnLiveP50, raster.rangesP50);
     std::printf("  at 1 px: block LOD %llu triangles, ROAM %llu (%.2fx)\n", static_cast<unsigned long long>(blockEqual),
                 static_cast<unsigned long long>(roamEqual),
                 blockEqual ? static_cast<double>(roamEqual) / static_cast<double>(blockEqual) : 0.0);

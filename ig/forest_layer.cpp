@@ -212,8 +212,14 @@ void ForestLayer::select(const lod::Camera& cam) {
 }
 
 void ForestLayer::draw(render::Renderer& r, const glm::dvec3& terrainOrigin_m, size_t terrainVertexCount) {
+  const lod::TerrainDrawRange all{0, static_cast<uint32_t>(terrainVertexCount / 3)};
+  draw(r, terrainOrigin_m, std::span(&all, terrainVertexCount >= 3 ? 1 : 0));
+}
+
+void ForestLayer::draw(render::Renderer& r, const glm::dvec3& terrainOrigin_m,
+                       std::span<const lod::TerrainDrawRange> terrainRanges) {
   if (drawTrees_) pass_.drawTrees(r, selectedTrees(), modelRanges_);
-  if (drawLayers_) pass_.drawLayers(r, terrainOrigin_m, terrainVertexCount, pass_.layerCount());
+  if (drawLayers_) pass_.drawLayers(r, terrainOrigin_m, terrainRanges, pass_.layerCount());
   if (drawFins_) pass_.drawFins(r, std::span(groups_.data(), groupsSelected_));
   stats_.layers = drawLayers_ ? pass_.layerCount() : 0;
   pass_.takeStats();

@@ -66,6 +66,9 @@ class ForestLayer {
   // submit phase: trees, then layers over the terrain mesh (Renderer::terrainMeshVertexBuffer,
   // first `terrainVertexCount` vertices relative to `terrainOrigin_m`), then fins.
   void draw(render::Renderer& renderer, const glm::dvec3& terrainOrigin_m, size_t terrainVertexCount);
+  // The same with the terrain mesh drawn as ranges of triangle slots (lod/terrain_chunks.h).
+  void draw(render::Renderer& renderer, const glm::dvec3& terrainOrigin_m,
+            std::span<const lod::TerrainDrawRange> terrainRanges);
 
   ForestLayerStats stats() const { return stats_; }
   uint64_t bufferBytes() const { return pass_.bufferBytes(); }

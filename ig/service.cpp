@@ -33,6 +33,7 @@
 #include "lod/terrain_grid.h"
 #include "lod/geomorph.h"
 #include "lod/governor.h"
+#include "lod/terrain_chunks.h"
 #include "lod/triangle_slots.h"
 #include "lod/view.h"
 #include "render/context.h"
@@ -95,7 +96,11 @@ struct TerrainMeshLayer {
   // emitVisible needs room for all of it): calloc'd, so only what is written is committed.
   std::unique_ptr<lod::RoamTriangle[], FreeDeleter> triangles;
   size_t triangleRoom = 0;
-  std::unique_ptr<lod::TriangleSlots> slots;  // which buffer slot each triangle occupies
+  // ROAM without geomorphing: the whole mesh stays in the vertex buffer by chunk; a frame
+  // writes the slots ROAM changed and draws the chunks in view (lod/terrain_chunks.h).
+  std::unique_ptr<lod::TerrainChunks> chunks;
+  std::vector<lod::TerrainDrawRange> ranges;  // this frame's draw ranges (chunks, or the slots)
+  std::unique_ptr<lod::TriangleSlots> slots;  // otherwise: which buffer slot each triangle occupies
   std::vector<lod::RoamTriangle> slotTriangle;  // the triangle in each slot (x = kFreeSlot: none)
   std::unique_ptr<lod::Geomorph> morph;       // roam with morph_s > 0: splits
   std::unique_ptr<lod::MorphOut> morphOut;    // roam with morph_s > 0: merges
@@ -201,6 +206,10 @@ struct TerrainMeshLayer {
           nsPerOperation =
               0.8 * nsPerOperation + 0.2 * static_cast<double>(clock->now_ns() - t0) / static_cast<double>(ops);
       }
+      if (chunks) {
+        selectChunks(cam);
+        return;
+      }
       if (morph && morphing) {
         for (const lod::RoamVertex& v : roam->createdVertices()) {
           lod::RoamVertex a, b;
@@ -298,7 +307,39 @@ struct TerrainMeshLayer {
     }
     if (morph) morph->expire(t);
   }
-  size_t vertexCount() const { return (static_cast<size_t>(slots->highWater()) + ghostsDrawn) * 3; }
+  size_t vertexCount() const {
+    return chunks ? 0 : (static_cast<size_t>(slots->highWater()) + ghostsDrawn) * 3;
+  }
+  // What submit draws: the chunks in view, or every slot up to the high-water mark and the ghosts.
+  std::span<const lod::TerrainDrawRange> drawRanges() {
+    if (!chunks) {
+      ranges.clear();
+      if (vertexCount() > 0) ranges.push_back({0, static_cast<uint32_t>(vertexCount() / 3)});
+    }
+    return ranges;
+  }
+
+  // The chunked mesh: replay ROAM's changes into the buffer, cull the chunks.
+  void selectChunks(const lod::Camera& cam) {
+    const lod::TerrainChunks::Changes c = chunks->apply();
+    for (const uint32_t s : chunks->dirtySlots()) {
+      const uint32_t node = chunks->slotNode(s);
+      lod::RoamTriangle t;
+      if (node != lod::TerrainChunks::kNone && roam->leafTriangle(node, &t)) writeTriangle(s, t, 1e300);
+      else hideSlot(s);
+    }
+    uploadedTriangles = c.dirty;
+    const size_t n = chunks->cull(cam, ranges);
+    emitted = n;
+    meshPerVisible = n > 0 ? std::max(1.0, static_cast<double>(roam->triangleCount()) / static_cast<double>(n)) : 1.0;
+    // The buffer holds the whole mesh: lower the mesh cap while leaves find no slot (the
+    // next apply reads them all again), raise it back slowly.
+    const uint64_t floor = roam->baseTriangles() * 4;
+    if (chunks->overflowed())
+      meshCap = std::max<uint64_t>(floor, roam->triangleCount() * 9 / 10);
+    else if (meshCap < maxTriangles && chunks->liveTriangles() < chunks->capacity() * 6 / 10)
+      meshCap = std::min(maxTriangles, meshCap + meshCap / 16 + 1);
+  }
 };
 
 lod::TerrainGridDesc terrainGridDesc(const TerrainLayerConfig& t) {
@@ -369,6 +410,13 @@ static bool createTerrainMesh(const TerrainLayerConfig& t, const ServiceConfig& 
     const auto q = static_cast<size_t>(lod::BlockLodConfig{}.blockQuads);
     capacity = static_cast<size_t>(m.block->blocksX()) * static_cast<size_t>(m.block->blocksY()) * (2 * q * q + 8);
     m.triangleRoom = capacity;
+  }
+  if (m.roam && !(t.morph_s > 0.0)) {
+    // No geomorphing: the mesh lives in the buffer by chunk (room for 1.5x the mesh cap).
+    m.chunks = std::make_unique<lod::TerrainChunks>(*m.roam);
+    m.bufferTriangles = m.chunks->capacity();
+    out = std::move(layer);
+    return true;
   }
   m.triangles.reset(static_cast<lod::RoamTriangle*>(std::calloc(m.triangleRoom, sizeof(lod::RoamTriangle))));
   if (!m.triangles) {
@@ -538,9 +586,8 @@ struct Service::Impl {
   render::RenderStats submit(const lod::Camera& cam, const io::HostState& host, Clock* clock = nullptr) {
     renderer.beginFrame(cam, lightingFor(host));
     if (terrain) renderer.drawTerrain(std::span(terrain->selected.data(), terrain->selectedCount));
-    if (terrainMesh)
-      renderer.drawTerrainMesh(terrainMesh->origin_m, terrainMesh->vertexCount());
-    if (forest) forest->draw(renderer, terrainMesh->origin_m, terrainMesh->vertexCount());
+    if (terrainMesh) renderer.drawTerrainMeshRanges(terrainMesh->origin_m, terrainMesh->drawRanges());
+    if (forest) forest->draw(renderer, terrainMesh->origin_m, terrainMesh->ranges);
     if (hdlod) hdlod->draw(renderer);
     if (cells) {
       const int64_t t0 = clock ? clock->now_ns() : 0;

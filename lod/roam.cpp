@@ -298,6 +298,8 @@ void Roam::resetToBase() {
   }
   liveNodes_ = 2u * rootPairs;
   triangles_ = 2u * rootPairs;
+  leafLogCount_ = 0;
+  leafLogReset_ = true;  // the log cannot describe this: every leaf is new
 }
 
 // ---- structure ---------------------------------------------------------------------------
@@ -370,6 +372,11 @@ void Roam::splitNode(uint32_t n) {
     ++c->gen;
   }
   nd.children = c0;
+  if (!leafLog_.empty()) {
+    logLeaf(n | kLeafRemoved);
+    logLeaf(c0);
+    logLeaf(c1);
+  }
   touch(n);
   touch(c0);
   touch(c1);
@@ -438,6 +445,11 @@ void Roam::mergeDiamond(uint32_t n) {
     }
     freePair(first);
     nodes_[z].children = kNone;
+    if (!leafLog_.empty()) {
+      logLeaf(first | kLeafRemoved);
+      logLeaf((first + 1) | kLeafRemoved);
+      logLeaf(z);
+    }
     triangles_ -= 1;
     touch(z);
   }
@@ -1077,6 +1089,32 @@ bool Roam::emittableLeaf(const Node& nd, ClampedCorners& c) const {
        std::min(nd.ly, height_ - 1), std::min(nd.rx, width_ - 1), std::min(nd.ry, height_ - 1)};
   // Zero area once clamped onto the DEM: nothing to draw.
   return static_cast<int64_t>(c.rx - c.ax) * (c.ly - c.ay) - static_cast<int64_t>(c.ry - c.ay) * (c.lx - c.ax) != 0;
+}
+
+void Roam::enableLeafLog(size_t capacity) {
+  leafLog_.assign(std::max<size_t>(capacity, 16), 0u);
+  leafLogCount_ = 0;
+  leafLogReset_ = true;
+}
+
+bool Roam::leafTriangle(uint32_t node, RoamTriangle* out) const {
+  if (node >= 2 * static_cast<size_t>(highPairs_)) return false;
+  const Node& nd = nodes_[node];
+  ClampedCorners c;
+  if (!emittableLeaf(nd, c)) return false;
+  *out = RoamTriangle{{{nd.ax, nd.ay}, {nd.rx, nd.ry}, {nd.lx, nd.ly}}};
+  return true;
+}
+
+size_t Roam::emitLeafNodes(std::span<uint32_t> out) const {
+  assert(out.size() >= triangleCount() && "Roam::emitLeafNodes: out smaller than triangleCount()");
+  size_t count = 0;
+  const uint32_t end = 2 * highPairs_;
+  for (uint32_t n = 0; n < end; ++n) {
+    ClampedCorners c;
+    if (emittableLeaf(nodes_[n], c)) out[count++] = n;
+  }
+  return count;
 }
 
 size_t Roam::emitTriangles(std::span<RoamTriangle> out) const {

@@ -196,11 +196,34 @@ class Roam {
   // base-square corners (never created by a split) and vertices off the padded grid.
   bool splitEnds(int x, int y, RoamVertex& a, RoamVertex& b) const;
 
+  // Leaf-change log, for renderers that keep the mesh in GPU memory and change only what ROAM
+  // changed (lod/terrain_chunks.h). Off until enabled. Every update() appends, in order, each
+  // node that became a leaf (a split's children, a merged diamond's halves) and, with
+  // kLeafRemoved set, each that stopped being one (split or freed). A node id may appear
+  // several times (pool pairs are reused); replaying the log in order and then reading each
+  // node's current state gives the current leaves. `leafLogReset()` is true when the log does
+  // not describe the change (the mesh restarted from the base triangles, the log filled up,
+  // or it was just enabled): the consumer then reads all leaves again (emitLeafNodes).
+  static constexpr uint32_t kLeafRemoved = 0x80000000u;
+  void enableLeafLog(size_t capacity);
+  std::span<const uint32_t> leafLog() const { return {leafLog_.data(), leafLogCount_}; }
+  bool leafLogReset() const { return leafLogReset_; }
+  void clearLeafLog() {
+    leafLogCount_ = 0;
+    leafLogReset_ = false;
+  }
+  // True when `node` is a live leaf with non-zero area once clamped onto the DEM (what
+  // emitTriangles writes); then *out is its triangle as emitTriangles writes it.
+  bool leafTriangle(uint32_t node, RoamTriangle* out) const;
+  // Node ids of every leaf emitTriangles would write, in pool order; out.size() >= triangleCount().
+  size_t emitLeafNodes(std::span<uint32_t> out) const;
+
   int maxLevel() const { return maxLevel_; }
   int gridWidth() const { return px_; }   // padded grid vertices per row
   int gridHeight() const { return py_; }
   size_t baseTriangles() const { return 2u * static_cast<size_t>(rootsX_) * static_cast<size_t>(rootsY_); }
   size_t nodeCount() const { return liveNodes_; }
+  uint64_t triangleCap() const { return configMaxTriangles_; }  // RoamConfig::maxTriangles
   size_t nodeCapacity() const { return nodeCap_; }
   // Memory: the precomputed bounds (8 bytes a padded grid vertex, touched at start-up) and the
   // node pool (reserved address space; pages are committed as the mesh first grows into them).
@@ -329,6 +352,10 @@ class Roam {
   void schedule(uint32_t n);
   void scheduleOne(uint32_t n);
   void scheduleAll();
+  void logLeaf(uint32_t entry) {
+    if (leafLogCount_ < leafLog_.size()) leafLog_[leafLogCount_++] = entry;
+    else if (!leafLog_.empty()) leafLogReset_ = true;
+  }
   void touch(uint32_t n) {
     if (trackTouched_) {
       if (touched_.size() < touched_.capacity()) touched_.push_back(n);
@@ -360,6 +387,9 @@ class Roam {
   size_t liveNodes_ = 0;
   uint64_t triangles_ = 0;
   std::vector<QueueEntry> splitQ_, mergeQ_;
+  std::vector<uint32_t> leafLog_;  // enableLeafLog: node ids, kLeafRemoved for removals
+  size_t leafLogCount_ = 0;
+  bool leafLogReset_ = false;
   std::vector<RoamVertex> created_ = std::vector<RoamVertex>(kCreatedCapacity);
   size_t createdCount_ = 0;
   std::vector<RoamVertex> removed_ = std::vector<RoamVertex>(kCreatedCapacity);

@@ -131,6 +131,7 @@ layout(location = 1) in vec3 aNormal;
 uniform mat4 uViewProjection;
 uniform vec3 uOffset;                     // terrain origin - eye (double on the CPU)
 uniform float uLayerStep;                 // H / n
+uniform int uLayerBase;                   // layer of instance 0 (one draw per layer over ranges)
 uniform vec2 uMapScale;                   // 1 / map extent
 uniform vec2 uMapBias;                    // (terrain origin - map origin) / extent
 uniform float uTileScale;                 // 1 / tile
@@ -140,7 +141,7 @@ out vec3 vNormal;
 out vec2 vMapUv;
 out vec3 vTileUv;
 void main() {
-  float layer = float(gl_InstanceID);
+  float layer = float(gl_InstanceID + uLayerBase);
   vec3 rel = aPosition + vec3(0.0, 0.0, (layer + 1.0) * uLayerStep) + uOffset;
   vRel = rel;
   vNormal = aNormal;
@@ -608,7 +609,9 @@ struct ForestPass::Impl {
   TreeDrawer trees;
   GlProgram layerProgram, finProgram;
   Locations layerLoc, finLoc;
-  GLint lOffset = -1, lLayerStep = -1, lMapScale = -1, lMapBias = -1, lTileScale = -1, lTileBias = -1;
+  std::vector<GLint> layerFirsts;  // drawLayers over ranges
+  std::vector<GLsizei> layerCounts;
+  GLint lOffset = -1, lLayerStep = -1, lLayerBase = -1, lMapScale = -1, lMapBias = -1, lTileScale = -1, lTileBias = -1;
   GLint fOffset = -1, fMapScale = -1, fTileScale = -1;
   GlVertexArray layerVao, finVao;
   GLuint layerVaoBuffer = 0;
@@ -655,6 +658,7 @@ bool ForestPass::init(const ForestPassDesc& desc, const lod::ForestMap& map, con
   m->finLoc.find(fp);
   m->lOffset = gl.GetUniformLocation(lp, "uOffset");
   m->lLayerStep = gl.GetUniformLocation(lp, "uLayerStep");
+  m->lLayerBase = gl.GetUniformLocation(lp, "uLayerBase");
   m->lMapScale = gl.GetUniformLocation(lp, "uMapScale");
   m->lMapBias = gl.GetUniformLocation(lp, "uMapBias");
   m->lTileScale = gl.GetUniformLocation(lp, "uTileScale");
@@ -767,10 +771,17 @@ void ForestPass::drawTrees(Renderer& r, std::span<const lod::ForestInstance> ins
 }
 
 void ForestPass::drawLayers(Renderer& r, const glm::dvec3& origin, size_t vertexCount, int layers) {
+  const lod::TerrainDrawRange all{0, static_cast<uint32_t>(vertexCount / 3)};
+  drawLayers(r, origin, std::span(&all, vertexCount >= 3 ? 1 : 0), layers);
+}
+
+void ForestPass::drawLayers(Renderer& r, const glm::dvec3& origin, std::span<const lod::TerrainDrawRange> ranges,
+                            int layers) {
   Impl& m = *impl_;
   const GLuint buffer = r.terrainMeshVertexBuffer();
   const int n = std::min(layers, m.layerCount);
-  const size_t count = vertexCount / 3 * 3;
+  size_t count = 0;  // vertices
+  for (const lod::TerrainDrawRange& rg : ranges) count += 3 * static_cast<size_t>(rg.count);
   if (buffer == 0 || n <= 0 || count == 0) return;
   if (buffer != m.layerVaoBuffer) {
     gl.VertexArrayVertexBuffer(m.layerVao.id(), 0, buffer, 0, sizeof(lod::TerrainVertex));
@@ -798,7 +809,24 @@ void ForestPass::drawLayers(Renderer& r, const glm::dvec3& origin, size_t vertex
   gl.BlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
   gl.DepthMask(GL_FALSE);
   gl.Disable(GL_CULL_FACE);  // seen from below inside valleys too
-  gl.DrawArraysInstanced(GL_TRIANGLES, 0, static_cast<GLsizei>(count), n);
+  if (ranges.size() == 1) {
+    gl.ProgramUniform1i(p, m.lLayerBase, 0);
+    gl.DrawArraysInstanced(GL_TRIANGLES, static_cast<GLint>(3 * static_cast<size_t>(ranges[0].first)),
+                           static_cast<GLsizei>(3 * static_cast<size_t>(ranges[0].count)), n);
+  } else {
+    // Several ranges (the terrain's chunks in view): one multi-draw a layer, bottom up as the
+    // instanced draw orders them.
+    m.layerFirsts.clear();
+    m.layerCounts.clear();
+    for (const lod::TerrainDrawRange& rg : ranges) {
+      m.layerFirsts.push_back(static_cast<GLint>(3 * static_cast<size_t>(rg.first)));
+      m.layerCounts.push_back(static_cast<GLsizei>(3 * static_cast<size_t>(rg.count)));
+    }
+    for (int layer = 0; layer < n; ++layer) {
+      gl.ProgramUniform1i(p, m.lLayerBase, layer);
+      gl.MultiDrawArrays(GL_TRIANGLES, m.layerFirsts.data(), m.layerCounts.data(), static_cast<GLsizei>(m.layerFirsts.size()));
+    }
+  }
   gl.Enable(GL_CULL_FACE);
   gl.DepthMask(GL_TRUE);
   gl.Disable(GL_BLEND);

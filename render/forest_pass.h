@@ -35,6 +35,7 @@
 #include "lod/forest_fins.h"
 #include "lod/forest_kdtree.h"
 #include "lod/forest_model.h"
+#include "lod/terrain_chunks.h"
 #include "render/image.h"
 
 namespace ig::render {
@@ -104,6 +105,9 @@ class ForestPass {
   // Shell layers over the first `vertexCount` vertices of the terrain mesh buffer (positions
   // relative to `terrainOrigin_m`). `layers` <= layerCount() (0: none).
   void drawLayers(Renderer& r, const glm::dvec3& terrainOrigin_m, size_t vertexCount, int layers);
+  // The same over ranges of triangle slots (the terrain chunks in view, lod/terrain_chunks.h).
+  void drawLayers(Renderer& r, const glm::dvec3& terrainOrigin_m, std::span<const lod::TerrainDrawRange> ranges,
+                  int layers);
   // Fins of the given groups (selectFinGroups output: indices into fins->groups).
   void drawFins(Renderer& r, std::span<const uint32_t> groups);
 

@@ -193,6 +193,30 @@ class TerrainPass {
     ++stats.drawCalls;
   }
 
+  // Ranges of triangle slots (lod/terrain_chunks.h) in one multi-draw.
+  void drawDynamicRanges(const lod::Camera& camera, const Lighting& lighting, const glm::dvec3& origin_m,
+                         std::span<const lod::TerrainDrawRange> ranges, RenderStats& stats) {
+    const size_t limit = mapped_.size() / 3;
+    firsts_.clear();
+    counts_.clear();
+    size_t triangles = 0;
+    for (const lod::TerrainDrawRange& r : ranges) {
+      if (r.count == 0 || r.first >= limit) continue;
+      const size_t n = std::min<size_t>(r.count, limit - r.first);
+      firsts_.push_back(static_cast<GLint>(3 * static_cast<size_t>(r.first)));
+      counts_.push_back(static_cast<GLsizei>(3 * n));
+      triangles += n;
+    }
+    if (firsts_.empty()) return;
+    const GLuint p = begin(camera, lighting);
+    setOrigin(p, origin_m, camera);
+    gl.BindVertexArray(dynamicArray_.id());
+    gl.MultiDrawArrays(GL_TRIANGLES, firsts_.data(), counts_.data(), static_cast<GLsizei>(firsts_.size()));
+    gl.BindVertexArray(0);
+    stats.triangles += triangles;
+    ++stats.drawCalls;
+  }
+
   uint64_t bytes() const { return bytes_; }
   unsigned vertexBufferId() const { return dynamicBuffer_.id() ? dynamicBuffer_.id() : vertexBuffer_.id(); }
   bool hasStatic() const { return static_cast<bool>(vertexArray_); }
@@ -240,6 +264,8 @@ class TerrainPass {
     gl.ProgramUniform2fv(p, uDetailPhase_, 1, glm::value_ptr(phase));
   }
 
+  std::vector<GLint> firsts_;    // drawDynamicRanges: grown once, reused
+  std::vector<GLsizei> counts_;
   GlProgram program_;
   GlBuffer vertexBuffer_, indexBuffer_, dynamicBuffer_;
   GlVertexArray vertexArray_, dynamicArray_;
@@ -335,6 +361,10 @@ std::span<lod::TerrainVertex> Renderer::terrainMeshVertices() const {
 
 void Renderer::drawTerrainMesh(const glm::dvec3& origin_m, size_t vertexCount) {
   if (terrainMesh_) terrainMesh_->drawDynamic(camera_, lighting_, origin_m, vertexCount, stats_);
+}
+
+void Renderer::drawTerrainMeshRanges(const glm::dvec3& origin_m, std::span<const lod::TerrainDrawRange> ranges) {
+  if (terrainMesh_) terrainMesh_->drawDynamicRanges(camera_, lighting_, origin_m, ranges, stats_);
 }
 
 void Renderer::drawTerrainMesh(const glm::dvec3& origin_m, std::span<const lod::TerrainVertex> vertices) {

@@ -11,6 +11,7 @@
 
 #include <glm/vec3.hpp>
 
+#include "lod/terrain_chunks.h"
 #include "lod/terrain_grid.h"
 #include "lod/view.h"
 #include "render/image.h"
@@ -64,6 +65,9 @@ class Renderer {
   // Draws the first `vertexCount` vertices of the mapped buffer (3 a triangle, positions
   // relative to `origin_m`; degenerate triangles mark free slots).
   void drawTerrainMesh(const glm::dvec3& origin_m, size_t vertexCount);
+  // Draws ranges of triangle slots of the mapped buffer in one multi-draw (the chunks of
+  // lod/terrain_chunks.h inside the frustum).
+  void drawTerrainMeshRanges(const glm::dvec3& origin_m, std::span<const lod::TerrainDrawRange> ranges);
   // Convenience: copies a whole triangle list into the mapped buffer, then draws it.
   void drawTerrainMesh(const glm::dvec3& origin_m, std::span<const lod::TerrainVertex> vertices);
   RenderStats endFrame();

@@ -1,0 +1,278 @@
+// The ROAM mesh kept by chunk (lod/terrain_chunks.h): a simulated vertex buffer that applies
+// only the slots apply() lists always holds exactly the current leaves (plus degenerate slots),
+// the ranges cull() draws hold every leaf emitVisible() finds, and the work per frame follows
+// the change, along flights in every ROAM mode, with visit budgets, teleports (restarts from
+// the base triangles), a log too small for an update, and a buffer too small for the mesh.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <map>
+#include <optional>
+#include <random>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "lod/heightfield.h"
+#include "lod/roam.h"
+#include "lod/terrain_chunks.h"
+
+using namespace ig::lod;
+
+namespace {
+
+std::vector<float> fractal(int w, int h, uint32_t seed = 7) {
+  HeightfieldDesc d;
+  d.seed = seed;
+  d.postsX = w;
+  d.postsY = h;
+  d.postSpacing_m = 30.0;
+  d.heightScale_m = 400.0;
+  std::vector<float> hts(static_cast<size_t>(w) * static_cast<size_t>(h));
+  generateHeightfield(d, hts);
+  return hts;
+}
+
+RoamView makeView(const glm::dvec3& eye, double heading_deg, double pitch_deg, double tolerance_px = 1.0) {
+  RoamView v;
+  v.camera.eye_m = eye;
+  v.camera.heading_deg = heading_deg;
+  v.camera.pitch_deg = pitch_deg;
+  v.camera.fovY_deg = 60.0;
+  v.camera.aspect = 16.0 / 9.0;
+  v.camera.near_m = 1.0;
+  v.camera.far_m = 100000.0;
+  v.viewportHeight_px = 720.0;
+  v.tolerance_px = tolerance_px;
+  return v;
+}
+
+using Tri = std::array<std::pair<int, int>, 3>;
+Tri canon(const RoamTriangle& t) {
+  Tri r{{{t.v[0].x, t.v[0].y}, {t.v[1].x, t.v[1].y}, {t.v[2].x, t.v[2].y}}};
+  std::sort(r.begin(), r.end());
+  return r;
+}
+
+// What the GPU buffer would hold: each slot's triangle, or nothing (degenerate).
+struct Buffer {
+  std::vector<std::optional<Tri>> slots;
+  explicit Buffer(size_t n) : slots(n) {}
+  void apply(const Roam& roam, const TerrainChunks& chunks) {
+    for (const uint32_t s : chunks.dirtySlots()) {
+      const uint32_t node = chunks.slotNode(s);
+      RoamTriangle t;
+      if (node != TerrainChunks::kNone && roam.leafTriangle(node, &t)) slots[s] = canon(t);
+      else slots[s].reset();
+    }
+  }
+};
+
+std::multiset<Tri> allLeaves(const Roam& roam) {
+  std::vector<RoamTriangle> tris(roam.triangleCount());
+  tris.resize(roam.emitTriangles(tris));
+  std::multiset<Tri> m;
+  for (const auto& t : tris) m.insert(canon(t));
+  return m;
+}
+
+// Checks one frame: the buffer's triangles in the drawn ranges are exactly the leaves of the
+// chunks drawn (no duplicates, nothing stale), every visible leaf is drawn, and the whole
+// buffer's live slots are the mesh.
+void checkFrame(const Roam& roam, const TerrainChunks& chunks, const Buffer& buffer, const Camera& cam,
+                const std::string& where) {
+  std::string why;
+  ASSERT_TRUE(chunks.validate(&why)) << where << ": " << why;
+  std::multiset<Tri> inBuffer;
+  for (const auto& s : buffer.slots)
+    if (s) inBuffer.insert(*s);
+  ASSERT_EQ(inBuffer, allLeaves(roam)) << where << ": the buffer is not the mesh";
+  std::vector<TerrainDrawRange> ranges;
+  const size_t drawnLive = chunks.cull(cam, ranges);
+  std::multiset<Tri> drawn;
+  uint32_t last = 0;
+  for (const TerrainDrawRange& r : ranges) {
+    ASSERT_LE(r.first + r.count, chunks.capacity()) << where;
+    for (uint32_t s = r.first; s < r.first + r.count; ++s)
+      if (buffer.slots[s]) drawn.insert(*buffer.slots[s]);
+    last = std::max(last, r.first + r.count);
+  }
+  EXPECT_EQ(drawn.size(), drawnLive) << where << ": the live count of the drawn chunks";
+  // Every leaf whose own box (its three vertices) meets the frustum is drawn.
+  std::vector<RoamTriangle> tris(roam.triangleCount());
+  tris.resize(roam.emitTriangles(tris));
+  const Frustum frustum = makeFrustum(cam);
+  size_t visible = 0;
+  for (const RoamTriangle& t : tris) {
+    Aabb box{roam.vertexPosition(t.v[0].x, t.v[0].y), roam.vertexPosition(t.v[0].x, t.v[0].y)};
+    for (const RoamVertex& v : t.v) {
+      box.min = glm::min(box.min, roam.vertexPosition(v.x, v.y));
+      box.max = glm::max(box.max, roam.vertexPosition(v.x, v.y));
+    }
+    if (!frustum.intersects(Aabb{box.min - cam.eye_m, box.max - cam.eye_m})) continue;
+    ++visible;
+    ASSERT_TRUE(drawn.count(canon(t))) << where << ": a visible leaf is not in the drawn ranges";
+  }
+  EXPECT_GE(drawn.size(), visible);
+  // Ranges never overlap: nothing is drawn twice.
+  std::vector<TerrainDrawRange> sorted = ranges;
+  std::sort(sorted.begin(), sorted.end(), [](auto a, auto b) { return a.first < b.first; });
+  for (size_t i = 1; i < sorted.size(); ++i)
+    ASSERT_LE(sorted[i - 1].first + sorted[i - 1].count, sorted[i].first) << where << ": overlapping ranges";
+}
+
+std::vector<RoamView> flight(double size_m) {
+  std::vector<RoamView> path;
+  glm::dvec3 eye{0.2 * size_m, 0.1 * size_m, 700.0};
+  double heading = 20.0;
+  for (int i = 0; i < 30; ++i) {
+    eye += glm::dvec3(std::sin(heading * 0.0174533), std::cos(heading * 0.0174533), 0.0) * 90.0;
+    path.push_back(makeView(eye, heading, -15.0));
+  }
+  for (int i = 0; i < 8; ++i) {  // hard turn
+    heading += 30.0;
+    eye += glm::dvec3(std::sin(heading * 0.0174533), std::cos(heading * 0.0174533), 0.0) * 90.0;
+    path.push_back(makeView(eye, heading, -25.0));
+  }
+  path.push_back(makeView({0.8 * size_m, 0.85 * size_m, 900.0}, 225.0, -20.0));  // teleport
+  for (int i = 1; i < 10; ++i) path.push_back(makeView({0.8 * size_m - 50.0 * i, 0.85 * size_m - 50.0 * i, 900.0 - 40.0 * i}, 225.0, -20.0));
+  path.push_back(makeView({0.5 * size_m, 0.5 * size_m, 300.0}, 0.0, -89.0));  // looking straight down
+  return path;
+}
+
+}  // namespace
+
+TEST(TerrainChunks, BufferHoldsTheMeshAndCullDrawsEveryVisibleLeafInEveryMode) {
+  const int n = 257;
+  const auto hts = fractal(n, n);
+  const RoamMode modes[] = {RoamMode::EnhMerge, RoamMode::MergeQueue, RoamMode::Rebuild, RoamMode::Deferred};
+  for (RoamMode mode : modes) {
+    RoamConfig rc;
+    rc.maxTriangles = 200000;
+    Roam roam(hts, n, n, 30.0, {0, 0, 0}, rc);
+    TerrainChunksConfig cc;
+    cc.chunkSide = 16;
+    TerrainChunks chunks(roam, cc);
+    Buffer buffer(chunks.capacity());
+    const auto path = flight(30.0 * (n - 1));
+    size_t rereads = 0, incremental = 0;
+    for (size_t f = 0; f < path.size(); ++f) {
+      RoamView v = path[f];
+      if (mode == RoamMode::Deferred) v.maxVisits = 3000;  // budgeted: restarts on the teleport
+      const RoamStats st = roam.update(v, mode);
+      const TerrainChunks::Changes c = chunks.apply();
+      buffer.apply(roam, chunks);
+      EXPECT_EQ(c.dropped, 0u);
+      EXPECT_EQ(chunks.liveTriangles(), allLeaves(roam).size());
+      if (c.reread) ++rereads;
+      else {
+        ++incremental;
+        // O(change): each leaf that came or went is one log entry, and packing touches at most
+        // the chunks that changed.
+        EXPECT_LE(c.dirty, c.added + c.removed + c.packedSlots) << "frame " << f;
+      }
+      checkFrame(roam, chunks, buffer, v.camera, "mode " + std::to_string(static_cast<int>(mode)) + " frame " + std::to_string(f));
+      if (::testing::Test::HasFatalFailure()) return;
+      (void)st;
+    }
+    if (mode == RoamMode::Rebuild) {
+      EXPECT_EQ(rereads, path.size()) << "Rebuild restarts from the base every frame";
+    } else {
+      EXPECT_GT(incremental, path.size() / 2) << "the log, not re-reads, carries the flight";
+    }
+    std::printf("[ chunks ] mode %d: %zu re-reads, %zu incremental, %zu live, %zu slots in blocks\n",
+                static_cast<int>(mode), rereads, incremental, chunks.liveTriangles(), chunks.slotsInUse());
+  }
+}
+
+TEST(TerrainChunks, ALogTooSmallForAnUpdateFallsBackToAReread) {
+  const int n = 129;
+  const auto hts = fractal(n, n, 3);
+  Roam roam(hts, n, n, 30.0, {0, 0, 0});
+  TerrainChunksConfig cc;
+  cc.logCapacity = 64;  // far less than a flight frame changes
+  cc.chunkSide = 8;
+  TerrainChunks chunks(roam, cc);
+  Buffer buffer(chunks.capacity());
+  const auto path = flight(30.0 * (n - 1));
+  size_t rereads = 0;
+  for (size_t f = 0; f < path.size(); ++f) {
+    roam.update(path[f], RoamMode::EnhMerge);
+    rereads += chunks.apply().reread;
+    buffer.apply(roam, chunks);
+    checkFrame(roam, chunks, buffer, path[f].camera, "frame " + std::to_string(f));
+    if (::testing::Test::HasFatalFailure()) return;
+  }
+  EXPECT_GT(rereads, 2u);
+}
+
+TEST(TerrainChunks, ABufferTooSmallDropsLeavesReportsItAndRecoversWhenTheMeshShrinks) {
+  const int n = 257;
+  const auto hts = fractal(n, n, 9);
+  Roam roam(hts, n, n, 30.0, {0, 0, 0});
+  TerrainChunksConfig cc;
+  cc.capacityTriangles = 4096;
+  cc.chunkSide = 32;
+  TerrainChunks chunks(roam, cc);
+  Buffer buffer(chunks.capacity());
+  RoamView close = makeView({3800, 3800, 200}, 45, -20, 0.5);
+  roam.update(close, RoamMode::EnhMerge);
+  ASSERT_GT(roam.triangleCount(), chunks.capacity());
+  const TerrainChunks::Changes c = chunks.apply();
+  buffer.apply(roam, chunks);
+  EXPECT_GT(c.dropped, 0u);
+  EXPECT_TRUE(chunks.overflowed());
+  EXPECT_LE(chunks.liveTriangles(), chunks.capacity());
+  std::string why;
+  EXPECT_TRUE(chunks.validate(&why)) << why;
+  // Coarser: the mesh fits again and every leaf gets its slot (the next apply re-reads).
+  RoamView far = makeView({3800, 3800, 6000}, 45, -20, 8.0);
+  roam.update(far, RoamMode::EnhMerge);
+  ASSERT_LT(roam.triangleCount(), chunks.capacity() / 2);
+  const TerrainChunks::Changes c2 = chunks.apply();
+  buffer.apply(roam, chunks);
+  EXPECT_TRUE(c2.reread);
+  EXPECT_EQ(c2.dropped, 0u);
+  EXPECT_FALSE(chunks.overflowed());
+  checkFrame(roam, chunks, buffer, far.camera, "after shrinking");
+}
+
+TEST(TerrainChunks, TinyAndNonPowerOfTwoDems) {
+  for (auto [w, h] : {std::pair{2, 2}, std::pair{3, 2}, std::pair{100, 37}, std::pair{65, 130}}) {
+    const auto hts = fractal(w, h, 5);
+    Roam roam(hts, w, h, 30.0, {0, 0, 0});
+    TerrainChunks chunks(roam);
+    Buffer buffer(chunks.capacity());
+    for (const RoamView& v : {makeView({15, 15, 50}, 0, -30, 0.5), makeView({900, 400, 80}, 200, -40, 0.5)}) {
+      roam.update(v, RoamMode::EnhMerge);
+      chunks.apply();
+      buffer.apply(roam, chunks);
+      checkFrame(roam, chunks, buffer, v.camera, std::to_string(w) + "x" + std::to_string(h));
+      if (::testing::Test::HasFatalFailure()) return;
+    }
+  }
+}
+
+TEST(TerrainChunks, ShrinkingChunksArePackedSoDrawnSlotsFollowTheMesh) {
+  const int n = 257;
+  const auto hts = fractal(n, n, 13);
+  Roam roam(hts, n, n, 30.0, {0, 0, 0});
+  TerrainChunks chunks(roam, TerrainChunksConfig{.chunkSide = 32});
+  Buffer buffer(chunks.capacity());
+  // Low over one spot (dense), then climb away over many frames (the mesh thins out).
+  size_t packed = 0;
+  for (int i = 0; i <= 40; ++i) {
+    const RoamView v = makeView({3800, 3800, 60.0 * std::pow(1.15, i)}, 45, -30, 0.5);
+    roam.update(v, RoamMode::EnhMerge);
+    packed += chunks.apply().packedChunks;
+    buffer.apply(roam, chunks);
+    checkFrame(roam, chunks, buffer, v.camera, "climb " + std::to_string(i));
+    if (::testing::Test::HasFatalFailure()) return;
+  }
+  EXPECT_GT(packed, 0u);
+  // Degenerate slots drawn stay bounded: a chunk holds at most 4 slots per live triangle, or
+  // two of the smallest blocks.
+  EXPECT_LE(chunks.slotsInUse(), 4 * chunks.liveTriangles() + 2 * TerrainChunks::kMinBlock * chunks.chunkCount());
+}
