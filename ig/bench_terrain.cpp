@@ -201,16 +201,22 @@ lod::RoamConfig roamConfig(lod::RoamMode mode) {
 }
 
 MethodResult flyRoam(const lod::Roam& bounds, const std::vector<PathFrame>& path, lod::RoamMode mode, const char* name,
-                     int height_px, double tolerance_px, uint32_t visits, double lateness = 0.0) {
+                     int height_px, double tolerance_px, uint32_t visits, double lateness = 0.0, double budget_ms = 0.0) {
   lod::Roam roam(bounds, roamConfig(mode));
+  double nsPerVisit = 100.0;  // budget_ms > 0: smoothed as igd's TerrainMeshLayer does
   MethodResult r = fly(
       name, path, height_px, tolerance_px,
       [&](lod::RoamView v, size_t frame) {
         // The first frame is the start-up (the IG positions before running in real time):
         // unbudgeted. Later frames run under the visit budget.
-        if (frame > 0) v.maxVisits = visits;
+        if (frame > 0) {
+          v.maxVisits = budget_ms > 0.0 ? static_cast<uint32_t>(std::clamp(budget_ms * 1e6 / nsPerVisit, 256.0, 1e9)) : visits;
+        }
         v.lateness = lateness;
+        const auto t0 = BenchClock::now();
         const lod::RoamStats st = roam.update(v, mode);
+        if (frame > 0 && st.visits >= 256)
+          nsPerVisit = lod::budgetRate(nsPerVisit, msSince(t0) * 1e6 / static_cast<double>(st.visits));
         return UpdateResult{st.triangles, st.maxErrorPx, st.finished, static_cast<double>(st.visits),
                             static_cast<double>(st.pending)};
       },
@@ -427,7 +433,7 @@ int runTerrainBench(const TerrainBenchOptions& o) {
   else skipped.push_back("roam_rebuild");
   if (!large && o.baselines) methods.push_back(flyBlock(dem, path, o.height_px, 1.0));
   else skipped.push_back("block");
-  methods.push_back(flyRoam(bounds, path, lod::RoamMode::Deferred, "roam_deferred", o.height_px, 1.0, o.deferredVisits, o.lateness));
+  methods.push_back(flyRoam(bounds, path, lod::RoamMode::Deferred, "roam_deferred", o.height_px, 1.0, o.deferredVisits, o.lateness, o.budget_ms));
   const MethodResult& deferred = methods.back();
 
   const TeleportResult tp = teleport(bounds, path, o.height_px, o.teleportVisits, o.lateness, o.teleportMaxFrames);
@@ -648,8 +654,8 @@ int runTerrainBench(const TerrainBenchOptions& o) {
     j += b;
     std::snprintf(b, sizeof b, "\"bounds_ms\":%.1f,\"bounds_bytes\":%zu,", boundsMs, bounds.boundsBytes());
     j += b;
-    std::snprintf(b, sizeof b, "\"frames\":%d,\"renderer\":\"%s\",\"tolerance_px\":1.0,\"deferred_visits\":%u,\"deferred_lateness\":%.3f,\"methods\":{",
-                  o.frames, jsonEscape(contextName).c_str(), o.deferredVisits, o.lateness);
+    std::snprintf(b, sizeof b, "\"frames\":%d,\"renderer\":\"%s\",\"tolerance_px\":1.0,\"deferred_visits\":%u,\"deferred_budget_ms\":%.3f,\"deferred_lateness\":%.3f,\"methods\":{",
+                  o.frames, jsonEscape(contextName).c_str(), o.deferredVisits, o.budget_ms, o.lateness);
     j += b;
     for (size_t i = 0; i < methods.size(); ++i) {
       const MethodResult& m = methods[i];
@@ -718,8 +724,8 @@ int runTerrainBench(const TerrainBenchOptions& o) {
                   m.updateP99, m.cpuP99, m.teleport, m.emitP50, static_cast<unsigned long long>(m.trianglesP50),
                   static_cast<unsigned long long>(m.visibleP50), m.maxErrorPx,
                   static_cast<unsigned long long>(m.uploadsP50), m.unfinishedFrames);
-    std::printf("  roam_deferred: %u visits an update (p50 %.0f), pending p99 %.0f, bounds %.0f ms / %.0f MB, pool %.0f MB reserved\n",
-                o.deferredVisits, deferred.visitsP50, deferred.pendingP99, boundsMs,
+    std::printf("  roam_deferred: %s %.2f (visits p50 %.0f), pending p99 %.0f, bounds %.0f ms / %.0f MB, pool %.0f MB reserved\n",
+                o.budget_ms > 0 ? "budget ms" : "visits an update", o.budget_ms > 0 ? o.budget_ms : o.deferredVisits, deferred.visitsP50, deferred.pendingP99, boundsMs,
                 static_cast<double>(deferred.boundsBytes) / 1e6, static_cast<double>(deferred.poolBytes) / 1e6);
     std::printf("  teleport %.1f km: merges alone %.1f ms, enhMerge %.1f ms; Deferred (%u visits): first frame %.2f ms, "
                 "max %.2f ms, visible converged after %d frames (%.1f ms), finished after %d (%.1f ms)\n",

@@ -21,6 +21,9 @@ struct TerrainBenchOptions {
   bool render = true;                        // sweep render_ms / rmse / psnr and the raster comparison (needs GL)
   bool json = false;
   uint32_t deferredVisits = 2000;            // roam_deferred: node visits per update (0 = unlimited)
+  // roam_deferred flight: time budget of an update, turned into node visits by the measured,
+  // smoothed time per visit, as igd does (lod_budget_ms); 0 = a fixed deferredVisits.
+  double budget_ms = 0.8;
   uint32_t teleportVisits = 9000;            // roam_deferred: node visits per update while converging after a teleport
   double lateness = 0.05;                    // roam_deferred: RoamView::lateness (0 = exact, the fresh-walk mesh)
   int teleportMaxFrames = 400;               // give up converging after this many updates

@@ -134,6 +134,10 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber);
   terrain->add_option("--visits", terrainOptions.deferredVisits, "roam_deferred: node visits per update (0 = unlimited)")
       ->capture_default_str();
+  terrain->add_option("--budget-ms", terrainOptions.budget_ms,
+                      "roam_deferred flight: time budget of an update in ms, turned into node visits by the measured\n"
+                      "time per visit as igd does (0 = a fixed --visits)")
+      ->capture_default_str()->check(CLI::Range(0.0, 1000.0));
   terrain->add_option("--teleport-visits", terrainOptions.teleportVisits,
                       "roam_deferred: node visits per update while converging after the teleport")
       ->capture_default_str();

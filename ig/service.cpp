@@ -193,10 +193,10 @@ struct TerrainMeshLayer {
         // Work in node visits, from the time budget and the measured time per visit; what is
         // left stays queued for the next frame (the mesh is valid at every stop).
         if (clock && budget_ms > 0.0)
-          view.maxVisits = static_cast<uint32_t>(std::clamp(budget_ms * 1e6 / nsPerVisit, 1024.0, 1e9));
+          view.maxVisits = static_cast<uint32_t>(std::clamp(budget_ms * 1e6 / nsPerVisit, 256.0, 1e9));
         const lod::RoamStats st = roam->update(view, lod::RoamMode::Deferred);
         if (clock && st.visits >= 256)
-          nsPerVisit = 0.8 * nsPerVisit + 0.2 * static_cast<double>(clock->now_ns() - t0) / static_cast<double>(st.visits);
+          nsPerVisit = lod::budgetRate(nsPerVisit, static_cast<double>(clock->now_ns() - t0) / static_cast<double>(st.visits));
       } else {
         if (clock && budget_ms > 0.0)
           view.maxOperations = static_cast<uint32_t>(std::clamp(budget_ms * 1e6 / nsPerOperation, 64.0, 1e9));

@@ -110,6 +110,15 @@ enum class RoamMode {
                // ever before grows (amortised; the other modes never allocate in update()).
 };
 
+// The time per node visit a caller turns its time budget into RoamView::maxVisits with, updated
+// after each update from the measured one: up at once when a frame was slower (a visit's cost
+// varies with cache misses from frame to frame, and a budget must hold for the slow frames),
+// down slowly (a fifth of the way) when it was faster.
+inline double budgetRate(double previous_ns, double measured_ns) {
+  if (!(measured_ns > 0.0) || !(measured_ns < 1e9)) return previous_ns;
+  return measured_ns > previous_ns ? measured_ns : 0.8 * previous_ns + 0.2 * measured_ns;
+}
+
 struct RoamStats {
   uint32_t splits = 0;       // diamond splits (a triangle and its base partner), forced included
   uint32_t merges = 0;       // single diamond merges (merge queue, or room for the triangle cap)
