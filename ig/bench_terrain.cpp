@@ -28,6 +28,17 @@ namespace {
 
 using BenchClock = std::chrono::steady_clock;
 double msSince(BenchClock::time_point t0) { return std::chrono::duration<double, std::milli>(BenchClock::now() - t0).count(); }
+
+// The hard end of a budgeted Deferred update (RoamView::stop), as igd sets it.
+struct Deadline {
+  BenchClock::time_point end;
+  static bool past(void* self) { return BenchClock::now() >= static_cast<Deadline*>(self)->end; }
+  void arm(lod::RoamView& v, BenchClock::time_point start, double budget_ms) {
+    end = start + std::chrono::duration_cast<BenchClock::duration>(std::chrono::duration<double, std::milli>(budget_ms));
+    v.stop = &Deadline::past;
+    v.stopContext = this;
+  }
+};
 // CPU time of this thread: what the work itself cost, without the time other processes on a
 // shared machine took the core away (wall-clock times are reported too).
 double threadCpuMs() {
@@ -112,6 +123,7 @@ struct MethodResult {
   // Deferred under a visit budget.
   double visitsP50 = 0, pendingP99 = 0, maxErrorUnfinishedPx = 0;
   int unfinishedFrames = 0;
+  double nsPerVisit = 0;  // Deferred under a time budget: the rate estimate at the end of the flight
   size_t boundsBytes = 0, poolBytes = 0;
 };
 
@@ -132,8 +144,10 @@ struct UpdateResult {
 };
 
 // Flies the path with one method. `update(view, frame)` runs the method's LOD step (timed);
-// `visible(camera, out)` writes what is drawn (timed as the emit). Uploads (triangles new
-// since the previous frame) are counted on every fourth frame, from the drawn lists.
+// `visible(camera, out, uploads)` writes what is drawn (timed as the emit) and returns how many.
+// Uploads (triangles new since the previous frame) are counted every eighth frame from the
+// drawn lists, unless `visible` sets `uploads` itself (>= 0: the slots it would write this
+// frame; `out` is then not read).
 template <class Update, class Visible, class ExactError>
 MethodResult fly(const char* name, const std::vector<PathFrame>& path, int height_px, double tolerance_px,
                  Update update, Visible visible, ExactError exactError) {
@@ -168,10 +182,13 @@ MethodResult fly(const char* name, const std::vector<PathFrame>& path, int heigh
       if (i % 8 == 0) r.maxErrorUnfinishedPx = std::max(r.maxErrorUnfinishedPx, exactError(view));
     }
     const auto t1 = BenchClock::now();
-    const size_t n = visible(f.camera, out);
+    double written = -1.0;
+    const size_t n = visible(f.camera, out, written);
     emitMs.push_back(msSince(t1));
     visibleTris.push_back(static_cast<double>(n));
-    if (i % 8 == 7 || (i % 8 == 0 && i > 0)) {
+    if (written >= 0.0) {
+      if (i % 8 == 0 && i > 0) uploads.push_back(written);
+    } else if (i % 8 == 7 || (i % 8 == 0 && i > 0)) {
       cur.clear();
       for (size_t k = 0; k < n; ++k) cur.push_back(triangleKey(out[k]));
       if (i % 8 == 0) uploads.push_back(static_cast<double>(changedTriangles(prev, cur)));
@@ -204,6 +221,14 @@ MethodResult flyRoam(const lod::Roam& bounds, const std::vector<PathFrame>& path
                      int height_px, double tolerance_px, uint32_t visits, double lateness = 0.0, double budget_ms = 0.0) {
   lod::Roam roam(bounds, roamConfig(mode));
   double nsPerVisit = 100.0;  // budget_ms > 0: smoothed as igd's TerrainMeshLayer does
+  Deadline deadline;
+  // Deferred runs as igd runs it without geomorphing: the mesh kept in the vertex buffer by
+  // chunk, so between updates a frame touches the changed leaves and the chunk boxes (a
+  // visible-leaf walk, 0.2 s a frame at 16385^2, would also evict everything the next update
+  // reads, and igd does not do it).
+  std::unique_ptr<lod::TerrainChunks> chunks;
+  std::vector<lod::TerrainDrawRange> ranges;
+  if (mode == lod::RoamMode::Deferred) chunks = std::make_unique<lod::TerrainChunks>(roam);
   MethodResult r = fly(
       name, path, height_px, tolerance_px,
       [&](lod::RoamView v, size_t frame) {
@@ -214,19 +239,25 @@ MethodResult flyRoam(const lod::Roam& bounds, const std::vector<PathFrame>& path
         }
         v.lateness = lateness;
         const auto t0 = BenchClock::now();
+        if (frame > 0 && budget_ms > 0.0) deadline.arm(v, t0, budget_ms);
         const lod::RoamStats st = roam.update(v, mode);
         if (frame > 0 && st.visits >= 256)
           nsPerVisit = lod::budgetRate(nsPerVisit, msSince(t0) * 1e6 / static_cast<double>(st.visits));
         return UpdateResult{st.triangles, st.maxErrorPx, st.finished, static_cast<double>(st.visits),
                             static_cast<double>(st.pending)};
       },
-      [&](const lod::Camera& cam, std::vector<lod::RoamTriangle>& out) {
+      [&](const lod::Camera& cam, std::vector<lod::RoamTriangle>& out, double& uploads) -> size_t {
+        if (chunks) {  // igd's path: replay ROAM's changes into the slots, cull the chunks
+          uploads = static_cast<double>(chunks->apply().dirty);
+          return chunks->cull(cam, ranges);
+        }
         out.resize(roam.triangleCount());
         return roam.emitVisible(cam, out);
       },
       [&](const lod::RoamView& v) { return roam.maxErrorPx(v); });
   r.boundsBytes = roam.boundsBytes();
   r.poolBytes = roam.poolBytes();
+  r.nsPerVisit = nsPerVisit;
   return r;
 }
 
@@ -238,7 +269,7 @@ MethodResult flyBlock(const Field& dem, const std::vector<PathFrame>& path, int 
         const lod::BlockLodStats st = block.update(v);
         return UpdateResult{st.triangles, st.maxErrorPx};
       },
-      [&](const lod::Camera&, std::vector<lod::RoamTriangle>& out) {
+      [&](const lod::Camera&, std::vector<lod::RoamTriangle>& out, double&) {
         out.resize(block.triangleBound());
         out.resize(block.emitTriangles(out));
         return out.size();
@@ -256,8 +287,11 @@ struct TeleportResult {
   uint64_t mergeOps = 0, enhMergeOps = 0;
 };
 
+// Deferred converges at the new eye under a fixed number of visits an update, or (budget_ms > 0)
+// under a time budget (visits from the measured rate, from the flight's ns_per_visit; the
+// deadline as a hard stop).
 TeleportResult teleport(const lod::Roam& bounds, const std::vector<PathFrame>& path, int height_px, uint32_t visits,
-                        double lateness, int maxFrames) {
+                        double lateness, int maxFrames, double budget_ms, double ns_per_visit) {
   TeleportResult r;
   size_t at = 0;
   while (at < path.size() && !path[at].teleport) ++at;
@@ -281,14 +315,21 @@ TeleportResult teleport(const lod::Roam& bounds, const std::vector<PathFrame>& p
   v.maxVisits = visits;
   v.lateness = lateness;
   double total = 0;
+  double nsPerVisit = ns_per_visit > 0.0 ? ns_per_visit : 100.0;
+  Deadline deadline;
   for (int f = 1; f <= maxFrames; ++f) {
+    if (budget_ms > 0.0) v.maxVisits = static_cast<uint32_t>(std::clamp(budget_ms * 1e6 / nsPerVisit, 256.0, 1e9));
     const auto t0 = BenchClock::now();
+    if (budget_ms > 0.0) deadline.arm(v, t0, budget_ms);
     const lod::RoamStats st = roam.update(v, lod::RoamMode::Deferred);
     const double t = msSince(t0);
+    if (budget_ms > 0.0 && st.visits >= 256) nsPerVisit = lod::budgetRate(nsPerVisit, t * 1e6 / static_cast<double>(st.visits));
     total += t;
     if (f == 1) r.firstFrameMs = t;
     r.frameMsMax = std::max(r.frameMsMax, t);
-    if (r.framesToVisible < 0 && roam.maxErrorPx(after) <= v.tolerance_px + 1e-9) {
+    // The exact visible error walks every leaf: every 4th update (and the last), so that the
+    // walk does not leave every update cold caches (frames_to_visible is rounded up to it).
+    if (r.framesToVisible < 0 && (f % 4 == 0 || st.finished) && roam.maxErrorPx(after) <= v.tolerance_px + 1e-9) {
       r.framesToVisible = f;
       r.visibleMs = total;
     }
@@ -436,20 +477,24 @@ int runTerrainBench(const TerrainBenchOptions& o) {
   methods.push_back(flyRoam(bounds, path, lod::RoamMode::Deferred, "roam_deferred", o.height_px, 1.0, o.deferredVisits, o.lateness, o.budget_ms));
   const MethodResult& deferred = methods.back();
 
-  const TeleportResult tp = teleport(bounds, path, o.height_px, o.teleportVisits, o.lateness, o.teleportMaxFrames);
+  const TeleportResult tp = teleport(bounds, path, o.height_px, o.teleportVisits, o.lateness, o.teleportMaxFrames,
+                                     o.teleportBudget_ms, deferred.nsPerVisit);
 
   // Equal error (1 px) at the reference view: triangles each method needs.
   const lod::Camera refCam = path[static_cast<size_t>(o.frames / 4)].camera;
   uint64_t roamEqual = 0, blockEqual = 0;
+  double blockBuildMs = 0.0;
   {
     lod::Roam refRoam(bounds, lod::RoamConfig{});
     refRoam.update(viewFor(refCam, o.height_px, 1.0), lod::RoamMode::Rebuild);
     std::vector<lod::RoamTriangle> tris(refRoam.triangleCount());
     roamEqual = refRoam.emitTriangles(tris);
-    if (!large) {
-      lod::BlockLod refBlock(dem.heights, dem.width, dem.height, dem.spacing_m, {0, 0, 0});
-      blockEqual = refBlock.update(viewFor(refCam, o.height_px, 1.0)).triangles;
-    }
+    // Block LOD at every size: its per-block error tables are O(samples x levels) to build (the
+    // time is reported), and update() counts the triangles without emitting them.
+    const auto tBlock = BenchClock::now();
+    lod::BlockLod refBlock(dem.heights, dem.width, dem.height, dem.spacing_m, {0, 0, 0});
+    blockBuildMs = msSince(tBlock);
+    blockEqual = refBlock.update(viewFor(refCam, o.height_px, 1.0)).triangles;
   }
 
   std::unique_ptr<render::GlContext> context;
@@ -554,15 +599,13 @@ int runTerrainBench(const TerrainBenchOptions& o) {
     std::vector<lod::TerrainDrawRange> ranges;
     const std::span<lod::TerrainVertex> gpu = renderer->terrainMeshVertices();
     auto writeDirty = [&] {
-      for (const uint32_t s : chunks.dirtySlots()) {
-        const uint32_t node = chunks.slotNode(s);
-        lod::RoamTriangle t;
-        if (node != lod::TerrainChunks::kNone && roam.leafTriangle(node, &t)) {
-          for (size_t v = 0; v < 3; ++v) gpu[s * 3 + v] = vertexAt(t.v[v].x, t.v[v].y);
-        } else {
-          for (size_t v = 0; v < 3; ++v) gpu[s * 3 + v] = lod::TerrainVertex{};
-        }
-      }
+      chunks.forEachDirty(
+          [&](uint32_t s, const lod::RoamTriangle& t) {
+            for (size_t v = 0; v < 3; ++v) gpu[s * 3 + v] = vertexAt(t.v[v].x, t.v[v].y);
+          },
+          [&](uint32_t s) {
+            for (size_t v = 0; v < 3; ++v) gpu[s * 3 + v] = lod::TerrainVertex{};
+          });
     };
     chunks.apply();  // start-up: every leaf
     writeDirty();
@@ -682,6 +725,7 @@ int runTerrainBench(const TerrainBenchOptions& o) {
     j += "],\"teleport\":{\"jump_km\":" + num(tp.jump_km, 3) + ",\"merge_ms\":" + num(tp.mergeMs) +
          ",\"enhmerge_ms\":" + num(tp.enhMergeMs) + ",\"merge_ops\":" + std::to_string(tp.mergeOps) +
          ",\"enhmerge_ops\":" + std::to_string(tp.enhMergeOps) + ",\"deferred_visits\":" + std::to_string(o.teleportVisits) +
+         ",\"deferred_budget_ms\":" + num(o.teleportBudget_ms, 3) +
          ",\"deferred_first_frame_ms\":" + num(tp.firstFrameMs) + ",\"deferred_frame_ms_max\":" + num(tp.frameMsMax) +
          ",\"deferred_frames_to_visible\":" + std::to_string(tp.framesToVisible) +
          ",\"deferred_visible_ms\":" + num(tp.visibleMs) + ",\"deferred_frames_to_finished\":" +
@@ -699,8 +743,8 @@ int runTerrainBench(const TerrainBenchOptions& o) {
          ",\"draw_ranges_p50\":" + num(raster.rangesP50, 0) + "},\"frame_vs_raster_ratio\":" +
          num(raster.ratio, 3);
     std::snprintf(b, sizeof b, ",\"block_triangles_at_equal_error\":%llu,\"roam_triangles_at_equal_error\":%llu,"
-                  "\"sweep_rendered\":%s,\"sweep\":[",
-                  static_cast<unsigned long long>(blockEqual), static_cast<unsigned long long>(roamEqual),
+                  "\"block_build_ms\":%.1f,\"sweep_rendered\":%s,\"sweep\":[",
+                  static_cast<unsigned long long>(blockEqual), static_cast<unsigned long long>(roamEqual), blockBuildMs,
                   renderSweep ? "true" : "false");
     j += b;
     for (size_t i = 0; i < sweep.size(); ++i) {
@@ -740,9 +784,9 @@ int runTerrainBench(const TerrainBenchOptions& o) {
                   static_cast<unsigned long long>(raster.triangles), raster.rasterMs, raster.trianglesPerS / 1e6, raster.ratio,
                   raster.chunkSide, raster.chunks, raster.meshTriangles, raster.dirtySlotsP50, raster.drawnSlotsP50,
                   raster.drawnLiveP50, raster.rangesP50);
-    std::printf("  at 1 px: block LOD %llu triangles, ROAM %llu (%.2fx)\n", static_cast<unsigned long long>(blockEqual),
-                static_cast<unsigned long long>(roamEqual),
-                blockEqual ? static_cast<double>(roamEqual) / static_cast<double>(blockEqual) : 0.0);
+    std::printf("  at 1 px: block LOD %llu triangles, ROAM %llu (%.2fx); block LOD tables built in %.0f ms\n",
+                static_cast<unsigned long long>(blockEqual), static_cast<unsigned long long>(roamEqual),
+                blockEqual ? static_cast<double>(roamEqual) / static_cast<double>(blockEqual) : 0.0, blockBuildMs);
     std::printf("  sweep (ROAM enhMerge): tol px, triangles, update ms, render ms, rmse, psnr dB\n");
     for (const auto& s : sweep)
       std::printf("    %5.2f %9llu %9.3f %9.2f %8.3f %7.2f\n", s.tolerance, static_cast<unsigned long long>(s.triangles),

@@ -24,9 +24,12 @@ struct TerrainBenchOptions {
   // roam_deferred flight: time budget of an update, turned into node visits by the measured,
   // smoothed time per visit, as igd does (lod_budget_ms); 0 = a fixed deferredVisits.
   double budget_ms = 0.8;
-  uint32_t teleportVisits = 9000;            // roam_deferred: node visits per update while converging after a teleport
+  // After the teleport, roam_deferred converges under this time budget an update (the goal's
+  // 3 ms teleport frame), or with 0 under a fixed teleportVisits.
+  double teleportBudget_ms = 3.0;
+  uint32_t teleportVisits = 9000;
   double lateness = 0.05;                    // roam_deferred: RoamView::lateness (0 = exact, the fresh-walk mesh)
-  int teleportMaxFrames = 400;               // give up converging after this many updates
+  int teleportMaxFrames = 1000;              // give up converging after this many updates
   std::string cacheDir = "out/dem-cache";    // memory-mapped raw DEM cache ("" = decode every time, no mmap)
   int rasterFrames = 24;                     // frames timed for frame_vs_raster_ratio (0 = skip)
   bool baselines = true;                     // false: only roam_deferred, the teleport and the raster comparison

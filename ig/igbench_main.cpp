@@ -138,8 +138,13 @@ int main(int argc, char** argv) {
                       "roam_deferred flight: time budget of an update in ms, turned into node visits by the measured\n"
                       "time per visit as igd does (0 = a fixed --visits)")
       ->capture_default_str()->check(CLI::Range(0.0, 1000.0));
+  terrain->add_option("--teleport-budget-ms", terrainOptions.teleportBudget_ms,
+                      "roam_deferred: time budget of an update while converging after the teleport, in ms\n"
+                      "(0 = a fixed --teleport-visits)")
+      ->capture_default_str()->check(CLI::Range(0.0, 1000.0));
   terrain->add_option("--teleport-visits", terrainOptions.teleportVisits,
-                      "roam_deferred: node visits per update while converging after the teleport")
+                      "roam_deferred: node visits per update while converging after the teleport, with\n"
+                      "--teleport-budget-ms 0")
       ->capture_default_str();
   terrain->add_option("--lateness", terrainOptions.lateness,
                       "roam_deferred: decision lateness (0 = exact; more = fewer re-examinations, more triangles)")

@@ -70,6 +70,16 @@ struct TerrainLayer {
   size_t selectedCount = 0;
 };
 
+// The hard end of a Deferred ROAM update under a time budget (lod::RoamView::stop).
+struct RoamDeadline {
+  const Clock* clock;
+  int64_t end_ns;
+  static bool past(void* self) {
+    const auto* d = static_cast<const RoamDeadline*>(self);
+    return d->clock->now_ns() >= d->end_ns;
+  }
+};
+
 }  // namespace
 
 // Terrain drawn from a per-frame triangle list: ROAM (Deferred or enhMerge updates), or block
@@ -192,8 +202,14 @@ struct TerrainMeshLayer {
       if (roamMode == lod::RoamMode::Deferred) {
         // Work in node visits, from the time budget and the measured time per visit; what is
         // left stays queued for the next frame (the mesh is valid at every stop).
-        if (clock && budget_ms > 0.0)
+        // The budget's end is also a hard stop, for the updates whose visits cost more than
+        // the rate says (cache misses after a teleport, a busy machine).
+        RoamDeadline deadline{clock, t0 + static_cast<int64_t>(budget_ms * 1e6)};
+        if (clock && budget_ms > 0.0) {
           view.maxVisits = static_cast<uint32_t>(std::clamp(budget_ms * 1e6 / nsPerVisit, 256.0, 1e9));
+          view.stop = &RoamDeadline::past;
+          view.stopContext = &deadline;
+        }
         const lod::RoamStats st = roam->update(view, lod::RoamMode::Deferred);
         if (clock && st.visits >= 256)
           nsPerVisit = lod::budgetRate(nsPerVisit, static_cast<double>(clock->now_ns() - t0) / static_cast<double>(st.visits));
@@ -322,12 +338,8 @@ struct TerrainMeshLayer {
   // The chunked mesh: replay ROAM's changes into the buffer, cull the chunks.
   void selectChunks(const lod::Camera& cam) {
     const lod::TerrainChunks::Changes c = chunks->apply();
-    for (const uint32_t s : chunks->dirtySlots()) {
-      const uint32_t node = chunks->slotNode(s);
-      lod::RoamTriangle t;
-      if (node != lod::TerrainChunks::kNone && roam->leafTriangle(node, &t)) writeTriangle(s, t, 1e300);
-      else hideSlot(s);
-    }
+    chunks->forEachDirty([&](uint32_t s, const lod::RoamTriangle& t) { writeTriangle(s, t, 1e300); },
+                         [&](uint32_t s) { hideSlot(s); });
     uploadedTriangles = c.dirty;
     const size_t n = chunks->cull(cam, ranges);
     emitted = n;

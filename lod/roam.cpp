@@ -532,8 +532,19 @@ struct MergeGreater {
 };
 }  // namespace
 
+bool Roam::stopRequested() {
+  if (stop_ == nullptr || visitsUsed_ < nextPoll_) return false;
+  nextPoll_ = visitsUsed_ + kStopPollVisits;
+  if (!stop_(stopContext_)) return false;
+  visitBudget_ = visitsUsed_;  // the rest of this update is out of budget
+  stop_ = nullptr;
+  return true;
+}
+
+bool Roam::outOfVisits() { return visitsUsed_ >= visitBudget_ || stopRequested(); }
+
 bool Roam::takeOp() {
-  if (opsLeft_ == 0 || visitsUsed_ >= visitBudget_) return false;
+  if (opsLeft_ == 0 || outOfVisits()) return false;
   --opsLeft_;
   return true;
 }
@@ -744,7 +755,7 @@ bool Roam::splitPhase() {
   QueueEntry s, m;
   while (topSplit(&s)) {
     if (!vs_.cullFrustum) {  // Deferred: the queue persists, its keys may be stale
-      if (visitsUsed_ >= visitBudget_) return false;
+      if (outOfVisits()) return false;
       ++visitsUsed_;
       ++stats_.nodesExamined;
       const double p = priority(nodes_[s.node], vs_);
@@ -809,6 +820,9 @@ RoamStats Roam::update(const RoamView& view, RoamMode mode) {
   maxSmallPx_ = 0.0;
   visitsUsed_ = 0;
   visitBudget_ = mode == RoamMode::Deferred && view.maxVisits != 0 ? view.maxVisits : std::numeric_limits<uint64_t>::max();
+  stop_ = mode == RoamMode::Deferred && view.maxVisits != 0 ? view.stop : nullptr;
+  stopContext_ = view.stopContext;
+  nextPoll_ = kStopPollVisits;
   // Deferred keeps its split queue from update to update (leaves waiting for a split are not
   // scheduled); the other modes collect it afresh.
   if (mode != RoamMode::Deferred || !deferredQueue_) {
@@ -1036,6 +1050,12 @@ bool Roam::deferredUpdate() {
       const DueEntry& e = due_[i];
       const Node& nd = nodes_[e.node];
       if (e.tag != nd.sched) continue;  // rescheduled or freed since
+      if (stopRequested()) {  // out of time: this and the remaining due entries stay due
+        for (size_t j = i; j < due_.size(); ++j)
+          if (due_[j].tag == nodes_[due_[j].node].sched) dueQ_.push(due_[j]);
+        ok = false;
+        break;
+      }
       ++stats_.nodesExamined;
       ++visitsUsed_;
       const double p = priority(nd, vs_);
@@ -1106,27 +1126,28 @@ bool Roam::leafTriangle(uint32_t node, RoamTriangle* out) const {
   return true;
 }
 
-size_t Roam::emitLeafNodes(std::span<uint32_t> out) const {
-  assert(out.size() >= triangleCount() && "Roam::emitLeafNodes: out smaller than triangleCount()");
-  size_t count = 0;
+template <class F>
+void Roam::forEachLeaf(F&& f) const {
   const uint32_t end = 2 * highPairs_;
   for (uint32_t n = 0; n < end; ++n) {
     ClampedCorners c;
-    if (emittableLeaf(nodes_[n], c)) out[count++] = n;
+    if (emittableLeaf(nodes_[n], c)) f(n, nodes_[n]);
   }
+}
+
+size_t Roam::emitLeafNodes(std::span<uint32_t> out) const {
+  assert(out.size() >= triangleCount() && "Roam::emitLeafNodes: out smaller than triangleCount()");
+  size_t count = 0;
+  forEachLeaf([&](uint32_t n, const Node&) { out[count++] = n; });
   return count;
 }
 
 size_t Roam::emitTriangles(std::span<RoamTriangle> out) const {
   assert(out.size() >= triangleCount() && "Roam::emitTriangles: out smaller than triangleCount()");
   size_t count = 0;
-  const uint32_t end = 2 * highPairs_;
-  for (uint32_t n = 0; n < end; ++n) {
-    const Node& nd = nodes_[n];
-    ClampedCorners c;
-    if (!emittableLeaf(nd, c)) continue;
+  forEachLeaf([&](uint32_t, const Node& nd) {
     out[count++] = RoamTriangle{{{nd.ax, nd.ay}, {nd.rx, nd.ry}, {nd.lx, nd.ly}}};
-  }
+  });
   return count;
 }
 

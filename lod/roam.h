@@ -85,6 +85,14 @@ struct RoamView {
   // With a budget, a jump that makes most of the mesh due (a teleport) restarts from the base
   // triangles and refines over several updates, visible leaves first.
   uint32_t maxVisits = 0;
+  // Deferred with maxVisits only: a hard stop, e.g. a deadline on the caller's clock (lod/ keeps
+  // no clock). Polled every kStopPollVisits visits; once it returns true the update stops as if
+  // the visit budget had run out (the mesh is valid; what is left stays queued). A time budget
+  // turned into maxVisits by a measured rate (budgetRate) holds on average; this holds it on the
+  // frames whose visits cost more than the rate said (cache misses after a teleport, a busy
+  // machine), to within one poll interval and one operation.
+  bool (*stop)(void* context) = nullptr;
+  void* stopContext = nullptr;
   // Deferred only, in [0, 0.5]: trades a few more triangles for fewer re-examinations. Split
   // and merge decisions are taken against tolerance_px * (1 - lateness), and a node is looked
   // at again after at least lateness * D metres of eye travel (D: the distance at which its
@@ -118,6 +126,8 @@ inline double budgetRate(double previous_ns, double measured_ns) {
   if (!(measured_ns > 0.0) || !(measured_ns < 1e9)) return previous_ns;
   return measured_ns > previous_ns ? measured_ns : 0.8 * previous_ns + 0.2 * measured_ns;
 }
+
+inline constexpr uint32_t kStopPollVisits = 64;
 
 struct RoamStats {
   uint32_t splits = 0;       // diamond splits (a triangle and its base partner), forced included
@@ -283,6 +293,9 @@ class Roam {
     int ax, ay, lx, ly, rx, ry;
   };
   bool emittableLeaf(const Node& nd, ClampedCorners& c) const;
+  // Calls f(node index, node) for every leaf emittable as a triangle, in index order.
+  template <class F>
+  void forEachLeaf(F&& f) const;
   uint32_t leafNodeAt(int64_t x3, int64_t y3) const;
   // Set-up.
   float heightAt(int x, int y) const;
@@ -307,6 +320,10 @@ class Roam {
   Aabb diamondBox(const Node& n) const;  // origin-relative
   // Queues (binary heaps over reserved storage).
   bool takeOp();
+  // The visit budget is spent, or stop_ (polled every kStopPollVisits visits) says so; a stop
+  // ends the budget for the rest of this update.
+  bool outOfVisits();
+  bool stopRequested();
   void pushSplit(uint32_t n, double p);
   void pushMerge(uint32_t n, double p);
   void considerLeaf(uint32_t n, double p);
@@ -415,6 +432,9 @@ class Roam {
   bool resumeRebuild_ = false;
   uint64_t visitBudget_ = 0;   // Deferred visit budget of this update (max: none)
   uint64_t visitsUsed_ = 0;
+  bool (*stop_)(void*) = nullptr;  // RoamView::stop of this update (with a visit budget only)
+  void* stopContext_ = nullptr;
+  uint64_t nextPoll_ = 0;          // visitsUsed_ at which stop_ is polled next
   bool deferredQueue_ = false; // the split queue persists across Deferred updates
   // Deferred schedule (allocated by the first Deferred update).
   DueQueue dueQ_;

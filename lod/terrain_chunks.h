@@ -66,6 +66,16 @@ class TerrainChunks {
   std::span<const uint32_t> dirtySlots() const { return {dirty_.data(), dirtyCount_}; }
   // The leaf node in slot s (its triangle: Roam::leafTriangle), or kNone: degenerate.
   uint32_t slotNode(uint32_t s) const { return slotNode_[s]; }
+  // After apply(): calls write(slot, triangle) for each dirty slot that holds a leaf and
+  // hide(slot) for each that is now free (draw it degenerate).
+  template <class Write, class Hide>
+  void forEachDirty(Write&& write, Hide&& hide) const {
+    for (const uint32_t s : dirtySlots()) {
+      RoamTriangle t;
+      if (slotNode_[s] != kNone && roam_->leafTriangle(slotNode_[s], &t)) write(s, t);
+      else hide(s);
+    }
+  }
 
   // Draw ranges of the chunks whose box meets the frustum, merged where contiguous. Returns the
   // live triangles in those chunks (the degenerate slots in the ranges are not counted).

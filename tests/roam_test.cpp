@@ -14,6 +14,7 @@
 
 #include "lod/heightfield.h"
 #include "lod/roam.h"
+#include "terrain_fixtures.h"
 
 using namespace ig::lod;
 
@@ -32,15 +33,7 @@ const char* modeName(RoamMode m) {
 }
 
 std::vector<float> fractal(int w, int h, uint32_t seed = 7, double scale_m = 400.0, double spacing_m = 30.0) {
-  HeightfieldDesc d;
-  d.seed = seed;
-  d.postsX = w;
-  d.postsY = h;
-  d.postSpacing_m = spacing_m;
-  d.heightScale_m = scale_m;
-  std::vector<float> hts(static_cast<size_t>(w) * static_cast<size_t>(h));
-  generateHeightfield(d, hts);
-  return hts;
+  return test::fractalHeights(w, h, seed, scale_m, spacing_m);
 }
 
 // Independent pseudo-random heights (no flat patches, so every diamond has an error).
@@ -61,17 +54,7 @@ RoamConfig smallConfig(uint64_t maxTriangles = 200000) {
 }
 
 RoamView makeView(const glm::dvec3& eye, double heading_deg, double pitch_deg, double tolerance_px = 2.0) {
-  RoamView v;
-  v.camera.eye_m = eye;
-  v.camera.heading_deg = heading_deg;
-  v.camera.pitch_deg = pitch_deg;
-  v.camera.fovY_deg = 60.0;
-  v.camera.aspect = 16.0 / 9.0;
-  v.camera.near_m = 1.0;
-  v.camera.far_m = 100000.0;
-  v.viewportHeight_px = 1080.0;
-  v.tolerance_px = tolerance_px;
-  return v;
+  return test::terrainView(eye, heading_deg, pitch_deg, tolerance_px, 1080.0);
 }
 
 // A flight over a 257 x 257 terrain at 30 m spacing (7.7 km): straight and level, hard turns,
@@ -674,6 +657,66 @@ TEST(Roam, DeferredVisitBudgetIsRespectedAndConverges) {
   u.camera = v.camera;
   fresh.update(u, RoamMode::Deferred);
   EXPECT_EQ(sortedTriangles(roam), sortedTriangles(fresh));
+}
+
+// RoamView::stop (a deadline on the caller's clock): the update ends within one poll interval
+// and one operation of the poll that said stop, the mesh is valid at every stop, and updates
+// that keep being stopped still converge to the fresh walk's mesh (with a teleport between).
+TEST(Roam, StopHookEndsAnUpdateEarlyAndTheMeshStillConverges) {
+  const int n = 129;
+  const auto hts = fractal(n, n, 3, 900.0);
+  Roam roam(hts, n, n, 30.0, {0, 0, 0}, smallConfig(400000));
+  Roam fresh(roam, smallConfig(400000));
+  struct Polls {
+    int calls = 0, stopAfter = 0;
+  } polls;
+  RoamView v = makeView({1900, 1900, 1000}, 30.0, -20.0, 1.0);
+  v.maxVisits = 100000;  // the stop, not the visit budget, ends each update
+  v.stop = [](void* c) {
+    auto* p = static_cast<Polls*>(c);
+    return ++p->calls > p->stopAfter;
+  };
+  v.stopContext = &polls;
+  const uint32_t maxOp = 4 * static_cast<uint32_t>(roam.maxLevel() + 1) + 8;
+  roam.update(v, RoamMode::Deferred);  // the first update restarts from the base
+  int stopped = 0;
+  auto run = [&](int limit) {
+    RoamStats st;
+    int updates = 0;
+    do {
+      polls = {0, 1 + updates % 4};  // stop at the 2nd ... 5th poll
+      st = roam.update(v, RoamMode::Deferred);
+      if (polls.calls > polls.stopAfter) {
+        ++stopped;
+        EXPECT_FALSE(st.finished);
+        EXPECT_LE(st.visits, static_cast<uint32_t>(polls.calls + 1) * kStopPollVisits + maxOp) << "update " << updates;
+      }
+      EXPECT_LE(polls.calls, polls.stopAfter + 1) << "polled after it said stop";
+      std::string why;
+      EXPECT_TRUE(roam.validate(&why)) << "update " << updates << ": " << why;
+      ++updates;
+    } while (!st.finished && updates < limit);
+    return st.finished;
+  };
+  ASSERT_TRUE(run(5000));
+  EXPECT_GT(stopped, 10);
+  RoamView u = v;
+  u.maxVisits = 0;
+  u.stop = nullptr;
+  fresh.update(u, RoamMode::Deferred);
+  EXPECT_EQ(sortedTriangles(roam), sortedTriangles(fresh));
+  // Teleport under the stop, then converge.
+  v.camera.eye_m = {300, 300, 1000};
+  ASSERT_TRUE(run(5000));
+  u.camera = v.camera;
+  fresh.update(u, RoamMode::Deferred);
+  EXPECT_EQ(sortedTriangles(roam), sortedTriangles(fresh));
+  // Without maxVisits the hook is not used: one unbudgeted update finishes.
+  polls = {0, 0};
+  v.maxVisits = 0;
+  v.camera.eye_m = {3000, 3000, 700};
+  EXPECT_TRUE(roam.update(v, RoamMode::Deferred).finished);
+  EXPECT_EQ(polls.calls, 0);
 }
 
 // meshHeight and leafAt: on a mesh vertex the true height; inside a leaf the plane of that leaf.

@@ -17,36 +17,17 @@
 
 #include "lod/heightfield.h"
 #include "lod/roam.h"
+#include "terrain_fixtures.h"
 #include "lod/terrain_chunks.h"
 
 using namespace ig::lod;
 
 namespace {
 
-std::vector<float> fractal(int w, int h, uint32_t seed = 7) {
-  HeightfieldDesc d;
-  d.seed = seed;
-  d.postsX = w;
-  d.postsY = h;
-  d.postSpacing_m = 30.0;
-  d.heightScale_m = 400.0;
-  std::vector<float> hts(static_cast<size_t>(w) * static_cast<size_t>(h));
-  generateHeightfield(d, hts);
-  return hts;
-}
+std::vector<float> fractal(int w, int h, uint32_t seed = 7) { return test::fractalHeights(w, h, seed); }
 
 RoamView makeView(const glm::dvec3& eye, double heading_deg, double pitch_deg, double tolerance_px = 1.0) {
-  RoamView v;
-  v.camera.eye_m = eye;
-  v.camera.heading_deg = heading_deg;
-  v.camera.pitch_deg = pitch_deg;
-  v.camera.fovY_deg = 60.0;
-  v.camera.aspect = 16.0 / 9.0;
-  v.camera.near_m = 1.0;
-  v.camera.far_m = 100000.0;
-  v.viewportHeight_px = 720.0;
-  v.tolerance_px = tolerance_px;
-  return v;
+  return test::terrainView(eye, heading_deg, pitch_deg, tolerance_px, 720.0);
 }
 
 using Tri = std::array<std::pair<int, int>, 3>;
@@ -60,13 +41,10 @@ Tri canon(const RoamTriangle& t) {
 struct Buffer {
   std::vector<std::optional<Tri>> slots;
   explicit Buffer(size_t n) : slots(n) {}
-  void apply(const Roam& roam, const TerrainChunks& chunks) {
-    for (const uint32_t s : chunks.dirtySlots()) {
-      const uint32_t node = chunks.slotNode(s);
-      RoamTriangle t;
-      if (node != TerrainChunks::kNone && roam.leafTriangle(node, &t)) slots[s] = canon(t);
-      else slots[s].reset();
-    }
+  // Through forEachDirty, as igd writes the buffer.
+  void apply(const Roam&, const TerrainChunks& chunks) {
+    chunks.forEachDirty([&](uint32_t s, const RoamTriangle& t) { slots[s] = canon(t); },
+                        [&](uint32_t s) { slots[s].reset(); });
   }
 };
 
