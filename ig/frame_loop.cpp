@@ -34,10 +34,12 @@ int64_t FramePacer::beginFrame() {
   }
   const int64_t slot = nextSlot_;
   const int64_t slotTime = t0_ns_ + slot * period_ns_;
+  const int64_t waitStart = prevEnd_ns_ >= 0 ? clock_.now_ns() : 0;
   if (!freeRun_) clock_.sleepUntil_ns(slotTime);
   frameStart_ns_ = clock_.now_ns();
   mark_ns_ = frameStart_ns_;
   timing_ = FrameTiming{};
+  if (prevEnd_ns_ >= 0) timing_.between_ms = static_cast<double>(waitStart - prevEnd_ns_) * 1e-6;
   timing_.frame = slot;
   timing_.start_ns = frameStart_ns_ - t0_ns_;
   timing_.lateness_ns = freeRun_ ? 0 : frameStart_ns_ - slotTime;
@@ -55,6 +57,7 @@ void FramePacer::endPhase(Phase phase) {
 const FrameTiming& FramePacer::endFrame() {
   const int64_t end = clock_.now_ns();
   timing_.work_ms = static_cast<double>(end - frameStart_ns_) * 1e-6;
+  prevEnd_ns_ = end;
   ++frames_;
   int64_t next = timing_.frame + 1;
   const int64_t nextSlotTime = t0_ns_ + next * period_ns_;

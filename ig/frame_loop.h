@@ -26,6 +26,9 @@ struct FrameTiming {
   double interval_ms = 0.0;   // since the previous frame's start
   std::array<double, kPhaseCount> phase_ms{};
   double work_ms = 0.0;       // start to end of the last phase
+  // The frame thread's own time after the previous frame closed (stats, status report, reload
+  // hand-off) until it began waiting for this slot. Lateness beyond it is the OS waking us late.
+  double between_ms = 0.0;
   bool overrun = false;       // work exceeded the budget (default: ran past the next slot)
   int64_t missedSlots = 0;    // slots skipped after this frame
 };
@@ -71,6 +74,7 @@ class FramePacer {
   int64_t t0_ns_ = 0;
   int64_t nextSlot_ = 0;
   int64_t frameStart_ns_ = 0, prevStart_ns_ = 0, mark_ns_ = 0;
+  int64_t prevEnd_ns_ = -1;   // the previous endFrame's time; -1 before the first frame
   FrameTiming timing_;
   int64_t frames_ = 0, overruns_ = 0, missed_ = 0;
 };

@@ -20,7 +20,7 @@ bool StatsWriter::open(const std::string& file, StatsFormat format, const std::s
   if (format_ == StatsFormat::Csv) {
     std::fputs("frame,t_ms,period_ms,interval_ms,lateness_ms", file_);
     for (int p = 0; p < kPhaseCount; ++p) std::fprintf(file_, ",%s_ms", phaseName(static_cast<Phase>(p)));
-    std::fputs(",work_ms,overrun,missed_slots,triangles,draw_calls,passes,uploads,host_frame,sim_time_s,eye_east_m,eye_north_m,eye_up_m,heading_deg,host_lost\n", file_);
+    std::fputs(",work_ms,overrun,missed_slots,triangles,draw_calls,passes,uploads,host_frame,sim_time_s,eye_east_m,eye_north_m,eye_up_m,heading_deg,host_lost,between_ms\n", file_);
   } else {
     std::fprintf(file_, "{\"run\":{%s}}\n", runInfo.c_str());
   }
@@ -32,26 +32,26 @@ void StatsWriter::write(const FrameRecord& r) {
   const FrameTiming& t = r.timing;
   const auto& ph = t.phase_ms;
   if (format_ == StatsFormat::Csv) {
-    std::fprintf(file_, "%lld,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%d,%lld,%llu,%u,%u,%llu,%llu,%.4f,%.2f,%.2f,%.2f,%.3f,%d\n",
+    std::fprintf(file_, "%lld,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%d,%lld,%llu,%u,%u,%llu,%llu,%.4f,%.2f,%.2f,%.2f,%.3f,%d,%.3f\n",
                  static_cast<long long>(t.frame), static_cast<double>(t.start_ns) * 1e-6, r.period_ms, t.interval_ms,
                  static_cast<double>(t.lateness_ns) * 1e-6, ph[0], ph[1], ph[2], ph[3], ph[4], t.work_ms,
                  t.overrun ? 1 : 0, static_cast<long long>(t.missedSlots),
                  static_cast<unsigned long long>(r.triangles), r.drawCalls, r.passes,
                  static_cast<unsigned long long>(r.uploads), static_cast<unsigned long long>(r.hostFrame),
-                 r.simTime_s, r.eyeEast_m, r.eyeNorth_m, r.eyeHeight_m, r.heading_deg, r.hostLost ? 1 : 0);
+                 r.simTime_s, r.eyeEast_m, r.eyeNorth_m, r.eyeHeight_m, r.heading_deg, r.hostLost ? 1 : 0, t.between_ms);
   } else {
     std::fprintf(file_,
                  "{\"frame\":%lld,\"t_ms\":%.3f,\"period_ms\":%.3f,\"interval_ms\":%.3f,\"lateness_ms\":%.3f,\"input_ms\":%.3f,"
                  "\"lod_ms\":%.3f,\"submit_ms\":%.3f,\"gpu_finish_ms\":%.3f,\"present_ms\":%.3f,\"work_ms\":%.3f,"
                  "\"overrun\":%s,\"missed_slots\":%lld,\"triangles\":%llu,\"draw_calls\":%u,\"passes\":%u,\"uploads\":%llu,"
                  "\"host_frame\":%llu,\"sim_time_s\":%.4f,\"eye_east_m\":%.2f,\"eye_north_m\":%.2f,\"eye_up_m\":%.2f,"
-                 "\"heading_deg\":%.3f,\"host_lost\":%s}\n",
+                 "\"heading_deg\":%.3f,\"host_lost\":%s,\"between_ms\":%.3f}\n",
                  static_cast<long long>(t.frame), static_cast<double>(t.start_ns) * 1e-6, r.period_ms, t.interval_ms,
                  static_cast<double>(t.lateness_ns) * 1e-6, ph[0], ph[1], ph[2], ph[3], ph[4], t.work_ms,
                  t.overrun ? "true" : "false", static_cast<long long>(t.missedSlots),
                  static_cast<unsigned long long>(r.triangles), r.drawCalls, r.passes,
                  static_cast<unsigned long long>(r.uploads), static_cast<unsigned long long>(r.hostFrame),
-                 r.simTime_s, r.eyeEast_m, r.eyeNorth_m, r.eyeHeight_m, r.heading_deg, r.hostLost ? "true" : "false");
+                 r.simTime_s, r.eyeEast_m, r.eyeNorth_m, r.eyeHeight_m, r.heading_deg, r.hostLost ? "true" : "false", t.between_ms);
   }
 }
 

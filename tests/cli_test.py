@@ -33,6 +33,7 @@ STATS_COLUMNS = [
     "input_ms", "lod_ms", "submit_ms", "gpu_finish_ms", "present_ms",
     "work_ms", "overrun", "missed_slots", "triangles", "draw_calls", "passes", "uploads",
     "host_frame", "sim_time_s", "eye_east_m", "eye_north_m", "eye_up_m", "heading_deg", "host_lost",
+    "between_ms",
 ]
 
 
@@ -495,9 +496,11 @@ class Control(Tmp):
         after = [r for f, r in by_frame.items() if f > reload_frame]
         self.assertTrue(after and all(r["overrun"] == "1" for r in after), "budget.frame_ms was not applied")
         # No frame was dropped because of the reload: from 3 frames before to 3 after, a frame ran
-        # into the next slot only when its own work took longer than the period (a loaded machine,
-        # e.g. the sanitizer build next to other tests), and a missing frame number is a slot the
-        # frame before it ran past. On an idle machine (work ~10 ms of 100) all are there.
+        # into the next slot only when its own work took longer than the period, or when the OS
+        # woke igd late while igd's own time between frames (between_ms, which holds the reload
+        # hand-off) was short (both: a loaded machine, e.g. the sanitizer build next to other
+        # tests). A missing frame number is a slot the frame before it ran past. On an idle
+        # machine (work ~10 ms of 100) all are there.
         for f in range(max(0, reload_frame - 3), reload_frame + 4):
             r = by_frame.get(f)
             if r is None:
@@ -508,9 +511,12 @@ class Control(Tmp):
                                         f"frame {f} missing around the reload at frame {reload_frame}, not skipped by frame {p}")
                 r = by_frame[p]
             if r["missed_slots"] != "0":
-                self.assertGreater(float(r["work_ms"]), float(r["period_ms"]),
-                                   f"frame {r['frame']} missed a slot around the reload at frame {reload_frame} "
-                                   f"though its work fit the period: {r}")
+                work, period = float(r["work_ms"]), float(r["period_ms"])
+                late, between = float(r["lateness_ms"]), float(r["between_ms"])
+                woken_late = between < period / 2 and late - between > period / 2
+                self.assertTrue(work > period or woken_late,
+                                f"frame {r['frame']} missed a slot around the reload at frame {reload_frame} "
+                                f"though its work fit the period and igd was not woken late: {r}")
 
     def test_status_file(self):
         config, _ = self.configs()

@@ -100,6 +100,24 @@ TEST(FramePacer, LateWakeUpIsReportedAsLateness) {
   EXPECT_EQ(p2.endFrame().lateness_ns, 3 * kMs);
 }
 
+TEST(FramePacer, TimeBetweenFramesIsSeparatedFromALateWakeUp) {
+  FakeClock clock;
+  FramePacer pacer(clock, 100.0, false);  // 10 ms
+  pacer.beginFrame();
+  EXPECT_EQ(pacer.endFrame().between_ms, 0.0);  // no frame before the first
+  clock.advance_ns(2 * kMs);                    // igd's own work after the frame (stats, reload)
+  pacer.beginFrame();
+  clock.advance_ns(1 * kMs);
+  const FrameTiming& t = pacer.endFrame();
+  EXPECT_DOUBLE_EQ(t.between_ms, 2.0);
+  EXPECT_EQ(t.lateness_ns, 0);                   // it fit before the slot
+  clock.advance_ns(15 * kMs);                    // between-frames work runs past slot 2
+  pacer.beginFrame();
+  const FrameTiming& u = pacer.endFrame();
+  EXPECT_DOUBLE_EQ(u.between_ms, 15.0);
+  EXPECT_EQ(u.lateness_ns, 6 * kMs);             // frame 1 ended at 11 ms, +15 = 6 ms after slot 2
+}
+
 TEST(FramePacer, FreeRunNeverSleepsButStillCountsSlowFrames) {
   FakeClock clock;
   FramePacer pacer(clock, 60.0, true);
