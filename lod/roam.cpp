@@ -538,7 +538,38 @@ bool Roam::stopRequested() {
   if (!stop_(stopContext_)) return false;
   visitBudget_ = visitsUsed_;  // the rest of this update is out of budget
   stop_ = nullptr;
+  stopFired_ = true;
   return true;
+}
+
+bool Roam::schedulePending() {
+  uint32_t sincePoll = 0;
+  auto outOfTime = [&] {
+    if (stopFired_) return true;
+    if (stop_ == nullptr || ++sincePoll < kStopPollVisits) return false;
+    sincePoll = 0;
+    if (!stop_(stopContext_)) return false;
+    visitBudget_ = visitsUsed_;
+    stop_ = nullptr;
+    stopFired_ = true;
+    return true;
+  };
+  while (pendingTouched_ < touched_.size()) {
+    if (outOfTime()) return false;
+    schedule(touched_[pendingTouched_++]);
+  }
+  while (pendingRecheck_ < recheck_.size()) {
+    if (outOfTime()) return false;
+    schedule(recheck_[pendingRecheck_++]);
+  }
+  dropPending();
+  return true;
+}
+
+void Roam::dropPending() {
+  touched_.clear();
+  recheck_.clear();
+  pendingTouched_ = pendingRecheck_ = 0;
 }
 
 bool Roam::outOfVisits() { return visitsUsed_ >= visitBudget_ || stopRequested(); }
@@ -823,6 +854,7 @@ RoamStats Roam::update(const RoamView& view, RoamMode mode) {
   stop_ = mode == RoamMode::Deferred && view.maxVisits != 0 ? view.stop : nullptr;
   stopContext_ = view.stopContext;
   nextPoll_ = kStopPollVisits;
+  stopFired_ = false;
   // Deferred keeps its split queue from update to update (leaves waiting for a split are not
   // scheduled); the other modes collect it afresh.
   if (mode != RoamMode::Deferred || !deferredQueue_) {
@@ -847,6 +879,7 @@ RoamStats Roam::update(const RoamView& view, RoamMode mode) {
       vs_.lateness = std::clamp(std::isfinite(view.lateness) ? view.lateness : 0.0, 0.0, 0.5);
       vs_.tolerance_px *= 1.0 - vs_.lateness;
       ok = deferredUpdate();
+      stats_.unscheduled = (touched_.size() - pendingTouched_) + (recheck_.size() - pendingRecheck_);
       break;
     case RoamMode::Rebuild:
       if (!resumeRebuild_) {
@@ -908,9 +941,17 @@ double Roam::slack(uint32_t n) const {
 }
 
 void Roam::DueQueue::clear(uint64_t now_cm) {
-  for (auto& b : ring_) b.clear();
+  size_t largest = 0;
+  for (size_t i = 0; i < ring_.size(); ++i) {
+    ring_[i].clear();
+    if (ring_[i].capacity() > ring_[largest].capacity()) largest = i;
+  }
   size_ = 0;
   cursor_ = now_cm / kBucket_cm;
+  // After a restart most nodes are safe beyond the horizon and land in its last bucket: give
+  // that bucket the storage of the largest one so far, so refilling it does not grow it by
+  // doubling (tens of MB copied in one update at 16385^2).
+  std::swap(ring_[largest], ring_[(cursor_ + kBuckets - 1) % kBuckets]);
 }
 
 void Roam::DueQueue::push(DueEntry e) {
@@ -980,6 +1021,7 @@ void Roam::scheduleOne(uint32_t n) {
 void Roam::schedule(uint32_t n) {
   if (dueQ_.size() >= dueCapacity_) {  // full of stale entries: rebuild from the live nodes
     scheduleAll();
+    dropPending();  // every node is scheduled now
     return;
   }
   scheduleOne(n);
@@ -1023,14 +1065,17 @@ bool Roam::deferredUpdate() {
   }
   const uint64_t now_cm = centimetres(travel_m_);
   bool full = !sameView;
-  touched_.clear();
-  recheck_.clear();
-  touchedOverflow_ = false;
   bool ok = true;
   // A jump that makes most of the mesh due (a teleport) is cheaper as one linear walk, or,
   // under a visit budget, as a restart from the base triangles.
   const size_t walkInstead = liveNodes_ / 8 + 1024;
   if (!full && dueQ_.countDue(now_cm, walkInstead) > walkInstead) full = true;
+  if (full) {
+    dropPending();  // the walk or the restart schedules every node
+  } else if (!schedulePending()) {
+    return false;  // out of time before the last update's nodes were all scheduled
+  }
+  touchedOverflow_ = false;
   if (budgeted && full) {
     restartFromBase();
     scheduleValid_ = vs_.valid;
@@ -1093,10 +1138,10 @@ bool Roam::deferredUpdate() {
     return ok;
   }
   if (touchedOverflow_) {
+    dropPending();
     scheduleAll();
-  } else {
-    for (const uint32_t n : touched_) schedule(n);
-    for (const uint32_t n : recheck_) schedule(n);
+  } else if (!schedulePending()) {
+    ok = false;  // out of time: the rest is scheduled first thing next update
   }
   return ok;
 }

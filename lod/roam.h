@@ -127,7 +127,7 @@ inline double budgetRate(double previous_ns, double measured_ns) {
   return measured_ns > previous_ns ? measured_ns : 0.8 * previous_ns + 0.2 * measured_ns;
 }
 
-inline constexpr uint32_t kStopPollVisits = 64;
+inline constexpr uint32_t kStopPollVisits = 16;  // a visit can be a split (~1 us at 16385^2): 16 keep a stop within ~20 us
 
 struct RoamStats {
   uint32_t splits = 0;       // diamond splits (a triangle and its base partner), forced included
@@ -137,6 +137,8 @@ struct RoamStats {
   uint32_t nodesExamined = 0;  // nodes whose priority the update's walk or schedule looked at
   uint32_t visits = 0;       // Deferred: node visits spent (see RoamView::maxVisits)
   uint64_t pending = 0;      // Deferred: split-queue entries and due schedule entries left over
+  uint64_t unscheduled = 0;  // Deferred: nodes this update changed that it ran out of time to
+                             // schedule; the next update schedules them first
   bool restarted = false;    // Deferred with a visit budget: a teleport restarted from the base
   uint64_t triangles = 0;    // leaf triangles after the update
   bool finished = true;      // false: the work budget stopped it; the mesh is valid, and the
@@ -324,6 +326,10 @@ class Roam {
   // ends the budget for the rest of this update.
   bool outOfVisits();
   bool stopRequested();
+  // Schedules the nodes this or the last update touched that are not scheduled yet, polling
+  // stop_ as the visits do; false: out of time, the rest stays pending for the next update.
+  bool schedulePending();
+  void dropPending();
   void pushSplit(uint32_t n, double p);
   void pushMerge(uint32_t n, double p);
   void considerLeaf(uint32_t n, double p);
@@ -435,12 +441,16 @@ class Roam {
   bool (*stop_)(void*) = nullptr;  // RoamView::stop of this update (with a visit budget only)
   void* stopContext_ = nullptr;
   uint64_t nextPoll_ = 0;          // visitsUsed_ at which stop_ is polled next
+  bool stopFired_ = false;         // stop_ said stop during this update
   bool deferredQueue_ = false; // the split queue persists across Deferred updates
   // Deferred schedule (allocated by the first Deferred update).
   DueQueue dueQ_;
   size_t dueCapacity_ = 0;          // entries before the schedule is rebuilt (stale ones pile up)
   std::vector<uint32_t> touched_;   // nodes whose state changed during this update
   std::vector<uint32_t> recheck_;   // due nodes to look at again next update
+  // touched_[pendingTouched_...] and recheck_[pendingRecheck_...]: not scheduled yet (an update
+  // that ran out of time leaves them to the next).
+  size_t pendingTouched_ = 0, pendingRecheck_ = 0;
   std::vector<DueEntry> due_;       // entries due this update
   bool trackTouched_ = false, touchedOverflow_ = false;
   bool scheduleValid_ = false;
