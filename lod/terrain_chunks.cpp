@@ -25,6 +25,9 @@ TerrainChunks::TerrainChunks(Roam& roam, const TerrainChunksConfig& config) : ro
   chunksX_ = std::max(chunksX_, 1);
   chunksY_ = std::max(chunksY_, 1);
   chunks_.resize(static_cast<size_t>(chunksX_) * static_cast<size_t>(chunksY_));
+  groupsX_ = (chunksX_ + kGroupSide - 1) / kGroupSide;
+  groupsY_ = (chunksY_ + kGroupSide - 1) / kGroupSide;
+  groups_.resize(static_cast<size_t>(groupsX_) * static_cast<size_t>(groupsY_));
   size_t cap = config.capacityTriangles != 0 ? config.capacityTriangles : roam.triangleCap() / 2 * 3;
   cap = std::max<size_t>(cap, 2 * kMaxBlock);
   cap = (cap + kMinBlock - 1) / kMinBlock * kMinBlock;
@@ -192,16 +195,35 @@ void TerrainChunks::remove(uint32_t node) {
   Chunk& c = chunks_[ci];
   --c.live;
   --live_;
+  if (c.dirtyStamp != stamp_) {
+    c.dirtyStamp = stamp_;
+    touchedChunks_[touchedCount_++] = ci;
+  }
   if (c.live == 0) {
     releaseBlocks(c);
     return;
   }
   nextFree_[s] = c.freeSlot;
   c.freeSlot = s;
-  if (c.dirtyStamp != stamp_) {
-    c.dirtyStamp = stamp_;
-    touchedChunks_[touchedCount_++] = ci;
-  }
+}
+
+void TerrainChunks::updateGroup(uint32_t gi) {
+  Group& g = groups_[gi];
+  g.live = 0;
+  const int gx = static_cast<int>(gi) % groupsX_, gy = static_cast<int>(gi) / groupsX_;
+  for (int cy = gy * kGroupSide; cy < std::min(chunksY_, (gy + 1) * kGroupSide); ++cy)
+    for (int cx = gx * kGroupSide; cx < std::min(chunksX_, (gx + 1) * kGroupSide); ++cx) {
+      const Chunk& c = chunks_[static_cast<size_t>(cy) * static_cast<size_t>(chunksX_) + static_cast<size_t>(cx)];
+      if (c.live == 0) continue;
+      if (g.live == 0) {
+        g.lo = c.lo;
+        g.hi = c.hi;
+      } else {
+        g.lo = glm::min(g.lo, c.lo);
+        g.hi = glm::max(g.hi, c.hi);
+      }
+      g.live += c.live;
+    }
 }
 
 void TerrainChunks::pack(uint32_t ci) {
@@ -270,6 +292,7 @@ TerrainChunks::Changes TerrainChunks::apply() {
   if (++stamp_ == 0) {  // wrapped: clear the marks once every 2^32 applies
     std::fill(dirtyMark_.begin(), dirtyMark_.end(), 0u);
     for (Chunk& c : chunks_) c.dirtyStamp = 0;
+    for (Group& g : groups_) g.stamp = 0;
     stamp_ = 1;
   }
   dirtyCount_ = 0;
@@ -303,6 +326,17 @@ TerrainChunks::Changes TerrainChunks::apply() {
       }
     }
   }
+  // The groups of the chunks that changed (all of them after a re-read).
+  if (ch.reread) {
+    for (uint32_t g = 0; g < groups_.size(); ++g) updateGroup(g);
+  } else {
+    for (size_t i = 0; i < touchedCount_; ++i) {
+      const uint32_t g = groupOf(touchedChunks_[i]);
+      if (groups_[g].stamp == stamp_) continue;
+      groups_[g].stamp = stamp_;
+      updateGroup(g);
+    }
+  }
   first_ = false;
   roam_->clearLeafLog();
   ch.dropped = dropped_;
@@ -317,30 +351,39 @@ size_t TerrainChunks::cull(const Camera& camera, std::vector<TerrainDrawRange>& 
   ranges.clear();
   const Frustum frustum = makeFrustum(camera);
   size_t triangles = 0;
-  for (const Chunk& c : chunks_) {
-    if (c.live == 0) continue;
-    Aabb box{c.lo - camera.eye_m, c.hi - camera.eye_m};
-    if (!frustum.intersects(box)) continue;
-    triangles += c.live;
-    for (uint32_t b = c.firstBlock; b != kNone; b = blocks_[b].next) {
-      const Block& k = blocks_[b];
-      if (k.used == 0) continue;
-      if (!ranges.empty()) {
-        TerrainDrawRange& r = ranges.back();
-        if (r.first + r.count == k.first) {
-          r.count += k.used;
-          continue;
-        }
-        if (k.first + k.used == r.first) {
-          r.first = k.first;
-          r.count += k.used;
-          continue;
-        }
-      }
-      ranges.push_back({k.first, k.used});
-    }
+  for (uint32_t gi = 0; gi < groups_.size(); ++gi) {
+    const Group& g = groups_[gi];
+    if (g.live == 0 || !frustum.intersects(Aabb{g.lo - camera.eye_m, g.hi - camera.eye_m})) continue;
+    const int gx = static_cast<int>(gi) % groupsX_, gy = static_cast<int>(gi) / groupsX_;
+    for (int cy = gy * kGroupSide; cy < std::min(chunksY_, (gy + 1) * kGroupSide); ++cy)
+      for (int cx = gx * kGroupSide; cx < std::min(chunksX_, (gx + 1) * kGroupSide); ++cx)
+        triangles += cullChunk(chunks_[static_cast<size_t>(cy) * static_cast<size_t>(chunksX_) + static_cast<size_t>(cx)],
+                               frustum, camera.eye_m, ranges);
   }
   return triangles;
+}
+
+size_t TerrainChunks::cullChunk(const Chunk& c, const Frustum& frustum, const glm::dvec3& eye,
+                                std::vector<TerrainDrawRange>& ranges) const {
+  if (c.live == 0 || !frustum.intersects(Aabb{c.lo - eye, c.hi - eye})) return 0;
+  for (uint32_t b = c.firstBlock; b != kNone; b = blocks_[b].next) {
+    const Block& k = blocks_[b];
+    if (k.used == 0) continue;
+    if (!ranges.empty()) {
+      TerrainDrawRange& r = ranges.back();
+      if (r.first + r.count == k.first) {
+        r.count += k.used;
+        continue;
+      }
+      if (k.first + k.used == r.first) {
+        r.first = k.first;
+        r.count += k.used;
+        continue;
+      }
+    }
+    ranges.push_back({k.first, k.used});
+  }
+  return c.live;
 }
 
 size_t TerrainChunks::slotsInUse() const {
@@ -387,6 +430,17 @@ bool TerrainChunks::validate(std::string* why) const {
       for (uint32_t s = blocks_[b].first; s < blocks_[b].first + blocks_[b].used; ++s) occupied += slotNode_[s] != kNone;
     }
     if (slots != c.slots) return fail("chunk slot count mismatch");
+  }
+  for (uint32_t gi = 0; gi < groups_.size(); ++gi) {
+    uint32_t live = 0;
+    for (uint32_t ci = 0; ci < chunks_.size(); ++ci) {
+      const Chunk& c = chunks_[ci];
+      if (groupOf(ci) != gi || c.live == 0) continue;
+      live += c.live;
+      if (glm::any(glm::lessThan(c.lo, groups_[gi].lo)) || glm::any(glm::greaterThan(c.hi, groups_[gi].hi)))
+        return fail("chunk " + std::to_string(ci) + "'s box outside its group " + std::to_string(gi) + "'s");
+    }
+    if (live != groups_[gi].live) return fail("group " + std::to_string(gi) + " live count mismatch");
   }
   if (occupied != live_ || chunkLive != live_) return fail("occupied slots " + std::to_string(occupied) + " != live " + std::to_string(live_));
   return true;

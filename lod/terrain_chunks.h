@@ -10,8 +10,9 @@
 // its blocks; one that shrinks below a quarter of its slots is packed into fresh blocks.
 //
 // Per frame: apply() replays Roam's leaf-change log (O(changes)), and lists the slots the
-// caller must write (the triangle now in each, or degenerate); cull() tests the non-empty
-// chunks against the frustum and lists the draw ranges. When the log cannot describe the
+// caller must write (the triangle now in each, or degenerate); cull() tests groups of 8 x 8
+// chunks against the frustum, then the non-empty chunks of the groups in view, and lists the
+// draw ranges. When the log cannot describe the
 // change (a restart from the base triangles, a log overflow) apply() re-reads every leaf:
 // O(leaves), as rare as teleports. Pure bookkeeping: every buffer is allocated at construction
 // except the caller's draw-range list, which only grows.
@@ -108,6 +109,22 @@ class TerrainChunks {
     glm::dvec3 lo{0.0}, hi{0.0};  // ENU box of its triangles (grows until the chunk empties)
   };
 
+  // kGroupSide x kGroupSide chunks: cull() tests a group's box before its chunks', so a frame
+  // costs the groups plus the chunks of the groups in view (65,536 chunks at 16385^2: 1,024
+  // groups). A group's box holds its chunks' boxes; apply() recomputes it for touched chunks.
+  static constexpr int kGroupSide = 8;
+  struct Group {
+    glm::dvec3 lo{0.0}, hi{0.0};
+    uint32_t live = 0;   // triangles in its chunks
+    uint32_t stamp = 0;  // recomputed in this apply
+  };
+  void updateGroup(uint32_t g);
+  size_t cullChunk(const Chunk& c, const Frustum& frustum, const glm::dvec3& eye, std::vector<TerrainDrawRange>& ranges) const;
+  uint32_t groupOf(uint32_t chunk) const {
+    return static_cast<uint32_t>((chunk / static_cast<uint32_t>(chunksX_)) / kGroupSide * static_cast<uint32_t>(groupsX_) +
+                                 (chunk % static_cast<uint32_t>(chunksX_)) / kGroupSide);
+  }
+
   uint32_t chunkOf(const RoamTriangle& t) const;
   bool place(uint32_t node);                 // a new leaf: a slot in its chunk, box grown
   void remove(uint32_t node);                // a leaf that left: its slot freed
@@ -122,6 +139,8 @@ class TerrainChunks {
   Roam* roam_;
   int side_ = 64;
   int chunksX_ = 1, chunksY_ = 1;
+  int groupsX_ = 1, groupsY_ = 1;
+  std::vector<Group> groups_;
   size_t capacity_ = 0;
   std::vector<Chunk> chunks_;
   std::vector<Block> blocks_;            // kMinBlock-slot units: block of unit u is blockOfUnit_[u]
