@@ -12,6 +12,8 @@
 #include <string>
 #include <vector>
 
+#include "ig/clock.h"
+#include "ig/roam_deadline.h"
 #include "ig/stats.h"
 #include "io/dem.h"
 #include "lod/block_lod.h"
@@ -29,16 +31,8 @@ namespace {
 using BenchClock = std::chrono::steady_clock;
 double msSince(BenchClock::time_point t0) { return std::chrono::duration<double, std::milli>(BenchClock::now() - t0).count(); }
 
-// The hard end of a budgeted Deferred update (RoamView::stop), as igd sets it.
-struct Deadline {
-  BenchClock::time_point end;
-  static bool past(void* self) { return BenchClock::now() >= static_cast<Deadline*>(self)->end; }
-  void arm(lod::RoamView& v, BenchClock::time_point start, double budget_ms) {
-    end = start + std::chrono::duration_cast<BenchClock::duration>(std::chrono::duration<double, std::milli>(budget_ms));
-    v.stop = &Deadline::past;
-    v.stopContext = this;
-  }
-};
+// The hard end of a budgeted Deferred update, as igd sets it (ig::RoamDeadline on this clock).
+MonotonicClock deadlineClock;
 // CPU time of this thread: what the work itself cost, without the time other processes on a
 // shared machine took the core away (wall-clock times are reported too).
 double threadCpuMs() {
@@ -221,7 +215,7 @@ MethodResult flyRoam(const lod::Roam& bounds, const std::vector<PathFrame>& path
                      int height_px, double tolerance_px, uint32_t visits, double lateness = 0.0, double budget_ms = 0.0) {
   lod::Roam roam(bounds, roamConfig(mode));
   double nsPerVisit = 100.0;  // budget_ms > 0: smoothed as igd's TerrainMeshLayer does
-  Deadline deadline;
+  RoamDeadline deadline;
   // Deferred runs as igd runs it without geomorphing: the mesh kept in the vertex buffer by
   // chunk, so between updates a frame touches the changed leaves and the chunk boxes (a
   // visible-leaf walk, 0.2 s a frame at 16385^2, would also evict everything the next update
@@ -239,7 +233,7 @@ MethodResult flyRoam(const lod::Roam& bounds, const std::vector<PathFrame>& path
         }
         v.lateness = lateness;
         const auto t0 = BenchClock::now();
-        if (frame > 0 && budget_ms > 0.0) deadline.arm(v, t0, budget_ms);
+        if (frame > 0 && budget_ms > 0.0) deadline.arm(v, deadlineClock, deadlineClock.now_ns(), budget_ms);
         const lod::RoamStats st = roam.update(v, mode);
         if (frame > 0 && st.visits >= 256)
           nsPerVisit = lod::budgetRate(nsPerVisit, msSince(t0) * 1e6 / static_cast<double>(st.visits));
@@ -316,11 +310,11 @@ TeleportResult teleport(const lod::Roam& bounds, const std::vector<PathFrame>& p
   v.lateness = lateness;
   double total = 0;
   double nsPerVisit = ns_per_visit > 0.0 ? ns_per_visit : 100.0;
-  Deadline deadline;
+  RoamDeadline deadline;
   for (int f = 1; f <= maxFrames; ++f) {
     if (budget_ms > 0.0) v.maxVisits = static_cast<uint32_t>(std::clamp(budget_ms * 1e6 / nsPerVisit, 256.0, 1e9));
     const auto t0 = BenchClock::now();
-    if (budget_ms > 0.0) deadline.arm(v, t0, budget_ms);
+    if (budget_ms > 0.0) deadline.arm(v, deadlineClock, deadlineClock.now_ns(), budget_ms);
     const lod::RoamStats st = roam.update(v, lod::RoamMode::Deferred);
     const double t = msSince(t0);
     if (budget_ms > 0.0 && st.visits >= 256) nsPerVisit = lod::budgetRate(nsPerVisit, t * 1e6 / static_cast<double>(st.visits));

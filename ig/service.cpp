@@ -18,6 +18,7 @@
 #include "ig/systemd.h"
 #include "ig/realtime.h"
 #include "ig/reload.h"
+#include "ig/roam_deadline.h"
 #include "ig/status.h"
 #include "io/dem.h"
 #include "io/replay.h"
@@ -68,16 +69,6 @@ struct TerrainLayer {
   lod::TerrainGrid grid;
   std::vector<uint32_t> selected;
   size_t selectedCount = 0;
-};
-
-// The hard end of a Deferred ROAM update under a time budget (lod::RoamView::stop).
-struct RoamDeadline {
-  const Clock* clock;
-  int64_t end_ns;
-  static bool past(void* self) {
-    const auto* d = static_cast<const RoamDeadline*>(self);
-    return d->clock->now_ns() >= d->end_ns;
-  }
 };
 
 }  // namespace
@@ -204,11 +195,10 @@ struct TerrainMeshLayer {
         // left stays queued for the next frame (the mesh is valid at every stop).
         // The budget's end is also a hard stop, for the updates whose visits cost more than
         // the rate says (cache misses after a teleport, a busy machine).
-        RoamDeadline deadline{clock, t0 + static_cast<int64_t>(budget_ms * 1e6)};
+        RoamDeadline deadline;
         if (clock && budget_ms > 0.0) {
           view.maxVisits = static_cast<uint32_t>(std::clamp(budget_ms * 1e6 / nsPerVisit, 256.0, 1e9));
-          view.stop = &RoamDeadline::past;
-          view.stopContext = &deadline;
+          deadline.arm(view, *clock, t0, budget_ms);
         }
         const lod::RoamStats st = roam->update(view, lod::RoamMode::Deferred);
         if (clock && st.visits >= 256)
