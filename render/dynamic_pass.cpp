@@ -296,6 +296,7 @@ uint32_t DynamicPass::add(const DynamicObject& o) {
   alive_[id] = 1;
   writeInstance(id);
   ++movedThisFrame_;
+  noteChanged(o);
   return id;
 }
 
@@ -305,6 +306,43 @@ bool DynamicPass::set(uint32_t id, const DynamicObject& o) {
   objects_[id] = o;
   writeInstance(id);
   ++movedThisFrame_;
+  noteChanged(o);
+  return true;
+}
+
+void DynamicPass::noteChanged(const DynamicObject& o) {
+  const double radius = glm::length(o.halfSize_m);
+  if (radius <= occluderRadius_) return;
+  occluderRadius_ = radius;
+  occluderCenter_ = o.center_m;
+}
+
+// Adaptive, every frame: an object that could hide others (seen under more than ~15 deg: an
+// angular radius of 0.13 rad, a few per cent of the screen or more) was added or moved, or the
+// view moved or turned since the last estimate: estimate every frame again, and in Occlusion
+// mode test every candidate node for resultMaxAge frames (the hidden set is changing).
+void DynamicPass::watchOccluders(const lod::Camera& cam, uint64_t frame) {
+  const double d = glm::length(occluderCenter_ - cam.eye_m);
+  const bool occluder = occluderRadius_ > 0.0 && occluderRadius_ > 0.13 * std::max(d, occluderRadius_ * 0.5);
+  occluderRadius_ = 0.0;
+  // The view axis in world coordinates (the rotation's third row).
+  const glm::dvec3 forward = glm::transpose(lod::viewRotation(cam))[2];
+  const bool viewChanged = glm::length(cam.eye_m - estimateEye_) > 1.0 ||
+                           glm::dot(forward, estimateForward_) < std::cos(2.0 * 3.14159265358979 / 180.0);
+  if (occluder) exploreUntil_ = frame + config_.resultMaxAge;
+  if (occluder || viewChanged || lastNodeStats_.hiddenEstimate > 0) {
+    estimateEvery_ = 1;
+    nextEstimate_ = std::min(nextEstimate_, frame);
+  }
+  viewForward_ = forward;
+}
+
+bool DynamicPass::estimateNow(const lod::Camera& cam, uint64_t frame) {
+  if (frame < nextEstimate_) return false;
+  nextEstimate_ = frame + estimateEvery_;
+  estimateEvery_ = std::min<uint32_t>(8, 2 * estimateEvery_);
+  estimateEye_ = cam.eye_m;
+  estimateForward_ = viewForward_;
   return true;
 }
 
@@ -630,21 +668,29 @@ void DynamicPass::draw(Renderer& r, uint64_t frame) {
 
   lod::DynamicMode mode = lod::DynamicMode::Octree;
   uint32_t q = 0;
+  bool skipQ = false;  // Octree mode between two estimates: lastQ_ keeps the estimate's q
   double estimateBudget_ns = std::numeric_limits<double>::infinity();
   switch (strategy_) {
     case DynamicStrategy::PerCommand: mode = lod::DynamicMode::PerCommand; break;
     case DynamicStrategy::Octree: mode = lod::DynamicMode::Octree; break;
     case DynamicStrategy::Occlusion: mode = lod::DynamicMode::Occlusion, q = fixedQ_; break;
     case DynamicStrategy::Adaptive: {
+      watchOccluders(r.camera(), frame);
       mode = chooseMode();
       const lod::PerfConstants& c = config_.constants;
       if (mode == lod::DynamicMode::Octree) {
         // The estimate of hidden objects: tests worth about 5 % of the predicted frame, each
-        // costed with its box's fragments (issueQueries stops there).
-        estimateBudget_ns = 0.05 * lastInputs_.frameAll_ns;
-        const double budget = estimateBudget_ns / std::max(c.occlusionTest_ns, 1.0);
-        q = static_cast<uint32_t>(std::clamp(budget, static_cast<double>(config_.estimatorTests), 1024.0));
-        estimatorQ_ = q;
+        // costed with its box's fragments (issueQueries stops there); less often while it
+        // finds nothing and nothing changed that could hide objects (estimateNow).
+        if (estimateNow(r.camera(), frame)) {
+          estimateBudget_ns = 0.05 * lastInputs_.frameAll_ns;
+          const double budget = estimateBudget_ns / std::max(c.occlusionTest_ns, 1.0);
+          q = static_cast<uint32_t>(std::clamp(budget, static_cast<double>(config_.estimatorTests), 1024.0));
+          estimatorQ_ = q;
+        } else {
+          q = 0;
+          skipQ = true;
+        }
       } else if (mode == lod::DynamicMode::Occlusion) {
         // q from (11) once the fits have three distinct q; explore around it every 4 frames.
         lod::OcclusionCoefficients k;
@@ -657,12 +703,13 @@ void DynamicPass::draw(Renderer& r, uint64_t frame) {
         // Never fewer than the re-tests of the nodes known hidden: one left out is drawn again
         // once its result is stale, and costs what the test would have saved.
         q = std::min(std::max(q, lastRetests_ + config_.estimatorTests), n0);
+        if (frame < exploreUntil_) q = n0;  // a new occluder: find what it hides at once
       }
       break;
     }
   }
   stats_.mode = mode;
-  lastQ_ = q;
+  if (!skipQ) lastQ_ = q;
 
   const GLuint p = g.program.id();
   const Lighting& l = r.lighting();

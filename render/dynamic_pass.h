@@ -147,6 +147,9 @@ class DynamicPass {
   // depth-only fragments) would exceed it; +inf: q alone decides.
   void drawNodes(Renderer& r, bool occlusion, uint64_t frame, uint32_t q, double budget_ns);
   void pollQueries();
+  void noteChanged(const DynamicObject& o);
+  void watchOccluders(const lod::Camera& cam, uint64_t frame);
+  bool estimateNow(const lod::Camera& cam, uint64_t frame);
   void issueQueries(Renderer& r, uint64_t frame, uint32_t q, double budget_ns);
   lod::DynamicMode chooseMode();
   void endSamples();
@@ -176,6 +179,15 @@ class DynamicPass {
   uint32_t fixedQ_ = 64;
   uint32_t lastQ_ = 0;
   uint32_t estimatorQ_ = 0;       // tests of the last hidden estimate (Octree mode)
+  // Octree mode: the estimate runs every estimateEvery_ frames (1, 2, 4, 8: doubled while it
+  // finds nothing hidden), every frame again once something is hidden, an object that could
+  // hide others appears or moves (a large angular size), or the view turns or moves.
+  uint32_t estimateEvery_ = 1;
+  uint64_t nextEstimate_ = 0;
+  glm::dvec3 estimateEye_{0.0}, estimateForward_{0.0}, viewForward_{0.0};
+  uint64_t exploreUntil_ = 0;       // Occlusion mode: test every candidate node until then
+  glm::dvec3 occluderCenter_{0.0};  // the largest object added or moved since the last draw
+  double occluderRadius_ = 0.0;
   uint32_t lastRetests_ = 0;      // hidden nodes re-tested in the last occlusion traversal
   double movedEma_ = 0.0;         // objects changed per frame (Adaptive: alpha_n)
   uint32_t movedThisFrame_ = 0;

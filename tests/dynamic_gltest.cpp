@@ -225,6 +225,70 @@ TEST_F(DynamicGl, AdaptiveStartsWithPerObjectCommandsAndMovesToTheOctreeAsObject
   EXPECT_GE(p.modeSwitches(), 1u);
 }
 
+// Octree mode estimates the hidden objects with a few tests; while they find nothing and nothing
+// changes that could hide objects, the estimate runs every 2nd, 4th, then 8th frame. A large
+// object appearing in front of the camera brings it back at once.
+TEST_F(DynamicGl, AdaptiveEstimatesHiddenObjectsLessOftenUntilAnOccluderAppears) {
+  render::DynamicPassConfig c;
+  c.maxObjects = 20000;
+  c.bounds = {glm::dvec3(-128.0), glm::dvec3(128.0)};
+  c.switching.minFrames = 2;
+  c.constants.tri_ns = 10.0;
+  c.constants.frag_ns = 1.0;
+  c.constants.command_ns = 2000.0;
+  c.constants.rerecord_ns = 50.0;
+  c.constants.submit_ns = 2000.0;
+  c.constants.cull_ns = 20.0;
+  c.constants.occlusionTest_ns = 5000.0;
+  render::DynamicPass p;
+  std::string error;
+  ASSERT_TRUE(p.init(c, error)) << error;
+  p.setStrategy(DynamicStrategy::Adaptive);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (int i = 0; i < 5000; ++i) p.add({{3.0 * u(rng), 50.0 + 3.0 * u(rng), 3.0 * u(rng)}, glm::dvec3(0.05), 0.0, 0xffffffffu});
+  uint64_t f = 1;
+  for (; f < 20; ++f) {
+    frame(p, f, false);
+    renderer_.finish();
+  }
+  ASSERT_EQ(p.stats().mode, lod::DynamicMode::Octree);
+  int estimates = 0;
+  for (int i = 0; i < 48; ++i, ++f) {
+    frame(p, f, false);
+    renderer_.finish();
+    ASSERT_EQ(p.stats().mode, lod::DynamicMode::Octree);
+    ASSERT_EQ(p.stats().hiddenEstimate, 0u);
+    estimates += p.stats().occlusionTests > 0;
+  }
+  EXPECT_GE(estimates, 48 / 8);
+  EXPECT_LE(estimates, 48 / 8 + 2);
+  // A turn of the view: the next frame estimates again.
+  cam_.heading_deg = 5.0;
+  frame(p, f++, false), renderer_.finish();
+  ASSERT_EQ(p.stats().mode, lod::DynamicMode::Octree);
+  EXPECT_GT(p.stats().occlusionTests, 0u);
+  int later = 0;
+  for (int i = 0; i < 16; ++i, ++f) {
+    frame(p, f, false);
+    renderer_.finish();
+    later += p.stats().occlusionTests > 0;
+  }
+  EXPECT_LT(later, 16);
+  // A wall in front of the cluster: so does the next frame after it appears.
+  int before = 0;
+  for (int i = 0; i < 16; ++i, ++f) {
+    frame(p, f, false);
+    renderer_.finish();
+    before += p.stats().occlusionTests > 0;
+  }
+  EXPECT_LE(before, 3);  // backed off to every 8th frame
+  p.add({{0.0, 25.0, 0.0}, {12.0, 0.5, 12.0}, 0.0, 0xff606060u});
+  frame(p, f++, false), renderer_.finish();
+  EXPECT_GT(p.stats().occlusionTests, 0u);
+  cam_.heading_deg = 0.0;
+}
+
 // ---- calibration cache ---------------------------------------------------------------------
 
 std::string tempPath(const char* name) { return "/tmp/igd_dyn_" + std::to_string(getpid()) + "_" + name; }
