@@ -67,6 +67,23 @@ class DynamicGl : public ::testing::Test {
     return v;
   }
 
+  // Adaptive with synthetic constants (the decision logic, not this machine's speed):
+  // per-object commands cost 2 us, a node range 2 us, a frustum test 20 ns, a test 5 us.
+  static render::DynamicPassConfig syntheticAdaptive() {
+    render::DynamicPassConfig c;
+    c.maxObjects = 20000;
+    c.bounds = {glm::dvec3(-128.0), glm::dvec3(128.0)};
+    c.switching.minFrames = 2;
+    c.constants.tri_ns = 10.0;
+    c.constants.frag_ns = 1.0;
+    c.constants.command_ns = 2000.0;
+    c.constants.rerecord_ns = 50.0;
+    c.constants.submit_ns = 2000.0;
+    c.constants.cull_ns = 20.0;
+    c.constants.occlusionTest_ns = 5000.0;
+    return c;
+  }
+
   render::Image frame(render::DynamicPass& p, uint64_t f, bool finish = true) {
     renderer_.beginFrame(cam_, light_);
     p.draw(renderer_, f);
@@ -196,22 +213,9 @@ TEST_F(DynamicGl, OcclusionResultsAreReadOnlyFramesLaterAndNeverWaitedOn) {
 }
 
 TEST_F(DynamicGl, AdaptiveStartsWithPerObjectCommandsAndMovesToTheOctreeAsObjectsAreAdded) {
-  render::DynamicPassConfig c;
-  c.maxObjects = 20000;
-  c.bounds = {glm::dvec3(-128.0), glm::dvec3(128.0)};
-  c.switching.minFrames = 2;
-  // Synthetic constants (the decision logic, not this machine's speed): per-object commands
-  // cost 2 us, a node range 2 us, a frustum test 20 ns.
-  c.constants.tri_ns = 10.0;
-  c.constants.frag_ns = 1.0;
-  c.constants.command_ns = 2000.0;
-  c.constants.rerecord_ns = 50.0;
-  c.constants.submit_ns = 2000.0;
-  c.constants.cull_ns = 20.0;
-  c.constants.occlusionTest_ns = 5000.0;
   render::DynamicPass p;
   std::string error;
-  ASSERT_TRUE(p.init(c, error)) << error;
+  ASSERT_TRUE(p.init(syntheticAdaptive(), error)) << error;
   p.setStrategy(DynamicStrategy::Adaptive);
   p.add({{0.0, 50.0, 0.0}, glm::dvec3(1.0), 0.0, 0xffffffffu});
   for (uint64_t f = 1; f < 12; ++f) frame(p, f, false), renderer_.finish();
@@ -229,20 +233,9 @@ TEST_F(DynamicGl, AdaptiveStartsWithPerObjectCommandsAndMovesToTheOctreeAsObject
 // changes that could hide objects, the estimate runs every 2nd, 4th, then 8th frame. A large
 // object appearing in front of the camera brings it back at once.
 TEST_F(DynamicGl, AdaptiveEstimatesHiddenObjectsLessOftenUntilAnOccluderAppears) {
-  render::DynamicPassConfig c;
-  c.maxObjects = 20000;
-  c.bounds = {glm::dvec3(-128.0), glm::dvec3(128.0)};
-  c.switching.minFrames = 2;
-  c.constants.tri_ns = 10.0;
-  c.constants.frag_ns = 1.0;
-  c.constants.command_ns = 2000.0;
-  c.constants.rerecord_ns = 50.0;
-  c.constants.submit_ns = 2000.0;
-  c.constants.cull_ns = 20.0;
-  c.constants.occlusionTest_ns = 5000.0;
   render::DynamicPass p;
   std::string error;
-  ASSERT_TRUE(p.init(c, error)) << error;
+  ASSERT_TRUE(p.init(syntheticAdaptive(), error)) << error;
   p.setStrategy(DynamicStrategy::Adaptive);
   std::mt19937 rng(3);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
