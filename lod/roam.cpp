@@ -535,6 +535,10 @@ struct MergeGreater {
 bool Roam::stopRequested() {
   if (stop_ == nullptr || visitsUsed_ < nextPoll_) return false;
   nextPoll_ = visitsUsed_ + kStopPollVisits;
+  return pollStop();
+}
+
+bool Roam::pollStop() {
   if (!stop_(stopContext_)) return false;
   visitBudget_ = visitsUsed_;  // the rest of this update is out of budget
   stop_ = nullptr;
@@ -548,11 +552,7 @@ bool Roam::schedulePending() {
     if (stopFired_) return true;
     if (stop_ == nullptr || ++sincePoll < kStopPollVisits) return false;
     sincePoll = 0;
-    if (!stop_(stopContext_)) return false;
-    visitBudget_ = visitsUsed_;
-    stop_ = nullptr;
-    stopFired_ = true;
-    return true;
+    return pollStop();
   };
   while (pendingTouched_ < touched_.size()) {
     if (outOfTime()) return false;

@@ -326,6 +326,7 @@ class Roam {
   // ends the budget for the rest of this update.
   bool outOfVisits();
   bool stopRequested();
+  bool pollStop();  // asks stop_ now; true: out of time for the rest of this update
   // Schedules the nodes this or the last update touched that are not scheduled yet, polling
   // stop_ as the visits do; false: out of time, the rest stays pending for the next update.
   bool schedulePending();

@@ -431,17 +431,17 @@ bool TerrainChunks::validate(std::string* why) const {
     }
     if (slots != c.slots) return fail("chunk slot count mismatch");
   }
-  for (uint32_t gi = 0; gi < groups_.size(); ++gi) {
-    uint32_t live = 0;
-    for (uint32_t ci = 0; ci < chunks_.size(); ++ci) {
-      const Chunk& c = chunks_[ci];
-      if (groupOf(ci) != gi || c.live == 0) continue;
-      live += c.live;
-      if (glm::any(glm::lessThan(c.lo, groups_[gi].lo)) || glm::any(glm::greaterThan(c.hi, groups_[gi].hi)))
-        return fail("chunk " + std::to_string(ci) + "'s box outside its group " + std::to_string(gi) + "'s");
-    }
-    if (live != groups_[gi].live) return fail("group " + std::to_string(gi) + " live count mismatch");
+  std::vector<uint32_t> groupLive(groups_.size(), 0u);
+  for (uint32_t ci = 0; ci < chunks_.size(); ++ci) {
+    const Chunk& c = chunks_[ci];
+    if (c.live == 0) continue;
+    const Group& g = groups_[groupOf(ci)];
+    groupLive[groupOf(ci)] += c.live;
+    if (glm::any(glm::lessThan(c.lo, g.lo)) || glm::any(glm::greaterThan(c.hi, g.hi)))
+      return fail("chunk " + std::to_string(ci) + "'s box outside its group " + std::to_string(groupOf(ci)) + "'s");
   }
+  for (uint32_t gi = 0; gi < groups_.size(); ++gi)
+    if (groupLive[gi] != groups_[gi].live) return fail("group " + std::to_string(gi) + " live count mismatch");
   if (occupied != live_ || chunkLive != live_) return fail("occupied slots " + std::to_string(occupied) + " != live " + std::to_string(live_));
   return true;
 }
