@@ -321,28 +321,28 @@ void DynamicPass::noteChanged(const DynamicObject& o) {
 // angular radius of 0.13 rad, a few per cent of the screen or more) was added or moved, or the
 // view moved or turned since the last estimate: estimate every frame again, and in Occlusion
 // mode test every candidate node for resultMaxAge frames (the hidden set is changing).
-void DynamicPass::watchOccluders(const lod::Camera& cam, uint64_t frame) {
+glm::dvec3 DynamicPass::watchOccluders(const lod::Camera& cam, uint64_t frame) {
   const double d = glm::length(occluderCenter_ - cam.eye_m);
   const bool occluder = occluderRadius_ > 0.0 && occluderRadius_ > 0.13 * std::max(d, occluderRadius_ * 0.5);
   occluderRadius_ = 0.0;
   // The view axis in world coordinates (the rotation's third row).
   const glm::dvec3 forward = glm::transpose(lod::viewRotation(cam))[2];
   const bool viewChanged = glm::length(cam.eye_m - estimateEye_) > 1.0 ||
-                           glm::dot(forward, estimateForward_) < std::cos(2.0 * 3.14159265358979 / 180.0);
+                           glm::dot(forward, estimateForward_) < std::cos(glm::radians(2.0));
   if (occluder) exploreUntil_ = frame + config_.resultMaxAge;
   if (occluder || viewChanged || lastNodeStats_.hiddenEstimate > 0) {
     estimateEvery_ = 1;
     nextEstimate_ = std::min(nextEstimate_, frame);
   }
-  viewForward_ = forward;
+  return forward;
 }
 
-bool DynamicPass::estimateNow(const lod::Camera& cam, uint64_t frame) {
+bool DynamicPass::estimateNow(const lod::Camera& cam, const glm::dvec3& forward, uint64_t frame) {
   if (frame < nextEstimate_) return false;
   nextEstimate_ = frame + estimateEvery_;
   estimateEvery_ = std::min<uint32_t>(8, 2 * estimateEvery_);
   estimateEye_ = cam.eye_m;
-  estimateForward_ = viewForward_;
+  estimateForward_ = forward;
   return true;
 }
 
@@ -675,14 +675,14 @@ void DynamicPass::draw(Renderer& r, uint64_t frame) {
     case DynamicStrategy::Octree: mode = lod::DynamicMode::Octree; break;
     case DynamicStrategy::Occlusion: mode = lod::DynamicMode::Occlusion, q = fixedQ_; break;
     case DynamicStrategy::Adaptive: {
-      watchOccluders(r.camera(), frame);
+      const glm::dvec3 forward = watchOccluders(r.camera(), frame);
       mode = chooseMode();
       const lod::PerfConstants& c = config_.constants;
       if (mode == lod::DynamicMode::Octree) {
         // The estimate of hidden objects: tests worth about 5 % of the predicted frame, each
         // costed with its box's fragments (issueQueries stops there); less often while it
         // finds nothing and nothing changed that could hide objects (estimateNow).
-        if (estimateNow(r.camera(), frame)) {
+        if (estimateNow(r.camera(), forward, frame)) {
           estimateBudget_ns = 0.05 * lastInputs_.frameAll_ns;
           const double budget = estimateBudget_ns / std::max(c.occlusionTest_ns, 1.0);
           q = static_cast<uint32_t>(std::clamp(budget, static_cast<double>(config_.estimatorTests), 1024.0));

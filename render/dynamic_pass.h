@@ -148,8 +148,9 @@ class DynamicPass {
   void drawNodes(Renderer& r, bool occlusion, uint64_t frame, uint32_t q, double budget_ns);
   void pollQueries();
   void noteChanged(const DynamicObject& o);
-  void watchOccluders(const lod::Camera& cam, uint64_t frame);
-  bool estimateNow(const lod::Camera& cam, uint64_t frame);
+  // Returns the view axis in world coordinates (for estimateNow).
+  glm::dvec3 watchOccluders(const lod::Camera& cam, uint64_t frame);
+  bool estimateNow(const lod::Camera& cam, const glm::dvec3& forward, uint64_t frame);
   void issueQueries(Renderer& r, uint64_t frame, uint32_t q, double budget_ns);
   lod::DynamicMode chooseMode();
   void endSamples();
@@ -184,7 +185,7 @@ class DynamicPass {
   // hide others appears or moves (a large angular size), or the view turns or moves.
   uint32_t estimateEvery_ = 1;
   uint64_t nextEstimate_ = 0;
-  glm::dvec3 estimateEye_{0.0}, estimateForward_{0.0}, viewForward_{0.0};
+  glm::dvec3 estimateEye_{0.0}, estimateForward_{0.0};
   uint64_t exploreUntil_ = 0;       // Occlusion mode: test every candidate node until then
   glm::dvec3 occluderCenter_{0.0};  // the largest object added or moved since the last draw
   double occluderRadius_ = 0.0;
