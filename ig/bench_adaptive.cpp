@@ -45,11 +45,13 @@ int runAdaptiveBench(const AdaptiveBenchOptions& o0) {
   if (o.quick) {
     o.objects = std::min<uint32_t>(o.objects, 4000);
     o.framesPerPhase = std::min(o.framesPerPhase, 40);
+    o.repeats = std::min(o.repeats, 2);
   }
   if (o.objects < 100 || o.objects > 1000000 || o.framesPerPhase < 10 || o.framesPerPhase > 100000 || o.window < 1 ||
-      o.window > o.framesPerPhase || o.width_px < 16 || o.height_px < 16) {
-    std::fprintf(stderr, "igbench adaptive: bad option (objects %u: 100 .. 1000000, frames per phase %d: >= 10, window %d)\n",
-                 o.objects, o.framesPerPhase, o.window);
+      o.window > o.framesPerPhase || o.repeats < 1 || o.repeats > 20 || o.width_px < 16 || o.height_px < 16) {
+    std::fprintf(stderr, "igbench adaptive: bad option (objects %u: 100 .. 1000000, frames per phase %d: >= 10, window %d: "
+                 "1 .. frames per phase, repeats %d: 1 .. 20)\n",
+                 o.objects, o.framesPerPhase, o.window, o.repeats);
     return 2;
   }
   std::string error;
@@ -77,22 +79,6 @@ int runAdaptiveBench(const AdaptiveBenchOptions& o0) {
     return 3;
   }
   const uint32_t capacity = o.objects + 1024;
-  std::array<std::unique_ptr<render::DynamicPass>, kModes> passes;
-  for (int m = 0; m < kModes; ++m) {
-    render::DynamicPassConfig pc;
-    pc.maxObjects = capacity;
-    pc.bounds = {glm::dvec3(-128.0), glm::dvec3(128.0)};
-    pc.octreeDepth = 6;
-    pc.maxQueries = 8192;
-    pc.constants = cal.constants;
-    passes[m] = std::make_unique<render::DynamicPass>();
-    if (!passes[m]->init(pc, error)) {
-      std::fprintf(stderr, "igbench adaptive: %s\n", error.c_str());
-      return 3;
-    }
-    passes[m]->setStrategy(kStrategies[m]);
-    passes[m]->setOcclusionTests(8192);  // the fixed occlusion strategy tests every node it can
-  }
   lod::Camera cam;
   cam.aspect = static_cast<double>(o.width_px) / o.height_px;
   cam.near_m = 0.5;
@@ -101,105 +87,168 @@ int runAdaptiveBench(const AdaptiveBenchOptions& o0) {
   light.fog = false;
   light.sunDirection = glm::normalize(glm::dvec3(0.3, -0.5, 0.8));
 
-  std::mt19937 rng(o.seed);
-  std::uniform_real_distribution<double> u(-1.0, 1.0), u01(0.0, 1.0);
-  std::vector<render::DynamicObject> objs;
-  objs.reserve(capacity);
-  const auto randomBox = [&] {
-    const double y = 30.0 + 80.0 * u01(rng);
-    render::DynamicObject b;
-    b.center_m = {0.62 * y * u(rng), y, 0.33 * y * u(rng)};
-    b.halfSize_m = glm::dvec3(0.15 + 0.15 * u01(rng));
-    b.yaw_deg = 180.0 * u(rng);
-    b.rgba = 0xff000000u | (rng() & 0xffffffu);
-    return b;
-  };
-  const auto addAll = [&](const render::DynamicObject& b) {
-    for (auto& p : passes) p->add(b);
-    objs.push_back(b);
-  };
-  const auto setAll = [&](uint32_t id, const render::DynamicObject& b) {
-    for (auto& p : passes) p->set(id, b);
-    objs[id] = b;
-  };
-
   const int phases = 3, frames = phases * o.framesPerPhase;
   const char* phaseNames[phases] = {"few-moving", "growing", "occluded"};
-  std::array<std::vector<double>, kModes> all;
-  for (auto& v : all) v.reserve(static_cast<size_t>(frames));
-  std::vector<TraceRow> trace;
-  std::array<std::vector<double>, kModes> win;
-  TraceRow row;
-  std::array<int, 3> modeFrames{};
-  const uint32_t fewMoving = 300;
-  for (int i = 0; i < 50; ++i) addAll(randomBox());
+  // ms[rep][mode][frame]; the adaptive pass's choices per frame (the same in every repetition:
+  // they depend on counts, not on the clock; checked below).
+  std::vector<std::array<std::vector<double>, kModes>> ms(static_cast<size_t>(o.repeats));
+  struct AdaptiveFrame {
+    int mode = 0;
+    uint32_t q = 0;
+    uint64_t hidden = 0;
+  };
+  std::vector<std::vector<AdaptiveFrame>> chosen(static_cast<size_t>(o.repeats));
+  std::vector<uint32_t> objectsAt(static_cast<size_t>(frames));
+  uint32_t switches = 0;
   const auto t0 = BenchClock::now();
-  for (int f = 0; f < frames; ++f) {
-    const int phase = f / o.framesPerPhase;
-    const int pf = f % o.framesPerPhase;
-    // Scene edits (not timed; the same for every pass).
-    if (phase == 0) {
-      const uint32_t target = 50 + static_cast<uint32_t>((fewMoving - 50) * (pf + 1) / o.framesPerPhase);
-      while (objs.size() < target) addAll(randomBox());
-      for (uint32_t id = 0; id < objs.size(); ++id) {  // everything moves
-        render::DynamicObject b = objs[id];
-        b.center_m.x += 0.4 * std::sin(0.05 * f + id);
-        b.center_m.z += 0.3 * std::cos(0.07 * f + id);
-        b.yaw_deg = std::fmod(b.yaw_deg + 2.0, 360.0);
-        setAll(id, b);
+  for (int rep = 0; rep < o.repeats; ++rep) {
+    // A fresh scene and fresh passes: every repetition replays the same animation.
+    std::array<std::unique_ptr<render::DynamicPass>, kModes> passes;
+    for (int m = 0; m < kModes; ++m) {
+      render::DynamicPassConfig pc;
+      pc.maxObjects = capacity;
+      pc.bounds = {glm::dvec3(-128.0), glm::dvec3(128.0)};
+      pc.octreeDepth = 6;
+      pc.maxQueries = 8192;
+      pc.constants = cal.constants;
+      passes[m] = std::make_unique<render::DynamicPass>();
+      if (!passes[m]->init(pc, error)) {
+        std::fprintf(stderr, "igbench adaptive: %s\n", error.c_str());
+        return 3;
       }
-    } else {
-      if (phase == 1) {
-        const uint32_t target = fewMoving + static_cast<uint32_t>(
-                                                static_cast<uint64_t>(o.objects - fewMoving) * (pf + 1) / o.framesPerPhase);
+      passes[m]->setStrategy(kStrategies[m]);
+      passes[m]->setOcclusionTests(8192);  // the fixed occlusion strategy tests every node it can
+    }
+    std::mt19937 rng(o.seed);
+    std::uniform_real_distribution<double> u(-1.0, 1.0), u01(0.0, 1.0);
+    std::vector<render::DynamicObject> objs;
+    objs.reserve(capacity);
+    const auto randomBox = [&] {
+      const double y = 30.0 + 80.0 * u01(rng);
+      render::DynamicObject b;
+      b.center_m = {0.62 * y * u(rng), y, 0.33 * y * u(rng)};
+      b.halfSize_m = glm::dvec3(0.15 + 0.15 * u01(rng));
+      b.yaw_deg = 180.0 * u(rng);
+      b.rgba = 0xff000000u | (rng() & 0xffffffu);
+      return b;
+    };
+    const auto addAll = [&](const render::DynamicObject& b) {
+      for (auto& p : passes) p->add(b);
+      objs.push_back(b);
+    };
+    const auto setAll = [&](uint32_t id, const render::DynamicObject& b) {
+      for (auto& p : passes) p->set(id, b);
+      objs[id] = b;
+    };
+    auto& repMs = ms[static_cast<size_t>(rep)];
+    for (auto& v : repMs) v.reserve(static_cast<size_t>(frames));
+    chosen[static_cast<size_t>(rep)].reserve(static_cast<size_t>(frames));
+    const uint32_t fewMoving = 300;
+    for (int i = 0; i < 50; ++i) addAll(randomBox());
+    for (int f = 0; f < frames; ++f) {
+      const int phase = f / o.framesPerPhase;
+      const int pf = f % o.framesPerPhase;
+      // Scene edits (not timed; the same for every pass).
+      if (phase == 0) {
+        const uint32_t target = 50 + static_cast<uint32_t>((fewMoving - 50) * (pf + 1) / o.framesPerPhase);
         while (objs.size() < target) addAll(randomBox());
-      } else if (pf % (o.framesPerPhase / 5) == 0 && pf / (o.framesPerPhase / 5) < 4) {
-        // Walls just in front of the boxes, one after the other.
-        const int w = pf / (o.framesPerPhase / 5);
-        const double xs[4] = {-9.0, 9.0, 0.0, 0.0}, zs[4] = {0.0, 0.0, -6.0, 6.0};
-        const glm::dvec3 half[4] = {{9.5, 0.5, 10.0}, {9.5, 0.5, 10.0}, {19.0, 0.5, 4.5}, {19.0, 0.5, 4.5}};
-        addAll({{xs[w], 26.0, zs[w]}, half[w], 0.0, 0xff707070u});
+        for (uint32_t id = 0; id < objs.size(); ++id) {  // everything moves
+          render::DynamicObject b = objs[id];
+          b.center_m.x += 0.4 * std::sin(0.05 * f + id);
+          b.center_m.z += 0.3 * std::cos(0.07 * f + id);
+          b.yaw_deg = std::fmod(b.yaw_deg + 2.0, 360.0);
+          setAll(id, b);
+        }
+      } else {
+        if (phase == 1) {
+          const uint32_t target =
+              fewMoving + static_cast<uint32_t>(static_cast<uint64_t>(o.objects - fewMoving) * (pf + 1) / o.framesPerPhase);
+          while (objs.size() < target) addAll(randomBox());
+        } else if (pf % (o.framesPerPhase / 5) == 0 && pf / (o.framesPerPhase / 5) < 4) {
+          // Walls just in front of the boxes, one after the other.
+          const int w = pf / (o.framesPerPhase / 5);
+          const double xs[4] = {-9.0, 9.0, 0.0, 0.0}, zs[4] = {0.0, 0.0, -6.0, 6.0};
+          const glm::dvec3 half[4] = {{9.5, 0.5, 10.0}, {9.5, 0.5, 10.0}, {19.0, 0.5, 4.5}, {19.0, 0.5, 4.5}};
+          addAll({{xs[w], 26.0, zs[w]}, half[w], 0.0, 0xff707070u});
+        }
+        // 1 % of the boxes move a little each frame.
+        const auto n = static_cast<uint32_t>(objs.size());
+        for (uint32_t id = static_cast<uint32_t>(f) % 100; id < n; id += 100) {
+          if (objs[id].halfSize_m.x > 5.0) continue;  // walls stay
+          render::DynamicObject b = objs[id];
+          b.center_m.x += 0.05 * std::sin(0.1 * f + id);
+          setAll(id, b);
+        }
       }
-      // 1 % of the boxes move a little each frame.
-      const auto n = static_cast<uint32_t>(objs.size());
-      for (uint32_t id = static_cast<uint32_t>(f) % 100; id < n; id += 100) {
-        if (objs[id].halfSize_m.x > 5.0) continue;  // walls stay
-        render::DynamicObject b = objs[id];
-        b.center_m.x += 0.05 * std::sin(0.1 * f + id);
-        setAll(id, b);
+      cam.heading_deg = 2.0 * std::sin(0.02 * f);
+      // Draw the frame with every pass, rotating the order (also across repetitions).
+      for (int k = 0; k < kModes; ++k) {
+        const int m = (k + f + rep) % kModes;
+        const auto a = BenchClock::now();
+        renderer.beginFrame(cam, light);
+        passes[m]->draw(renderer, static_cast<uint64_t>(f) + 1);
+        renderer.endFrame();
+        renderer.finish();
+        repMs[m].push_back(std::chrono::duration<double, std::milli>(BenchClock::now() - a).count());
       }
+      const render::DynamicFrameStats& as = passes[3]->stats();
+      chosen[static_cast<size_t>(rep)].push_back({static_cast<int>(as.mode), passes[3]->lastQ(), as.hiddenEstimate});
+      objectsAt[static_cast<size_t>(f)] = static_cast<uint32_t>(objs.size());
     }
-    cam.heading_deg = 2.0 * std::sin(0.02 * f);
-    // Draw the frame with every pass, rotating the order.
-    for (int k = 0; k < kModes; ++k) {
-      const int m = (k + f) % kModes;
-      const auto a = BenchClock::now();
-      renderer.beginFrame(cam, light);
-      passes[m]->draw(renderer, static_cast<uint64_t>(f) + 1);
-      renderer.endFrame();
-      renderer.finish();
-      const double ms = std::chrono::duration<double, std::milli>(BenchClock::now() - a).count();
-      all[m].push_back(ms);
-      win[m].push_back(ms);
-    }
-    const render::DynamicFrameStats& as = passes[3]->stats();
-    ++row.adaptiveModes[static_cast<int>(as.mode)];
-    ++modeFrames[static_cast<int>(as.mode)];
-    row.q = std::max(row.q, passes[3]->lastQ());
-    row.hidden = std::max(row.hidden, as.hiddenEstimate);
-    if ((f + 1) % o.window == 0) {
-      row.frame = f + 1;
-      row.phase = phaseNames[phase];
-      row.objects = static_cast<uint32_t>(objs.size());
-      for (int m = 0; m < kModes; ++m) {
-        row.ms[m] = median(win[m]);
-        win[m].clear();
-      }
-      trace.push_back(row);
-      row = TraceRow{};
-    }
+    switches = passes[3]->modeSwitches();
   }
   const double wall_s = std::chrono::duration<double>(BenchClock::now() - t0).count();
+  // Frames on which the adaptive pass chose another mode in some repetition than in the first.
+  int modeDiffers = 0;
+  for (int rep = 1; rep < o.repeats; ++rep)
+    for (int f = 0; f < frames; ++f)
+      modeDiffers += chosen[static_cast<size_t>(rep)][static_cast<size_t>(f)].mode != chosen[0][static_cast<size_t>(f)].mode;
+
+  // Each frame's time per mode: the fastest of the repetitions (the machine's load only adds).
+  std::array<std::vector<double>, kModes> all;
+  for (int m = 0; m < kModes; ++m) {
+    all[m].resize(static_cast<size_t>(frames));
+    for (int f = 0; f < frames; ++f) {
+      double best = ms[0][m][static_cast<size_t>(f)];
+      for (int rep = 1; rep < o.repeats; ++rep) best = std::min(best, ms[static_cast<size_t>(rep)][m][static_cast<size_t>(f)]);
+      all[m][static_cast<size_t>(f)] = best;
+    }
+  }
+  // The spread between repetitions: median over frames and modes of (slowest - fastest) / fastest.
+  std::vector<double> spread;
+  if (o.repeats > 1) {
+    for (int m = 0; m < kModes; ++m)
+      for (int f = 0; f < frames; ++f) {
+        double lo = all[m][static_cast<size_t>(f)], hi = lo;
+        for (int rep = 0; rep < o.repeats; ++rep) hi = std::max(hi, ms[static_cast<size_t>(rep)][m][static_cast<size_t>(f)]);
+        spread.push_back(100.0 * (hi - lo) / std::max(lo, 1e-9));
+      }
+  }
+  const double spreadPct = median(spread);
+
+  std::vector<TraceRow> trace;
+  std::array<int, 3> modeFrames{};
+  for (int w0 = 0; w0 + o.window <= frames; w0 += o.window) {
+    TraceRow row;
+    row.frame = w0 + o.window;
+    row.phase = phaseNames[(row.frame - 1) / o.framesPerPhase];
+    row.objects = objectsAt[static_cast<size_t>(row.frame - 1)];
+    // The window's mean: a switch or a burst of tests costs what it costs (a median would hide
+    // it); the repetitions have taken out the machine's noise already.
+    for (int m = 0; m < kModes; ++m) {
+      double sum = 0.0;
+      for (int f = w0; f < w0 + o.window; ++f) sum += all[m][static_cast<size_t>(f)];
+      row.ms[m] = sum / o.window;
+    }
+    for (int f = w0; f < w0 + o.window; ++f) {
+      const AdaptiveFrame& a = chosen[0][static_cast<size_t>(f)];
+      ++row.adaptiveModes[a.mode];
+      row.q = std::max(row.q, a.q);
+      row.hidden = std::max(row.hidden, a.hidden);
+    }
+    trace.push_back(row);
+  }
+  for (const AdaptiveFrame& a : chosen[0]) ++modeFrames[a.mode];
 
   // Ratios over windows (skip the first window: warm-up).
   double worst = 0.0, sumAdaptive = 0.0, sumBest = 0.0;
@@ -241,9 +290,10 @@ int runAdaptiveBench(const AdaptiveBenchOptions& o0) {
   std::snprintf(buf, sizeof buf,
                 "},\"adaptive_worst_ratio\":%.3f,\"adaptive_worst_frame\":%d,\"adaptive_mean_ratio\":%.3f,"
                 "\"adaptive_mode_frames\":{\"percommand\":%d,\"octree\":%d,\"occlusion\":%d},\"adaptive_switches\":%u,"
+                "\"repeats\":%d,\"repeat_spread_pct_median\":%.1f,\"adaptive_mode_differs_frames\":%d,"
                 "\"wall_s\":%.1f,\"trace\":[",
-                worst, worstFrame, meanRatio, modeFrames[0], modeFrames[1], modeFrames[2],
-                passes[3]->modeSwitches(), wall_s);
+                worst, worstFrame, meanRatio, modeFrames[0], modeFrames[1], modeFrames[2], switches, o.repeats, spreadPct,
+                modeDiffers, wall_s);
   out += buf;
   for (size_t i = 0; i < trace.size(); ++i) {
     const TraceRow& r = trace[i];
@@ -269,7 +319,9 @@ int runAdaptiveBench(const AdaptiveBenchOptions& o0) {
   if (o.json) {
     std::fputs(out.c_str(), stdout);
   } else {
-    std::printf("adaptive: %u boxes, %d frames (%d per phase), %.1f s\n", o.objects, frames, o.framesPerPhase, wall_s);
+    std::printf("adaptive: %u boxes, %d frames (%d per phase), %d repetitions (frame time = the fastest; median spread "
+                "%.1f %%), %.1f s\n",
+                o.objects, frames, o.framesPerPhase, o.repeats, spreadPct, wall_s);
     const lod::PerfConstants& k = cal.constants;
     std::printf("  constants: tri %.1f ns, frag %.2f ns, command %.0f ns, rerecord %.0f ns, submit %.0f ns, cull %.1f ns, "
                 "occlusion test %.0f ns\n",

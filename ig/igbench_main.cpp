@@ -370,6 +370,10 @@ int main(int argc, char** argv) {
       ->capture_default_str()->check(CLI::Range(10, 1000000));
   adaptive->add_option("--window", adaptiveOptions.window, "Frames per trace sample")->capture_default_str()->check(CLI::Range(1, 100000));
   adaptive->add_option("--seed", adaptiveOptions.seed, "Scene seed")->capture_default_str();
+  adaptive->add_option("--repeats", adaptiveOptions.repeats,
+                       "Replay the animation this often; each frame's time is the fastest of the replays")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 20));
   adaptive->add_option("--cache", adaptiveOptions.cachePath, "Calibration cache file ('' = calibrate every run)");
   adaptive->add_option("--trace", adaptiveOptions.tracePath, "Also write the JSON here (input of scripts/plot_adaptive.py)");
   adaptive->add_flag("--quick", adaptiveOptions.quick, "CI size: 4000 boxes, 40 frames per phase");

@@ -5,7 +5,7 @@
     build/igbench adaptive --json > out/adaptive.json
     scripts/plot_adaptive.py out/adaptive.json out/adaptive.png
 
-Top: median frame ms per window for each mode (log scale), phases shaded. Bottom: the mode the
+Top: mean frame ms per window for each mode (log scale), phases shaded. Bottom: the mode the
 adaptive strategy used in each window, the number of occlusion tests q and the boxes in the scene.
 """
 import json
@@ -34,7 +34,7 @@ def main():
         a.plot(x, [r[m + "_ms"] for r in trace], "-", color=COLORS[m], lw=2.2 if m == "adaptive" else 1.3,
                label=f"{m}: mean {d['modes'][m]['mean_ms']:.2f} ms, p99 {d['modes'][m]['p99_ms']:.2f} ms")
     a.set_yscale("log")
-    a.set_ylabel("frame ms (window median)")
+    a.set_ylabel("frame ms (window mean, fastest of the repetitions)")
     start = 0
     for i, r in enumerate(trace + [None]):
         if r is None or r["phase"] != trace[start]["phase"]:
