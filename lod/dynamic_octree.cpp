@@ -215,6 +215,7 @@ bool DynamicOctree::checkInvariant() const {
 void DynamicOctree::setOcclusionResult(uint32_t n, bool visible, uint64_t issuedFrame) {
   Node& node = nodes_[n];
   node.queryPending = false;
+  if (visible && issuedFrame < visibleValidFrom_) return;  // measured before a new occluder
   if (issuedFrame >= node.resultFrame) {
     node.occluded = !visible;
     node.resultFrame = issuedFrame;
@@ -223,6 +224,12 @@ void DynamicOctree::setOcclusionResult(uint32_t n, bool visible, uint64_t issued
 
 void DynamicOctree::clearOcclusion() {
   for (Node& n : nodes_) n.occluded = false, n.queryPending = false, n.resultFrame = 0;
+}
+
+void DynamicOctree::expireVisibleResults(uint64_t frame) {
+  for (Node& n : nodes_)
+    if (!n.occluded) n.resultFrame = 0;
+  visibleValidFrom_ = std::max(visibleValidFrom_, frame);
 }
 
 DynamicOctree::TraversalResult DynamicOctree::traverse(const Frustum& frustum, const Traversal& t,

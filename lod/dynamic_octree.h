@@ -114,6 +114,11 @@ class DynamicOctree {
   void setQueryPending(uint32_t node, bool pending) { nodes_[node].queryPending = pending; }
   void setOcclusionResult(uint32_t node, bool visible, uint64_t issuedFrame);
   void clearOcclusion();
+  // A new object that could hide others: every "visible" result is stale from now on (it was
+  // measured without that object), so those nodes become test candidates again at once, and a
+  // "visible" result of a test issued before `frame` is ignored when it arrives. "Hidden" results
+  // stay: hidden nodes are re-tested every frame anyway.
+  void expireVisibleResults(uint64_t frame);
 
  private:
   struct ObjectRec {
@@ -137,6 +142,7 @@ class DynamicOctree {
   std::vector<uint8_t> queueHidden_;  // traversal scratch: an ancestor was counted as hidden
   uint32_t objectCount_ = 0;
   uint32_t nonEmpty_ = 0;
+  uint64_t visibleValidFrom_ = 0;  // "visible" results of tests issued earlier are ignored
   bool countsChanged_ = false;
 };
 

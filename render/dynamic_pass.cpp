@@ -327,9 +327,13 @@ glm::dvec3 DynamicPass::watchOccluders(const lod::Camera& cam, uint64_t frame) {
   occluderRadius_ = 0.0;
   // The view axis in world coordinates (the rotation's third row).
   const glm::dvec3 forward = glm::transpose(lod::viewRotation(cam))[2];
-  const bool viewChanged = glm::length(cam.eye_m - estimateEye_) > 1.0 ||
-                           glm::dot(forward, estimateForward_) < std::cos(glm::radians(2.0));
-  if (occluder) exploreUntil_ = frame + config_.resultMaxAge;
+  // (Before the first estimate there is no earlier view to compare with.)
+  const bool viewChanged = nextEstimate_ > 0 && (glm::length(cam.eye_m - estimateEye_) > 1.0 ||
+                                                 glm::dot(forward, estimateForward_) < std::cos(glm::radians(2.0)));
+  if (occluder) {
+    exploreUntil_ = frame + config_.resultMaxAge, occluderFrame_ = frame;
+    octree_.expireVisibleResults(frame);  // they were measured without it
+  }
   if (occluder || viewChanged || lastNodeStats_.hiddenEstimate > 0) {
     estimateEvery_ = 1;
     nextEstimate_ = std::min(nextEstimate_, frame);
@@ -456,6 +460,8 @@ void DynamicPass::drawPerCommand(Renderer& r) {
 
 void DynamicPass::pollQueries() {
   size_t keep = 0;
+  newlyHidden_ = 0;
+  const uint32_t maxAge = config_.resultMaxAge;
   for (size_t i = 0; i < pending_.size(); ++i) {
     const Pending p = pending_[i];
     GLuint available = 0;
@@ -466,6 +472,8 @@ void DynamicPass::pollQueries() {
     }
     GLuint passed = 0;
     gl.GetQueryObjectuiv(p.query, GL_QUERY_RESULT, &passed);  // available: does not wait
+    const lod::DynamicOctree::Node& node = octree_.node(p.node);
+    if (passed == 0 && !(node.occluded && node.resultFrame + maxAge >= p.frame)) newlyHidden_ += node.subtreeCount;
     octree_.setOcclusionResult(p.node, passed != 0, p.frame);
     freeQueries_.push_back(p.query);
     ++stats_.resultsRead;
@@ -639,7 +647,7 @@ lod::DynamicMode DynamicPass::chooseMode() {
   vis.commands = vis.submissions = std::max(1.0, nodes * keep);
   in.frameVisible_ns = lod::predictFrame_ns(c, vis, {});
   // T_vis(H): the tests that found the hidden objects (the estimator's), not the exploration's.
-  const double q = std::max<double>(culled ? std::min(lastQ_, estimatorQ_) : lastQ_, config_.estimatorTests);
+  const double q = std::max<double>(std::min(lastQ_, estimatorQ_), config_.estimatorTests);
   in.visTests_ns = q * (c.occlusionTest_ns + kBoxTriangles * c.tri_ns);
   lastInputs_ = in;
   return switcher_.update(in);
@@ -682,7 +690,14 @@ void DynamicPass::draw(Renderer& r, uint64_t frame) {
         // The estimate of hidden objects: tests worth about 5 % of the predicted frame, each
         // costed with its box's fragments (issueQueries stops there); less often while it
         // finds nothing and nothing changed that could hide objects (estimateNow).
-        if (estimateNow(r.camera(), forward, frame)) {
+        if (frame == occluderFrame_) {
+          // An object that could hide others just appeared or moved: test every candidate on
+          // this frame (what the fixed occlusion strategy does every frame), so that condition
+          // (6) sees next frame what it hides instead of a 5 % sample of it. T_vis(H) is still
+          // costed with the estimator's usual q (estimatorQ_, chooseMode).
+          q = config_.maxQueries;  // issueQueries stops at the candidates and the free queries
+          estimateNow(r.camera(), forward, frame);
+        } else if (estimateNow(r.camera(), forward, frame)) {
           estimateBudget_ns = 0.05 * lastInputs_.frameAll_ns;
           const double budget = estimateBudget_ns / std::max(c.occlusionTest_ns, 1.0);
           q = static_cast<uint32_t>(std::clamp(budget, static_cast<double>(config_.estimatorTests), 1024.0));
@@ -703,7 +718,13 @@ void DynamicPass::draw(Renderer& r, uint64_t frame) {
         // Never fewer than the re-tests of the nodes known hidden: one left out is drawn again
         // once its result is stale, and costs what the test would have saved.
         q = std::min(std::max(q, lastRetests_ + config_.estimatorTests), n0);
-        if (frame < exploreUntil_) q = n0;  // a new occluder: find what it hides at once
+        // While the results still find hidden objects that were drawn (more than 2 % of those
+        // drawn: a new occluder's shadow is being discovered top-down), go on testing every candidate: q* is fitted for a hidden set that
+        // stays, and testing fewer would leave the rest of the shadow drawn for longer.
+        if (newlyHidden_ > std::max<uint64_t>(16, lastNodeStats_.objectsDrawn / 50)) exploreUntil_ = std::max(exploreUntil_, frame + 2);
+        // A new occluder: find what it hides at once. Every candidate: interior nodes with no
+        // objects of their own are candidates too, so there can be more than n0.
+        if (frame < exploreUntil_) q = config_.maxQueries;
       }
       break;
     }

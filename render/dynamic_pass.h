@@ -182,11 +182,15 @@ class DynamicPass {
   uint32_t estimatorQ_ = 0;       // tests of the last hidden estimate (Octree mode)
   // Octree mode: the estimate runs every estimateEvery_ frames (1, 2, 4, 8: doubled while it
   // finds nothing hidden), every frame again once something is hidden, an object that could
-  // hide others appears or moves (a large angular size), or the view turns or moves.
-  uint32_t estimateEvery_ = 1;
+  // hide others appears or moves (a large angular size), or the view turns or moves. It starts
+  // at 8: the first estimate runs at once, and nothing has been seen yet that calls for more.
+  uint32_t estimateEvery_ = 8;
   uint64_t nextEstimate_ = 0;
   glm::dvec3 estimateEye_{0.0}, estimateForward_{0.0};
   uint64_t exploreUntil_ = 0;       // Occlusion mode: test every candidate node until then
+  uint64_t occluderFrame_ = ~uint64_t{0};  // Octree mode: the frame an occluder was seen (test all)
+  uint64_t newlyHidden_ = 0;        // objects under nodes whose results just read came back
+                                    // hidden while they had no fresh hidden result before
   glm::dvec3 occluderCenter_{0.0};  // the largest object added or moved since the last draw
   double occluderRadius_ = 0.0;
   uint32_t lastRetests_ = 0;      // hidden nodes re-tested in the last occlusion traversal

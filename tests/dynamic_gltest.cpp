@@ -231,7 +231,8 @@ TEST_F(DynamicGl, AdaptiveStartsWithPerObjectCommandsAndMovesToTheOctreeAsObject
 
 // Octree mode estimates the hidden objects with a few tests; while they find nothing and nothing
 // changes that could hide objects, the estimate runs every 2nd, 4th, then 8th frame. A large
-// object appearing in front of the camera brings it back at once.
+// object appearing in front of the camera brings it back at once, with every candidate node
+// tested on that frame, and the pass turns to occlusion culling within a few frames.
 TEST_F(DynamicGl, AdaptiveEstimatesHiddenObjectsLessOftenUntilAnOccluderAppears) {
   render::DynamicPass p;
   std::string error;
@@ -270,15 +271,29 @@ TEST_F(DynamicGl, AdaptiveEstimatesHiddenObjectsLessOftenUntilAnOccluderAppears)
   EXPECT_LT(later, 16);
   // A wall in front of the cluster: so does the next frame after it appears.
   int before = 0;
+  uint32_t sampled = 0;  // tests of one estimate
   for (int i = 0; i < 16; ++i, ++f) {
     frame(p, f, false);
     renderer_.finish();
     before += p.stats().occlusionTests > 0;
+    sampled = std::max(sampled, p.stats().occlusionTests);
   }
   EXPECT_LE(before, 3);  // backed off to every 8th frame
+  ASSERT_GT(sampled, 0u);
   p.add({{0.0, 25.0, 0.0}, {12.0, 0.5, 12.0}, 0.0, 0xff606060u});
   frame(p, f++, false), renderer_.finish();
-  EXPECT_GT(p.stats().occlusionTests, 0u);
+  // The frame the wall appears tests every candidate node, not the estimate's sample.
+  EXPECT_GT(p.stats().occlusionTests, 2 * sampled);
+  // So the next frame knows what the wall hides, and the pass moves to occlusion culling.
+  frame(p, f++, false), renderer_.finish();
+  EXPECT_GT(p.stats().hiddenEstimate, 2500u);
+  bool culling = false;
+  for (int i = 0; i < 4 && !culling; ++i, ++f) {
+    frame(p, f, false);
+    renderer_.finish();
+    culling = p.stats().mode == lod::DynamicMode::Occlusion;
+  }
+  EXPECT_TRUE(culling);
   cam_.heading_deg = 0.0;
 }
 

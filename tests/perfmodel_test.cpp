@@ -3,6 +3,7 @@
 // single-reference octree with the expensive-node estimate of hidden objects.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -441,6 +442,62 @@ TEST(DynamicOctree, ExpensiveNodesAndTheHiddenEstimate) {
   tr.eye_m = inside.eye_m;
   r = t.traverse(makeFrustum(inside), tr, draw, test);
   for (uint32_t i = 0; i < r.candidates; ++i) EXPECT_NE(test[i], cluster);
+}
+
+// A fresh "visible" result keeps a node out of the tests (its children are tested instead)
+// until it is stale. A new occluder makes every visible result stale at once: the nodes it may
+// hide are tested in the next frame, not resultMaxAge frames later.
+TEST(DynamicOctree, ANewOccluderExpiresVisibleResultsButNotHiddenOnes) {
+  DynamicOctree t;
+  OctreeConfig c;
+  c.bounds = cube(glm::dvec3(0.0), 128.0);
+  c.maxDepth = 5;
+  c.maxObjects = 2000;
+  c.occlusionMaxAge = 8;
+  ASSERT_TRUE(t.init(c));
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  uint32_t id = 0;
+  for (; id < 400; ++id) t.insert(id, cube({60 * u(rng), 20 + 100 * std::abs(u(rng)), 40 * u(rng)}, 0.2));
+  t.refresh();
+  Camera cam;
+  cam.aspect = 16.0 / 9.0;
+  cam.fovY_deg = 90.0;
+  const Frustum f = makeFrustum(cam);
+  std::vector<uint32_t> draw(t.nodes().size()), test(t.nodes().size());
+  DynamicOctree::Traversal tr;
+  tr.frame = 10;
+  tr.useOcclusion = true;
+  auto r = t.traverse(f, tr, draw, test);
+  ASSERT_GT(r.candidates, 2u);
+  const std::vector<uint32_t> first(test.begin(), test.begin() + r.candidates);
+  // Every candidate comes back: the first one hidden, the others visible.
+  for (uint32_t n : first) t.setOcclusionResult(n, n != first[0], 10);
+  const uint32_t hidden = first[0], visible = first[1];
+  tr.frame = 11;
+  r = t.traverse(f, tr, draw, test);
+  const auto isCandidate = [&](uint32_t n) { return std::find(test.begin(), test.begin() + r.candidates, n) != test.begin() + r.candidates; };
+  EXPECT_TRUE(isCandidate(hidden));    // hidden nodes are re-tested every frame
+  EXPECT_FALSE(isCandidate(visible));  // a fresh visible result is not
+  const uint64_t hiddenBefore = r.hiddenObjects;
+  EXPECT_GT(hiddenBefore, 0u);
+  // A test of `visible` is in flight when an occluder appears in frame 12.
+  t.setQueryPending(visible, true);
+  t.expireVisibleResults(12);
+  t.setOcclusionResult(visible, true, 11);  // measured without the occluder: ignored
+  EXPECT_FALSE(t.node(visible).queryPending);
+  tr.frame = 12;
+  r = t.traverse(f, tr, draw, test);
+  EXPECT_TRUE(isCandidate(visible));  // stale now: tested again at once
+  EXPECT_TRUE(isCandidate(hidden));
+  EXPECT_EQ(r.hiddenObjects, hiddenBefore);  // hidden results stay
+  // Results of tests issued from frame 12 on count again.
+  t.setOcclusionResult(visible, true, 12);
+  tr.frame = 13;
+  r = t.traverse(f, tr, draw, test);
+  EXPECT_FALSE(isCandidate(visible));
+  t.setOcclusionResult(visible, false, 13);
+  EXPECT_TRUE(t.node(visible).occluded);
 }
 
 TEST(DynamicOctree, RejectsBadConfig) {
