@@ -756,7 +756,11 @@ void DynamicPass::draw(Renderer& r, uint64_t frame) {
   }
   if (mode == lod::DynamicMode::PerCommand) {
     drawPerCommand(r);
-    // Node ranges are rebuilt only in the octree modes: the dirty nodes stay marked until then.
+    // Node ranges are rebuilt in the octree modes: the dirty nodes stay marked until then. Once
+    // condition (5) prefers the octree but not yet by the hysteresis margin, Adaptive keeps them
+    // current, so that the switch does not pay for every change since the last octree frame.
+    if (strategy_ == DynamicStrategy::Adaptive && lastInputs_.bufS_ns + lastInputs_.fcS_ns > lastInputs_.bufH_ns + lastInputs_.fcH_ns)
+      rebuildDirtyNodes();
     if (strategy_ == DynamicStrategy::Adaptive && frame >= lastTraversalFrame_ + 8) {
       // Node statistics for condition (5), every 8 frames.
       lod::DynamicOctree::Traversal t;
