@@ -331,8 +331,14 @@ glm::dvec3 DynamicPass::watchOccluders(const lod::Camera& cam, uint64_t frame) {
   const bool viewChanged = nextEstimate_ > 0 && (glm::length(cam.eye_m - estimateEye_) > 1.0 ||
                                                  glm::dot(forward, estimateForward_) < std::cos(glm::radians(2.0)));
   if (occluder) {
-    exploreUntil_ = frame + config_.resultMaxAge, occluderFrame_ = frame;
-    octree_.expireVisibleResults(frame);  // they were measured without it
+    exploreUntil_ = frame + config_.resultMaxAge;
+    // A burst (every visible result expired, every candidate tested in Octree mode) at most once
+    // per resultMaxAge frames: a large object that moves every frame would otherwise test every
+    // node every frame; between bursts the estimate runs every frame (below).
+    if (occluderFrame_ == kNoFrame || frame >= occluderFrame_ + std::max<uint32_t>(config_.resultMaxAge, 1)) {
+      occluderFrame_ = frame;
+      octree_.expireVisibleResults(frame);  // they were measured without it
+    }
   }
   if (occluder || viewChanged || lastNodeStats_.hiddenEstimate > 0) {
     estimateEvery_ = 1;

@@ -188,7 +188,8 @@ class DynamicPass {
   uint64_t nextEstimate_ = 0;
   glm::dvec3 estimateEye_{0.0}, estimateForward_{0.0};
   uint64_t exploreUntil_ = 0;       // Occlusion mode: test every candidate node until then
-  uint64_t occluderFrame_ = ~uint64_t{0};  // Octree mode: the frame an occluder was seen (test all)
+  static constexpr uint64_t kNoFrame = ~uint64_t{0};
+  uint64_t occluderFrame_ = kNoFrame;  // the last burst for an occluder (Octree mode: test all)
   uint64_t newlyHidden_ = 0;        // objects under nodes whose results just read came back
                                     // hidden while they had no fresh hidden result before
   glm::dvec3 occluderCenter_{0.0};  // the largest object added or moved since the last draw

@@ -297,6 +297,43 @@ TEST_F(DynamicGl, AdaptiveEstimatesHiddenObjectsLessOftenUntilAnOccluderAppears)
   cam_.heading_deg = 0.0;
 }
 
+// A large object that moves every frame but hides nothing: the burst of tests an occluder
+// brings (every candidate node) comes at most once per resultMaxAge frames, not every frame.
+TEST_F(DynamicGl, AdaptiveTestsEverythingAtMostOncePerResultAgeForAMovingLargeObject) {
+  render::DynamicPass p;
+  std::string error;
+  const render::DynamicPassConfig config = syntheticAdaptive();
+  ASSERT_TRUE(p.init(config, error)) << error;
+  p.setStrategy(DynamicStrategy::Adaptive);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (int i = 0; i < 5000; ++i) p.add({{3.0 * u(rng), 50.0 + 3.0 * u(rng), 3.0 * u(rng)}, glm::dvec3(0.05), 0.0, 0xffffffffu});
+  uint64_t f = 1;
+  uint32_t sampled = 0;  // the largest estimate before the large object
+  for (; f < 40; ++f) {
+    frame(p, f, false);
+    renderer_.finish();
+    if (f > 20) sampled = std::max(sampled, p.stats().occlusionTests);
+  }
+  ASSERT_EQ(p.stats().mode, lod::DynamicMode::Octree);
+  ASSERT_GT(sampled, 0u);
+  // In view, to the left of the cluster, seen under ~0.14 rad.
+  render::DynamicObject big{{-20.0, 30.0, 0.0}, glm::dvec3(3.0), 0.0, 0xff808080u};
+  const uint32_t id = p.add(big);
+  int bursts = 0;
+  const int frames = 4 * static_cast<int>(config.resultMaxAge);
+  for (int i = 0; i < frames; ++i, ++f) {
+    big.center_m.z = 0.1 * (i % 2);
+    ASSERT_TRUE(p.set(id, big));
+    frame(p, f, false);
+    renderer_.finish();
+    ASSERT_EQ(p.stats().mode, lod::DynamicMode::Octree);  // it hides nothing
+    bursts += p.stats().occlusionTests > 2 * sampled;
+  }
+  EXPECT_GE(bursts, 1);
+  EXPECT_LE(bursts, frames / static_cast<int>(config.resultMaxAge) + 1);
+}
+
 // ---- calibration cache ---------------------------------------------------------------------
 
 std::string tempPath(const char* name) { return "/tmp/igd_dyn_" + std::to_string(getpid()) + "_" + name; }
