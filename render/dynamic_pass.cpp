@@ -334,7 +334,8 @@ glm::dvec3 DynamicPass::watchOccluders(const lod::Camera& cam, uint64_t frame) {
     exploreUntil_ = frame + config_.resultMaxAge;
     // A burst (every visible result expired, every candidate tested in Octree mode) at most once
     // per resultMaxAge frames: a large object that moves every frame would otherwise test every
-    // node every frame; between bursts the estimate runs every frame (below).
+    // node every frame; between bursts the estimate runs every frame (below) on the nodes whose
+    // results have gone stale.
     if (occluderFrame_ == kNoFrame || frame >= occluderFrame_ + std::max<uint32_t>(config_.resultMaxAge, 1)) {
       occluderFrame_ = frame;
       octree_.expireVisibleResults(frame);  // they were measured without it
@@ -725,9 +726,11 @@ void DynamicPass::draw(Renderer& r, uint64_t frame) {
         // once its result is stale, and costs what the test would have saved.
         q = std::min(std::max(q, lastRetests_ + config_.estimatorTests), n0);
         // While the results still find hidden objects that were drawn (more than 2 % of those
-        // drawn: a new occluder's shadow is being discovered top-down), go on testing every candidate: q* is fitted for a hidden set that
-        // stays, and testing fewer would leave the rest of the shadow drawn for longer.
-        if (newlyHidden_ > std::max<uint64_t>(16, lastNodeStats_.objectsDrawn / 50)) exploreUntil_ = std::max(exploreUntil_, frame + 2);
+        // drawn: a new occluder's shadow is being discovered top-down), go on testing every
+        // candidate: q* is fitted for a hidden set that stays, and testing fewer would leave the
+        // rest of the shadow drawn for longer.
+        if (newlyHidden_ > std::max<uint64_t>(16, lastNodeStats_.objectsDrawn / 50))
+          exploreUntil_ = std::max(exploreUntil_, frame + 2);
         // A new occluder: find what it hides at once. Every candidate: interior nodes with no
         // objects of their own are candidates too, so there can be more than n0.
         if (frame < exploreUntil_) q = config_.maxQueries;
