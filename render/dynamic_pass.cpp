@@ -569,6 +569,31 @@ void DynamicPass::drawNodes(Renderer& r, bool occlusion, uint64_t frame, uint32_
   }
 }
 
+// Adaptive starts in PerCommand mode, and its first node draw and first occlusion test would
+// come at its first switch, in the middle of a run; on llvmpipe a first use costs ~1 ms (each
+// pass's first frame does: shader variants compiled on first use). Both are used once on the
+// first frame instead, leaving the image as it is: one node's objects drawn again (the same
+// fragments at the same depth as their per-object draws) and one test (a real one, its result
+// read as any other).
+void DynamicPass::warmUp(Renderer& r, uint64_t frame) {
+  uint32_t node = kNone;
+  for (uint32_t n = 0; n < octree_.nodes().size() && node == kNone; ++n)
+    if (!octree_.node(n).objects.empty()) node = n;
+  if (node == kNone) return;  // nothing to draw yet: the next frame tries again
+  warmed_ = true;
+  endSamples();  // the samples query counts the frame's own fragments only
+  rebuildDirtyNodes();
+  const uintptr_t offset = (size_t{config_.maxObjects} + node) * sizeof(DrawCommand);
+  gl.MultiDrawElementsIndirect(GL_TRIANGLES, GL_UNSIGNED_SHORT, reinterpret_cast<const void*>(offset), 1, 0);
+  ++stats_.submissions;
+  ++stats_.draws;
+  stats_.triangles += uint64_t{static_cast<uint32_t>(octree_.node(node).objects.size())} * kBoxTriangles;
+  testList_[0] = node;
+  stats_.occlusionTests = 1;  // one candidate
+  issueQueries(r, frame, 1, std::numeric_limits<double>::infinity());
+  gl.UseProgram(gpu_->program.id());  // issueQueries leaves the query program bound
+}
+
 void DynamicPass::endSamples() {
   if (samplesActive_) gl.EndQuery(GL_SAMPLES_PASSED);
   samplesActive_ = false;
@@ -770,6 +795,7 @@ void DynamicPass::draw(Renderer& r, uint64_t frame) {
     // current, so that the switch does not pay for every change since the last octree frame.
     if (strategy_ == DynamicStrategy::Adaptive && lastInputs_.bufS_ns + lastInputs_.fcS_ns > lastInputs_.bufH_ns + lastInputs_.fcH_ns)
       rebuildDirtyNodes();
+    if (strategy_ == DynamicStrategy::Adaptive && !warmed_) warmUp(r, frame);
     if (strategy_ == DynamicStrategy::Adaptive && frame >= lastTraversalFrame_ + 8) {
       // Node statistics for condition (5), every 8 frames.
       lod::DynamicOctree::Traversal t;

@@ -154,6 +154,7 @@ class DynamicPass {
   void issueQueries(Renderer& r, uint64_t frame, uint32_t q, double budget_ns);
   lod::DynamicMode chooseMode();
   void endSamples();
+  void warmUp(Renderer& r, uint64_t frame);
 
   DynamicPassConfig config_;
   std::unique_ptr<Gpu> gpu_;
@@ -198,6 +199,7 @@ class DynamicPass {
   double movedEma_ = 0.0;         // objects changed per frame (Adaptive: alpha_n)
   uint32_t movedThisFrame_ = 0;
   uint64_t blockingReads_ = 0;
+  bool warmed_ = false;           // Adaptive: node draws and the query program used once (warmUp)
   uint64_t lastSamples_ = 0;
   bool samplesActive_ = false;
   bool measureSamples_ = false;

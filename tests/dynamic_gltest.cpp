@@ -135,6 +135,27 @@ TEST_F(DynamicGl, ThreeStrategiesDrawTheSameImageOfAStaticScene) {
   }
 }
 
+// Adaptive starts with per-object commands; on its first frame it also draws one node's range
+// and issues one occlusion test (so that their first use, ~1 ms on llvmpipe, does not fall on the
+// first switch) and leaves the image exactly as the per-object strategy draws it.
+TEST_F(DynamicGl, AdaptiveWarmsUpNodeDrawsAndTestsOnItsFirstFrameWithoutChangingTheImage) {
+  render::Image images[2];
+  render::DynamicFrameStats stats[2];
+  int k = 0;
+  for (DynamicStrategy s : {DynamicStrategy::PerCommand, DynamicStrategy::Adaptive}) {
+    auto p = makePass();
+    for (const DynamicObject& o : scene(true)) ASSERT_NE(p->add(o), render::DynamicPass::kNone);
+    p->setStrategy(s);
+    images[k] = frame(*p, 1);
+    stats[k++] = p->stats();
+  }
+  ASSERT_EQ(stats[1].mode, lod::DynamicMode::PerCommand);
+  EXPECT_EQ(stats[0].occlusionTests, 0u);
+  EXPECT_EQ(stats[1].occlusionTests, 1u);
+  EXPECT_EQ(stats[1].draws, stats[0].draws + 1);
+  EXPECT_EQ(render::fractionDifferent(images[0], images[1], 0), 0.0);
+}
+
 TEST_F(DynamicGl, SameImageOneThousandKilometresFromTheOrigin) {
   const glm::dvec3 far(977.0 * 1024.0, -512.0 * 1024.0, 0.0);
   std::vector<render::Image> images;
