@@ -570,7 +570,8 @@ void DynamicPass::drawNodes(Renderer& r, bool occlusion, uint64_t frame, uint32_
 }
 
 // Adaptive starts in PerCommand mode, and its first node draw and first occlusion test would
-// come at its first switch, in the middle of a run; on llvmpipe a first use costs ~1 ms (each
+// come at its first switch, in the middle of a run (its first fragment count is taken on this
+// frame too, in draw()); on llvmpipe a first use costs ~1 ms (each
 // pass's first frame does: shader variants compiled on first use). Both are used once on the
 // first frame instead, leaving the image as it is: one node's objects drawn again (the same
 // fragments at the same depth as their per-object draws) and one test (a real one, its result
@@ -781,9 +782,12 @@ void DynamicPass::draw(Renderer& r, uint64_t frame) {
   gl.ProgramUniform1i(p, g.uWork, static_cast<GLint>(config_.fragmentWork));
   bindBoxState(p, g.vao.id(), g.commands.id());
   const int sq = static_cast<int>(frame & 1u);
-  // Adaptive counts the fragments every 8th frame: counting costs the rasterizer time on every
-  // fragment (llvmpipe: several per cent of a fragment-bound frame), and they change slowly.
-  samplesActive_ = ((strategy_ == DynamicStrategy::Adaptive && frame % 8 == 0) || measureSamples_) && !g.samplesPending[sq];
+  // Adaptive counts the fragments every 32nd frame, and on the frame after an occluder's burst
+  // (its fragments are new): counting costs the rasterizer time on every fragment (llvmpipe: 10
+  // ... 16 % of a 2 ms frame of boxes), and they change slowly. And on the warm-up frame: the
+  // first count costs ~0.6 ms more (see warmUp).
+  const bool countNow = frame % 32 == 0 || (occluderFrame_ != kNoFrame && frame == occluderFrame_ + 1) || !warmed_;
+  samplesActive_ = ((strategy_ == DynamicStrategy::Adaptive && countNow) || measureSamples_) && !g.samplesPending[sq];
   if (samplesActive_) {
     gl.BeginQuery(GL_SAMPLES_PASSED, g.samplesQuery[sq]);
     g.samplesPending[sq] = true;
