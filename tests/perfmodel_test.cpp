@@ -366,13 +366,27 @@ TEST(DynamicOctree, SingleReferenceUnderInsertMoveRemove) {
   }
 }
 
-TEST(DynamicOctree, ExpensiveNodesAndTheHiddenEstimate) {
-  DynamicOctree t;
+// The occlusion tests' octree: 128 m cube, 5 levels, up to 2,000 objects.
+OctreeConfig occlusionTestConfig(uint32_t maxAge) {
   OctreeConfig c;
   c.bounds = cube(glm::dvec3(0.0), 128.0);
   c.maxDepth = 5;
   c.maxObjects = 2000;
-  c.occlusionMaxAge = 4;
+  c.occlusionMaxAge = maxAge;
+  return c;
+}
+
+// At the origin looking north (+y), 90 deg vertical field of view, 16:9.
+Camera wideCamera() {
+  Camera cam;
+  cam.aspect = 16.0 / 9.0;
+  cam.fovY_deg = 90.0;
+  return cam;
+}
+
+TEST(DynamicOctree, ExpensiveNodesAndTheHiddenEstimate) {
+  DynamicOctree t;
+  const OctreeConfig c = occlusionTestConfig(4);
   ASSERT_TRUE(t.init(c));
   std::mt19937 rng(9);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
@@ -386,9 +400,7 @@ TEST(DynamicOctree, ExpensiveNodesAndTheHiddenEstimate) {
   for (uint32_t a = cluster; a != DynamicOctree::kNone; a = t.node(a).parent) EXPECT_TRUE(t.node(a).expensive);
   EXPECT_FALSE(t.node(t.nodeOf(0)).expensive);
 
-  Camera cam;
-  cam.aspect = 16.0 / 9.0;
-  cam.fovY_deg = 90.0;
+  const Camera cam = wideCamera();
   const Frustum f = makeFrustum(cam);
   std::vector<uint32_t> draw(t.nodes().size()), test(t.nodes().size());
   DynamicOctree::Traversal tr;
@@ -449,20 +461,14 @@ TEST(DynamicOctree, ExpensiveNodesAndTheHiddenEstimate) {
 // hide are tested in the next frame, not resultMaxAge frames later.
 TEST(DynamicOctree, ANewOccluderExpiresVisibleResultsButNotHiddenOnes) {
   DynamicOctree t;
-  OctreeConfig c;
-  c.bounds = cube(glm::dvec3(0.0), 128.0);
-  c.maxDepth = 5;
-  c.maxObjects = 2000;
-  c.occlusionMaxAge = 8;
+  const OctreeConfig c = occlusionTestConfig(8);
   ASSERT_TRUE(t.init(c));
   std::mt19937 rng(4);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   uint32_t id = 0;
   for (; id < 400; ++id) t.insert(id, cube({60 * u(rng), 20 + 100 * std::abs(u(rng)), 40 * u(rng)}, 0.2));
   t.refresh();
-  Camera cam;
-  cam.aspect = 16.0 / 9.0;
-  cam.fovY_deg = 90.0;
+  const Camera cam = wideCamera();
   const Frustum f = makeFrustum(cam);
   std::vector<uint32_t> draw(t.nodes().size()), test(t.nodes().size());
   DynamicOctree::Traversal tr;
