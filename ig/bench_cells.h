@@ -3,7 +3,8 @@
 // level), the selection along a camera path with a teleport while cells stream in under a byte
 // budget per frame (select time p50 / p99, drawn voxels, frames over a budget, bytes per frame),
 // and a sweep over voxel budgets with everything resident (the largest on-screen voxel, select
-// time). No rendering yet: no PSNR, no streaming through a server (see docs/cells.md).
+// time), both replayed `repeats` times (each frame's time the fastest of its replays). With a
+// mesh (ig/bench_cells_stream.h): the real bunny's PSNR sweep and streaming through nginx.
 #pragma once
 
 #include <cstdint>
@@ -23,6 +24,7 @@ struct CellsBenchOptions {
   int latencyFrames = 3;        // a requested cell arrives this many frames later
   uint32_t maxOps = 512;        // splits + merges per frame on the path (CellSelectorConfig::maxOperations; 0: no cap)
   uint32_t seed = 1;
+  int repeats = 3;              // the path and the sweep replayed this often; each frame's time is the fastest
   bool json = false;
   // The real mesh, the pictures and nginx (ig/bench_cells_stream.h); off: selection only.
   bool withMesh = true;
