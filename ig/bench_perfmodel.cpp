@@ -125,7 +125,14 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
   objs.reserve(maxN);
   uint64_t frame = 1;
   const auto t0 = BenchClock::now();
-  for (uint32_t n : sizes) {
+  // The whole sweep is run `sweeps` times; a point's time is the fastest of its sweeps' medians
+  // (the load of other processes on a shared machine comes in phases of seconds to minutes; the
+  // calibration's lower quartiles measure the machine outside them as well).
+  const int sweeps = o.sweeps > 0 ? o.sweeps : o.quick ? 1 : 2;
+  std::vector<double> spreads;
+  for (int sweep = 0; sweep < sweeps; ++sweep)
+  for (size_t sizeIndex = 0; sizeIndex < sizes.size(); ++sizeIndex) {
+    const uint32_t n = sizes[sizeIndex];
     // Random boxes inside the view between 30 and 110 m, then scaled to the target coverage.
     std::mt19937 rng(o.seed + n);
     std::uniform_real_distribution<double> u(-1.0, 1.0), u01(0.0, 1.0);
@@ -153,7 +160,9 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
       sqrtSum += std::sqrt(a);
       pass.add(ob);
     }
+    int strategyIndex = 0;
     for (render::DynamicStrategy s : {render::DynamicStrategy::PerCommand, render::DynamicStrategy::Octree}) {
+      const size_t pointIndex = 2 * sizeIndex + static_cast<size_t>(strategyIndex++);
       pass.setStrategy(s);
       std::vector<double> ms, subMs;
       // llvmpipe runs the first frames after the calibration (its large scenes freed) and after
@@ -207,7 +216,23 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
       p.fragment_ms = tb.fragS * 1e-6;
       p.commands_ms = (tb.bufS + tb.fcS) * 1e-6;
       p.bound = boundName(tb.boundS);
-      points.push_back(p);
+      if (sweep == 0) {
+        points.push_back(p);
+        continue;
+      }
+      // A later sweep: the same scene and statistics; keep the faster median.
+      Point& q = points[pointIndex];
+      const double slow = std::max(q.measured_ms, p.measured_ms), fast = std::min(q.measured_ms, p.measured_ms);
+      if (sweep == sweeps - 1) spreads.push_back(100.0 * (slow - fast) / std::max(fast, 1e-9));
+      if (p.measured_ms < q.measured_ms) {
+        q.measured_ms = p.measured_ms;
+        q.submit_ms = p.submit_ms;
+        q.error_pct = 100.0 * std::abs(q.predicted_ms - q.measured_ms) / std::max(q.measured_ms, 1e-9);
+      }
+      if (p.measuredQ1_ms < q.measuredQ1_ms) {
+        q.measuredQ1_ms = p.measuredQ1_ms;
+        q.errorQ1_pct = 100.0 * std::abs(q.predicted_ms - q.measuredQ1_ms) / std::max(q.measuredQ1_ms, 1e-9);
+      }
     }
   }
   const double wall_s = std::chrono::duration<double>(BenchClock::now() - t0).count();
@@ -234,8 +259,10 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
                   p.area_px, p.sqrtArea_px, p.submit_ms, static_cast<unsigned long long>(p.samples));
     }
     std::printf("],\"error_pct_median\":%.2f,\"error_pct_max\":%.2f,\"error_q1_pct_median\":%.2f,"
-                "\"error_q1_pct_max\":%.2f,\"wall_s\":%.1f}\n",
-                med, mx, medQ1, mxQ1, wall_s);
+                "\"error_q1_pct_max\":%.2f,\"sweeps\":%d,\"sweep_spread_pct_median\":%.2f,\"sweep_spread_pct_max\":%.2f,"
+                "\"wall_s\":%.1f}\n",
+                med, mx, medQ1, mxQ1, sweeps, spreads.empty() ? 0.0 : percentile(spreads, 50),
+                spreads.empty() ? 0.0 : *std::max_element(spreads.begin(), spreads.end()), wall_s);
   } else {
     std::printf("perfmodel: %s, %dx%d, material work %u, calibration %s (%.1f s)\n", cal.key.c_str(), o.width_px,
                 o.height_px, o.fragmentWork, cal.fromCache ? "from cache" : "measured", cal.seconds);

@@ -2,7 +2,7 @@
 // times, like the paper's Table 1. Calibrates the model on this GL implementation
 // (render/perf_calibration.h), then for each scene size draws random boxes with the per-object
 // command strategy and with the octree strategy (render/dynamic_pass.h), times frames (glFinish
-// and a monotonic clock, median of repeats) and compares with the model's prediction from the
+// and a monotonic clock, median of repeats, the fastest of `sweeps` sweeps) and compares with the model's prediction from the
 // frame's statistics (commands, submissions, triangles, fragments from the boxes' projected
 // areas, frustum tests). Box sizes shrink with the count so the total coverage stays near
 // `coverage` screens: few large boxes are fragment-bound, many small ones vertex/command-bound,
@@ -22,6 +22,7 @@ struct PerfModelBenchOptions {
   uint32_t fragmentWork = 8;      // material cost (extra shading iterations per fragment)
   double coverage = 0.8;          // total projected box area in screens
   int repeats = 7;                // timed frames per point (median)
+  int sweeps = 0;                 // the sweep run this often (0: 2, --quick 1); a point's time is its fastest sweep's median
   uint32_t seed = 1;
   std::string cachePath;          // calibration cache; "" = calibrate every run
   bool quick = false;             // CI size: 10 100 1000 4000 boxes, 5 repeats, short calibration
