@@ -25,6 +25,7 @@ struct Point {
   const char* strategy = "";
   double measured_ms = 0, predicted_ms = 0, error_pct = 0;
   double measuredQ1_ms = 0, errorQ1_pct = 0;  // lower quartile of the repeats (least disturbed)
+  double slowest_ms = 0;                      // the slowest sweep's median (measured_ms: the fastest's)
   double fragments = 0;
   double area_px = 0, sqrtArea_px = 0;  // sums over the boxes drawn: projected area, its square root
   double submit_ms = 0;  // median time until the GL calls returned (the rest is glFinish)
@@ -129,9 +130,9 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
   // (the load of other processes on a shared machine comes in phases of seconds to minutes; the
   // calibration's lower quartiles measure the machine outside them as well).
   const int sweeps = o.sweeps > 0 ? o.sweeps : o.quick ? 1 : 2;
-  std::vector<double> spreads;
-  for (int sweep = 0; sweep < sweeps; ++sweep)
-  for (size_t sizeIndex = 0; sizeIndex < sizes.size(); ++sizeIndex) {
+  for (size_t run = 0; run < static_cast<size_t>(sweeps) * sizes.size(); ++run) {
+    const int sweep = static_cast<int>(run / sizes.size());
+    const size_t sizeIndex = run % sizes.size();
     const uint32_t n = sizes[sizeIndex];
     // Random boxes inside the view between 30 and 110 m, then scaled to the target coverage.
     std::mt19937 rng(o.seed + n);
@@ -216,14 +217,14 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
       p.fragment_ms = tb.fragS * 1e-6;
       p.commands_ms = (tb.bufS + tb.fcS) * 1e-6;
       p.bound = boundName(tb.boundS);
+      p.slowest_ms = p.measured_ms;
       if (sweep == 0) {
         points.push_back(p);
         continue;
       }
       // A later sweep: the same scene and statistics; keep the faster median.
       Point& q = points[pointIndex];
-      const double slow = std::max(q.measured_ms, p.measured_ms), fast = std::min(q.measured_ms, p.measured_ms);
-      if (sweep == sweeps - 1) spreads.push_back(100.0 * (slow - fast) / std::max(fast, 1e-9));
+      q.slowest_ms = std::max(q.slowest_ms, p.measured_ms);
       if (p.measured_ms < q.measured_ms) {
         q.measured_ms = p.measured_ms;
         q.submit_ms = p.submit_ms;
@@ -236,6 +237,11 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
     }
   }
   const double wall_s = std::chrono::duration<double>(BenchClock::now() - t0).count();
+  // How far the sweeps' medians of the same frames differ (0 with one sweep).
+  std::vector<double> spreads;
+  for (const Point& p : points) spreads.push_back(100.0 * (p.slowest_ms - p.measured_ms) / std::max(p.measured_ms, 1e-9));
+  const double spreadMedian = spreads.empty() ? 0.0 : percentile(spreads, 50),
+               spreadMax = spreads.empty() ? 0.0 : *std::max_element(spreads.begin(), spreads.end());
   std::vector<double> errs, errsQ1;
   for (const Point& p : points) errs.push_back(p.error_pct), errsQ1.push_back(p.errorQ1_pct);
   const double med = percentile(errs, 50), mx = *std::max_element(errs.begin(), errs.end());
@@ -261,8 +267,7 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
     std::printf("],\"error_pct_median\":%.2f,\"error_pct_max\":%.2f,\"error_q1_pct_median\":%.2f,"
                 "\"error_q1_pct_max\":%.2f,\"sweeps\":%d,\"sweep_spread_pct_median\":%.2f,\"sweep_spread_pct_max\":%.2f,"
                 "\"wall_s\":%.1f}\n",
-                med, mx, medQ1, mxQ1, sweeps, spreads.empty() ? 0.0 : percentile(spreads, 50),
-                spreads.empty() ? 0.0 : *std::max_element(spreads.begin(), spreads.end()), wall_s);
+                med, mx, medQ1, mxQ1, sweeps, spreadMedian, spreadMax, wall_s);
   } else {
     std::printf("perfmodel: %s, %dx%d, material work %u, calibration %s (%.1f s)\n", cal.key.c_str(), o.width_px,
                 o.height_px, o.fragmentWork, cal.fromCache ? "from cache" : "measured", cal.seconds);
@@ -277,8 +282,8 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
                   p.predicted_ms, p.error_pct, p.measuredQ1_ms, p.errorQ1_pct, p.bound, p.vertex_ms, p.fragment_ms,
                   p.commands_ms);
     std::printf("error vs median: median %.2f %%, max %.2f %%; vs lower quartile: median %.2f %%, max %.2f %% "
-                "(goal <= 5 %% / <= 10 %%), %.1f s\n",
-                med, mx, medQ1, mxQ1, wall_s);
+                "(goal <= 5 %% / <= 10 %%); %d sweeps, their medians differ by %.1f %% (median) / %.1f %% (max); %.1f s\n",
+                med, mx, medQ1, mxQ1, sweeps, spreadMedian, spreadMax, wall_s);
   }
   return 0;
 }
