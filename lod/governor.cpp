@@ -22,6 +22,13 @@ size_t idx(GovLayer l) { return static_cast<size_t>(l); }
 // Input, Submit and Gpu run every frame; the layer phases only with their layer.
 bool alwaysPresent(GovPhase p) { return p == GovPhase::Input || p == GovPhase::Submit || p == GovPhase::Gpu; }
 
+// The layer whose own phase p is (Terrain, Forest, Hdlod, Cells), or Count for Input, Submit, Gpu.
+GovLayer phaseLayer(GovPhase p) {
+  for (int l = 0; l < kGovLayers; ++l)
+    if (layerPhase(static_cast<GovLayer>(l)) == p) return static_cast<GovLayer>(l);
+  return GovLayer::Count;
+}
+
 // Does layer l's load drive phase p's cost?
 bool feeds(GovLayer l, GovPhase p) {
   return p == GovPhase::Submit || p == GovPhase::Gpu || p == layerPhase(l);
@@ -43,6 +50,7 @@ const char* govPhaseName(GovPhase p) {
     case GovPhase::Hdlod: return "hdlod";
     case GovPhase::Submit: return "submit";
     case GovPhase::Gpu: return "gpu";
+    case GovPhase::Cells: return "cells";
     case GovPhase::Count: break;
   }
   return "?";
@@ -53,6 +61,7 @@ const char* govLayerName(GovLayer l) {
     case GovLayer::Terrain: return "terrain";
     case GovLayer::Forest: return "forest";
     case GovLayer::Hdlod: return "hdlod";
+    case GovLayer::Cells: return "cells";
     case GovLayer::Count: break;
   }
   return "?";
@@ -165,7 +174,8 @@ std::string Governor::validate(const GovernorConfig& c) {
       const std::string key = std::string("share_") + govPhaseName(static_cast<GovPhase>(p));
       return bad(key.c_str(), s, "out of range (>= 0)");
     }
-    const bool present = alwaysPresent(static_cast<GovPhase>(p)) || c.knobs[static_cast<size_t>(p - 1)].present;
+    const bool present = alwaysPresent(static_cast<GovPhase>(p)) ||
+                         c.knobs[static_cast<size_t>(phaseLayer(static_cast<GovPhase>(p)))].present;
     if (present) share += s;
   }
   if (!(share > 0.0)) return bad("share_*", share, "the present phases' shares sum to 0");
@@ -202,6 +212,8 @@ std::string Governor::validate(const GovernorConfig& c) {
       return bad((n + ".quantum").c_str(), k.quantum, "out of range (0 ..= max - min)");
     if (!(std::isfinite(k.loadUnit) && k.loadUnit > 0.0))
       return bad((n + ".load_unit").c_str(), k.loadUnit, "out of range (> 0)");
+    if (k.loadBudget && k.loadExponent != 1.0)
+      return bad((n + ".load_exponent").c_str(), k.loadExponent, "must be 1 for a budget knob (the load is at most the knob)");
   }
   return {};
 }
@@ -219,7 +231,7 @@ void Governor::configure(const GovernorConfig& c, bool keepState) {
   double share = 0.0;
   for (int p = 0; p < kGovPhases; ++p) {
     const auto ph = static_cast<GovPhase>(p);
-    const bool present = alwaysPresent(ph) || layerPresent_[static_cast<size_t>(p - 1)];
+    const bool present = alwaysPresent(ph) || layerPresent_[static_cast<size_t>(phaseLayer(ph))];
     phasePresent_[static_cast<size_t>(p)] = present;
     if (present) share += c.phaseShare[static_cast<size_t>(p)];
   }
@@ -346,13 +358,33 @@ void Governor::applyScale(double s, bool decrease, std::array<double, kGovLayers
     const auto i = static_cast<size_t>(l);
     if (!layerPresent_[i]) continue;
     const GovKnob& k = config_.knobs[i];
-    const double v = knob_[i] * std::pow(s, 1.0 / k.loadExponent);
+    // A budget above the load does not bind: a decrease cuts from the load.
+    const double from = k.loadBudget && decrease && load_[i] > 0.0 ? std::min(knob_[i], load_[i]) : knob_[i];
+    const double v = from * std::pow(s, 1.0 / k.loadExponent);
     next[i] = quantise(static_cast<GovLayer>(l), v, true);
     // Rounding towards less detail must not turn a decrease into a raise or the reverse.
     const bool less = k.loadExponent < 0 ? next[i] > knob_[i] : next[i] < knob_[i];
     const bool more = k.loadExponent < 0 ? next[i] < knob_[i] : next[i] > knob_[i];
     if ((decrease && more) || (!decrease && less)) next[i] = knob_[i];
   }
+}
+
+double Governor::knobLoadScale(size_t l, double v) const {
+  const GovKnob& k = config_.knobs[l];
+  if (v == knob_[l]) return 1.0;
+  if (!k.loadBudget) return std::pow(v / knob_[l], k.loadExponent);
+  // A budget: raised, the layer takes up what it is given; lowered, only what is above the load
+  // it drew goes.
+  if (v > knob_[l] || !(load_[l] > 0.0)) return v / knob_[l];
+  return std::min(1.0, v / load_[l]);
+}
+
+std::array<double, kGovLayers> Governor::knobLoadScales(const std::array<double, kGovLayers>& next) const {
+  std::array<double, kGovLayers> scale;
+  scale.fill(1.0);
+  for (size_t l = 0; l < static_cast<size_t>(kGovLayers); ++l)
+    if (layerPresent_[l]) scale[l] = knobLoadScale(l, next[l]);
+  return scale;
 }
 
 double Governor::margin() const { return config_.marginSigmas * errorScale_; }
@@ -443,7 +475,9 @@ const GovDecision& Governor::update(const GovSample& sample) {
   for (size_t l = 0; l < static_cast<size_t>(kGovLayers); ++l) {
     if (!layerPresent_[l] || !goodMeasurement(sample.load[l])) continue;
     const double now = sample.load[l];
-    if (now > 0.0 && prevLoad_[l] > 0.0) {
+    if (c.knobs[l].loadBudget) {
+      trend_[l] = 0.0;  // the budget bounds the load: no growth beyond it to anticipate
+    } else if (now > 0.0 && prevLoad_[l] > 0.0) {
       const double r = std::log(now / prevLoad_[l]) - c.knobs[l].loadExponent * std::log(knob_[l] / prevKnob_[l]);
       trend_[l] = 0.5 * trend_[l] + 0.5 * r;
     }
@@ -457,7 +491,7 @@ const GovDecision& Governor::update(const GovSample& sample) {
   if (!frameGood) {
     ++stats_.invalidFrames;
     d.action = GovAction::Invalid;
-    const Prediction held = predict({1.0, 1.0, 1.0});
+    const Prediction held = predict(knobLoadScales(knob_));
     d.predicted_ms = d.predictedHeld_ms = held.total_ms;
     d.margin_ms = margin();
     d.loadCap = lastDecision_.loadCap;  // nothing learnt: the caps stand
@@ -468,7 +502,7 @@ const GovDecision& Governor::update(const GovSample& sample) {
   if (d.overrun) ++stats_.overruns;
 
   // Decide.
-  const Prediction held = predict({1.0, 1.0, 1.0});
+  const Prediction held = predict(knobLoadScales(knob_));
   d.predictedHeld_ms = held.total_ms;
   d.margin_ms = margin();
   d.spike_ms = spike();
@@ -529,9 +563,9 @@ const GovDecision& Governor::update(const GovSample& sample) {
       const GovKnob& k = c.knobs[l];
       if (!layerPresent_[l] || k.quantum <= 0.0 || next[l] != knob_[l] || !movable(false)[l]) continue;
       const double v = quantise(static_cast<GovLayer>(l), knob_[l] + (k.loadExponent < 0 ? -k.quantum : k.quantum), false);
-      std::array<double, kGovLayers> scale{1.0, 1.0, 1.0};
-      scale[l] = std::pow(v / knob_[l], k.loadExponent);
-      if (predict(scale).total_ms < aim) next[l] = v;
+      std::array<double, kGovLayers> step = knob_;
+      step[l] = v;
+      if (predict(knobLoadScales(step)).total_ms < aim) next[l] = v;
     }
     framesSinceRaise_ = 0;
   } else {
@@ -544,9 +578,9 @@ const GovDecision& Governor::update(const GovSample& sample) {
       if (!layerPresent_[l]) continue;
       const size_t p = idx(layerPhase(static_cast<GovLayer>(l)));
       const GovKnob& k = c.knobs[l];
-      std::array<double, kGovLayers> scale{1.0, 1.0, 1.0};
-      scale[l] = std::pow(next[l] / knob_[l], k.loadExponent);
-      const Prediction at = predict(scale);
+      std::array<double, kGovLayers> moved = knob_;
+      moved[l] = next[l];
+      const Prediction at = predict(knobLoadScales(moved));
       if (!(at.phase_ms[p] > phaseBudget_ms_[p]) || !(at.variable_ms[l] > 0.0)) continue;
       const double fixed = std::max(0.0, model_[p].theta(0));
       const double part = at.phase_ms[p] - fixed;  // this layer's share of its own phase
@@ -562,13 +596,12 @@ const GovDecision& Governor::update(const GovSample& sample) {
   }
 
   // Apply: count moves and reversals, predict the next frame at the chosen knobs.
-  std::array<double, kGovLayers> scale{1.0, 1.0, 1.0};
+  const std::array<double, kGovLayers> scale = knobLoadScales(next);
   bool raised = false, lowered = false;
   for (size_t l = 0; l < static_cast<size_t>(kGovLayers); ++l) {
     if (!layerPresent_[l] || next[l] == knob_[l]) continue;
     const GovKnob& k = c.knobs[l];
-    scale[l] = std::pow(next[l] / knob_[l], k.loadExponent);
-    const int dir = scale[l] > 1.0 ? 1 : -1;
+    const int dir = (k.loadExponent < 0) == (next[l] < knob_[l]) ? 1 : -1;
     if (lastDirection_[l] != 0 && dir != lastDirection_[l]) ++stats_.directionChanges[l];
     lastDirection_[l] = dir;
     (dir > 0 ? raised : lowered) = true;

@@ -1,5 +1,5 @@
 // Frame governor: keeps a fixed frame rate by steering each layer's LOD knob (terrain pixel
-// tolerance, forest near distance or layer count, HDLOD r) from a PREDICTION of the next frame's
+// tolerance, forest near distance or layer count, HDLOD r, the cells' voxel budget) from a PREDICTION of the next frame's
 // work, so detail drops before a frame overruns, not only after one. Issue 7 item 3; the time
 // model follows paper 002 (shared/SEEDS.md: frame time = sum of per-phase costs linear in the
 // work, calibrated on the machine), here fitted online by least squares with forgetting instead
@@ -14,10 +14,10 @@
 //   2. after the frame: update(sample) with the measured phase times, the layers' loads
 //      (triangles drawn) and the frame's work time. It returns the knobs for the next frame.
 //
-// Cost model, per present phase p (Input, Terrain, Forest, Hdlod, Submit, Gpu):
+// Cost model, per present phase p (Input, Terrain, Forest, Hdlod, Submit, Gpu, Cells):
 //     ms_p = a_p + sum over the layers l feeding p of b_pl * load_l / loadUnit_l
-// (Terrain, Forest, Hdlod phases: their own layer; Submit and Gpu: every present layer; Input:
-// a constant), fitted by recursive least squares with forgetting factor `forgetting`, the
+// (Terrain, Forest, Hdlod, Cells phases: their own layer; Submit and Gpu: every present layer;
+// Input: a constant), fitted by recursive least squares with forgetting factor `forgetting`, the
 // covariance bounded (no wind-up while the load does not move); once a model has 10 samples its
 // residuals are clipped at 4 times their smoothed size (an outlier frame moves it little),
 // except in a frame whose load jumped by more than 1.5x (that residual is news, not noise).
@@ -28,6 +28,11 @@
 //     load'_l = load_l * growth_l * (v' / v)^loadExponent_l
 // growth_l = exp(clamp(trend_l, 0, 0.1) * trendHorizon_frames), trend_l the smoothed per-frame
 // log change of the load not caused by the knob (only growth is anticipated, never a fall).
+// A budget knob (GovKnob::loadBudget: the knob is the most load the layer may take, e.g. the
+// cells' voxel budget) instead predicts load'_l = load_l * v' / v when raised (the layer takes
+// up what it is given) and min(load_l, v') when lowered (a budget above the load does not bind:
+// lowering it to the load changes nothing), with no growth (the budget bounds it); a decrease
+// starts from min(v, load_l), so that a budget far above what the scene asked for is cut at once.
 //
 // Control law (B = frame budget; P(s) = predicted work with every adjustable layer's load
 // multiplied by s, plus margin = marginSigmas * a robust scale of past prediction errors,
@@ -76,14 +81,16 @@
 
 namespace ig::lod {
 
-enum class GovPhase : int { Input, Terrain, Forest, Hdlod, Submit, Gpu, Count };
+enum class GovPhase : int { Input, Terrain, Forest, Hdlod, Submit, Gpu, Cells, Count };
 inline constexpr int kGovPhases = static_cast<int>(GovPhase::Count);
-enum class GovLayer : int { Terrain, Forest, Hdlod, Count };
+enum class GovLayer : int { Terrain, Forest, Hdlod, Cells, Count };
 inline constexpr int kGovLayers = static_cast<int>(GovLayer::Count);
-const char* govPhaseName(GovPhase p);  // "input", "terrain", "forest", "hdlod", "submit", "gpu"
-const char* govLayerName(GovLayer l);  // "terrain", "forest", "hdlod"
+const char* govPhaseName(GovPhase p);  // "input", "terrain", "forest", "hdlod", "submit", "gpu", "cells"
+const char* govLayerName(GovLayer l);  // "terrain", "forest", "hdlod", "cells"
 // The phase in which a layer's CPU work (selection, refinement) runs.
-constexpr GovPhase layerPhase(GovLayer l) { return static_cast<GovPhase>(static_cast<int>(l) + 1); }
+constexpr GovPhase layerPhase(GovLayer l) {
+  return l == GovLayer::Cells ? GovPhase::Cells : static_cast<GovPhase>(static_cast<int>(l) + 1);
+}
 
 // One layer's LOD knob.
 struct GovKnob {
@@ -97,6 +104,9 @@ struct GovKnob {
   double loadExponent = -2.0;
   double quantum = 0.0;        // > 0: the value is a multiple of this (1 for a layer count)
   double loadUnit = 1e5;       // scales the load for the cost model (1e5 triangles)
+  // The knob is a budget in the load's own units (the most load the layer may take, e.g. the
+  // cells' voxel budget; loadExponent must be 1): see "Load prediction" above.
+  bool loadBudget = false;
 };
 
 struct GovernorConfig {
@@ -105,9 +115,9 @@ struct GovernorConfig {
   double decreaseAbove = 0.85;       // decrease detail when predicted + margin > this * budget
   double increaseBelow = 0.65;       // raise it when below this * budget (< decreaseAbove)
   double marginSigmas = 2.0;         // margin = this * prediction error scale (>= 0)
-  // Share of the budget per phase (Input, Terrain, Forest, Hdlod, Submit, Gpu), renormalised
-  // over the present phases. >= 0, at least one present phase > 0.
-  std::array<double, kGovPhases> phaseShare{0.05, 0.20, 0.15, 0.15, 0.10, 0.35};
+  // Share of the budget per phase (Input, Terrain, Forest, Hdlod, Submit, Gpu, Cells),
+  // renormalised over the present phases. >= 0, at least one present phase > 0.
+  std::array<double, kGovPhases> phaseShare{0.05, 0.20, 0.15, 0.15, 0.10, 0.35, 0.10};
   bool enforcePhaseBudgets = false;  // also decrease a layer whose own phase exceeds its budget
   double maxDecrease = 0.5;          // smallest load multiplier of one decrease, in (0, 1)
   double maxIncrease = 1.10;         // largest load multiplier of one raise, > 1
@@ -130,7 +140,7 @@ struct GovernorConfig {
   // Kept as the maxima of ten blocks of window / 10 frames. 0 = off (default: it costs detail
   // wherever the scene is heavy; docs/governor.md has the trade measured).
   int spikeWindow_frames = 0;
-  std::array<GovKnob, kGovLayers> knobs{};  // Terrain, Forest, Hdlod
+  std::array<GovKnob, kGovLayers> knobs{};  // Terrain, Forest, Hdlod, Cells
 };
 
 inline constexpr double kGovNaN = std::numeric_limits<double>::quiet_NaN();
@@ -138,8 +148,8 @@ inline constexpr double kGovNaN = std::numeric_limits<double>::quiet_NaN();
 // What one frame measured. NaN = not measured; an absent phase or layer is ignored whatever it
 // holds (0 is fine).
 struct GovSample {
-  std::array<double, kGovPhases> phase_ms{kGovNaN, kGovNaN, kGovNaN, kGovNaN, kGovNaN, kGovNaN};
-  std::array<double, kGovLayers> load{kGovNaN, kGovNaN, kGovNaN};  // per layer, e.g. triangles drawn
+  std::array<double, kGovPhases> phase_ms{kGovNaN, kGovNaN, kGovNaN, kGovNaN, kGovNaN, kGovNaN, kGovNaN};
+  std::array<double, kGovLayers> load{kGovNaN, kGovNaN, kGovNaN, kGovNaN};  // per layer, e.g. triangles drawn
   double frame_ms = kGovNaN;  // the frame's whole work; NaN = the sum of the present phases
 };
 
@@ -158,7 +168,7 @@ struct GovDecision {
   bool overrun = false;            // the measured frame exceeded the budget
   // Per layer, the most load the next frame may take on (Governor::loadCap); +inf: no cap
   // (warm-up), NaN: absent layer.
-  std::array<double, kGovLayers> loadCap{kGovNaN, kGovNaN, kGovNaN};
+  std::array<double, kGovLayers> loadCap{kGovNaN, kGovNaN, kGovNaN, kGovNaN};
 };
 
 struct GovStats {
@@ -180,7 +190,7 @@ struct GovStats {
 // winds it up nor freezes a direction.
 class ForgettingLeastSquares {
  public:
-  static constexpr int kMax = 4;
+  static constexpr int kMax = 5;
   ForgettingLeastSquares() = default;
   // n in [1, kMax]; initial covariance delta * I; lambda in (0, 1].
   ForgettingLeastSquares(int n, double lambda, double delta = 10.0);
@@ -302,6 +312,10 @@ class Governor {
   double solveScale(const Prediction& held, double aim_ms, const std::array<bool, kGovLayers>& movable) const;
   double quantise(GovLayer l, double v, bool towardsLess) const;
   void applyScale(double s, bool decrease, std::array<double, kGovLayers>& next) const;
+  // The load multiplier that moving layer l's knob from its value now to v predicts.
+  double knobLoadScale(size_t l, double v) const;
+  // Per layer, the load multipliers of moving the knobs to `next` (1 where a knob stays).
+  std::array<double, kGovLayers> knobLoadScales(const std::array<double, kGovLayers>& next) const;
 
   GovernorConfig config_;
   double budget_ms_ = 0.0;

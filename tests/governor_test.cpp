@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <string>
 #include <vector>
 
 #include "lod/governor.h"
@@ -619,4 +620,107 @@ TEST(Governor, TwoLayersAndAQuantisedKnobShareTheBudget) {
   EXPECT_DOUBLE_EQ(g.frameBudget_ms(), 50.0);
   EXPECT_DOUBLE_EQ(g.knob(GovLayer::Terrain), tol);
   EXPECT_GT(g.model(GovPhase::Gpu).samples(), 1000);
+}
+
+namespace {
+
+// A cells layer (the [cells] voxel budget): the scene asks for `demand` voxels, the selection
+// draws min(demand, budget), budget = min(knob, load cap) as igd sets it; selection CPU time and
+// splat (GPU) time linear in the voxels drawn, with noise.
+struct FakeCells {
+  double select_ms = 0.2, selectPerVoxel_ms = 1e-6;  // 1 M voxels: 1 ms of selection
+  double gpuFixed_ms = 1.0, gpuPerVoxel_ms = 2e-5;   // 1 M voxels: 20 ms of splats
+  double noise = 0.03;
+  Noise rng;
+
+  double jitter() { return 1.0 + noise * rng.next(); }
+  // One frame; returns the sample, the voxels drawn in `drawn`.
+  GovSample frame(const Governor& g, double demand, double* drawn = nullptr) {
+    const double budget = std::min(g.knob(GovLayer::Cells), g.loadCap(GovLayer::Cells));
+    const double voxels = std::min(demand, budget);
+    GovSample s;
+    s.phase_ms[static_cast<size_t>(GovPhase::Input)] = 0.1 * jitter();
+    s.phase_ms[static_cast<size_t>(GovPhase::Cells)] = (select_ms + selectPerVoxel_ms * voxels) * jitter();
+    s.phase_ms[static_cast<size_t>(GovPhase::Submit)] = 0.3 * jitter();
+    s.phase_ms[static_cast<size_t>(GovPhase::Gpu)] = (gpuFixed_ms + gpuPerVoxel_ms * voxels) * jitter();
+    s.load[static_cast<size_t>(GovLayer::Cells)] = voxels;
+    if (drawn) *drawn = voxels;
+    return s;  // frame_ms: the sum of the phases
+  }
+};
+
+GovernorConfig cellsConfig(bool budgetKnob) {
+  GovernorConfig c;
+  c.rate_hz = 30.0;
+  GovKnob& k = c.knobs[static_cast<size_t>(GovLayer::Cells)];
+  k.present = true;
+  k.initial = 2e6;  // the scene's voxel_budget
+  k.min = 1e4;
+  k.max = 2e6;
+  k.loadExponent = 1.0;
+  k.loadUnit = 1e5;
+  k.loadBudget = budgetKnob;
+  return c;
+}
+
+}  // namespace
+
+// The scene asks for 300 k voxels under a 2 M budget (8 ms a frame), then the splats become 6x
+// dearer (another process on the cores): 300 k voxels now take 37 ms, over the 33.3 ms budget.
+// The budget is 6.7x above the load, so cutting it in proportion (a plain knob, even the
+// emergency's deepest cut) changes nothing and frame after frame overruns; a budget knob is cut
+// from the load it drew, and the first cut takes effect at once.
+TEST(Governor, ABudgetKnobIsCutFromTheLoadItDrew) {
+  for (bool budgetKnob : {true, false}) {
+    SCOPED_TRACE(budgetKnob);
+    Governor g(cellsConfig(budgetKnob));
+    FakeCells w;
+    for (int i = 0; i < 120; ++i) g.update(w.frame(g, 300e3));
+    EXPECT_EQ(g.stats().overruns, 0);
+    EXPECT_EQ(g.stats().decreases, 0);  // the budget never bound: nothing to cut
+    w.gpuPerVoxel_ms *= 6.0;
+    double drawn = 0.0;
+    for (int i = 0; i < 60; ++i) g.update(w.frame(g, 300e3, &drawn));
+    if (budgetKnob) {
+      EXPECT_EQ(g.stats().overruns, 1);  // the frame that found the change
+      EXPECT_LT(drawn, 300e3);
+      EXPECT_LE(g.knob(GovLayer::Cells), 300e3);
+    } else {
+      EXPECT_GE(g.stats().overruns, 3);  // what the budget knob avoids
+    }
+  }
+}
+
+// The scene's demand swings 10x (100 k <-> 1 M voxels, steps and ramps) around what the frame
+// can take (~1.3 M voxels at 33 ms): the rate holds, the budget follows without oscillating, and
+// a light scene keeps all the detail it asks for.
+TEST(Governor, ABudgetKnobHoldsTheRateWhileTheDemandSwings) {
+  Governor g(cellsConfig(true));
+  FakeCells w;
+  w.gpuPerVoxel_ms = 4e-5;  // 1 M voxels: 40 ms of splats
+  int overruns = 0;
+  double lightDrawn = 0.0;
+  for (int i = 0; i < 7200; ++i) {
+    bool stepUp = false;
+    const double demand = swingScene(i, &stepUp) / 0.6;  // 100 k ... 1 M
+    double drawn = 0.0;
+    const GovDecision& d = g.update(w.frame(g, demand, &drawn));
+    const double knob = g.knob(GovLayer::Cells);
+    ASSERT_TRUE(knob >= 1e4 && knob <= 2e6) << i;
+    ASSERT_LE(drawn, demand);
+    if (d.overrun && i >= 30) ++overruns;
+    if (i % 1200 == 299) lightDrawn = drawn;
+  }
+  EXPECT_LE(overruns, 7);  // <= 0.1 % of the frames
+  EXPECT_EQ(lightDrawn, swingScene(299, nullptr) / 0.6);  // the light part draws all it asks for
+  // 12 swings: the knob turns with them, not between them.
+  EXPECT_LE(g.stats().directionChanges[static_cast<size_t>(GovLayer::Cells)], 40);
+}
+
+TEST(Governor, ABudgetKnobNeedsLoadExponentOne) {
+  GovernorConfig c = cellsConfig(true);
+  c.knobs[static_cast<size_t>(GovLayer::Cells)].loadExponent = 2.0;
+  EXPECT_NE(Governor::validate(c).find("cells.load_exponent = 2"), std::string::npos) << Governor::validate(c);
+  c.knobs[static_cast<size_t>(GovLayer::Cells)].loadExponent = 1.0;
+  EXPECT_EQ(Governor::validate(c), "");
 }
