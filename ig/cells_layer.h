@@ -74,6 +74,9 @@ class CellsLayer {
   void draw(render::Renderer& renderer);
   // Reload: the budgets that apply between frames.
   void setBudgets(uint64_t voxelBudget, uint64_t wBytes, double minVoxel_px);
+  // This frame's voxel budget (the frame governor's), >= 1.
+  void setVoxelBudget(uint64_t voxelBudget) { view_.voxelBudget = voxelBudget; }
+  uint64_t voxelBudget() const { return view_.voxelBudget; }
   // The service's measurement of this frame's select() and draw() (its clock).
   void recordTiming(double select_ms, double draw_ms);
 

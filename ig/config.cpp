@@ -543,7 +543,7 @@ bool parseService(const std::string& text, const std::string& name, const std::s
 
   const Table gov = r.table(root, "governor", {"enabled", "decrease_above", "increase_below", "margin_sigmas",
                                               "max_decrease", "max_increase", "raise_interval_frames",
-                                              "hold_after_decrease_frames", "spike_window_frames", "terrain"});
+                                              "hold_after_decrease_frames", "spike_window_frames", "terrain", "cells"});
   GovernorSettings& g = cfg.governor;
   r.get(gov, "enabled", g.enabled);
   r.get(gov, "decrease_above", g.decreaseAbove, openClosed(0.0, 1.5));
@@ -558,6 +558,9 @@ bool parseService(const std::string& text, const std::string& name, const std::s
   r.get(govTerrain, "min_px", g.terrainMin_px, closed(0.0, 1000.0));
   r.get(govTerrain, "max_px", g.terrainMax_px, openClosed(0.0, 1000.0));
   r.get(govTerrain, "load_exponent", g.terrainLoadExponent, closed(-10.0, -0.1));
+  const Table govCells = r.table(gov, "cells", {"min_voxels", "max_voxels"});
+  r.get(govCells, "min_voxels", g.cellsMin_voxels, IntRange{1000, 1'000'000'000});
+  r.get(govCells, "max_voxels", g.cellsMax_voxels, IntRange{0, 1'000'000'000});
   if (r.ok() && g.increaseBelow >= g.decreaseAbove) {
     const std::string message = cat("must be below governor.decrease_above (", formatNumber(g.decreaseAbove), ")");
     if (const toml::node* node = r.find(gov, "increase_below")) {
@@ -569,6 +572,11 @@ bool parseService(const std::string& text, const std::string& name, const std::s
   if (r.ok() && g.terrainMin_px > 0.0 && g.terrainMin_px >= g.terrainMax_px) {
     const std::string message = cat("must be below governor.terrain.max_px (", formatNumber(g.terrainMax_px), ")");
     if (const toml::node* node = r.find(govTerrain, "min_px")) r.fail(*node, govTerrain.keyOf("min_px"), message);
+  }
+  if (r.ok() && g.cellsMax_voxels > 0 && g.cellsMin_voxels >= g.cellsMax_voxels) {
+    const std::string message = cat("must be below governor.cells.max_voxels (", std::to_string(g.cellsMax_voxels), ")");
+    if (const toml::node* node = r.find(govCells, "min_voxels")) r.fail(*node, govCells.keyOf("min_voxels"), message);
+    else r.fail(govCells.line_, govCells.keyOf("min_voxels"), std::to_string(g.cellsMin_voxels), message);
   }
 
   const Table service = r.table(root, "service", {"watchdog_interval_s", "realtime_priority", "cpu_affinity",

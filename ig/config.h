@@ -49,6 +49,8 @@ struct GovernorSettings {
   double terrainMin_px = 0.0;         // [governor.terrain] min_px; 0 = the scene's tolerance_px
   double terrainMax_px = 32.0;
   double terrainLoadExponent = -1.5;
+  uint64_t cellsMin_voxels = 10'000;  // [governor.cells] min_voxels
+  uint64_t cellsMax_voxels = 0;       // [governor.cells] max_voxels; 0 = the scene's voxel_budget
   bool operator==(const GovernorSettings&) const = default;
 };
 

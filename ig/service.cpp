@@ -509,6 +509,19 @@ struct Service::Impl {
       k.loadExponent = g.terrainLoadExponent;
       k.loadUnit = 1e5;
     }
+    if (cells && scene.cells) {
+      // The voxel budget: the scene's is the start value and, unless max_voxels says otherwise,
+      // the most the governor gives (never more detail than the scene asks for).
+      lod::GovKnob& k = c.knobs[static_cast<size_t>(lod::GovLayer::Cells)];
+      k.present = true;
+      k.initial = static_cast<double>(scene.cells->voxelBudget);
+      k.max = static_cast<double>(g.cellsMax_voxels > 0 ? g.cellsMax_voxels : scene.cells->voxelBudget);
+      k.min = std::min(static_cast<double>(g.cellsMin_voxels), 0.5 * k.max);
+      k.loadExponent = 1.0;
+      k.loadBudget = true;
+      k.quantum = 0.0;
+      k.loadUnit = 1e5;
+    }
     return c;
   }
   std::string lastReloadError;
@@ -558,6 +571,12 @@ struct Service::Impl {
     if (hdlod) hdlod->select(cam, simTime_s, config.height_px);
     if (cells) {
       const int64_t t0 = clock ? clock->now_ns() : 0;
+      if (governor) {
+        // The governor's budget, and no more than the last frame's voxels grown by its headroom
+        // (cells arriving after a jump of the eye fill the budget faster than it can follow).
+        const double budget = std::min(governor->knob(lod::GovLayer::Cells), governor->loadCap(lod::GovLayer::Cells));
+        cells->setVoxelBudget(static_cast<uint64_t>(std::max(1.0, std::floor(budget))));
+      }
       cells->select(cam, config.height_px);
       cellsSelect_ms = clock ? static_cast<double>(clock->now_ns() - t0) * 1e-6 : 0.0;
     }
@@ -735,9 +754,9 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
   s->host_.eyeEnu_m = {0.0, 0.0, 1000.0};
   s->host_.pitch_deg = -10.0;
   if (config.governor.enabled) {
-    if (!m.terrainMesh) {
-      std::fprintf(stderr, "igd: governor: the scene has no layer with a tolerance it can steer (terrain lod = "
-                           "\"roam\" or \"block\"); governor off\n");
+    if (!m.terrainMesh && !m.cells) {
+      std::fprintf(stderr, "igd: governor: the scene has no layer whose detail it can steer (terrain lod = "
+                           "\"roam\" or \"block\", or [cells]); governor off\n");
     } else {
       const lod::GovernorConfig g = m.governorConfig();
       if (const std::string why = lod::Governor::validate(g); !why.empty()) {
@@ -971,7 +990,9 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
       gs.phase_ms[static_cast<size_t>(lod::GovPhase::Terrain)] = m.terrainSelect_ms;
       gs.phase_ms[static_cast<size_t>(lod::GovPhase::Submit)] = r.timing.phase_ms[static_cast<size_t>(Phase::Submit)];
       gs.phase_ms[static_cast<size_t>(lod::GovPhase::Gpu)] = r.timing.phase_ms[static_cast<size_t>(Phase::GpuFinish)];
-      gs.load[static_cast<size_t>(lod::GovLayer::Terrain)] = static_cast<double>(m.terrainMesh->emitted);
+      gs.phase_ms[static_cast<size_t>(lod::GovPhase::Cells)] = m.cellsSelect_ms;
+      if (m.terrainMesh) gs.load[static_cast<size_t>(lod::GovLayer::Terrain)] = static_cast<double>(m.terrainMesh->emitted);
+      if (m.cells) gs.load[static_cast<size_t>(lod::GovLayer::Cells)] = static_cast<double>(m.cells->stats().select.drawnVoxels);
       gs.frame_ms = r.timing.work_ms;
       m.governor->update(gs);
     }
@@ -1030,12 +1051,24 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
   }
   if (m.governor) {
     const lod::GovStats& g = m.governor->stats();
+    std::string knobs;
+    char buf[160];
+    if (m.terrainMesh) {
+      std::snprintf(buf, sizeof buf, "terrain tolerance now %.2f px", m.governor->knob(lod::GovLayer::Terrain));
+      knobs += buf;
+    }
+    if (m.cells) {
+      std::snprintf(buf, sizeof buf, "%scells voxel budget now %.0f", knobs.empty() ? "" : ", ",
+                    m.governor->knob(lod::GovLayer::Cells));
+      knobs += buf;
+    }
+    int64_t reversals = 0;
+    for (int64_t n : g.directionChanges) reversals += n;
     std::fprintf(stderr,
-                 "igd: governor: terrain tolerance now %.2f px; %lld decreases, %lld increases, %lld emergencies, "
+                 "igd: governor: %s; %lld decreases, %lld increases, %lld emergencies, "
                  "%lld direction changes, prediction error scale %.2f ms, %lld bad measurements ignored\n",
-                 m.governor->knob(lod::GovLayer::Terrain), static_cast<long long>(g.decreases),
-                 static_cast<long long>(g.increases), static_cast<long long>(g.emergencies),
-                 static_cast<long long>(g.directionChanges[static_cast<size_t>(lod::GovLayer::Terrain)]), g.errorScale_ms,
+                 knobs.c_str(), static_cast<long long>(g.decreases), static_cast<long long>(g.increases),
+                 static_cast<long long>(g.emergencies), static_cast<long long>(reversals), g.errorScale_ms,
                  static_cast<long long>(g.ignored));
   }
   if (m.cells) std::fprintf(stderr, "igd: %s\n", m.cells->summaryLine().c_str());

@@ -557,6 +557,42 @@ class Control(Tmp):
         self.assertGreater(int(m.group(2)) + 0, 0, describe(p))
         self.assertEqual(int(m.group(3)), 0, "no raise while every frame overruns")
 
+    def test_governor_steers_the_cells_voxel_budget(self):
+        db = os.path.join(self.tmp, "spheres.ighc")
+        p = run([IGTOOL, "cells-build", "--scene", "spheres:20", "--cell-levels", "5", "--depth", "2", "-o", db])
+        self.assertExit(p, 0)
+        config, scene = self.configs()
+        plain = open(scene, encoding="utf-8").read()
+        cells = f"\n[cells]\nsource = {toml_str(db)}\norigin_m = [0, -3500, 0]\nvoxel_budget = 40000\n"
+        with_cells = write(os.path.join(self.tmp, "cells.toml"), plain + cells)
+        text = open(config, encoding="utf-8").read()
+        text = re.sub(r"(?m)^enabled = false$", "enabled = true", text)
+        # Without [cells] the default scene (grid terrain, fixed detail) has nothing to steer.
+        write(config, text)
+        p = run([IGD, "--config", config, "--frames", "3", "--free-run", "--width", "160", "--height", "90"],
+                timeout=RUN, cwd=self.tmp)
+        self.assertExit(p, 0)
+        self.assertIn("governor off", p.stderr)
+        # With [cells] and a budget far below what a frame takes: every frame overruns, and the
+        # voxel budget is cut towards min_voxels, never raised.
+        text = re.sub(r"(?m)^frame_ms = 0$", "frame_ms = 1", text)
+        text = re.sub(r"(?m)^min_voxels = 10000$", "min_voxels = 2000", text)
+        write(config, text)
+        p = run([IGD, "--config", config, "--scene", with_cells, "--frames", "40", "--free-run", "--width", "160",
+                 "--height", "90", "--stats", os.path.join(self.tmp, "s.csv")], timeout=RUN, cwd=self.tmp)
+        self.assertExit(p, 0)
+        self.assertNotIn("governor off", p.stderr)
+        m = re.search(r"governor: cells voxel budget now (\d+); (\d+) decreases, (\d+) increases", p.stderr)
+        self.assertIsNotNone(m, describe(p))
+        self.assertLess(int(m.group(1)), 40000, "the voxel budget should have been cut from the scene's 40000")
+        self.assertGreaterEqual(int(m.group(1)), 2000, "below governor.cells.min_voxels")
+        self.assertGreater(int(m.group(2)), 0, describe(p))
+        self.assertEqual(int(m.group(3)), 0, "no raise while every frame overruns")
+        c = re.search(r"igd: cells: last frame \d+ cells drawn, (\d+) voxels \(most \d+, budget (\d+)\)", p.stderr)
+        self.assertIsNotNone(c, describe(p))
+        self.assertLess(int(c.group(2)), 40000, "the cells layer drew under the governor's budget")
+        self.assertLessEqual(int(c.group(1)), int(c.group(2)))
+
     def test_example_scenes_with_forest_and_hdlod_run(self):
         for name, layer in (("forest_roam.toml", "forest"), ("construction_site.toml", "hdlod")):
             with self.subTest(scene=name):

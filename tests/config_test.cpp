@@ -766,6 +766,25 @@ TEST(ConfigGovernor, KeysAreReadAndCrossChecked) {
   EXPECT_EQ(e.value, "-1");
 }
 
+TEST(ConfigGovernor, CellsVoxelBudgetBounds) {
+  ServiceConfig cfg = parseServiceOk(std::string(kMinimalService), "/cfg");
+  EXPECT_EQ(cfg.governor.cellsMin_voxels, 10000u);
+  EXPECT_EQ(cfg.governor.cellsMax_voxels, 0u);  // the scene's voxel_budget
+  cfg = parseServiceOk(std::string(kMinimalService) + "[governor.cells]\nmin_voxels = 5000\nmax_voxels = 400000\n", "/cfg");
+  EXPECT_EQ(cfg.governor.cellsMin_voxels, 5000u);
+  EXPECT_EQ(cfg.governor.cellsMax_voxels, 400000u);
+  ConfigError e = serviceError(std::string(kMinimalService) + "[governor.cells]\nmin_voxels = 500000\nmax_voxels = 400000\n");
+  EXPECT_EQ(e.key, "governor.cells.min_voxels");
+  EXPECT_NE(e.message.find("max_voxels (400000)"), std::string::npos) << e.what();
+  e = serviceError(std::string(kMinimalService) + "[governor.cells]\nmin_voxels = 10\n");
+  EXPECT_EQ(e.key, "governor.cells.min_voxels");
+  EXPECT_EQ(e.value, "10");
+  e = serviceError(std::string(kMinimalService) + "[governor.cells]\nmax_voxels = -1\n");
+  EXPECT_EQ(e.key, "governor.cells.max_voxels");
+  e = serviceError(std::string(kMinimalService) + "[governor.cells]\nmin_voxel = 5000\n");  // a misspelt key
+  EXPECT_EQ(e.key, "governor.cells.min_voxel");
+}
+
 }  // namespace
 }  // namespace ig
 
