@@ -543,7 +543,8 @@ bool parseService(const std::string& text, const std::string& name, const std::s
 
   const Table gov = r.table(root, "governor", {"enabled", "decrease_above", "increase_below", "margin_sigmas",
                                               "max_decrease", "max_increase", "raise_interval_frames",
-                                              "hold_after_decrease_frames", "spike_window_frames", "terrain", "cells"});
+                                              "hold_after_decrease_frames", "spike_window_frames", "terrain", "forest",
+                                              "hdlod", "cells"});
   GovernorSettings& g = cfg.governor;
   r.get(gov, "enabled", g.enabled);
   r.get(gov, "decrease_above", g.decreaseAbove, openClosed(0.0, 1.5));
@@ -558,6 +559,13 @@ bool parseService(const std::string& text, const std::string& name, const std::s
   r.get(govTerrain, "min_px", g.terrainMin_px, closed(0.0, 1000.0));
   r.get(govTerrain, "max_px", g.terrainMax_px, openClosed(0.0, 1000.0));
   r.get(govTerrain, "load_exponent", g.terrainLoadExponent, closed(-10.0, -0.1));
+  const Table govForest = r.table(gov, "forest", {"min_m", "max_m"});
+  r.get(govForest, "min_m", g.forestMin_m, openClosed(0.0, 1e6));
+  r.get(govForest, "max_m", g.forestMax_m, closed(0.0, 1e6));
+  const Table govHdlod = r.table(gov, "hdlod", {"min_px", "max_px", "load_exponent"});
+  r.get(govHdlod, "min_px", g.hdlodMin_px, closed(0.0, 1000.0));
+  r.get(govHdlod, "max_px", g.hdlodMax_px, openClosed(0.0, 1000.0));
+  r.get(govHdlod, "load_exponent", g.hdlodLoadExponent, closed(-10.0, -0.1));
   const Table govCells = r.table(gov, "cells", {"min_voxels", "max_voxels"});
   r.get(govCells, "min_voxels", g.cellsMin_voxels, IntRange{1000, 1'000'000'000});
   r.get(govCells, "max_voxels", g.cellsMax_voxels, IntRange{0, 1'000'000'000});
@@ -572,6 +580,15 @@ bool parseService(const std::string& text, const std::string& name, const std::s
   if (r.ok() && g.terrainMin_px > 0.0 && g.terrainMin_px >= g.terrainMax_px) {
     const std::string message = cat("must be below governor.terrain.max_px (", formatNumber(g.terrainMax_px), ")");
     if (const toml::node* node = r.find(govTerrain, "min_px")) r.fail(*node, govTerrain.keyOf("min_px"), message);
+  }
+  if (r.ok() && g.forestMax_m > 0.0 && g.forestMin_m >= g.forestMax_m) {
+    const std::string message = cat("must be below governor.forest.max_m (", formatNumber(g.forestMax_m), ")");
+    if (const toml::node* node = r.find(govForest, "min_m")) r.fail(*node, govForest.keyOf("min_m"), message);
+    else r.fail(govForest.line_, govForest.keyOf("min_m"), formatNumber(g.forestMin_m), message);
+  }
+  if (r.ok() && g.hdlodMin_px > 0.0 && g.hdlodMin_px >= g.hdlodMax_px) {
+    const std::string message = cat("must be below governor.hdlod.max_px (", formatNumber(g.hdlodMax_px), ")");
+    if (const toml::node* node = r.find(govHdlod, "min_px")) r.fail(*node, govHdlod.keyOf("min_px"), message);
   }
   if (r.ok() && g.cellsMax_voxels > 0 && g.cellsMin_voxels >= g.cellsMax_voxels) {
     const std::string message = cat("must be below governor.cells.max_voxels (", std::to_string(g.cellsMax_voxels), ")");

@@ -49,6 +49,11 @@ struct GovernorSettings {
   double terrainMin_px = 0.0;         // [governor.terrain] min_px; 0 = the scene's tolerance_px
   double terrainMax_px = 32.0;
   double terrainLoadExponent = -1.5;
+  double forestMin_m = 100.0;         // [governor.forest] min_m: the 3D trees' near distance
+  double forestMax_m = 0.0;           // [governor.forest] max_m; 0 = the scene's near_fade_end_m
+  double hdlodMin_px = 0.0;           // [governor.hdlod] min_px; 0 = the scene's tolerance_px
+  double hdlodMax_px = 16.0;
+  double hdlodLoadExponent = -2.0;
   uint64_t cellsMin_voxels = 10'000;  // [governor.cells] min_voxels
   uint64_t cellsMax_voxels = 0;       // [governor.cells] max_voxels; 0 = the scene's voxel_budget
   bool operator==(const GovernorSettings&) const = default;

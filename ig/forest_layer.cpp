@@ -197,6 +197,16 @@ bool ForestLayer::setFades(const lod::NearFade& nearFade, const lod::FarFade& fa
   return true;
 }
 
+bool ForestLayer::setNearDistance(double end_m) {
+  if (end_m == nearFade_.fadeOutEnd_m) return true;
+  const double k = end_m / config_.nearFadeEnd_m;
+  if (!(std::isfinite(k) && k > 0.0)) return false;
+  const lod::NearFade n{config_.nearFadeStart_m * k, config_.nearFadeEnd_m * k};
+  const lod::FarFade f{n.fadeOutStart_m, n.fadeOutEnd_m, farFade_.fadeOut_m, farFade_.farPlane_m};
+  std::string error;
+  return setFades(n, f, error);
+}
+
 void ForestLayer::select(const lod::Camera& cam) {
   lod::ForestSelectStats st;
   selected_ = drawTrees_ ? kd_.select(cam, nearFade_, instances_, scratch_, modelRanges_, &st) : 0;

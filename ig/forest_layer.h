@@ -82,6 +82,12 @@ class ForestLayer {
   std::span<const lod::ForestModelRange> selectedModels() const { return modelRanges_; }
   // Changes the fade bands (validated; false keeps the old ones) and the drawn parts.
   bool setFades(const lod::NearFade& nearFade, const lod::FarFade& farFade, std::string& error);
+  // The 3D trees' near distance (the frame governor's knob): the near fade band and the shell
+  // layers' fade-in band, which overlap it, scaled together so that the band ends at `end_m`
+  // (the scene's bands at its near_fade_end_m). Returns false and keeps the bands when they
+  // would no longer be valid (the fade-in would pass the layers' fade-out).
+  bool setNearDistance(double end_m);
+  double nearDistance() const { return nearFade_.fadeOutEnd_m; }
   void enableParts(bool trees, bool layers, bool fins) {
     drawTrees_ = trees, drawLayers_ = layers, drawFins_ = fins;
   }

@@ -33,6 +33,7 @@ std::unique_ptr<HdlodLayer> HdlodLayer::create(const HdlodLayerConfig& config, s
   }
   std::unique_ptr<HdlodLayer> layer(new HdlodLayer);
   layer->config_ = config;
+  layer->tolerance_px_ = config.tolerance_px;
   if (!config.schedule.empty()) {
     auto scene = hd::loadSchedule(config.schedule, error);
     if (!scene) return nullptr;
@@ -69,7 +70,7 @@ void HdlodLayer::select(const lod::Camera& camera, double simulationTime_s, int 
   hd::SelectView v;
   v.camera = camera;
   v.time_s = config_.timeOffset_s + config_.timeScale * simulationTime_s;
-  v.tolerance_rad = hd::toleranceFromPixels(config_.tolerance_px, camera.fovY_deg, std::max(1, viewportHeight_px));
+  v.tolerance_rad = hd::toleranceFromPixels(tolerance_px_, camera.fovY_deg, std::max(1, viewportHeight_px));
   stats_.scheduleTime_s = hd::clampTime(v.time_s, scene_.duration_s);
   drawCount_ = hd::selectHdlod(tree_, scene_, v, draws_->draws, draws_->moving, &stats_.select);
 }

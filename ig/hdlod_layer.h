@@ -48,6 +48,10 @@ class HdlodLayer {
   void select(const lod::Camera& camera, double simulationTime_s, int viewportHeight_px);
   // Per frame, after select(): draws the selection.
   void draw(render::Renderer& renderer);
+  // The screen-space tolerance r of the next selections (the frame governor's; > 0). Starts at
+  // the scene's tolerance_px.
+  void setTolerance_px(double r) { tolerance_px_ = r; }
+  double tolerance_px() const { return tolerance_px_; }
 
   const HdlodLayerStats& stats() const { return stats_; }
   const lod::hdlod::Scene& scene() const { return scene_; }
@@ -62,6 +66,7 @@ class HdlodLayer {
  private:
   HdlodLayer() = default;
   HdlodLayerConfig config_;
+  double tolerance_px_ = 1.0;
   lod::hdlod::Scene scene_;
   lod::hdlod::HdlodTree tree_;
   lod::hdlod::CacheOutcome outcome_ = lod::hdlod::CacheOutcome::Disabled;

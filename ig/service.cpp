@@ -484,6 +484,8 @@ struct Service::Impl {
   int generation = 1;                         // config generation: +1 per applied reload
   std::optional<lod::Governor> governor;      // [governor] enabled and a layer with a knob
   double terrainSelect_ms = 0.0;              // this frame's terrain selection (governor phase)
+  double forestSelect_ms = 0.0;                // this frame's forest selection (governor phase)
+  double hdlodSelect_ms = 0.0;                 // this frame's HDLOD selection (governor phase)
   double cellsSelect_ms = 0.0, cellsDraw_ms = 0.0;  // this frame's cells selection and draw
 
   // The governor's config from [governor] and the layers this scene has.
@@ -507,6 +509,26 @@ struct Service::Impl {
       k.min = g.terrainMin_px > 0.0 ? g.terrainMin_px : scene.terrain->tolerance_px;
       k.max = std::max(g.terrainMax_px, k.min * 1.01);
       k.loadExponent = g.terrainLoadExponent;
+      k.loadUnit = 1e5;
+    }
+    if (forest && scene.forest) {
+      // The 3D trees' near distance (trees drawn ~ distance^2): the scene's is the start value
+      // and, unless max_m says otherwise, the most the governor gives.
+      lod::GovKnob& k = c.knobs[static_cast<size_t>(lod::GovLayer::Forest)];
+      k.present = true;
+      k.initial = scene.forest->nearFadeEnd_m;
+      k.max = g.forestMax_m > 0.0 ? std::min(g.forestMax_m, scene.forest->fadeOut_m) : scene.forest->nearFadeEnd_m;
+      k.min = std::min(g.forestMin_m, 0.5 * k.max);
+      k.loadExponent = 2.0;
+      k.loadUnit = 1e4;
+    }
+    if (hdlod && scene.hdlod) {
+      lod::GovKnob& k = c.knobs[static_cast<size_t>(lod::GovLayer::Hdlod)];
+      k.present = true;
+      k.initial = scene.hdlod->tolerance_px;
+      k.min = g.hdlodMin_px > 0.0 ? g.hdlodMin_px : scene.hdlod->tolerance_px;
+      k.max = std::max(g.hdlodMax_px, k.min * 1.01);
+      k.loadExponent = g.hdlodLoadExponent;
       k.loadUnit = 1e5;
     }
     if (cells && scene.cells) {
@@ -567,8 +589,18 @@ struct Service::Impl {
       terrainMesh->select(cam, config.height_px, clock, now_s);
       terrainSelect_ms = clock ? static_cast<double>(clock->now_ns() - t0) * 1e-6 : 0.0;
     }
-    if (forest) forest->select(cam);
-    if (hdlod) hdlod->select(cam, simTime_s, config.height_px);
+    if (forest) {
+      const int64_t t0 = clock ? clock->now_ns() : 0;
+      if (governor) forest->setNearDistance(governor->knob(lod::GovLayer::Forest));
+      forest->select(cam);
+      forestSelect_ms = clock ? static_cast<double>(clock->now_ns() - t0) * 1e-6 : 0.0;
+    }
+    if (hdlod) {
+      const int64_t t0 = clock ? clock->now_ns() : 0;
+      if (governor) hdlod->setTolerance_px(governor->knob(lod::GovLayer::Hdlod));
+      hdlod->select(cam, simTime_s, config.height_px);
+      hdlodSelect_ms = clock ? static_cast<double>(clock->now_ns() - t0) * 1e-6 : 0.0;
+    }
     if (cells) {
       const int64_t t0 = clock ? clock->now_ns() : 0;
       if (governor) {
@@ -754,9 +786,9 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
   s->host_.eyeEnu_m = {0.0, 0.0, 1000.0};
   s->host_.pitch_deg = -10.0;
   if (config.governor.enabled) {
-    if (!m.terrainMesh && !m.cells) {
+    if (!m.terrainMesh && !m.forest && !m.hdlod && !m.cells) {
       std::fprintf(stderr, "igd: governor: the scene has no layer whose detail it can steer (terrain lod = "
-                           "\"roam\" or \"block\", or [cells]); governor off\n");
+                           "\"roam\" or \"block\", [hdlod] or [cells]); governor off\n");
     } else {
       const lod::GovernorConfig g = m.governorConfig();
       if (const std::string why = lod::Governor::validate(g); !why.empty()) {
@@ -990,7 +1022,11 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
       gs.phase_ms[static_cast<size_t>(lod::GovPhase::Terrain)] = m.terrainSelect_ms;
       gs.phase_ms[static_cast<size_t>(lod::GovPhase::Submit)] = r.timing.phase_ms[static_cast<size_t>(Phase::Submit)];
       gs.phase_ms[static_cast<size_t>(lod::GovPhase::Gpu)] = r.timing.phase_ms[static_cast<size_t>(Phase::GpuFinish)];
+      gs.phase_ms[static_cast<size_t>(lod::GovPhase::Forest)] = m.forestSelect_ms;
+      gs.phase_ms[static_cast<size_t>(lod::GovPhase::Hdlod)] = m.hdlodSelect_ms;
+      if (m.forest) gs.load[static_cast<size_t>(lod::GovLayer::Forest)] = static_cast<double>(m.forest->stats().treesDrawn);
       gs.phase_ms[static_cast<size_t>(lod::GovPhase::Cells)] = m.cellsSelect_ms;
+      if (m.hdlod) gs.load[static_cast<size_t>(lod::GovLayer::Hdlod)] = static_cast<double>(m.hdlod->stats().select.triangles);
       if (m.terrainMesh) gs.load[static_cast<size_t>(lod::GovLayer::Terrain)] = static_cast<double>(m.terrainMesh->emitted);
       if (m.cells) gs.load[static_cast<size_t>(lod::GovLayer::Cells)] = static_cast<double>(m.cells->stats().select.drawnVoxels);
       gs.frame_ms = r.timing.work_ms;
@@ -1055,6 +1091,16 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
     char buf[160];
     if (m.terrainMesh) {
       std::snprintf(buf, sizeof buf, "terrain tolerance now %.2f px", m.governor->knob(lod::GovLayer::Terrain));
+      knobs += buf;
+    }
+    if (m.forest) {
+      std::snprintf(buf, sizeof buf, "%sforest near distance now %.0f m", knobs.empty() ? "" : ", ",
+                    m.forest->nearDistance());
+      knobs += buf;
+    }
+    if (m.hdlod) {
+      std::snprintf(buf, sizeof buf, "%shdlod tolerance now %.2f px", knobs.empty() ? "" : ", ",
+                    m.governor->knob(lod::GovLayer::Hdlod));
       knobs += buf;
     }
     if (m.cells) {

@@ -593,6 +593,47 @@ class Control(Tmp):
         self.assertLess(int(c.group(2)), 40000, "the cells layer drew under the governor's budget")
         self.assertLessEqual(int(c.group(1)), int(c.group(2)))
 
+    def test_governor_steers_the_forest_near_distance(self):
+        scene = os.path.join(SRC, "config", "scenes", "forest_roam.toml")
+        text = open(scene, encoding="utf-8").read().replace("../../out/", self.tmp + "/")
+        given = re.search(r"(?m)^near_fade_end_m = ([0-9.]+)", text)
+        near = float(given.group(1)) if given else 500.0  # [forest] near_fade_end_m, default 500
+        local = write(os.path.join(self.tmp, "forest.toml"), text)
+        config, _ = self.configs()
+        text = open(config, encoding="utf-8").read()
+        text = re.sub(r"(?m)^enabled = false$", "enabled = true", text)
+        text = re.sub(r"(?m)^frame_ms = 0$", "frame_ms = 1", text)   # far below what a frame takes
+        write(config, text)
+        p = run([IGD, "--config", config, "--scene", local, "--frames", "30", "--free-run", "--width", "160",
+                 "--height", "90"], timeout=RUN, cwd=self.tmp)
+        self.assertExit(p, 0)
+        m = re.search(r"governor: terrain tolerance now ([0-9.]+) px, forest near distance now ([0-9.]+) m; "
+                      r"(\d+) decreases, (\d+) increases", p.stderr)
+        self.assertIsNotNone(m, describe(p))
+        self.assertLess(float(m.group(2)), near, "the 3D trees' distance should have been cut from the scene's")
+        self.assertGreaterEqual(float(m.group(2)), 100.0, "below governor.forest.min_m")
+        self.assertEqual(int(m.group(4)), 0, "no raise while every frame overruns")
+
+    def test_governor_steers_the_hdlod_tolerance(self):
+        scene = os.path.join(SRC, "config", "scenes", "construction_site.toml")
+        text = open(scene, encoding="utf-8").read().replace("../../out/", self.tmp + "/")
+        local = write(os.path.join(self.tmp, "site.toml"), text)
+        config, _ = self.configs()
+        text = open(config, encoding="utf-8").read()
+        text = re.sub(r"(?m)^enabled = false$", "enabled = true", text)
+        text = re.sub(r"(?m)^frame_ms = 0$", "frame_ms = 1", text)   # far below what a frame takes
+        write(config, text)
+        p = run([IGD, "--config", config, "--scene", local, "--frames", "30", "--free-run", "--width", "160",
+                 "--height", "90"], timeout=RUN, cwd=self.tmp)
+        self.assertExit(p, 0)
+        self.assertNotIn("governor off", p.stderr)
+        m = re.search(r"governor: hdlod tolerance now ([0-9.]+) px; (\d+) decreases, (\d+) increases", p.stderr)
+        self.assertIsNotNone(m, describe(p))
+        self.assertGreater(float(m.group(1)), 1.0, "the tolerance should have been raised from the scene's 1 px")
+        self.assertLessEqual(float(m.group(1)), 16.0, "above governor.hdlod.max_px")
+        self.assertGreater(int(m.group(2)), 0, describe(p))
+        self.assertEqual(int(m.group(3)), 0, "no raise while every frame overruns")
+
     def test_example_scenes_with_forest_and_hdlod_run(self):
         for name, layer in (("forest_roam.toml", "forest"), ("construction_site.toml", "hdlod")):
             with self.subTest(scene=name):

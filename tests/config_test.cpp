@@ -766,6 +766,31 @@ TEST(ConfigGovernor, KeysAreReadAndCrossChecked) {
   EXPECT_EQ(e.value, "-1");
 }
 
+TEST(ConfigGovernor, ForestNearDistanceBounds) {
+  ServiceConfig cfg = parseServiceOk(std::string(kMinimalService) + "[governor.forest]\nmin_m = 50\nmax_m = 400\n", "/cfg");
+  EXPECT_EQ(cfg.governor.forestMin_m, 50.0);
+  EXPECT_EQ(cfg.governor.forestMax_m, 400.0);
+  ConfigError e = serviceError(std::string(kMinimalService) + "[governor.forest]\nmin_m = 500\nmax_m = 400\n");
+  EXPECT_EQ(e.key, "governor.forest.min_m");
+  EXPECT_NE(e.message.find("max_m (400)"), std::string::npos) << e.what();
+  e = serviceError(std::string(kMinimalService) + "[governor.forest]\nmin_m = 0\n");
+  EXPECT_EQ(e.key, "governor.forest.min_m");
+  EXPECT_EQ(e.value, "0");
+}
+
+TEST(ConfigGovernor, HdlodToleranceBounds) {
+  ServiceConfig cfg = parseServiceOk(std::string(kMinimalService) + "[governor.hdlod]\nmin_px = 2\nmax_px = 8\nload_exponent = -1.5\n", "/cfg");
+  EXPECT_EQ(cfg.governor.hdlodMin_px, 2.0);
+  EXPECT_EQ(cfg.governor.hdlodMax_px, 8.0);
+  EXPECT_EQ(cfg.governor.hdlodLoadExponent, -1.5);
+  ConfigError e = serviceError(std::string(kMinimalService) + "[governor.hdlod]\nmin_px = 9\nmax_px = 8\n");
+  EXPECT_EQ(e.key, "governor.hdlod.min_px");
+  EXPECT_NE(e.message.find("max_px (8)"), std::string::npos) << e.what();
+  e = serviceError(std::string(kMinimalService) + "[governor.hdlod]\nload_exponent = 1\n");
+  EXPECT_EQ(e.key, "governor.hdlod.load_exponent");
+  EXPECT_EQ(e.value, "1");
+}
+
 TEST(ConfigGovernor, CellsVoxelBudgetBounds) {
   ServiceConfig cfg = parseServiceOk(std::string(kMinimalService), "/cfg");
   EXPECT_EQ(cfg.governor.cellsMin_voxels, 10000u);

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <limits>
 
 #include <unistd.h>
 
@@ -162,6 +163,40 @@ TEST(ForestGL, NearTreesWhereTheMapHasDensityNothingInGlades) {
   compareHalves(without, with, sky, kW / 2 - 10, kW / 2 + 10, gladeMax, forestChanged);
   EXPECT_EQ(gladeMax, 0) << "something was drawn in the glade";
   EXPECT_GT(forestChanged, 0.5) << "trees should cover most of the forest half";
+  EXPECT_EQ(w.renderer.errors(), "");
+}
+
+// The frame governor's forest knob: the distance up to which 3D trees are drawn. A shorter one
+// draws fewer trees (about with the square of the distance); bands that would no longer be valid
+// are refused and the last ones kept.
+TEST(ForestGL, NearDistanceScalesTheTreeBandAndRefusesAnInvalidOne) {
+  World w;
+  ASSERT_NO_FATAL_FAILURE(w.setUp());
+  std::string error;
+  auto forest = ForestLayer::create(w.config(), w.ground(), error);
+  ASSERT_TRUE(forest) << error;
+  EXPECT_EQ(forest->nearDistance(), 500.0);
+  lod::Camera cam = downCamera(120.0);
+  cam.pitch_deg = -20.0;  // looking over the forest half, trees from near to far
+  cam.heading_deg = 90.0;
+  cam.eye_m = {600.0, 512.0, 120.0};
+  w.frame(cam, forest.get());
+  const uint32_t full = forest->stats().treesDrawn;
+  ASSERT_TRUE(forest->setNearDistance(250.0));
+  EXPECT_EQ(forest->nearDistance(), 250.0);
+  w.frame(cam, forest.get());
+  const uint32_t half = forest->stats().treesDrawn;
+  EXPECT_GT(full, 200u);
+  EXPECT_LT(half, full * 2 / 3) << full << " -> " << half;
+  EXPECT_GT(half, 0u);
+  // Beyond the layers' fade-out (6000 m) the fade-in band would pass it: refused, 250 m kept.
+  EXPECT_FALSE(forest->setNearDistance(7000.0));
+  EXPECT_EQ(forest->nearDistance(), 250.0);
+  EXPECT_FALSE(forest->setNearDistance(std::numeric_limits<double>::quiet_NaN()));
+  EXPECT_EQ(forest->nearDistance(), 250.0);
+  ASSERT_TRUE(forest->setNearDistance(500.0));
+  w.frame(cam, forest.get());
+  EXPECT_EQ(forest->stats().treesDrawn, full);  // back to the scene's band, the same trees
   EXPECT_EQ(w.renderer.errors(), "");
 }
 
