@@ -1014,6 +1014,14 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
     FrameRecord r = Impl::record(st, host_);
     r.uploads = m.terrainMesh ? m.terrainMesh->uploadedTriangles : 0;
     r.hostLost = lost;
+    if (m.governor) {
+      // What this frame was drawn with (update() below chooses the next frame's).
+      r.predicted_ms = m.governor->predicted_ms();
+      if (m.terrainMesh) r.terrainTolerance_px = m.terrainMesh->tolerance_px;
+      if (m.forest) r.forestNear_m = m.forest->nearDistance();
+      if (m.hdlod) r.hdlodTolerance_px = m.hdlod->tolerance_px();
+      if (m.cells) r.cellsVoxelBudget = static_cast<double>(m.cells->voxelBudget());
+    }
     r.timing = pacer.endFrame();
     prevOverrun = r.timing.overrun;
     if (m.governor) {

@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <cstdio>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -12,6 +13,8 @@
 #include "ig/frame_loop.h"
 
 namespace ig {
+
+inline constexpr double kStatsNaN = std::numeric_limits<double>::quiet_NaN();
 
 struct FrameRecord {
   FrameTiming timing;
@@ -27,6 +30,13 @@ struct FrameRecord {
   double eyeHeight_m = 0.0;     // height above the ENU origin
   double heading_deg = 0.0;
   bool hostLost = false;        // no valid host input for longer than [host] link_timeout_s
+  // The frame governor's choices this frame was drawn with; NaN where a layer is absent or not
+  // steered (no governor).
+  double predicted_ms = kStatsNaN;        // the governor's prediction of this frame's work
+  double terrainTolerance_px = kStatsNaN;
+  double forestNear_m = kStatsNaN;        // 3D trees drawn up to here
+  double hdlodTolerance_px = kStatsNaN;
+  double cellsVoxelBudget = kStatsNaN;    // this frame's voxel budget (the knob, capped by the load cap)
 };
 
 class StatsWriter {

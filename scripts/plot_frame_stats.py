@@ -4,7 +4,8 @@
     scripts/plot_frame_stats.py out/frame_stats.csv out/frame_times.png
 
 Top: work per frame stacked by phase (input, lod, submit, gpu_finish, present) with the frame
-period as a dashed line; overruns marked in red. Bottom: triangles drawn per frame.
+period as a dashed line; overruns marked in red. Below: triangles drawn per frame, and with the
+frame governor the knobs it steered, each relative to its first frame (1 = the scene's detail).
 """
 import csv
 import json
@@ -16,6 +17,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 PHASES = ["input_ms", "lod_ms", "submit_ms", "gpu_finish_ms", "present_ms"]
+# The governor's knobs, and whether a larger value is more detail.
+KNOBS = [("terrain_tolerance_px", False), ("forest_near_m", True), ("hdlod_tolerance_px", False),
+         ("cells_voxel_budget", True)]
 
 
 def load(path):
@@ -29,7 +33,7 @@ def load(path):
                 if "run" in obj:
                     run = obj["run"]
                 else:
-                    rows.append({k: float(v) for k, v in obj.items()})
+                    rows.append({k: float("nan") if v is None else float(v) for k, v in obj.items()})
     return rows, run
 
 
@@ -40,7 +44,11 @@ def main():
     if not rows:
         sys.exit(f"{sys.argv[1]}: no frames")
     frames = [r["frame"] for r in rows]
-    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(11, 6.5), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
+    knobs = [(k, up) for k, up in KNOBS if any(r.get(k, float("nan")) == r.get(k, float("nan")) for r in rows)]
+    if knobs:
+        fig, (ax, ax2, ax3) = plt.subplots(3, 1, figsize=(11, 8), sharex=True, gridspec_kw={"height_ratios": [3, 1, 1]})
+    else:
+        fig, (ax, ax2) = plt.subplots(2, 1, figsize=(11, 6.5), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
     bottom = [0.0] * len(rows)
     for phase in PHASES:
         values = [r.get(phase, 0.0) for r in rows]
@@ -61,6 +69,15 @@ def main():
     ax2.plot(frames, [r["triangles"] for r in rows], color="tab:green")
     ax2.set_ylabel("triangles")
     ax2.set_xlabel("frame")
+    if knobs:
+        # Detail relative to the first frame: a tolerance's inverse, a distance or budget as is.
+        for k, up in knobs:
+            first = next(r[k] for r in rows if r[k] == r[k])
+            ax3.plot(frames, [(r[k] / first if up else first / r[k]) for r in rows], label=k)
+        ax3.set_ylabel("detail (governor)")
+        ax3.set_yscale("log")
+        ax3.legend(loc="upper right", fontsize=8, ncol=4)
+        ax3.set_xlabel("frame")
     fig.tight_layout()
     fig.savefig(sys.argv[2], dpi=100)
     print(f"plot: {sys.argv[2]}")

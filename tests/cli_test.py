@@ -33,8 +33,10 @@ STATS_COLUMNS = [
     "input_ms", "lod_ms", "submit_ms", "gpu_finish_ms", "present_ms",
     "work_ms", "overrun", "missed_slots", "triangles", "draw_calls", "passes", "uploads",
     "host_frame", "sim_time_s", "eye_east_m", "eye_north_m", "eye_up_m", "heading_deg", "host_lost",
-    "between_ms",
+    "between_ms", "gov_predicted_ms", "terrain_tolerance_px", "forest_near_m", "hdlod_tolerance_px",
+    "cells_voxel_budget",
 ]
+GOVERNOR_STATS_COLUMNS = STATS_COLUMNS[STATS_COLUMNS.index("gov_predicted_ms"):]
 
 
 def _env_path(name):
@@ -327,7 +329,9 @@ class Service(Tmp):
             fields = line.split(",")
             self.assertEqual(len(fields), len(header), f"{stats}:{i}: {len(fields)} fields, header has {len(header)}: {line}")
             for name, value in zip(header, fields):
-                self.assertRegex(value, r"^-?[0-9]+(\.[0-9]+)?$", f"{stats}:{i}: {name} = {value!r} is not a number")
+                # The governor's columns are nan without a governor (this run has none).
+                number = r"^nan$" if name in GOVERNOR_STATS_COLUMNS else r"^-?[0-9]+(\.[0-9]+)?$"
+                self.assertRegex(value, number, f"{stats}:{i}: {name} = {value!r} is not a number")
             # Frame numbers are slot numbers: consecutive, except that an overrun skips the
             # slots it ran past (reported in that row's missed_slots).
             row = dict(zip(header, fields))
@@ -592,6 +596,16 @@ class Control(Tmp):
         self.assertIsNotNone(c, describe(p))
         self.assertLess(int(c.group(2)), 40000, "the cells layer drew under the governor's budget")
         self.assertLessEqual(int(c.group(1)), int(c.group(2)))
+        # The frame stats show what each frame was drawn with: the budget never rises while every
+        # frame overruns; the grid terrain has no tolerance to steer.
+        rows = [dict(zip(STATS_COLUMNS, l.split(","))) for l in complete_lines(os.path.join(self.tmp, "s.csv"))[1:]]
+        self.assertEqual(len(rows), 40)
+        budgets = [float(r["cells_voxel_budget"]) for r in rows]
+        self.assertEqual(budgets[0], 40000.0)
+        self.assertLess(budgets[-1], 40000.0)
+        self.assertEqual(budgets, sorted(budgets, reverse=True), budgets)
+        self.assertTrue(all(r["terrain_tolerance_px"] == "nan" and r["hdlod_tolerance_px"] == "nan" for r in rows))
+        self.assertGreater(float(rows[-1]["gov_predicted_ms"]), 0.0)
 
     def test_governor_steers_the_forest_near_distance(self):
         scene = os.path.join(SRC, "config", "scenes", "forest_roam.toml")
@@ -666,6 +680,9 @@ class Control(Tmp):
             self.assertExit(p, 0)
             with open(stats, encoding="utf-8") as f:
                 runs[name] = (p, json.loads(f.readline())["run"], self.status())
+                frame = json.loads(f.readline())
+                self.assertIsNone(frame["cells_voxel_budget"], "no governor: no knob in the stats")
+                self.assertIsNone(frame["gov_predicted_ms"])
         p, info, status = runs["cells"]
         self.assertRegex(p.stderr, r"layers: terrain cells;", describe(p))
         m = re.search(r"igd: cells: last frame (\d+) cells drawn, (\d+) voxels \(most (\d+), budget 20000\).*"
