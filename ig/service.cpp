@@ -502,15 +502,21 @@ struct Service::Impl {
     c.maxIncrease = g.maxIncrease;
     c.raiseInterval_frames = g.raiseInterval_frames;
     c.holdAfterDecrease_frames = g.holdAfterDecrease_frames;
-    if (terrainMesh && scene.terrain) {
-      lod::GovKnob& k = c.knobs[static_cast<size_t>(lod::GovLayer::Terrain)];
+    // A pixel tolerance (terrain, HDLOD r): the scene's starts it and is the finest the governor
+    // gives unless min_px says otherwise.
+    auto tolerance = [&c](lod::GovLayer layer, double scene_px, double min_px, double max_px, double loadExponent) {
+      lod::GovKnob& k = c.knobs[static_cast<size_t>(layer)];
       k.present = true;
-      k.initial = scene.terrain->tolerance_px;
-      k.min = g.terrainMin_px > 0.0 ? g.terrainMin_px : scene.terrain->tolerance_px;
-      k.max = std::max(g.terrainMax_px, k.min * 1.01);
-      k.loadExponent = g.terrainLoadExponent;
+      k.initial = scene_px;
+      k.min = min_px > 0.0 ? min_px : scene_px;
+      k.max = std::max(max_px, k.min * 1.01);
+      k.loadExponent = loadExponent;
       k.loadUnit = 1e5;
-    }
+    };
+    if (terrainMesh && scene.terrain)
+      tolerance(lod::GovLayer::Terrain, scene.terrain->tolerance_px, g.terrainMin_px, g.terrainMax_px, g.terrainLoadExponent);
+    if (hdlod && scene.hdlod)
+      tolerance(lod::GovLayer::Hdlod, scene.hdlod->tolerance_px, g.hdlodMin_px, g.hdlodMax_px, g.hdlodLoadExponent);
     if (forest && scene.forest) {
       // The 3D trees' near distance (trees drawn ~ distance^2): the scene's is the start value
       // and, unless max_m says otherwise, the most the governor gives.
@@ -521,15 +527,6 @@ struct Service::Impl {
       k.min = std::min(g.forestMin_m, 0.5 * k.max);
       k.loadExponent = 2.0;
       k.loadUnit = 1e4;
-    }
-    if (hdlod && scene.hdlod) {
-      lod::GovKnob& k = c.knobs[static_cast<size_t>(lod::GovLayer::Hdlod)];
-      k.present = true;
-      k.initial = scene.hdlod->tolerance_px;
-      k.min = g.hdlodMin_px > 0.0 ? g.hdlodMin_px : scene.hdlod->tolerance_px;
-      k.max = std::max(g.hdlodMax_px, k.min * 1.01);
-      k.loadExponent = g.hdlodLoadExponent;
-      k.loadUnit = 1e5;
     }
     if (cells && scene.cells) {
       // The voxel budget: the scene's is the start value and, unless max_voxels says otherwise,

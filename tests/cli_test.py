@@ -435,6 +435,19 @@ class Control(Tmp):
         write(config, text)
         return config, scene
 
+
+    def example_scene(self, name):
+        """A copy in tmp of config/scenes/NAME, its outputs redirected into tmp."""
+        text = open(os.path.join(SRC, "config", "scenes", name), encoding="utf-8").read()
+        return write(os.path.join(self.tmp, name), text.replace("../../out/", self.tmp + "/"))
+
+    def governed(self, config, tight=True):
+        """Turns the frame governor on in `config`; `tight`: a 1 ms frame budget, far below what
+        any frame takes, so every frame overruns."""
+        text = re.sub(r"(?m)^enabled = false$", "enabled = true", open(config, encoding="utf-8").read())
+        if tight:
+            text = re.sub(r"(?m)^frame_ms = 0$", "frame_ms = 1", text)
+        write(config, text)
     def start(self, config, stats):
         err_path = os.path.join(self.tmp, "igd.stderr")
         with open(err_path, "w") as err:
@@ -548,10 +561,7 @@ class Control(Tmp):
     def test_governor_lowers_detail_under_a_tight_budget(self):
         config, scene = self.configs()
         write(scene, open(scene, encoding="utf-8").read().replace('lod = "grid"', 'lod = "roam"'))
-        text = open(config, encoding="utf-8").read()
-        text = re.sub(r"(?m)^frame_ms = 0$", "frame_ms = 1", text)   # far below what a frame takes
-        text = re.sub(r"(?m)^enabled = false$", "enabled = true", text)
-        write(config, text)
+        self.governed(config)
         p = run([IGD, "--config", config, "--frames", "40", "--free-run", "--width", "160", "--height", "90",
                  "--stats", os.path.join(self.tmp, "s.csv")], timeout=RUN, cwd=self.tmp)
         self.assertExit(p, 0)
@@ -569,19 +579,16 @@ class Control(Tmp):
         plain = open(scene, encoding="utf-8").read()
         cells = f"\n[cells]\nsource = {toml_str(db)}\norigin_m = [0, -3500, 0]\nvoxel_budget = 40000\n"
         with_cells = write(os.path.join(self.tmp, "cells.toml"), plain + cells)
-        text = open(config, encoding="utf-8").read()
-        text = re.sub(r"(?m)^enabled = false$", "enabled = true", text)
         # Without [cells] the default scene (grid terrain, fixed detail) has nothing to steer.
-        write(config, text)
+        self.governed(config, tight=False)
         p = run([IGD, "--config", config, "--frames", "3", "--free-run", "--width", "160", "--height", "90"],
                 timeout=RUN, cwd=self.tmp)
         self.assertExit(p, 0)
         self.assertIn("governor off", p.stderr)
         # With [cells] and a budget far below what a frame takes: every frame overruns, and the
         # voxel budget is cut towards min_voxels, never raised.
-        text = re.sub(r"(?m)^frame_ms = 0$", "frame_ms = 1", text)
-        text = re.sub(r"(?m)^min_voxels = 10000$", "min_voxels = 2000", text)
-        write(config, text)
+        self.governed(config)
+        write(config, re.sub(r"(?m)^min_voxels = 10000$", "min_voxels = 2000", open(config, encoding="utf-8").read()))
         p = run([IGD, "--config", config, "--scene", with_cells, "--frames", "40", "--free-run", "--width", "160",
                  "--height", "90", "--stats", os.path.join(self.tmp, "s.csv")], timeout=RUN, cwd=self.tmp)
         self.assertExit(p, 0)
@@ -608,16 +615,11 @@ class Control(Tmp):
         self.assertGreater(float(rows[-1]["gov_predicted_ms"]), 0.0)
 
     def test_governor_steers_the_forest_near_distance(self):
-        scene = os.path.join(SRC, "config", "scenes", "forest_roam.toml")
-        text = open(scene, encoding="utf-8").read().replace("../../out/", self.tmp + "/")
-        given = re.search(r"(?m)^near_fade_end_m = ([0-9.]+)", text)
+        local = self.example_scene("forest_roam.toml")
+        given = re.search(r"(?m)^near_fade_end_m = ([0-9.]+)", open(local, encoding="utf-8").read())
         near = float(given.group(1)) if given else 500.0  # [forest] near_fade_end_m, default 500
-        local = write(os.path.join(self.tmp, "forest.toml"), text)
         config, _ = self.configs()
-        text = open(config, encoding="utf-8").read()
-        text = re.sub(r"(?m)^enabled = false$", "enabled = true", text)
-        text = re.sub(r"(?m)^frame_ms = 0$", "frame_ms = 1", text)   # far below what a frame takes
-        write(config, text)
+        self.governed(config)
         p = run([IGD, "--config", config, "--scene", local, "--frames", "30", "--free-run", "--width", "160",
                  "--height", "90"], timeout=RUN, cwd=self.tmp)
         self.assertExit(p, 0)
@@ -629,14 +631,9 @@ class Control(Tmp):
         self.assertEqual(int(m.group(4)), 0, "no raise while every frame overruns")
 
     def test_governor_steers_the_hdlod_tolerance(self):
-        scene = os.path.join(SRC, "config", "scenes", "construction_site.toml")
-        text = open(scene, encoding="utf-8").read().replace("../../out/", self.tmp + "/")
-        local = write(os.path.join(self.tmp, "site.toml"), text)
+        local = self.example_scene("construction_site.toml")
         config, _ = self.configs()
-        text = open(config, encoding="utf-8").read()
-        text = re.sub(r"(?m)^enabled = false$", "enabled = true", text)
-        text = re.sub(r"(?m)^frame_ms = 0$", "frame_ms = 1", text)   # far below what a frame takes
-        write(config, text)
+        self.governed(config)
         p = run([IGD, "--config", config, "--scene", local, "--frames", "30", "--free-run", "--width", "160",
                  "--height", "90"], timeout=RUN, cwd=self.tmp)
         self.assertExit(p, 0)
@@ -651,9 +648,7 @@ class Control(Tmp):
     def test_example_scenes_with_forest_and_hdlod_run(self):
         for name, layer in (("forest_roam.toml", "forest"), ("construction_site.toml", "hdlod")):
             with self.subTest(scene=name):
-                scene = os.path.join(SRC, "config", "scenes", name)
-                text = open(scene, encoding="utf-8").read().replace("../../out/", self.tmp + "/")
-                local = write(os.path.join(self.tmp, name), text)
+                local = self.example_scene(name)
                 config, _ = self.configs()
                 p = run([IGD, "--config", config, "--scene", local, "--frames", "5", "--free-run", "--width", "160",
                          "--height", "90", "--stats", os.path.join(self.tmp, "s.csv")], timeout=RUN, cwd=self.tmp)
