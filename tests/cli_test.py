@@ -441,6 +441,16 @@ class Control(Tmp):
         text = open(os.path.join(SRC, "config", "scenes", name), encoding="utf-8").read()
         return write(os.path.join(self.tmp, name), text.replace("../../out/", self.tmp + "/"))
 
+    def spheres_cells(self, scene, voxel_budget):
+        """A small cell database of spheres (igtool cells-build) and a copy of `scene` with a [cells]
+        table that places its 1,024 m cube ~2.5 km ahead of the replay's first eyepoint. Returns
+        (the database, the [cells] table's text, the scene copy)."""
+        db = os.path.join(self.tmp, "spheres.ighc")
+        p = run([IGTOOL, "cells-build", "--scene", "spheres:20", "--cell-levels", "5", "--depth", "2", "-o", db])
+        self.assertExit(p, 0)
+        cells = f"\n[cells]\nsource = {toml_str(db)}\norigin_m = [0, -3500, 0]\nvoxel_budget = {voxel_budget}\n"
+        return db, cells, write(os.path.join(self.tmp, "cells.toml"), open(scene, encoding="utf-8").read() + cells)
+
     def governed(self, config, tight=True):
         """Turns the frame governor on in `config`; `tight`: a 1 ms frame budget, far below what
         any frame takes, so every frame overruns."""
@@ -572,13 +582,8 @@ class Control(Tmp):
         self.assertEqual(int(m.group(3)), 0, "no raise while every frame overruns")
 
     def test_governor_steers_the_cells_voxel_budget(self):
-        db = os.path.join(self.tmp, "spheres.ighc")
-        p = run([IGTOOL, "cells-build", "--scene", "spheres:20", "--cell-levels", "5", "--depth", "2", "-o", db])
-        self.assertExit(p, 0)
         config, scene = self.configs()
-        plain = open(scene, encoding="utf-8").read()
-        cells = f"\n[cells]\nsource = {toml_str(db)}\norigin_m = [0, -3500, 0]\nvoxel_budget = 40000\n"
-        with_cells = write(os.path.join(self.tmp, "cells.toml"), plain + cells)
+        _, _, with_cells = self.spheres_cells(scene, 40000)
         # Without [cells] the default scene (grid terrain, fixed detail) has nothing to steer.
         self.governed(config, tight=False)
         p = run([IGD, "--config", config, "--frames", "3", "--free-run", "--width", "160", "--height", "90"],
@@ -659,14 +664,9 @@ class Control(Tmp):
                 self.assertGreaterEqual(int(rows[-1]["passes"]), 1)
 
     def test_scene_with_cells_streams_and_draws_them(self):
-        db = os.path.join(self.tmp, "spheres.ighc")
-        p = run([IGTOOL, "cells-build", "--scene", "spheres:20", "--cell-levels", "5", "--depth", "2", "-o", db])
-        self.assertExit(p, 0)
         config, scene = self.configs()
         plain = open(scene, encoding="utf-8").read()
-        # The 1,024 m cube of spheres ~2.5 km ahead of the replay's first eyepoint.
-        cells = f"\n[cells]\nsource = {toml_str(db)}\norigin_m = [0, -3500, 0]\nvoxel_budget = 20000\n"
-        with_cells = write(os.path.join(self.tmp, "cells.toml"), plain + cells)
+        db, cells, with_cells = self.spheres_cells(scene, 20000)
         runs = {}
         for name, path in (("cells", with_cells), ("plain", scene)):
             stats = os.path.join(self.tmp, name + ".jsonl")
