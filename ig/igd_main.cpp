@@ -23,6 +23,8 @@ int main(int argc, char** argv) {
       "Each frame it takes the eyepoint and simulation time from the host (or a recorded host\n"
       "replay), selects terrain detail within the frame budget and renders with OpenGL 4.5\n"
       "through EGL: headless (off-screen, snapshots to PNG), in a window, or via OSMesa.\n"
+      "With [governor] enabled = true in the config it steers each layer's detail (terrain and\n"
+      "HDLOD pixel tolerance, forest 3D-tree distance, cells voxel budget) to hold the rate.\n"
       "It runs at a fixed rate with absolute deadlines, writes one stats line per frame, and\n"
       "talks to systemd (READY, WATCHDOG, STATUS) when started as a service. SIGTERM/SIGINT stop it\n"
       "cleanly; SIGHUP (systemctl reload igd) re-reads the configs between two frames: light, fog,\n"
