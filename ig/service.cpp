@@ -899,6 +899,18 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
     c.lastReloadError = m.lastReloadError;
     c.layers = layerList;
     c.scheduling = info_.scheduling;
+    if (m.governor) {
+      c.haveGovernor = true;
+      const auto knob = [&](lod::GovLayer l) { return m.governor->knob(l); };  // NaN for an absent layer
+      c.terrainTolerance_px = knob(lod::GovLayer::Terrain);
+      c.forestNear_m = m.forest ? m.forest->nearDistance() : knob(lod::GovLayer::Forest);
+      c.hdlodTolerance_px = knob(lod::GovLayer::Hdlod);
+      c.cellsVoxelBudget = knob(lod::GovLayer::Cells);
+      const lod::GovStats& g = m.governor->stats();
+      c.governorDecreases = g.decreases;
+      c.governorIncreases = g.increases;
+      c.governorEmergencies = g.emergencies;
+    }
     return c;
   };
   std::unique_ptr<PendingReload> pending;

@@ -114,6 +114,23 @@ const std::string& StatusReporter::report(int64_t now_ns, const StatusContext& c
   appendJsonString(json_, ctx.layers);
   json_ += ",\"scheduling\":";
   appendJsonString(json_, ctx.scheduling);
+  if (ctx.haveGovernor) {
+    // A knob of a layer the scene does not have is null.
+    const std::pair<const char*, double> knobs[] = {{"terrain_tolerance_px", ctx.terrainTolerance_px},
+                                                    {"forest_near_m", ctx.forestNear_m},
+                                                    {"hdlod_tolerance_px", ctx.hdlodTolerance_px},
+                                                    {"cells_voxel_budget", ctx.cellsVoxelBudget}};
+    json_ += ",\"governor\":{";
+    for (const auto& [name, value] : knobs) {
+      if (std::isnan(value)) appendf(json_, "\"%s\":null,", name);
+      else appendf(json_, "\"%s\":%.3f,", name, value);
+    }
+    appendf(json_, "\"decreases\":%lld,\"increases\":%lld,\"emergencies\":%lld}",
+            static_cast<long long>(ctx.governorDecreases), static_cast<long long>(ctx.governorIncreases),
+            static_cast<long long>(ctx.governorEmergencies));
+  } else {
+    json_ += ",\"governor\":null";
+  }
   json_ += "}\n";
 
   line_.clear();
@@ -122,6 +139,23 @@ const std::string& StatusReporter::report(int64_t now_ns, const StatusContext& c
           static_cast<long long>(totalOverruns_), static_cast<long long>(overruns_), seconds,
           ctx.hostSource.c_str(), ctx.hostSource == "none" ? "" : (ctx.hostLost ? "LOST" : "ok"));
   appendf(line_, "; config #%d%s", ctx.configGeneration, ctx.lastReloadError.empty() ? "" : " (last reload failed)");
+  if (ctx.haveGovernor) {
+    // What detail the governor gives now, e.g. "; detail: terrain 4.00 px, cells 12000 voxels".
+    const char* sep = "; detail: ";
+    if (!std::isnan(ctx.terrainTolerance_px)) {
+      appendf(line_, "%sterrain %.2f px", sep, ctx.terrainTolerance_px);
+      sep = ", ";
+    }
+    if (!std::isnan(ctx.forestNear_m)) {
+      appendf(line_, "%sforest trees to %.0f m", sep, ctx.forestNear_m);
+      sep = ", ";
+    }
+    if (!std::isnan(ctx.hdlodTolerance_px)) {
+      appendf(line_, "%shdlod %.2f px", sep, ctx.hdlodTolerance_px);
+      sep = ", ";
+    }
+    if (!std::isnan(ctx.cellsVoxelBudget)) appendf(line_, "%scells %.0f voxels", sep, ctx.cellsVoxelBudget);
+  }
 
   if (!file_.empty()) {
     fileError_.clear();

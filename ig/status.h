@@ -31,6 +31,11 @@ struct StatusContext {
   std::string lastReloadError;      // "" = the last reload (if any) succeeded
   std::string layers;               // e.g. "terrain forest"
   std::string scheduling;           // e.g. "SCHED_FIFO 40, CPUs 2"
+  // The frame governor ([governor] enabled): the detail it gives each layer now (NaN: the scene
+  // has no such layer) and its decisions so far.
+  bool haveGovernor = false;
+  double terrainTolerance_px = 0.0, forestNear_m = 0.0, hdlodTolerance_px = 0.0, cellsVoxelBudget = 0.0;
+  int64_t governorDecreases = 0, governorIncreases = 0, governorEmergencies = 0;
 };
 
 class StatusReporter {

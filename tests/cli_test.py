@@ -562,6 +562,7 @@ class Control(Tmp):
         self.assertLessEqual(st["interval"]["work_ms_p50"], st["interval"]["work_ms_p99"])
         self.assertEqual(st["config_generation"], 1)
         self.assertIn("terrain", st["layers"])
+        self.assertIsNone(st["governor"], "no governor in the default config")
         for phase in ("input", "lod", "submit", "gpu_finish", "present"):
             self.assertIn(phase, st["interval"]["phase_ms_max"])
         final = self.status()
@@ -618,6 +619,11 @@ class Control(Tmp):
         self.assertEqual(budgets, sorted(budgets, reverse=True), budgets)
         self.assertTrue(all(r["terrain_tolerance_px"] == "nan" and r["hdlod_tolerance_px"] == "nan" for r in rows))
         self.assertGreater(float(rows[-1]["gov_predicted_ms"]), 0.0)
+        # The status report says what detail the governor gives (the last report: at exit).
+        gov = self.status()["governor"]
+        self.assertEqual(gov["cells_voxel_budget"], float(m.group(1)))
+        self.assertIsNone(gov["terrain_tolerance_px"])
+        self.assertGreater(gov["decreases"], 0)
 
     def test_governor_steers_the_forest_near_distance(self):
         local = self.example_scene("forest_roam.toml")

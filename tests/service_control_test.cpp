@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <unistd.h>
 
@@ -132,6 +133,21 @@ TEST(Status, ReportCoversTheIntervalAndReplacesTheFile) {
   r.report(2'000'000'000, ctx);
   EXPECT_NE(r.json().find("\"interval\":{\"seconds\":1.000,\"frames\":0"), std::string::npos) << r.json();
   EXPECT_NE(r.json().find("\"frames\":10,\"overruns\":1"), std::string::npos) << r.json();
+  EXPECT_NE(r.json().find("\"governor\":null"), std::string::npos) << r.json();
+  EXPECT_EQ(r.report(3'000'000'000, ctx).find("detail"), std::string::npos);
+  // With the governor: the detail it gives each layer the scene has, in the line and the file.
+  ctx.haveGovernor = true;
+  ctx.terrainTolerance_px = 4.0;
+  ctx.forestNear_m = std::numeric_limits<double>::quiet_NaN();  // no [forest]
+  ctx.hdlodTolerance_px = std::numeric_limits<double>::quiet_NaN();
+  ctx.cellsVoxelBudget = 12000.0;
+  ctx.governorDecreases = 3;
+  const std::string governed = r.report(4'000'000'000, ctx);
+  EXPECT_NE(governed.find("; detail: terrain 4.00 px, cells 12000 voxels"), std::string::npos) << governed;
+  EXPECT_NE(r.json().find("\"governor\":{\"terrain_tolerance_px\":4.000,\"forest_near_m\":null,"
+                          "\"hdlod_tolerance_px\":null,\"cells_voxel_budget\":12000.000,\"decreases\":3,"),
+            std::string::npos)
+      << r.json();
   std::filesystem::remove_all(dir);
 }
 
