@@ -1,6 +1,7 @@
 #include "ig/service.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -545,6 +546,15 @@ struct Service::Impl {
   }
   std::string lastReloadError;
 
+  // The detail the governor gives each layer now (its knobs; the forest's bands as in use, a
+  // knob it refused leaves them), NaN for a layer the scene does not have. Needs the governor.
+  std::array<double, lod::kGovLayers> governorDetail() const {
+    std::array<double, lod::kGovLayers> d{};
+    for (int l = 0; l < lod::kGovLayers; ++l) d[static_cast<size_t>(l)] = governor->knob(static_cast<lod::GovLayer>(l));
+    if (forest) d[static_cast<size_t>(lod::GovLayer::Forest)] = forest->nearDistance();
+    return d;
+  }
+
   // The scene's sun and fog (start-up and reload).
   void setLighting() {
     const double az = scene.sun.azimuth_deg * kDeg, el = scene.sun.elevation_deg * kDeg;
@@ -901,11 +911,11 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
     c.scheduling = info_.scheduling;
     if (m.governor) {
       c.haveGovernor = true;
-      const auto knob = [&](lod::GovLayer l) { return m.governor->knob(l); };  // NaN for an absent layer
-      c.terrainTolerance_px = knob(lod::GovLayer::Terrain);
-      c.forestNear_m = m.forest ? m.forest->nearDistance() : knob(lod::GovLayer::Forest);
-      c.hdlodTolerance_px = knob(lod::GovLayer::Hdlod);
-      c.cellsVoxelBudget = knob(lod::GovLayer::Cells);
+      const std::array<double, lod::kGovLayers> d = m.governorDetail();
+      c.terrainTolerance_px = d[static_cast<size_t>(lod::GovLayer::Terrain)];
+      c.forestNear_m = d[static_cast<size_t>(lod::GovLayer::Forest)];
+      c.hdlodTolerance_px = d[static_cast<size_t>(lod::GovLayer::Hdlod)];
+      c.cellsVoxelBudget = d[static_cast<size_t>(lod::GovLayer::Cells)];
       const lod::GovStats& g = m.governor->stats();
       c.governorDecreases = g.decreases;
       c.governorIncreases = g.increases;
@@ -1041,10 +1051,11 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
       gs.phase_ms[static_cast<size_t>(lod::GovPhase::Gpu)] = r.timing.phase_ms[static_cast<size_t>(Phase::GpuFinish)];
       gs.phase_ms[static_cast<size_t>(lod::GovPhase::Forest)] = m.forestSelect_ms;
       gs.phase_ms[static_cast<size_t>(lod::GovPhase::Hdlod)] = m.hdlodSelect_ms;
-      if (m.forest) gs.load[static_cast<size_t>(lod::GovLayer::Forest)] = static_cast<double>(m.forest->stats().treesDrawn);
       gs.phase_ms[static_cast<size_t>(lod::GovPhase::Cells)] = m.cellsSelect_ms;
-      if (m.hdlod) gs.load[static_cast<size_t>(lod::GovLayer::Hdlod)] = static_cast<double>(m.hdlod->stats().select.triangles);
+      // Loads: what each layer drew (absent layers are ignored whatever they hold).
       if (m.terrainMesh) gs.load[static_cast<size_t>(lod::GovLayer::Terrain)] = static_cast<double>(m.terrainMesh->emitted);
+      if (m.forest) gs.load[static_cast<size_t>(lod::GovLayer::Forest)] = static_cast<double>(m.forest->stats().treesDrawn);
+      if (m.hdlod) gs.load[static_cast<size_t>(lod::GovLayer::Hdlod)] = static_cast<double>(m.hdlod->stats().select.triangles);
       if (m.cells) gs.load[static_cast<size_t>(lod::GovLayer::Cells)] = static_cast<double>(m.cells->stats().select.drawnVoxels);
       gs.frame_ms = r.timing.work_ms;
       m.governor->update(gs);
@@ -1104,25 +1115,20 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
   }
   if (m.governor) {
     const lod::GovStats& g = m.governor->stats();
+    const std::array<double, lod::kGovLayers> d = m.governorDetail();
     std::string knobs;
     char buf[160];
-    if (m.terrainMesh) {
-      std::snprintf(buf, sizeof buf, "terrain tolerance now %.2f px", m.governor->knob(lod::GovLayer::Terrain));
-      knobs += buf;
-    }
-    if (m.forest) {
-      std::snprintf(buf, sizeof buf, "%sforest near distance now %.0f m", knobs.empty() ? "" : ", ",
-                    m.forest->nearDistance());
-      knobs += buf;
-    }
-    if (m.hdlod) {
-      std::snprintf(buf, sizeof buf, "%shdlod tolerance now %.2f px", knobs.empty() ? "" : ", ",
-                    m.governor->knob(lod::GovLayer::Hdlod));
-      knobs += buf;
-    }
-    if (m.cells) {
-      std::snprintf(buf, sizeof buf, "%scells voxel budget now %.0f", knobs.empty() ? "" : ", ",
-                    m.governor->knob(lod::GovLayer::Cells));
+    for (int l = 0; l < lod::kGovLayers; ++l) {
+      const double v = d[static_cast<size_t>(l)];
+      if (std::isnan(v)) continue;
+      const char* sep = knobs.empty() ? "" : ", ";
+      switch (static_cast<lod::GovLayer>(l)) {
+        case lod::GovLayer::Terrain: std::snprintf(buf, sizeof buf, "%sterrain tolerance now %.2f px", sep, v); break;
+        case lod::GovLayer::Forest: std::snprintf(buf, sizeof buf, "%sforest near distance now %.0f m", sep, v); break;
+        case lod::GovLayer::Hdlod: std::snprintf(buf, sizeof buf, "%shdlod tolerance now %.2f px", sep, v); break;
+        case lod::GovLayer::Cells: std::snprintf(buf, sizeof buf, "%scells voxel budget now %.0f", sep, v); break;
+        case lod::GovLayer::Count: buf[0] = '\0'; break;
+      }
       knobs += buf;
     }
     int64_t reversals = 0;

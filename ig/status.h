@@ -8,6 +8,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -18,6 +19,7 @@ namespace ig {
 
 // What the frame loop knows besides the frames themselves.
 struct StatusContext {
+  static constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
   const char* state = "running";    // "running" | "stopping"
   double rate_hz = 0.0;
   double budgetFrame_ms = 0.0;      // the work budget of a frame
@@ -34,7 +36,7 @@ struct StatusContext {
   // The frame governor ([governor] enabled): the detail it gives each layer now (NaN: the scene
   // has no such layer) and its decisions so far.
   bool haveGovernor = false;
-  double terrainTolerance_px = 0.0, forestNear_m = 0.0, hdlodTolerance_px = 0.0, cellsVoxelBudget = 0.0;
+  double terrainTolerance_px = kNaN, forestNear_m = kNaN, hdlodTolerance_px = kNaN, cellsVoxelBudget = kNaN;
   int64_t governorDecreases = 0, governorIncreases = 0, governorEmergencies = 0;
 };
 

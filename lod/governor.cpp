@@ -13,6 +13,12 @@ namespace {
 // 2.6 % a frame; a step is not a trend (the emergency step handles it).
 constexpr double kMaxTrend = 0.1;
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
+// Load multipliers of knobs that stay where they are.
+constexpr std::array<double, kGovLayers> kHeld = [] {
+  std::array<double, kGovLayers> a{};
+  a.fill(1.0);
+  return a;
+}();
 
 bool goodMeasurement(double v) { return std::isfinite(v) && v >= 0.0; }
 
@@ -380,8 +386,7 @@ double Governor::knobLoadScale(size_t l, double v) const {
 }
 
 std::array<double, kGovLayers> Governor::knobLoadScales(const std::array<double, kGovLayers>& next) const {
-  std::array<double, kGovLayers> scale;
-  scale.fill(1.0);
+  std::array<double, kGovLayers> scale = kHeld;
   for (size_t l = 0; l < static_cast<size_t>(kGovLayers); ++l)
     if (layerPresent_[l]) scale[l] = knobLoadScale(l, next[l]);
   return scale;
@@ -491,7 +496,7 @@ const GovDecision& Governor::update(const GovSample& sample) {
   if (!frameGood) {
     ++stats_.invalidFrames;
     d.action = GovAction::Invalid;
-    const Prediction held = predict(knobLoadScales(knob_));
+    const Prediction held = predict(kHeld);
     d.predicted_ms = d.predictedHeld_ms = held.total_ms;
     d.margin_ms = margin();
     d.loadCap = lastDecision_.loadCap;  // nothing learnt: the caps stand
@@ -502,7 +507,7 @@ const GovDecision& Governor::update(const GovSample& sample) {
   if (d.overrun) ++stats_.overruns;
 
   // Decide.
-  const Prediction held = predict(knobLoadScales(knob_));
+  const Prediction held = predict(kHeld);
   d.predictedHeld_ms = held.total_ms;
   d.margin_ms = margin();
   d.spike_ms = spike();
