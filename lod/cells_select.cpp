@@ -838,76 +838,81 @@ CellSelectStats CellSelector::select(const CellView& view, std::span<const Resid
     }
   }
 
-  // 3. Costs: mc of every cut cell, then of the mergeable cells (from their children).
+  // 3. Costs: mc of every cut cell, then of the mergeable cells (from their children). The
+  // same pass over the cut sums each mergeable cell's children (a mergeable cell's children are
+  // all in the cut and drawable: every live cut cell but the root is resident after step 2, so
+  // its cheapest cover is min(V, sum of their mc); each cut cell knows its parent's slot) and
+  // queues the split candidates of the heap window, around where the greedy stopped last frame
+  // (the cut's evaluation is final here: forced merges below only add cells that are not
+  // refinable, and the queues skip cells that left the cut).
   unknownCover_.clear();
-  cost_ = 0;
+  splitHeap_.clear();
+  mergeHeap_.clear();
+  splitFloor_ = 0.95f * lastT_;
+  mergeCeil_ = lastT_ / 0.95f;
   scratch_.clear();
-  for (uint32_t i = 0; i < cut_.n; ++i) {
-    const uint8_t f = cut_.flags[i];
-    uint64_t mc = 0;
-    if (f & kLive) {
-      mc = cut_.voxels[i];
-      // Cut by the frustum boundary: the cheapest cover (below), unless the certificate holds.
-      if (!(f & kInside) && (f & kHasChildren) && cut_.e[i] > alpha_ && (cut_.cert[i] == 0 || !certificateHolds(cut_, i)))
-        scratch_.push_back(i);
+  std::fill_n(childSum_.begin(), mergeable_.n, uint64_t{0});
+  {
+    uint64_t total = 0;
+    const uint32_t n = cut_.n;
+    const uint8_t* flags = cut_.flags.data();
+    const uint32_t *voxels = cut_.voxels.data(), *up = cut_.up.data(), *cells = cut_.cell.data();
+    const float* es = cut_.e.data();
+    uint32_t* mcs = cut_.mc.data();
+    uint64_t* sums = childSum_.data();
+    const float alpha = alpha_, floor = splitFloor_;
+    for (uint32_t i = 0; i < n; ++i) {
+      const uint32_t mc = (flags[i] & kLive) ? voxels[i] : 0;
+      mcs[i] = mc;
+      total += mc;
+      if (up[i] != kNoCell) sums[up[i]] += mc;
     }
-    cut_.mc[i] = static_cast<uint32_t>(mc);
-    cost_ += mc;
+    cost_ = total;
+    for (uint32_t i = 0; i < n; ++i) {
+      const uint8_t f = flags[i];
+      if ((f & (kLive | kHasChildren)) != (kLive | kHasChildren) || !(es[i] > alpha)) continue;
+      if (es[i] >= floor) splitHeap_.push_back({es[i], cells[i]});
+      // Cut by the frustum boundary: the cheapest cover (below), unless the certificate holds.
+      if (!(f & kInside) && (cut_.cert[i] == 0 || !certificateHolds(cut_, i))) scratch_.push_back(i);
+    }
   }
-  // The covers, their children's nodes fetched a few cells ahead (the tree walk waits on memory).
+  // The covers, each cell's node and then its children's fetched a few cells ahead (the tree walk
+  // waits on memory).
   constexpr size_t kAhead = 6;
+  for (size_t k = 0; k < std::min(2 * kAhead, scratch_.size()); ++k) __builtin_prefetch(&node_[cut_.cell[scratch_[k]]]);
   for (size_t k = 0; k < std::min(kAhead, scratch_.size()); ++k) prefetchChildren(cut_.cell[scratch_[k]]);
   for (size_t k = 0; k < scratch_.size(); ++k) {
+    if (k + 2 * kAhead < scratch_.size()) __builtin_prefetch(&node_[cut_.cell[scratch_[k + 2 * kAhead]]]);
     if (k + kAhead < scratch_.size()) prefetchChildren(cut_.cell[scratch_[k + kAhead]]);
     const uint32_t i = scratch_[k];
     const uint64_t mc = coverCost(cut_.cell[i], {cut_.e[i], cut_.flags[i]});
     cut_.cert[i] = mc == cut_.voxels[i] ? makeCertificate(cut_.cell[i]) : 0;
     cost_ -= cut_.voxels[i] - mc;
+    if (cut_.up[i] != kNoCell) childSum_[cut_.up[i]] -= cut_.voxels[i] - mc;
     cut_.mc[i] = static_cast<uint32_t>(mc);
   }
-  // A mergeable cell's children are all in the cut and drawable (every live cut cell but the
-  // root is resident after step 2), so its cheapest cover is min(V, sum of their mc): summed in
-  // one pass over the cut, each cut cell knowing its parent's slot.
-  std::fill_n(childSum_.begin(), mergeable_.n, uint64_t{0});
-  for (uint32_t i = 0; i < cut_.n; ++i)
-    if (cut_.up[i] != kNoCell) childSum_[cut_.up[i]] += cut_.mc[i];
+  // 4. One pass over the mergeable cells: their cost, the merge candidates of the heap window,
+  // and those that became invisible or sub-pixel (merged: minimum quality).
+  scratch_.clear();
   for (uint32_t i = 0; i < mergeable_.n; ++i) {
     const uint8_t f = mergeable_.flags[i];
+    const float e = mergeable_.e[i];
     uint64_t mc = 0;
     if (f & kLive) {
       mc = mergeable_.voxels[i];
-      if (!(f & kInside) && (f & kHasChildren) && mergeable_.e[i] > alpha_) mc = std::min(mc, childSum_[i]);
+      if (!(f & kInside) && (f & kHasChildren) && e > alpha_) mc = std::min(mc, childSum_[i]);
     }
     mergeable_.mc[i] = static_cast<uint32_t>(mc);
+    if (e <= mergeCeil_) mergeHeap_.push_back({e, mergeable_.cell[i]});
+    if (!refinable(mergeable_.cell[i], {e, f}) && drawable(mergeable_.cell[i], {e, f})) scratch_.push_back(mergeable_.cell[i]);
   }
-
-  // 4. Mergeable cells that became invisible or sub-pixel: minimum quality.
-  scratch_.clear();
-  for (uint32_t i = 0; i < mergeable_.n; ++i) {
-    const Ev x{mergeable_.e[i], mergeable_.flags[i]};
-    if (!refinable(mergeable_.cell[i], x) && drawable(mergeable_.cell[i], x)) scratch_.push_back(mergeable_.cell[i]);
-  }
-  splitHeap_.clear();
-  mergeHeap_.clear();
-  splitFloor_ = kInf;
-  mergeCeil_ = -kInf;
   forcedMerges_ = 0;
   for (size_t k = 0; k < scratch_.size(); ++k) {
     const uint32_t p = scratch_[k];
     if (node_[p].state != kMergeable) continue;
-    merge(p);  // cascades to parents that are not refinable either
+    merge(p);  // cascades to parents that are not refinable either (queued as merge candidates when refinable)
     ++forcedMerges_;
   }
-
-  // The heap windows, around where the greedy stopped last frame.
-  splitFloor_ = 0.95f * lastT_;
-  mergeCeil_ = lastT_ / 0.95f;
-  for (uint32_t i = 0; i < cut_.n; ++i) {
-    const Ev x{cut_.e[i], cut_.flags[i]};
-    if (x.e >= splitFloor_ && refinable(cut_.cell[i], x)) splitHeap_.push_back({x.e, cut_.cell[i]});
-  }
-  for (uint32_t i = 0; i < mergeable_.n; ++i)
-    if (mergeable_.e[i] <= mergeCeil_) mergeHeap_.push_back({mergeable_.e[i], mergeable_.cell[i]});
   std::make_heap(splitHeap_.begin(), splitHeap_.end(), splitLess<HeapEntry, HeapEntry>);
   std::make_heap(mergeHeap_.begin(), mergeHeap_.end(), mergeLess<HeapEntry, HeapEntry>);
   auto doMerge = [&](uint32_t p) {
@@ -1005,36 +1010,49 @@ CellSelectStats CellSelector::select(const CellView& view, std::span<const Resid
 
   // 7. Emit the realization's drawn cells.
   if (stats.feasible) {
-    uint32_t written = 0;
-    for (uint32_t i = 0; i < cut_.n; ++i) {
-      const uint32_t c = cut_.cell[i];
-      const uint8_t f = cut_.flags[i];
-      if (!(f & kLive)) {
-        ++stats.cutCells;
+    uint32_t written = 0, cutCells = 0;
+    uint64_t drawnVoxels = 0;
+    float maxE = 0.0f;
+    bool truncated = false;
+    // Every live cut cell but the root is resident here (step 2 repaired evictions, and splits
+    // and merges only make drawable cells cut cells): the root may not have arrived yet.
+    const bool rootMissing = !resident(0);
+    auto emit = [&](uint32_t cell, Ev x) {
+      ++cutCells;
+      if (!(x.flags & kLive)) return;
+      drawnVoxels += node_[cell].voxels;
+      maxE = std::max(maxE, x.e);
+      if (written < draw.size()) draw[written++] = {cell, x.e};
+      else truncated = true;
+    };
+    const uint32_t n = cut_.n;
+    const uint8_t* flags = cut_.flags.data();
+    const uint32_t *cells = cut_.cell.data(), *voxels = cut_.voxels.data(), *mcs = cut_.mc.data();
+    const float* es = cut_.e.data();
+    CellDraw* out = draw.data();
+    const uint32_t cap = static_cast<uint32_t>(std::min<size_t>(draw.size(), 0xFFFFFFFFu));
+    for (uint32_t i = 0; i < n; ++i) {
+      if (!(flags[i] & kLive)) {
+        ++cutCells;
         continue;
       }
-      // Every live cut cell but the root is resident here (step 2 repaired evictions, and splits
-      // and merges only make drawable cells cut cells): the root may not have arrived yet.
-      if (c == 0 && !resident(c)) continue;
-      auto emit = [&](uint32_t cell, Ev x) {
-        ++stats.cutCells;
-        if (!(x.flags & kLive)) return;
-        stats.drawnVoxels += node_[cell].voxels;
-        stats.maxVoxel_px = std::max(stats.maxVoxel_px, x.e);
-        if (written < draw.size()) draw[written++] = {cell, x.e};
-        else stats.drawTruncated = true;
-      };
-      if (cut_.mc[i] < cut_.voxels[i]) {
+      const uint32_t c = cells[i];
+      if (c == 0 && rootMissing) continue;
+      if (mcs[i] < voxels[i]) {
         emitCover(c, false, emit);
-      } else {
-        ++stats.cutCells;
-        stats.drawnVoxels += cut_.voxels[i];
-        stats.maxVoxel_px = std::max(stats.maxVoxel_px, cut_.e[i]);
-        if (written < draw.size()) draw[written++] = {c, cut_.e[i]};
-        else stats.drawTruncated = true;
+        continue;
       }
+      ++cutCells;
+      drawnVoxels += voxels[i];
+      maxE = std::max(maxE, es[i]);
+      if (written < cap) out[written++] = {c, es[i]};
+      else truncated = true;
     }
     stats.drawnCells = written;
+    stats.cutCells = cutCells;
+    stats.drawnVoxels = drawnVoxels;
+    stats.maxVoxel_px = maxE;
+    stats.drawTruncated = truncated;
   }
   return stats;
 }
