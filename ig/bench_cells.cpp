@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "ig/bench_cells_path.h"
 #include "ig/cells_tool.h"
 #include "ig/stats.h"
 #include "lod/cells.h"
@@ -22,27 +23,6 @@ double msSince(BenchClock::time_point t0) { return std::chrono::duration<double,
 
 constexpr double kSceneEdge_m = kCellsSceneEdge_m;
 
-// A slow fly-through of the cube, a turn, a teleport to the far corner at 2/3, on.
-lod::Camera pathCamera(int i, int frames) {
-  lod::Camera cam;
-  cam.fovY_deg = 60.0;
-  cam.aspect = 16.0 / 9.0;
-  cam.near_m = 0.5;
-  cam.far_m = 5000.0;
-  const double t = i / 60.0;
-  if (i < 2 * frames / 3) {
-    cam.eye_m = {200.0 + 40.0 * t, 150.0 + 25.0 * t, 400.0 + 5.0 * std::sin(t)};
-    cam.heading_deg = 30.0 + 20.0 * std::sin(0.3 * t);
-    cam.pitch_deg = -5.0;
-  } else {
-    const double s = t - 2.0 * frames / 3 / 60.0;
-    cam.eye_m = {900.0 - 30.0 * s, 950.0 - 20.0 * s, 700.0};
-    cam.heading_deg = 225.0;
-    cam.pitch_deg = -15.0;
-  }
-  return cam;
-}
-
 // What a frame chose, in a few numbers: equal in every replay of the same views and arrivals.
 uint64_t choiceSignature(const lod::CellSelectStats& s) {
   return s.drawnVoxels * 0x9E3779B97F4A7C15ull ^ (uint64_t{s.drawnCells} << 40) ^ (uint64_t{s.requestedCells} << 20) ^
@@ -54,6 +34,30 @@ struct SweepPoint {
   double minQualityP50_px = 0.0, minQualityMax_px = 0.0, selectP50_ms = 0.0, selectP99_ms = 0.0;
   uint64_t voxelsP50 = 0, cutCellsP50 = 0;
 };
+
+// The tree as scripts/cells-ab reads it: header, count, one CellDesc per cell.
+int dumpTree(const lod::CellTree& tree, const std::string& path) {
+  std::vector<lod::CellDesc> cells(tree.size());
+  for (uint32_t c = 0; c < tree.size(); ++c) {
+    const glm::uvec3 k = tree.coord(c);
+    cells[c] = {tree.parent(c), static_cast<uint8_t>((k.x & 1) | ((k.y & 1) << 1) | ((k.z & 1) << 2)), tree.voxels(c),
+                tree.bytes(c)};
+  }
+  const lod::CellTreeInfo& info = tree.info();
+  const double header[5] = {info.rootMin_m.x, info.rootMin_m.y, info.rootMin_m.z, info.rootEdge_m,
+                            static_cast<double>(info.cellVoxelDepth)};
+  const uint64_t n = cells.size();
+  FILE* f = std::fopen(path.c_str(), "wb");
+  bool ok = f != nullptr && std::fwrite(header, sizeof header, 1, f) == 1 && std::fwrite(&n, sizeof n, 1, f) == 1 &&
+            std::fwrite(cells.data(), sizeof(lod::CellDesc), cells.size(), f) == cells.size();
+  if (f != nullptr && std::fclose(f) != 0) ok = false;
+  if (!ok) {
+    std::fprintf(stderr, "igbench cells: cannot write the tree to %s\n", path.c_str());
+    return 1;
+  }
+  std::fprintf(stderr, "igbench cells: %u cells, %d levels written to %s\n", tree.size(), tree.levels(), path.c_str());
+  return 0;
+}
 
 }  // namespace
 
@@ -90,6 +94,7 @@ int runCellsBench(const CellsBenchOptions& o) {
     return 1;
   }
   const double buildMs = msSince(tBuild);
+  if (!o.dumpTree.empty()) return dumpTree(tree, o.dumpTree);
   std::vector<double> dimension;
   for (int l = 0; l < pyramid.levels(); ++l) dimension.push_back(pyramid.dimension(l));
   std::vector<size_t> voxelsPerLevel;
@@ -137,7 +142,7 @@ int runCellsBench(const CellsBenchOptions& o) {
         else inFlight[keep++] = c;
       }
       inFlight.resize(keep);
-      view.camera = pathCamera(i, o.frames);
+      view.camera = cellsPathCamera(i, o.frames);
       view.camera.aspect = 16.0 / 9.0;
       const auto t0 = BenchClock::now();
       const lod::CellSelectStats s = selector.select(view, residency, draw, requests);
@@ -185,7 +190,7 @@ int runCellsBench(const CellsBenchOptions& o) {
       lod::CellSelector sel(tree);
       size_t k = 0;
       for (int i = 0; i < o.frames; i += 4) {
-        v.camera = pathCamera(i, o.frames);
+        v.camera = cellsPathCamera(i, o.frames);
         const auto t0 = BenchClock::now();
         const lod::CellSelectStats s = sel.select(v, {}, draw, requests);
         const double dt = msSince(t0);

@@ -8,6 +8,7 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
 
 #include "ig/bench_cells_stream.h"
 
@@ -29,6 +30,9 @@ struct CellsBenchOptions {
   // The real mesh, the pictures and nginx (ig/bench_cells_stream.h); off: selection only.
   bool withMesh = true;
   CellsStreamBenchOptions mesh;
+  // Non-empty: write the cell tree to this file (5 doubles: root corner x, y, z, root edge, voxel
+  // depth; uint64 cell count; lod::CellDesc per cell) and exit (scripts/cells-ab).
+  std::string dumpTree;
 };
 
 int runCellsBench(const CellsBenchOptions& options);

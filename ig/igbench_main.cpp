@@ -291,6 +291,9 @@ int main(int argc, char** argv) {
   cells->add_option("--server-script", cellsOptions.mesh.serverScript, "scripts/cells-server (run from the source tree)")
       ->capture_default_str();
   cells->add_flag("--quick", cellsOptions.mesh.quick, "Streaming at 10 and 100 Mbit/s only, 3 sweep points (for tests)");
+  cells->add_option("--dump-tree", cellsOptions.dumpTree,
+                    "Write the cell tree (header + one CellDesc per cell) to this file and exit, for scripts/cells-ab "
+                    "(the selection of two revisions side by side)");
   ig::ForestBenchOptions forestOptions;
   CLI::App* forest = app.add_subcommand(
       "forest",

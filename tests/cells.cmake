@@ -18,4 +18,8 @@ if(NOT IG_SANITIZE)
   add_test(NAME cells_bench_test COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/cells_bench_test.sh $<TARGET_FILE:igbench>
            ${PROJECT_SOURCE_DIR})
   set_tests_properties(cells_bench_test PROPERTIES FIXTURES_REQUIRED cells_data TIMEOUT 300)
+  # scripts/cells-ab (the selection of two revisions side by side) builds and runs on a small tree.
+  add_test(NAME cells_ab_test COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/cells_ab_test.sh $<TARGET_FILE:igbench>
+           ${PROJECT_SOURCE_DIR})
+  set_tests_properties(cells_ab_test PROPERTIES TIMEOUT 300)
 endif()

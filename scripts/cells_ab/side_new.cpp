@@ -1,0 +1,2 @@
+#define SIDE(x) new_##x
+#include "side.inc"

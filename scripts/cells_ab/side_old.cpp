@@ -1,0 +1,2 @@
+#define SIDE(x) old_##x
+#include "side.inc"
