@@ -261,7 +261,7 @@ CellSelector::CellSelector(const CellTree& tree, const CellSelectorConfig& confi
   for (uint32_t c = 0; c < n; ++c) minBytes_ = std::min(minBytes_, uint64_t{tree.bytes(c)});
   cut_.allocate(leaves);           // a cut never holds more cells than there are leaves
   mergeable_.allocate(n - leaves);  // nor refined cells more than inner cells
-  childSum_.assign(n - leaves + 4, 0);
+  childSum_.assign(n - leaves + 4, 0);  // the last slot: a spare (see select())
   scratch_.reserve(n);
   evicted_.reserve(leaves);
   unknownCover_.reserve(n);
@@ -901,20 +901,56 @@ CellSelectStats CellSelector::select(const CellView& view, std::span<const Resid
     uint32_t* mcs = cut_.mc.data();
     uint64_t* sums = childSum_.data();
     const float alpha = alpha_, floor = splitFloor_;
-    for (uint32_t i = 0; i < n; ++i) {
-      const uint32_t mc = (flags[i] & kLive) ? voxels[i] : 0;
+    // Cells without a mergeable parent add to a spare slot past the real ones (no branch).
+    const uint32_t spare = static_cast<uint32_t>(childSum_.size() - 1);
+    // A cell that is refinable (live, with children, e > alpha) is a split candidate of the
+    // window (bit 0: e >= floor) and, when cut by the frustum boundary, needs its cheapest cover
+    // unless its certificate holds (bit 1). Few cells are either: the masks come four at a time.
+    auto visit = [&](uint32_t i, uint32_t want) {
+      if (want & 1) splitHeap_.push_back({es[i], cells[i]});
+      if ((want & 2) && (cut_.cert[i] == 0 || !certificateHolds(cut_, i))) scratch_.push_back(i);
+    };
+    uint32_t i = 0;
+#if defined(__SSE2__) && !defined(IG_CELLS_NO_SIMD)
+    {
+      const __m128i zero = _mm_setzero_si128(), live1 = _mm_set1_epi32(kLive), kids = _mm_set1_epi32(kHasChildren),
+                    inside = _mm_set1_epi32(kInside);
+      const __m128 va = _mm_set1_ps(alpha), vf = _mm_set1_ps(floor);
+      __m128i acc = zero;  // two 64-bit sums
+      for (; i + 4 <= n; i += 4) {
+        int32_t f4;
+        std::memcpy(&f4, flags + i, 4);
+        const __m128i f = _mm_unpacklo_epi16(_mm_unpacklo_epi8(_mm_cvtsi32_si128(f4), zero), zero);
+        const __m128i live = _mm_cmpeq_epi32(_mm_and_si128(f, live1), live1);
+        const __m128i mc = _mm_and_si128(_mm_loadu_si128(reinterpret_cast<const __m128i*>(voxels + i)), live);
+        _mm_storeu_si128(reinterpret_cast<__m128i*>(mcs + i), mc);
+        acc = _mm_add_epi64(acc, _mm_add_epi64(_mm_unpacklo_epi32(mc, zero), _mm_unpackhi_epi32(mc, zero)));
+        for (uint32_t k = 0; k < 4; ++k) sums[std::min(up[i + k], spare)] += mcs[i + k];
+        const __m128 e = _mm_loadu_ps(es + i);
+        const __m128i refinable = _mm_and_si128(_mm_and_si128(live, _mm_cmpeq_epi32(_mm_and_si128(f, kids), kids)),
+                                                _mm_castps_si128(_mm_cmpgt_ps(e, va)));
+        const int cand = _mm_movemask_ps(_mm_castsi128_ps(_mm_and_si128(refinable, _mm_castps_si128(_mm_cmpge_ps(e, vf)))));
+        const int strad = _mm_movemask_ps(
+            _mm_castsi128_ps(_mm_andnot_si128(_mm_cmpeq_epi32(_mm_and_si128(f, inside), inside), refinable)));
+        if ((cand | strad) == 0) continue;
+        for (uint32_t k = 0; k < 4; ++k)
+          visit(i + k, static_cast<uint32_t>(((cand >> k) & 1) | (((strad >> k) & 1) << 1)));
+      }
+      uint64_t lanes[2];
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(lanes), acc);
+      total = lanes[0] + lanes[1];
+    }
+#endif
+    for (; i < n; ++i) {
+      const uint8_t f = flags[i];
+      const uint32_t mc = (f & kLive) ? voxels[i] : 0;
       mcs[i] = mc;
       total += mc;
-      if (up[i] != kNoCell) sums[up[i]] += mc;
+      sums[std::min(up[i], spare)] += mc;
+      if ((f & (kLive | kHasChildren)) != (kLive | kHasChildren) || !(es[i] > alpha)) continue;
+      visit(i, (es[i] >= floor ? 1u : 0u) | (f & kInside ? 0u : 2u));
     }
     cost_ = total;
-    for (uint32_t i = 0; i < n; ++i) {
-      const uint8_t f = flags[i];
-      if ((f & (kLive | kHasChildren)) != (kLive | kHasChildren) || !(es[i] > alpha)) continue;
-      if (es[i] >= floor) splitHeap_.push_back({es[i], cells[i]});
-      // Cut by the frustum boundary: the cheapest cover (below), unless the certificate holds.
-      if (!(f & kInside) && (cut_.cert[i] == 0 || !certificateHolds(cut_, i))) scratch_.push_back(i);
-    }
   }
   // The covers, each cell's node and then its children's fetched a few cells ahead (the tree walk
   // waits on memory).
