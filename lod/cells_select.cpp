@@ -1108,6 +1108,25 @@ CellSelectStats CellSelector::select(const CellView& view, std::span<const Resid
     const float* es = cut_.e.data();
     CellDraw* out = draw.data();
     const uint32_t cap = static_cast<uint32_t>(std::min<size_t>(draw.size(), 0xFFFFFFFFu));
+    // One cut cell: not live (counted, not drawn), the root not arrived yet (neither), drawn as
+    // its cheaper cover, or drawn itself.
+    auto emitCut = [&](uint32_t k) {
+      if (!(flags[k] & kLive)) {
+        ++cutCells;
+        return;
+      }
+      const uint32_t c = cells[k];
+      if (c == 0 && rootMissing) return;
+      if (mcs[k] < voxels[k]) {
+        emitCover(c, false, emit);
+        return;
+      }
+      ++cutCells;
+      drawnVoxels += voxels[k];
+      maxE = std::max(maxE, es[k]);
+      if (written < cap) out[written++] = {c, es[k]};
+      else truncated = true;
+    };
     uint32_t i = 0;
 #if defined(__SSE2__) && !defined(IG_CELLS_NO_SIMD)
     // Four cells at a time while no cover is among them (~93 % of the groups) and the root is
@@ -1126,20 +1145,7 @@ CellSelectStats CellSelector::select(const CellView& view, std::span<const Resid
         const __m128i plain = _mm_cmpeq_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(mcs + i)), v);
         const int lm = _mm_movemask_ps(_mm_castsi128_ps(live));
         if (_mm_movemask_ps(_mm_castsi128_ps(_mm_andnot_si128(plain, live))) != 0) {
-          // A cover among them: this group in order, as below.
-          for (uint32_t k = i; k < i + 4; ++k) {
-            if (!(flags[k] & kLive)) {
-              ++cutCells;
-            } else if (mcs[k] < voxels[k]) {
-              emitCover(cells[k], false, emit);
-            } else {
-              ++cutCells;
-              drawnVoxels += voxels[k];
-              maxE = std::max(maxE, es[k]);
-              if (written < cap) out[written++] = {cells[k], es[k]};
-              else truncated = true;
-            }
-          }
+          for (uint32_t k = i; k < i + 4; ++k) emitCut(k);  // a cover among them: one by one, in order
           continue;
         }
         cutCells += 4;
@@ -1165,23 +1171,7 @@ CellSelectStats CellSelector::select(const CellView& view, std::span<const Resid
       maxE = std::max(std::max(maxE, std::max(maxes[0], maxes[1])), std::max(maxes[2], maxes[3]));
     }
 #endif
-    for (; i < n; ++i) {
-      if (!(flags[i] & kLive)) {
-        ++cutCells;
-        continue;
-      }
-      const uint32_t c = cells[i];
-      if (c == 0 && rootMissing) continue;
-      if (mcs[i] < voxels[i]) {
-        emitCover(c, false, emit);
-        continue;
-      }
-      ++cutCells;
-      drawnVoxels += voxels[i];
-      maxE = std::max(maxE, es[i]);
-      if (written < cap) out[written++] = {c, es[i]};
-      else truncated = true;
-    }
+    for (; i < n; ++i) emitCut(i);
     stats.drawnCells = written;
     stats.cutCells = cutCells;
     stats.drawnVoxels = drawnVoxels;
