@@ -458,6 +458,12 @@ class Control(Tmp):
         if tight:
             text = re.sub(r"(?m)^frame_ms = 0$", "frame_ms = 1", text)
         write(config, text)
+
+    def run_small(self, config, frames, *extra, scene=None):
+        """igd free-running `frames` frames at 160x90 with `config` (and `scene`), to the end."""
+        return run([IGD, "--config", config, *(["--scene", scene] if scene else []), "--frames", str(frames),
+                    "--free-run", "--width", "160", "--height", "90", *extra], timeout=RUN, cwd=self.tmp)
+
     def start(self, config, stats):
         err_path = os.path.join(self.tmp, "igd.stderr")
         with open(err_path, "w") as err:
@@ -573,8 +579,7 @@ class Control(Tmp):
         config, scene = self.configs()
         write(scene, open(scene, encoding="utf-8").read().replace('lod = "grid"', 'lod = "roam"'))
         self.governed(config)
-        p = run([IGD, "--config", config, "--frames", "40", "--free-run", "--width", "160", "--height", "90",
-                 "--stats", os.path.join(self.tmp, "s.csv")], timeout=RUN, cwd=self.tmp)
+        p = self.run_small(config, 40, "--stats", os.path.join(self.tmp, "s.csv"))
         self.assertExit(p, 0)
         m = re.search(r"governor: terrain tolerance now ([0-9.]+) px; (\d+) decreases, (\d+) increases", p.stderr)
         self.assertIsNotNone(m, describe(p))
@@ -587,16 +592,14 @@ class Control(Tmp):
         _, _, with_cells = self.spheres_cells(scene, 40000)
         # Without [cells] the default scene (grid terrain, fixed detail) has nothing to steer.
         self.governed(config, tight=False)
-        p = run([IGD, "--config", config, "--frames", "3", "--free-run", "--width", "160", "--height", "90"],
-                timeout=RUN, cwd=self.tmp)
+        p = self.run_small(config, 3)
         self.assertExit(p, 0)
         self.assertIn("governor off", p.stderr)
         # With [cells] and a budget far below what a frame takes: every frame overruns, and the
         # voxel budget is cut towards min_voxels, never raised.
         self.governed(config)
         write(config, re.sub(r"(?m)^min_voxels = 10000$", "min_voxels = 2000", open(config, encoding="utf-8").read()))
-        p = run([IGD, "--config", config, "--scene", with_cells, "--frames", "40", "--free-run", "--width", "160",
-                 "--height", "90", "--stats", os.path.join(self.tmp, "s.csv")], timeout=RUN, cwd=self.tmp)
+        p = self.run_small(config, 40, "--stats", os.path.join(self.tmp, "s.csv"), scene=with_cells)
         self.assertExit(p, 0)
         self.assertNotIn("governor off", p.stderr)
         m = re.search(r"governor: cells voxel budget now (\d+); (\d+) decreases, (\d+) increases", p.stderr)
@@ -631,8 +634,7 @@ class Control(Tmp):
         near = float(given.group(1)) if given else 500.0  # [forest] near_fade_end_m, default 500
         config, _ = self.configs()
         self.governed(config)
-        p = run([IGD, "--config", config, "--scene", local, "--frames", "30", "--free-run", "--width", "160",
-                 "--height", "90"], timeout=RUN, cwd=self.tmp)
+        p = self.run_small(config, 30, scene=local)
         self.assertExit(p, 0)
         m = re.search(r"governor: terrain tolerance now ([0-9.]+) px, forest near distance now ([0-9.]+) m; "
                       r"(\d+) decreases, (\d+) increases", p.stderr)
@@ -645,8 +647,7 @@ class Control(Tmp):
         local = self.example_scene("construction_site.toml")
         config, _ = self.configs()
         self.governed(config)
-        p = run([IGD, "--config", config, "--scene", local, "--frames", "30", "--free-run", "--width", "160",
-                 "--height", "90"], timeout=RUN, cwd=self.tmp)
+        p = self.run_small(config, 30, scene=local)
         self.assertExit(p, 0)
         self.assertNotIn("governor off", p.stderr)
         m = re.search(r"governor: hdlod tolerance now ([0-9.]+) px; (\d+) decreases, (\d+) increases", p.stderr)
@@ -661,8 +662,7 @@ class Control(Tmp):
             with self.subTest(scene=name):
                 local = self.example_scene(name)
                 config, _ = self.configs()
-                p = run([IGD, "--config", config, "--scene", local, "--frames", "5", "--free-run", "--width", "160",
-                         "--height", "90", "--stats", os.path.join(self.tmp, "s.csv")], timeout=RUN, cwd=self.tmp)
+                p = self.run_small(config, 5, "--stats", os.path.join(self.tmp, "s.csv"), scene=local)
                 self.assertExit(p, 0)
                 self.assertRegex(p.stderr, rf"layers:.*\b{layer}\b", describe(p))
                 rows = [dict(zip(STATS_COLUMNS, l.split(","))) for l in complete_lines(os.path.join(self.tmp, "s.csv"))[1:]]
@@ -676,8 +676,7 @@ class Control(Tmp):
         runs = {}
         for name, path in (("cells", with_cells), ("plain", scene)):
             stats = os.path.join(self.tmp, name + ".jsonl")
-            p = run([IGD, "--config", config, "--scene", path, "--frames", "30", "--free-run", "--width", "160",
-                     "--height", "90", "--stats", stats, "--stats-format", "jsonl"], timeout=RUN, cwd=self.tmp)
+            p = self.run_small(config, 30, "--stats", stats, "--stats-format", "jsonl", scene=path)
             self.assertExit(p, 0)
             with open(stats, encoding="utf-8") as f:
                 runs[name] = (p, json.loads(f.readline())["run"], self.status())
