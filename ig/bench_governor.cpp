@@ -157,6 +157,7 @@ struct FrameRow {
   bool afterStep = false;  // a jump of the eye in this frame or the three before
   double cpu_ms = 0;       // process CPU time over the frame (all threads)
   bool capped = false;     // ROAM stopped at the governor's load cap
+  uint64_t drawnSlots = 0; // triangles submitted: the slots up to the high-water mark (freed ones degenerate)
 };
 
 // One configuration: its own ROAM, triangle slots and renderer (FBO + mapped vertex buffer).
@@ -166,6 +167,8 @@ struct Run {
   std::unique_ptr<lod::TriangleSlots> slots;
   std::vector<lod::RoamTriangle> triangles;
   std::vector<uint32_t> added, addedSlots, freed;
+  std::vector<uint32_t> movedFrom, movedTo;
+  std::vector<lod::RoamTriangle> slotTriangle;  // the triangle in each slot, for compaction moves
   render::Renderer renderer;
   std::span<lod::TerrainVertex> gpu;
   lod::UnitCost opCost{2000.0};
@@ -183,6 +186,9 @@ struct Run {
     added.resize(capacity);
     addedSlots.resize(capacity);
     freed.resize(capacity);
+    movedFrom.resize(lod::TriangleSlots::kCompactMovesPerFrame);
+    movedTo.resize(lod::TriangleSlots::kCompactMovesPerFrame);
+    slotTriangle.resize(capacity);
     if (!renderer.init(width, height, error) || !renderer.addTerrainMesh(capacity * 3, 2500.0, error)) return false;
     gpu = renderer.terrainMeshVertices();
     return true;
@@ -192,6 +198,7 @@ struct Run {
     double terrain_ms = 0, submit_ms = 0, gpu_ms = 0, frame_ms = 0, cpu_ms = 0;
     uint64_t triangles = 0;
     bool capped = false;  // ROAM stopped at the triangle cap
+    uint64_t drawnSlots = 0;
   };
   // One frame: ROAM update within `budget`, emit the visible triangles, upload what changed,
   // draw, glFinish. Wall-clock phase times. `visibleCap`: the governor's cap on the visible
@@ -213,16 +220,23 @@ struct Run {
     const size_t n = roam->emitVisible(cam, triangles);
     meshPerVisible = n > 0 ? std::max(1.0, static_cast<double>(st.triangles) / static_cast<double>(n)) : 1.0;
     // As the service: the buffer is drawn up to the slots' high-water mark (freed slots are
-    // degenerate triangles), which never shrinks. (Compacting by building a new TriangleSlots
-    // costs ~130 ms on the shared machine: it wants a TriangleSlots::clear().)
+    // degenerate triangles); compaction moves the top triangles into the holes, so the drawn
+    // range follows the mesh back down after a heavy view.
     const lod::TriangleSlots::Changes c = slots->update(std::span(triangles.data(), n), added, addedSlots, freed);
-    for (size_t i = 0; i < c.freed; ++i)
-      for (size_t k = 0; k < 3; ++k) gpu[freed[i] * 3 + k] = lod::TerrainVertex{};
-    for (size_t i = 0; i < c.added; ++i) {
-      const lod::RoamTriangle& t = triangles[added[i]];
+    auto write = [&](uint32_t slot, const lod::RoamTriangle& t) {
+      slotTriangle[slot] = t;
       for (size_t k = 0; k < 3; ++k)
-        gpu[addedSlots[i] * 3 + k] =
-            lod::heightFieldVertex(relief.heights, relief.n, relief.n, kSpacing_m, t.v[k].x, t.v[k].y);
+        gpu[slot * 3 + k] = lod::heightFieldVertex(relief.heights, relief.n, relief.n, kSpacing_m, t.v[k].x, t.v[k].y);
+    };
+    auto hide = [&](uint32_t slot) {
+      for (size_t k = 0; k < 3; ++k) gpu[slot * 3 + k] = lod::TerrainVertex{};
+    };
+    for (size_t i = 0; i < c.freed; ++i) hide(freed[i]);
+    for (size_t i = 0; i < c.added; ++i) write(addedSlots[i], triangles[added[i]]);
+    const size_t moves = slots->compact(std::min(slots->holes(), movedFrom.size()), movedFrom, movedTo);
+    for (size_t i = 0; i < moves; ++i) {
+      write(movedTo[i], slotTriangle[movedFrom[i]]);
+      hide(movedFrom[i]);
     }
     const int64_t t1 = nowNs();
     renderer.beginFrame(cam, light);
@@ -238,6 +252,7 @@ struct Run {
     p.cpu_ms = processCpuMs() - cpu0;
     p.triangles = n;
     p.capped = st.triangleCapped;
+    p.drawnSlots = slots->highWater();
     return p;
   }
 };
@@ -403,13 +418,13 @@ int runGovernorBench(const GovernorBenchOptions& o0) {
     // refine the new view, so the load of a jump arrives over those frames.
     bool afterStep = false;
     for (int k = 0; k <= 3 && k <= f; ++k) afterStep = afterStep || flightStep(f - k, o.rate_hz, lap_s);
-    governed.rows.push_back({g.frame_ms, predicted, tol, g.triangles, g.frame_ms > budget_ms, afterStep, g.cpu_ms, g.capped});
+    governed.rows.push_back({g.frame_ms, predicted, tol, g.triangles, g.frame_ms > budget_ms, afterStep, g.cpu_ms, g.capped, g.drawnSlots});
     if (f > 0) predictionError.push_back(std::abs(g.frame_ms - predicted));
     // Fixed: the scene's tolerance and the service's ROAM work budget.
     const lod::WorkBudget fixedBudget =
         o.lodBudget_ms > 0 ? lod::WorkBudget(nowNs() + static_cast<int64_t>(o.lodBudget_ms * 1e6), {}) : lod::WorkBudget();
     const Run::Phases x = fixed.frame(cam, o.tolerance_px, fixedBudget, o.height_px, light);
-    fixed.rows.push_back({x.frame_ms, 0.0, o.tolerance_px, x.triangles, x.frame_ms > budget_ms, afterStep, x.cpu_ms});
+    fixed.rows.push_back({x.frame_ms, 0.0, o.tolerance_px, x.triangles, x.frame_ms > budget_ms, afterStep, x.cpu_ms, false, x.drawnSlots});
   }
   const std::string glErr = governed.renderer.errors() + fixed.renderer.errors();
   if (!glErr.empty()) {
@@ -469,10 +484,12 @@ int runGovernorBench(const GovernorBenchOptions& o0) {
       const FrameRow& r = governed.rows[i];
       std::snprintf(buf, sizeof buf,
                     "%s{\"frame\":%zu,\"ms\":%.3f,\"predicted_ms\":%.3f,\"tolerance_px\":%.4f,\"triangles\":%llu,"
-                    "\"fixed_ms\":%.3f,\"fixed_triangles\":%llu,\"cpu_ms\":%.3f,\"fixed_cpu_ms\":%.3f,\"capped\":%d}",
+                    "\"fixed_ms\":%.3f,\"fixed_triangles\":%llu,\"cpu_ms\":%.3f,\"fixed_cpu_ms\":%.3f,\"capped\":%d,"
+                    "\"drawn_slots\":%llu,\"fixed_drawn_slots\":%llu}",
                     i ? "," : "", i, r.ms, r.predicted_ms, r.tolerance_px, static_cast<unsigned long long>(r.triangles),
                     fixed.rows[i].ms, static_cast<unsigned long long>(fixed.rows[i].triangles), r.cpu_ms,
-                    fixed.rows[i].cpu_ms, r.capped ? 1 : 0);
+                    fixed.rows[i].cpu_ms, r.capped ? 1 : 0, static_cast<unsigned long long>(r.drawnSlots),
+                    static_cast<unsigned long long>(fixed.rows[i].drawnSlots));
       json += buf;
     }
     json += "]}";

@@ -111,6 +111,7 @@ struct TerrainMeshLayer {
   std::vector<float> removedTargets_m;        // MorphOut input: heights removed vertices go to
   size_t ghostsDrawn = 0;                     // ghost triangles above the high-water mark
   std::vector<uint32_t> addedTriangles, addedSlots, freedSlots;
+  std::vector<uint32_t> movedFrom, movedTo;   // this frame's compaction moves (TriangleSlots::compact)
   std::span<lod::TerrainVertex> gpu;          // the renderer's mapped vertex buffer
   size_t bufferTriangles = 0;                 // its size: slots + ghosts
   uint64_t uploadedTriangles = 0;             // written into `gpu` this frame
@@ -272,7 +273,26 @@ struct TerrainMeshLayer {
       writeTriangle(addedSlots[i], triangles[addedTriangles[i]], t);
       if (morphOut) hiddenSlot[addedSlots[i]] = 0;
     }
-    uploadedTriangles = c.added + c.freed;
+    // Compaction: the triangles of the top slots move into the holes below, so that the drawn
+    // range follows the mesh back down after a heavy view (a move is no change of the mesh: no
+    // morph starts; a hidden cover stays hidden in its new slot).
+    const size_t moves = slots->compact(std::min(slots->holes(), movedFrom.size()), movedFrom, movedTo);
+    for (size_t i = 0; i < moves; ++i) {
+      const uint32_t from = movedFrom[i], to = movedTo[i];
+      slotTriangle[to] = slotTriangle[from];
+      slotTriangle[from].v[0].x = kFreeSlot;
+      if (morphOut && hiddenSlot[from]) {
+        hideSlot(to);
+      } else {
+        writeTriangle(to, slotTriangle[to], t);
+      }
+      if (morphOut) {
+        hiddenSlot[to] = hiddenSlot[from];
+        hiddenSlot[from] = 0;
+      }
+      hideSlot(from);
+    }
+    uploadedTriangles = c.added + c.freed + 2 * moves;
     // Geomorph: rewrite the triangles that touch a vertex still on its way to its height, once
     // more after it arrives (expire() runs after this pass).
     if (morph && morph->size() > 0) {
@@ -442,6 +462,8 @@ static bool createTerrainMesh(const TerrainLayerConfig& t, const ServiceConfig& 
   m.addedTriangles.resize(capacity);
   m.addedSlots.resize(capacity);
   m.freedSlots.resize(capacity);
+  m.movedFrom.resize(lod::TriangleSlots::kCompactMovesPerFrame);
+  m.movedTo.resize(lod::TriangleSlots::kCompactMovesPerFrame);
   out = std::move(layer);
   return true;
 }

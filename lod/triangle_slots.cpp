@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cassert>
+#include <functional>
 
 namespace ig::lod {
 
@@ -53,6 +54,44 @@ void TriangleSlots::erase(size_t i) {
   table_[hole] = Entry{0, kNone, 0};
 }
 
+uint32_t TriangleSlots::takeLowestFree() {
+  while (!freeSlots_.empty()) {
+    const uint32_t s = freeSlots_.front();
+    std::pop_heap(freeSlots_.begin(), freeSlots_.end(), std::greater<>());
+    freeSlots_.pop_back();
+    // Free slots below the mark are all smaller than the stale ones above it: once the lowest
+    // is stale, every entry is.
+    if (s < highWater_) return s;
+    freeSlots_.clear();
+  }
+  return kNone;
+}
+
+void TriangleSlots::shrink() {
+  while (highWater_ > 0 && slotEntry_[highWater_ - 1] == kNone) --highWater_;
+}
+
+size_t TriangleSlots::compact(size_t maxMoves, std::span<uint32_t> from, std::span<uint32_t> to) {
+  assert(from.size() >= maxMoves && to.size() >= maxMoves && "TriangleSlots::compact: spans must hold maxMoves entries");
+  size_t moves = 0;
+  shrink();
+  while (moves < maxMoves && live_ < highWater_) {
+    const uint32_t top = highWater_ - 1;  // in use (shrink)
+    const uint32_t hole = takeLowestFree();
+    if (hole == kNone) break;  // cannot happen while live_ < highWater_
+    const uint32_t e = slotEntry_[top];
+    table_[e].slot = hole;
+    slotEntry_[hole] = e;
+    slotEntry_[top] = kNone;
+    from[moves] = top;
+    to[moves] = hole;
+    ++moves;
+    --highWater_;
+    shrink();
+  }
+  return moves;
+}
+
 uint32_t TriangleSlots::slotOf(const RoamTriangle& t) const {
   const uint64_t k = key(t);
   const Entry& e = table_[find(k)];
@@ -84,24 +123,23 @@ TriangleSlots::Changes TriangleSlots::update(std::span<const RoamTriangle> trian
     erase(e);
     slotEntry_[s] = kNone;
     freeSlots_.push_back(s);  // capacity reserved: no allocation
+    std::push_heap(freeSlots_.begin(), freeSlots_.end(), std::greater<>());
     freedSlots[c.freed++] = s;
     --live_;
   }
-  // 3. Place the new triangles: reuse freed slots, then grow the high-water mark.
+  // 3. Place the new triangles: the lowest free slots first, then grow the high-water mark.
   size_t placed = 0;
   for (size_t a = 0; a < c.added; ++a) {
     const uint64_t k = key(triangles[addedTriangles[a]]);
     const size_t i = find(k);
     if (table_[i].key == k) continue;  // the same triangle twice in the input: one slot
-    uint32_t slot;
-    if (!freeSlots_.empty()) {
-      slot = freeSlots_.back();
-      freeSlots_.pop_back();
-    } else if (highWater_ < capacity_) {
+    uint32_t slot = takeLowestFree();
+    if (slot == kNone) {
+      if (highWater_ >= capacity_) {
+        c.overflow = true;
+        break;
+      }
       slot = highWater_++;
-    } else {
-      c.overflow = true;
-      break;
     }
     table_[i] = Entry{k, slot, frame_};
     slotEntry_[slot] = static_cast<uint32_t>(i);
@@ -111,6 +149,7 @@ TriangleSlots::Changes TriangleSlots::update(std::span<const RoamTriangle> trian
     ++placed;
   }
   c.added = placed;
+  shrink();
   return c;
 }
 

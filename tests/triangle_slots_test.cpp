@@ -33,6 +33,13 @@ struct Buffer {
     for (size_t i = 0; i < c.freed; ++i) slots[freed[i]].reset();  // degenerate
     for (size_t i = 0; i < c.added; ++i) slots[addedS[i]] = canon(tris[addedT[i]]);
   }
+  // A compaction move: the triangle goes to its new slot, the old one becomes degenerate.
+  void move(size_t n, const std::vector<uint32_t>& from, const std::vector<uint32_t>& to) {
+    for (size_t i = 0; i < n; ++i) {
+      slots[to[i]] = slots[from[i]];
+      slots[from[i]].reset();
+    }
+  }
   std::multiset<Tri> contents(uint32_t highWater) const {
     std::multiset<Tri> m;
     for (uint32_t s = 0; s < highWater; ++s)
@@ -105,4 +112,101 @@ TEST(TriangleSlots, OverflowAndDuplicatesAreHandled) {
   EXPECT_TRUE(c.overflow);
   EXPECT_EQ(slots.live(), 4u);
   EXPECT_EQ(slots.highWater(), 4u);
+}
+
+TEST(TriangleSlots, NewTrianglesTakeTheLowestFreeSlotAndTheMarkFalls) {
+  TriangleSlots slots(128);
+  std::vector<uint32_t> a(128), s(128), f(128);
+  std::vector<RoamTriangle> tris;
+  for (int i = 0; i < 100; ++i) tris.push_back(tri(i));
+  slots.update(tris, a, s, f);
+  ASSERT_EQ(slots.highWater(), 100u);
+  // The top ten leave: the drawn range ends below them.
+  std::vector<RoamTriangle> fewer;
+  for (int i = 0; i < 100; ++i)
+    if (slots.slotOf(tri(i)) < 90) fewer.push_back(tri(i));
+  auto c = slots.update(fewer, a, s, f);
+  EXPECT_EQ(c.freed, 10u);
+  EXPECT_EQ(slots.highWater(), 90u);
+  EXPECT_EQ(slots.holes(), 0u);
+  // Two holes in the middle; two new triangles fill them, lowest first.
+  const uint32_t s20 = 20, s40 = 40;
+  std::vector<RoamTriangle> next;
+  for (const RoamTriangle& t : fewer)
+    if (slots.slotOf(t) != s20 && slots.slotOf(t) != s40) next.push_back(t);
+  c = slots.update(next, a, s, f);
+  EXPECT_EQ(c.freed, 2u);
+  EXPECT_EQ(slots.holes(), 2u);
+  next.push_back(tri(500));
+  c = slots.update(next, a, s, f);
+  ASSERT_EQ(c.added, 1u);
+  EXPECT_EQ(s[0], s20);
+  next.push_back(tri(501));
+  next.push_back(tri(502));
+  c = slots.update(next, a, s, f);
+  ASSERT_EQ(c.added, 2u);
+  EXPECT_EQ(std::min(s[0], s[1]), s40);
+  EXPECT_EQ(std::max(s[0], s[1]), 90u) << "no hole left: the range grows by one";
+  EXPECT_EQ(slots.highWater(), 91u);
+}
+
+TEST(TriangleSlots, CompactionBringsTheDrawnRangeBackToTheMesh) {
+  // A heavy view, then a light one that keeps a scattered tenth of it: without compaction the
+  // renderer would draw up to the heavy view's mark; compact() moves the top triangles into the
+  // holes, a bounded number per frame, and the buffer always holds exactly the mesh.
+  constexpr size_t kCap = 4000, kMoves = 300;
+  TriangleSlots slots(kCap);
+  Buffer buffer(kCap);
+  std::vector<uint32_t> addedT(kCap), addedS(kCap), freed(kCap), from(kMoves), to(kMoves);
+  std::mt19937 rng(7);
+  std::set<int> current;
+  for (int i = 0; i < 3500; ++i) current.insert(i);
+  auto frame = [&](int n) {
+    std::vector<RoamTriangle> tris;
+    for (int id : current) tris.push_back(tri(id));
+    std::shuffle(tris.begin(), tris.end(), rng);
+    const auto c = slots.update(tris, addedT, addedS, freed);
+    ASSERT_FALSE(c.overflow);
+    buffer.apply(c, tris, addedT, addedS, freed);
+    const size_t moves = slots.compact(kMoves, from, to);
+    ASSERT_LE(moves, kMoves);
+    for (size_t i = 0; i < moves; ++i) {
+      ASSERT_GE(from[i], slots.highWater()) << "a move empties a slot above the drawn range";
+      ASSERT_LT(to[i], slots.highWater());
+    }
+    buffer.move(moves, from, to);
+    std::multiset<Tri> want;
+    for (const auto& t : tris) want.insert(canon(t));
+    ASSERT_EQ(buffer.contents(slots.highWater()), want) << "frame " << n;
+    ASSERT_EQ(slots.live(), tris.size());
+    for (const auto& t : tris) {
+      const uint32_t s = slots.slotOf(t);
+      ASSERT_LT(s, slots.highWater());
+      ASSERT_TRUE(buffer.slots[s] && *buffer.slots[s] == canon(t)) << "slotOf follows the moves, frame " << n;
+    }
+  };
+  frame(0);
+  ASSERT_EQ(slots.highWater(), 3500u);
+  // Keep every tenth triangle: 350 live, holes everywhere below 3,500.
+  for (int i = 0; i < 3500; ++i)
+    if (i % 10 != 3) current.erase(i);
+  int frames = 1;
+  do frame(frames++);
+  while (slots.holes() > 0 && frames < 100);
+  EXPECT_EQ(slots.highWater(), 350u);
+  EXPECT_EQ(slots.holes(), 0u);
+  // The moves are bounded: about 315 of the 350 lay above slot 350, so two frames of 300.
+  EXPECT_LE(frames, 1 + 2);
+  // Then the mesh changes a little every frame, compaction keeps up.
+  for (int n = 0; n < 200; ++n) {
+    for (int k = 0; k < 20; ++k) {
+      const int id = static_cast<int>(rng() % 5000);
+      if (current.count(id)) current.erase(id);
+      else current.insert(id);
+    }
+    frame(frames++);
+    ASSERT_EQ(slots.holes(), 0u) << "frame " << frames;
+  }
+  // Compacting a full range moves nothing.
+  EXPECT_EQ(slots.compact(kMoves, from, to), 0u);
 }
