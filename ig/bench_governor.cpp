@@ -70,6 +70,7 @@ struct Relief {
   std::vector<float> heights;
   int n = 0;
   double extent_m = 0.0;
+  double maxHeight_m = 0.0;
 
   explicit Relief(int posts) : heights(static_cast<size_t>(posts) * static_cast<size_t>(posts)), n(posts) {
     lod::HeightfieldDesc d;
@@ -86,6 +87,7 @@ struct Relief {
         heights[static_cast<size_t>(y) * static_cast<size_t>(n) + static_cast<size_t>(x)] *= static_cast<float>(0.1 + 0.9 * t);
       }
     extent_m = (n - 1) * kSpacing_m;
+    maxHeight_m = static_cast<double>(*std::max_element(heights.begin(), heights.end()));
   }
   // Highest sample within radius_m of (x, y): the eye keeps clear of the ground nearby.
   double clearance(double x_m, double y_m, double radius_m) const {
@@ -240,7 +242,9 @@ struct Run {
     }
     const int64_t t1 = nowNs();
     renderer.beginFrame(cam, light);
-    renderer.drawTerrainMesh(glm::dvec3(0.0), static_cast<size_t>(slots->highWater()) * 3);
+    // As the service's slots path: without the near-ground detail when the eye is that high
+    // above the highest post.
+    renderer.drawTerrainMesh(glm::dvec3(0.0), static_cast<size_t>(slots->highWater()) * 3, cam.eye_m.z - relief.maxHeight_m);
     renderer.endFrame();
     const int64_t t2 = nowNs();
     renderer.finish();

@@ -620,7 +620,7 @@ int runTerrainBench(const TerrainBenchOptions& o) {
       roam.update(fv, lod::RoamMode::Deferred);
       const auto t1 = BenchClock::now();
       const lod::TerrainChunks::Changes c = chunks.apply();
-      const size_t live = chunks.cull(cam, ranges);
+      const size_t live = chunks.cull(cam, ranges, render::kTerrainDetailReach_m);
       const auto t2 = BenchClock::now();
       writeDirty();
       const auto t3 = BenchClock::now();

@@ -91,6 +91,8 @@ struct TerrainMeshLayer {
   double spacing_m = 1.0;
   glm::dvec3 origin_m{0.0};      // ENU of sample (0, 0)
   double heightRange_m = 1.0;
+  double maxHeight_m = 0.0;     // the highest post (relative to origin_m)
+  uint32_t wholeMeshNear = 1;   // slots path: 0 when the eye is kTerrainDetailReach_m above every post
   std::unique_ptr<lod::Roam> roam;
   lod::RoamMode roamMode = lod::RoamMode::Deferred;
   std::unique_ptr<lod::BlockLod> block;
@@ -177,6 +179,9 @@ struct TerrainMeshLayer {
   // now_s is the frame's simulation-loop time for geomorphing; NaN = no morphing (one-off
   // frames converge to the true surface).
   void select(const lod::Camera& cam, double viewportHeight_px, Clock* clock, double now_s) {
+    // The slots path draws the whole buffer in one range: without the near-ground detail only
+    // when no post can come within its reach (the eye that high above the highest one).
+    wholeMeshNear = cam.eye_m.z - (origin_m.z + maxHeight_m) < render::kTerrainDetailReach_m ? 1u : 0u;
     lod::RoamView view;
     view.camera = cam;
     view.viewportHeight_px = viewportHeight_px;
@@ -341,7 +346,7 @@ struct TerrainMeshLayer {
   std::span<const lod::TerrainDrawRange> drawRanges() {
     if (!chunks) {
       ranges.clear();
-      if (vertexCount() > 0) ranges.push_back({0, static_cast<uint32_t>(vertexCount() / 3)});
+      if (vertexCount() > 0) ranges.push_back({0, static_cast<uint32_t>(vertexCount() / 3), wholeMeshNear});
     }
     return ranges;
   }
@@ -352,7 +357,7 @@ struct TerrainMeshLayer {
     chunks->forEachDirty([&](uint32_t s, const lod::RoamTriangle& t) { writeTriangle(s, t, 1e300); },
                          [&](uint32_t s) { hideSlot(s); });
     uploadedTriangles = c.dirty;
-    const size_t n = chunks->cull(cam, ranges);
+    const size_t n = chunks->cull(cam, ranges, render::kTerrainDetailReach_m);
     emitted = n;
     meshPerVisible = n > 0 ? std::max(1.0, static_cast<double>(roam->triangleCount()) / static_cast<double>(n)) : 1.0;
     // The buffer holds the whole mesh: lower the mesh cap while leaves find no slot (the
@@ -409,6 +414,7 @@ static bool createTerrainMesh(const TerrainLayerConfig& t, const ServiceConfig& 
   }
   const auto [lo, hi] = std::minmax_element(m.heights_m.begin(), m.heights_m.end());
   m.heightRange_m = std::max(1.0, static_cast<double>(*hi - *lo));
+  m.maxHeight_m = static_cast<double>(*hi);
   m.origin_m = {t.offset_m[0], t.offset_m[1], t.offset_m[2]};
   m.tolerance_px = t.tolerance_px;
   m.budget_ms = t.lodBudget_ms;

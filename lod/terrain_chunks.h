@@ -22,6 +22,7 @@
 #include <memory>
 #include <string>
 #include <span>
+#include <limits>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -40,8 +41,9 @@ struct TerrainChunksConfig {
 };
 
 struct TerrainDrawRange {
-  uint32_t first;  // first slot (triangle index; vertex = 3 * slot)
-  uint32_t count;  // slots
+  uint32_t first;     // first slot (triangle index; vertex = 3 * slot)
+  uint32_t count;     // slots
+  uint32_t near = 1;  // 1: the range's chunks lie (partly) within cull()'s nearReach_m of the eye
 };
 
 class TerrainChunks {
@@ -80,7 +82,11 @@ class TerrainChunks {
 
   // Draw ranges of the chunks whose box meets the frustum, merged where contiguous. Returns the
   // live triangles in those chunks (the degenerate slots in the ranges are not counted).
-  size_t cull(const Camera& camera, std::vector<TerrainDrawRange>& ranges) const;
+  // `nearReach_m`: a range is marked `near` when its chunk's box comes closer to the eye than
+  // this (the renderer shades near ground with detail that far ground does not need); ranges
+  // of different marks are not merged. +inf: every range near.
+  size_t cull(const Camera& camera, std::vector<TerrainDrawRange>& ranges,
+              double nearReach_m = std::numeric_limits<double>::infinity()) const;
 
   size_t capacity() const { return capacity_; }
   size_t liveTriangles() const { return live_; }
@@ -119,7 +125,8 @@ class TerrainChunks {
     uint32_t stamp = 0;  // recomputed in this apply
   };
   void updateGroup(uint32_t g);
-  size_t cullChunk(const Chunk& c, const Frustum& frustum, const glm::dvec3& eye, std::vector<TerrainDrawRange>& ranges) const;
+  size_t cullChunk(const Chunk& c, const Frustum& frustum, const glm::dvec3& eye, double nearReach_m,
+                   std::vector<TerrainDrawRange>& ranges) const;
   uint32_t groupOf(uint32_t chunk) const {
     return static_cast<uint32_t>((chunk / static_cast<uint32_t>(chunksX_)) / kGroupSide * static_cast<uint32_t>(groupsX_) +
                                  (chunk % static_cast<uint32_t>(chunksX_)) / kGroupSide);

@@ -29,6 +29,7 @@ void main() {
 }
 )";
 
+// Compiled twice: with TERRAIN_DETAIL 1 for ground within kTerrainDetailReach_m, 0 beyond.
 const char* kTerrainFs = R"(#version 450 core
 in vec3 vEyeToPoint;
 in vec3 vNormal;
@@ -55,11 +56,17 @@ void main() {
   float slope = 1.0 - n.z;
   float h = vLocal.z / max(uHeightScale, 1.0);
   // Ground detail for low-level flight: 0.25 m and 2 m value noise, faded out with distance
-  // before it would alias.
+  // before it would alias (0 from 400 m: kTerrainDetailReach_m). Only the program variant for
+  // near ground has it: llvmpipe runs both sides of a branch, and the noise is a third of a
+  // frame seen from the air.
   float dist = length(vEyeToPoint);
+#if TERRAIN_DETAIL
   vec2 q = vLocal.xy + uDetailPhase;
   float detail = (noise(q * 4.0, 4096.0) - 0.5) * (1.0 - smoothstep(5.0, 40.0, dist)) +
                  (noise(q * 0.5, 512.0) - 0.5) * (1.0 - smoothstep(60.0, 400.0, dist));
+#else
+  float detail = 0.0;
+#endif
   vec3 grass = vec3(0.28, 0.40, 0.17);
   vec3 rock = vec3(0.46, 0.42, 0.37);
   vec3 snow = vec3(0.92, 0.93, 0.95);
@@ -74,6 +81,18 @@ void main() {
 )";
 
 glm::vec3 toFloat(const glm::dvec3& v) { return glm::vec3(v); }
+
+// The fragment shader with `#define NAME value` after its #version line.
+std::string withDefine(const char* source, const char* name, int value) {
+  std::string s(source);
+  const size_t line = s.find('\n') + 1;
+  return s.insert(line, std::string("#define ") + name + " " + std::to_string(value) + "\n");
+}
+
+// Distance from a point to a box (0 inside).
+double boxDistance(const glm::dvec3& p, const lod::Aabb& b) {
+  return glm::length(glm::max(glm::max(b.min - p, p - b.max), glm::dvec3(0.0)));
+}
 
 }  // namespace
 
@@ -102,21 +121,24 @@ bool completeFramebuffer(GLuint fbo, int width_px, int height_px, std::string& e
 class TerrainPass {
  public:
   bool initProgram(double heightScale_m, std::string& error) {
-    program_ = buildProgram(kTerrainVs, kTerrainFs, error);
-    if (!program_) {
-      error = "terrain pass: " + error;
-      return false;
+    for (int detail = 0; detail < 2; ++detail) {
+      Program& g = programs_[detail];
+      g.program = buildProgram(kTerrainVs, withDefine(kTerrainFs, "TERRAIN_DETAIL", detail).c_str(), error);
+      if (!g.program) {
+        error = "terrain pass: " + error;
+        return false;
+      }
+      const GLuint p = g.program.id();
+      g.uViewProjection = gl.GetUniformLocation(p, "uViewProjection");
+      g.uChunkOffset = gl.GetUniformLocation(p, "uChunkOffset");
+      g.uSunDirection = gl.GetUniformLocation(p, "uSunDirection");
+      g.uSunColor = gl.GetUniformLocation(p, "uSunColor");
+      g.uAmbient = gl.GetUniformLocation(p, "uAmbient");
+      g.uFogColor = gl.GetUniformLocation(p, "uFogColor");
+      g.uFogDensity = gl.GetUniformLocation(p, "uFogDensity");
+      g.uHeightScale = gl.GetUniformLocation(p, "uHeightScale");
+      g.uDetailPhase = gl.GetUniformLocation(p, "uDetailPhase");
     }
-    const GLuint p = program_.id();
-    uViewProjection_ = gl.GetUniformLocation(p, "uViewProjection");
-    uChunkOffset_ = gl.GetUniformLocation(p, "uChunkOffset");
-    uSunDirection_ = gl.GetUniformLocation(p, "uSunDirection");
-    uSunColor_ = gl.GetUniformLocation(p, "uSunColor");
-    uAmbient_ = gl.GetUniformLocation(p, "uAmbient");
-    uFogColor_ = gl.GetUniformLocation(p, "uFogColor");
-    uFogDensity_ = gl.GetUniformLocation(p, "uFogDensity");
-    uHeightScale_ = gl.GetUniformLocation(p, "uHeightScale");
-    uDetailPhase_ = gl.GetUniformLocation(p, "uDetailPhase");
     heightScale_ = static_cast<float>(heightScale_m);
     return true;
   }
@@ -141,7 +163,7 @@ class TerrainPass {
   }
 
   bool initDynamic(size_t capacityVertices, double heightScale_m, std::string& error) {
-    if (!program_ && !initProgram(heightScale_m, error)) return false;
+    if (!programs_[0].program && !initProgram(heightScale_m, error)) return false;
     GLuint id = 0;
     gl.CreateBuffers(1, &id);
     dynamicBuffer_ = GlBuffer::wrap(id);
@@ -163,12 +185,19 @@ class TerrainPass {
 
   std::span<lod::TerrainVertex> mapped() const { return mapped_; }
 
+  // Chunks in the given order; those within kTerrainDetailReach_m with the detail program.
   void draw(const lod::Camera& camera, const Lighting& lighting, std::span<const uint32_t> chunkIndices,
             RenderStats& stats) {
-    const GLuint p = begin(camera, lighting);
     gl.BindVertexArray(vertexArray_.id());
+    int current = -1;
+    GLuint p = 0;
     for (uint32_t i : chunkIndices) {
       const lod::TerrainChunk& c = chunks_[i];
+      const int detail = boxDistance(camera.eye_m, c.bounds) < kTerrainDetailReach_m ? 1 : 0;
+      if (detail != current) {
+        p = begin(camera, lighting, detail);
+        current = detail;
+      }
       setOrigin(p, c.origin_m, camera);
       gl.DrawElementsBaseVertex(GL_TRIANGLES, static_cast<GLsizei>(c.indexCount), GL_UNSIGNED_INT,
                                 reinterpret_cast<const void*>(static_cast<uintptr_t>(c.firstIndex) * sizeof(uint32_t)),
@@ -179,12 +208,13 @@ class TerrainPass {
     gl.BindVertexArray(0);
   }
 
-  // Draws the first `count` vertices of the mapped buffer as a triangle list.
+  // Draws the first `count` vertices of the mapped buffer as a triangle list; with the detail
+  // program unless every vertex is at least kTerrainDetailReach_m from the eye (`nearest_m`).
   void drawDynamic(const lod::Camera& camera, const Lighting& lighting, const glm::dvec3& origin_m, size_t count,
-                   RenderStats& stats) {
+                   double nearest_m, RenderStats& stats) {
     const size_t n = std::min(count, mapped_.size()) / 3 * 3;
     if (n == 0) return;
-    const GLuint p = begin(camera, lighting);
+    const GLuint p = begin(camera, lighting, nearest_m < kTerrainDetailReach_m ? 1 : 0);
     setOrigin(p, origin_m, camera);
     gl.BindVertexArray(dynamicArray_.id());
     gl.DrawArrays(GL_TRIANGLES, 0, static_cast<GLsizei>(n));
@@ -193,28 +223,31 @@ class TerrainPass {
     ++stats.drawCalls;
   }
 
-  // Ranges of triangle slots (lod/terrain_chunks.h) in one multi-draw.
+  // Ranges of triangle slots (lod/terrain_chunks.h): one multi-draw for the far ranges, one with
+  // the detail program for the near ones (TerrainDrawRange::near).
   void drawDynamicRanges(const lod::Camera& camera, const Lighting& lighting, const glm::dvec3& origin_m,
                          std::span<const lod::TerrainDrawRange> ranges, RenderStats& stats) {
     const size_t limit = mapped_.size() / 3;
-    firsts_.clear();
-    counts_.clear();
-    size_t triangles = 0;
-    for (const lod::TerrainDrawRange& r : ranges) {
-      if (r.count == 0 || r.first >= limit) continue;
-      const size_t n = std::min<size_t>(r.count, limit - r.first);
-      firsts_.push_back(static_cast<GLint>(3 * static_cast<size_t>(r.first)));
-      counts_.push_back(static_cast<GLsizei>(3 * n));
-      triangles += n;
+    for (uint32_t detail = 0; detail < 2; ++detail) {
+      firsts_.clear();
+      counts_.clear();
+      size_t triangles = 0;
+      for (const lod::TerrainDrawRange& r : ranges) {
+        if (r.count == 0 || r.first >= limit || (r.near != 0 ? 1u : 0u) != detail) continue;
+        const size_t n = std::min<size_t>(r.count, limit - r.first);
+        firsts_.push_back(static_cast<GLint>(3 * static_cast<size_t>(r.first)));
+        counts_.push_back(static_cast<GLsizei>(3 * n));
+        triangles += n;
+      }
+      if (firsts_.empty()) continue;
+      const GLuint p = begin(camera, lighting, static_cast<int>(detail));
+      setOrigin(p, origin_m, camera);
+      gl.BindVertexArray(dynamicArray_.id());
+      gl.MultiDrawArrays(GL_TRIANGLES, firsts_.data(), counts_.data(), static_cast<GLsizei>(firsts_.size()));
+      gl.BindVertexArray(0);
+      stats.triangles += triangles;
+      ++stats.drawCalls;
     }
-    if (firsts_.empty()) return;
-    const GLuint p = begin(camera, lighting);
-    setOrigin(p, origin_m, camera);
-    gl.BindVertexArray(dynamicArray_.id());
-    gl.MultiDrawArrays(GL_TRIANGLES, firsts_.data(), counts_.data(), static_cast<GLsizei>(firsts_.size()));
-    gl.BindVertexArray(0);
-    stats.triangles += triangles;
-    ++stats.drawCalls;
   }
 
   uint64_t bytes() const { return bytes_; }
@@ -236,45 +269,53 @@ class TerrainPass {
     return GlVertexArray::wrap(vao);
   }
 
-  // Per-draw uniforms shared by both paths; returns the program.
-  GLuint begin(const lod::Camera& camera, const Lighting& lighting) {
-    const GLuint p = program_.id();
+  // Per-draw uniforms shared by both paths; binds and returns the program variant (1: with the
+  // near-ground detail).
+  GLuint begin(const lod::Camera& camera, const Lighting& lighting, int detail) {
+    const Program& g = programs_[detail];
+    const GLuint p = g.program.id();
+    current_ = &g;
     const glm::mat4 viewProjection(lod::reverseZProjection(camera.fovY_deg, camera.aspect, camera.near_m, camera.far_m) *
                                    glm::dmat4(lod::viewRotation(camera)));
-    gl.ProgramUniformMatrix4fv(p, uViewProjection_, 1, GL_FALSE, glm::value_ptr(viewProjection));
+    gl.ProgramUniformMatrix4fv(p, g.uViewProjection, 1, GL_FALSE, glm::value_ptr(viewProjection));
     const glm::vec3 sun = toFloat(lighting.sunDirection), sunColor = toFloat(lighting.sunColor);
     const glm::vec3 fogColor = toFloat(lighting.fogColor);
-    gl.ProgramUniform3fv(p, uSunDirection_, 1, glm::value_ptr(sun));
-    gl.ProgramUniform3fv(p, uSunColor_, 1, glm::value_ptr(sunColor));
-    gl.ProgramUniform1f(p, uAmbient_, static_cast<float>(lighting.ambient));
-    gl.ProgramUniform3fv(p, uFogColor_, 1, glm::value_ptr(fogColor));
+    gl.ProgramUniform3fv(p, g.uSunDirection, 1, glm::value_ptr(sun));
+    gl.ProgramUniform3fv(p, g.uSunColor, 1, glm::value_ptr(sunColor));
+    gl.ProgramUniform1f(p, g.uAmbient, static_cast<float>(lighting.ambient));
+    gl.ProgramUniform3fv(p, g.uFogColor, 1, glm::value_ptr(fogColor));
     // Koschmieder: 2 % contrast at the visibility distance.
-    gl.ProgramUniform1f(p, uFogDensity_, lighting.fog ? static_cast<float>(3.912 / lighting.fogVisibility_m) : 0.0f);
-    gl.ProgramUniform1f(p, uHeightScale_, heightScale_);
+    gl.ProgramUniform1f(p, g.uFogDensity, lighting.fog ? static_cast<float>(3.912 / lighting.fogVisibility_m) : 0.0f);
+    gl.ProgramUniform1f(p, g.uHeightScale, heightScale_);
     gl.UseProgram(p);
     return p;
   }
 
-  // Camera-relative placement: origin - eye in double, then float.
+  // Camera-relative placement: origin - eye in double, then float (the program begin() bound).
   void setOrigin(GLuint p, const glm::dvec3& origin_m, const lod::Camera& camera) const {
     const glm::vec3 offset(origin_m - camera.eye_m);
-    gl.ProgramUniform3fv(p, uChunkOffset_, 1, glm::value_ptr(offset));
+    gl.ProgramUniform3fv(p, current_->uChunkOffset, 1, glm::value_ptr(offset));
     const glm::vec2 phase(std::fmod(std::fmod(origin_m.x, 1024.0) + 1024.0, 1024.0),
                           std::fmod(std::fmod(origin_m.y, 1024.0) + 1024.0, 1024.0));
-    gl.ProgramUniform2fv(p, uDetailPhase_, 1, glm::value_ptr(phase));
+    gl.ProgramUniform2fv(p, current_->uDetailPhase, 1, glm::value_ptr(phase));
   }
+
+  struct Program {
+    GlProgram program;
+    GLint uViewProjection = -1, uChunkOffset = -1, uSunDirection = -1, uSunColor = -1, uAmbient = -1, uFogColor = -1,
+          uFogDensity = -1, uHeightScale = -1, uDetailPhase = -1;
+  };
 
   std::vector<GLint> firsts_;    // drawDynamicRanges: grown once, reused
   std::vector<GLsizei> counts_;
-  GlProgram program_;
+  Program programs_[2];              // [0]: far ground, [1]: with the near-ground detail
+  const Program* current_ = nullptr;  // the variant begin() bound
   GlBuffer vertexBuffer_, indexBuffer_, dynamicBuffer_;
   GlVertexArray vertexArray_, dynamicArray_;
   std::span<lod::TerrainVertex> mapped_;
   std::vector<lod::TerrainChunk> chunks_;
   uint64_t bytes_ = 0;
   float heightScale_ = 1.0f;
-  GLint uViewProjection_ = -1, uChunkOffset_ = -1, uSunDirection_ = -1, uSunColor_ = -1, uAmbient_ = -1,
-        uFogColor_ = -1, uFogDensity_ = -1, uHeightScale_ = -1, uDetailPhase_ = -1;
 };
 
 Renderer::Renderer() = default;
@@ -359,8 +400,8 @@ std::span<lod::TerrainVertex> Renderer::terrainMeshVertices() const {
   return terrainMesh_ ? terrainMesh_->mapped() : std::span<lod::TerrainVertex>{};
 }
 
-void Renderer::drawTerrainMesh(const glm::dvec3& origin_m, size_t vertexCount) {
-  if (terrainMesh_) terrainMesh_->drawDynamic(camera_, lighting_, origin_m, vertexCount, stats_);
+void Renderer::drawTerrainMesh(const glm::dvec3& origin_m, size_t vertexCount, double nearest_m) {
+  if (terrainMesh_) terrainMesh_->drawDynamic(camera_, lighting_, origin_m, vertexCount, nearest_m, stats_);
 }
 
 void Renderer::drawTerrainMeshRanges(const glm::dvec3& origin_m, std::span<const lod::TerrainDrawRange> ranges) {

@@ -35,6 +35,10 @@ struct RenderStats {
 
 class TerrainPass;
 
+// Terrain within this distance of the eye is shaded with its near-ground detail (0.25 m and 2 m
+// noise, faded out by 400 m); beyond it a cheaper program draws the same colours.
+inline constexpr double kTerrainDetailReach_m = 400.0;
+
 class Renderer {
  public:
   Renderer();
@@ -63,10 +67,13 @@ class Renderer {
   void beginFrame(const lod::Camera& camera, const Lighting& lighting);
   void drawTerrain(std::span<const uint32_t> chunkIndices);
   // Draws the first `vertexCount` vertices of the mapped buffer (3 a triangle, positions
-  // relative to `origin_m`; degenerate triangles mark free slots).
-  void drawTerrainMesh(const glm::dvec3& origin_m, size_t vertexCount);
-  // Draws ranges of triangle slots of the mapped buffer in one multi-draw (the chunks of
-  // lod/terrain_chunks.h inside the frustum).
+  // relative to `origin_m`; degenerate triangles mark free slots). `nearest_m`: a lower bound on
+  // the distance from the eye to the mesh; from kTerrainDetailReach_m on the ground is shaded
+  // without its near detail (which is 0 there anyway), for a third less fragment work.
+  void drawTerrainMesh(const glm::dvec3& origin_m, size_t vertexCount, double nearest_m = 0.0);
+  // Draws ranges of triangle slots of the mapped buffer (the chunks of lod/terrain_chunks.h inside
+  // the frustum): one multi-draw for the ranges marked near (with the detail), one for the rest.
+  // Pass kTerrainDetailReach_m to TerrainChunks::cull().
   void drawTerrainMeshRanges(const glm::dvec3& origin_m, std::span<const lod::TerrainDrawRange> ranges);
   // Convenience: copies a whole triangle list into the mapped buffer, then draws it.
   void drawTerrainMesh(const glm::dvec3& origin_m, std::span<const lod::TerrainVertex> vertices);

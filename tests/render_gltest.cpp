@@ -10,6 +10,8 @@
 #include <glm/gtc/type_ptr.hpp>
 
 #include "gl_fixture.h"
+#include "lod/heightfield.h"
+#include "lod/terrain_grid.h"
 #include "lod/view.h"
 #include "render/context.h"
 #include "render/gl.h"
@@ -281,4 +283,78 @@ TEST(RenderGL, TheSameSetUpWithA24BitDepthBufferFails) {
   gl.ClearNamedFramebufferfv(fbo, GL_COLOR, 0, zero);
   gl.ClearNamedFramebufferfv(fbo, GL_DEPTH, 0, zero);
   EXPECT_GT(redPixelsLeft(testCamera(), fbo, 128, 128, 50000.0, 2.0), 128 * 128 / 2);
+}
+
+// Near-ground detail (render::kTerrainDetailReach_m): the terrain's fragment shader has a
+// variant without the 0.25 m / 2 m ground noise, used where the caller says every fragment is
+// beyond the reach (the noise is 0 there, and a third of a frame seen from the air on llvmpipe).
+// Close to the ground the detail shows; from the air both variants give the same bits; ranges
+// marked far are drawn without it and the split into two multi-draws changes nothing else.
+TEST(RenderGL, TerrainDetailOnlyNearTheGroundAndTheSamePictureFar) {
+  constexpr int kW = 160, kH = 120, kPosts = 65;
+  constexpr double kSpacing = 16.0, kRelief = 40.0;  // 1,024 m square
+  std::string error;
+  auto ctx = render::createContext(render::ContextKind::Headless, kW, kH, error);
+  ASSERT_TRUE(ctx) << error;
+  render::Renderer renderer;
+  ASSERT_TRUE(renderer.init(kW, kH, error)) << error;
+  lod::HeightfieldDesc hd;
+  hd.postsX = hd.postsY = kPosts;
+  hd.postSpacing_m = kSpacing;
+  hd.heightScale_m = kRelief;
+  std::vector<float> heights(static_cast<size_t>(kPosts) * kPosts);
+  lod::generateHeightfield(hd, heights);
+  const size_t quads = static_cast<size_t>(kPosts - 1) * (kPosts - 1);
+  ASSERT_TRUE(renderer.addTerrainMesh(quads * 6, kRelief, error)) << error;
+  auto dst = renderer.terrainMeshVertices();
+  size_t n = 0;
+  const auto v = [&](int x, int y) { return lod::heightFieldVertex(heights, kPosts, kPosts, kSpacing, x, y); };
+  for (int y = 0; y + 1 < kPosts; ++y)
+    for (int x = 0; x + 1 < kPosts; ++x) {
+      dst[n++] = v(x, y), dst[n++] = v(x + 1, y), dst[n++] = v(x + 1, y + 1);
+      dst[n++] = v(x, y), dst[n++] = v(x + 1, y + 1), dst[n++] = v(x, y + 1);
+    }
+  const render::Lighting light;
+  auto finish = [&] {
+    renderer.endFrame();
+    renderer.finish();
+    render::Image img;
+    renderer.readPixels(img);
+    return img;
+  };
+  auto whole = [&](const lod::Camera& cam, double nearest_m) {
+    renderer.beginFrame(cam, light);
+    renderer.drawTerrainMesh(glm::dvec3(0.0), n, nearest_m);
+    return finish();
+  };
+  // The mesh's two halves as ranges, each marked near (1) or far (0).
+  auto halves = [&](const lod::Camera& cam, uint32_t nearA, uint32_t nearB) {
+    const auto t = static_cast<uint32_t>(n / 3);
+    const lod::TerrainDrawRange ranges[2] = {{0, t / 2, nearA}, {t / 2, t - t / 2, nearB}};
+    renderer.beginFrame(cam, light);
+    renderer.drawTerrainMeshRanges(glm::dvec3(0.0), ranges);
+    return finish();
+  };
+  lod::Camera low;
+  low.eye_m = {512.0, 200.0, static_cast<double>(heights[static_cast<size_t>(200 / 16) * kPosts + 32]) + 12.0};
+  low.heading_deg = 0.0;
+  low.pitch_deg = -25.0;
+  low.fovY_deg = 60.0;
+  low.aspect = static_cast<double>(kW) / kH;
+  low.near_m = 0.5;
+  low.far_m = 5000.0;
+  lod::Camera high = low;
+  high.eye_m = {512.0, -600.0, 1500.0};  // every point of the terrain over 1,400 m away
+  high.pitch_deg = -60.0;
+
+  const render::Image lowDetail = whole(low, 0.0), lowPlain = whole(low, 1e9);
+  EXPECT_GT(render::rmse(lowDetail, lowPlain), 0.5) << "the near-ground detail does not show";
+  const render::Image highDetail = whole(high, 0.0), highPlain = whole(high, 1400.0);
+  EXPECT_EQ(highDetail.rgba, highPlain.rgba) << "beyond the reach both variants must give the same bits";
+  EXPECT_GT(render::rmse(highDetail, lowDetail), 10.0);  // the views differ: the check above is not vacuous
+
+  EXPECT_EQ(halves(low, 1, 1).rgba, lowDetail.rgba);
+  EXPECT_EQ(halves(low, 0, 0).rgba, lowPlain.rgba);
+  EXPECT_GT(render::rmse(halves(low, 1, 0), lowDetail), 0.0) << "a range marked far is drawn without the detail";
+  EXPECT_EQ(halves(high, 0, 1).rgba, highDetail.rgba);
 }

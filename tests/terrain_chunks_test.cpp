@@ -59,6 +59,12 @@ std::multiset<Tri> allLeaves(const Roam& roam) {
 // Checks one frame: the buffer's triangles in the drawn ranges are exactly the leaves of the
 // chunks drawn (no duplicates, nothing stale), every visible leaf is drawn, and the whole
 // buffer's live slots are the mesh.
+// Near / far ranges seen over all frames of a test (cull with a reach): both must occur.
+struct ReachCount {
+  size_t nearRanges = 0, farRanges = 0;
+};
+ReachCount gReach;
+
 void checkFrame(const Roam& roam, const TerrainChunks& chunks, const Buffer& buffer, const Camera& cam,
                 const std::string& where) {
   std::string why;
@@ -94,6 +100,33 @@ void checkFrame(const Roam& roam, const TerrainChunks& chunks, const Buffer& buf
     ASSERT_TRUE(drawn.count(canon(t))) << where << ": a visible leaf is not in the drawn ranges";
   }
   EXPECT_GE(drawn.size(), visible);
+  for (const TerrainDrawRange& r : ranges) {
+    ASSERT_EQ(r.near, 1u) << where << ": without a reach every range is near";
+  }
+  // With a reach: the same slots, split into near and far ranges; a far range holds only
+  // triangles wholly beyond the reach, and every triangle that comes closer is in a near one.
+  {
+    constexpr double kReach = 600.0;
+    std::vector<TerrainDrawRange> split;
+    EXPECT_EQ(chunks.cull(cam, split, kReach), drawnLive) << where;
+    std::multiset<Tri> drawnSplit;
+    size_t nearRanges = 0;
+    for (const TerrainDrawRange& r : split) {
+      nearRanges += r.near;
+      for (uint32_t s = r.first; s < r.first + r.count; ++s) {
+        if (!buffer.slots[s]) continue;
+        drawnSplit.insert(*buffer.slots[s]);
+        double closest = 1e300;
+        for (const auto& [x, y] : *buffer.slots[s]) closest = std::min(closest, glm::length(roam.vertexPosition(x, y) - cam.eye_m));
+        if (r.near == 0) {
+          ASSERT_GE(closest, kReach) << where << ": a far range holds a triangle within the reach";
+        }
+      }
+    }
+    ASSERT_EQ(drawnSplit, drawn) << where << ": the split ranges draw other triangles";
+    gReach.nearRanges += nearRanges;
+    gReach.farRanges += split.size() - nearRanges;
+  }
   // Ranges never overlap: nothing is drawn twice.
   std::vector<TerrainDrawRange> sorted = ranges;
   std::sort(sorted.begin(), sorted.end(), [](auto a, auto b) { return a.first < b.first; });
@@ -123,6 +156,7 @@ std::vector<RoamView> flight(double size_m) {
 }  // namespace
 
 TEST(TerrainChunks, BufferHoldsTheMeshAndCullDrawsEveryVisibleLeafInEveryMode) {
+  gReach = {};
   const int n = 257;
   const auto hts = fractal(n, n);
   const RoamMode modes[] = {RoamMode::EnhMerge, RoamMode::MergeQueue, RoamMode::Rebuild, RoamMode::Deferred};
@@ -163,6 +197,9 @@ TEST(TerrainChunks, BufferHoldsTheMeshAndCullDrawsEveryVisibleLeafInEveryMode) {
     std::printf("[ chunks ] mode %d: %zu re-reads, %zu incremental, %zu live, %zu slots in blocks\n",
                 static_cast<int>(mode), rereads, incremental, chunks.liveTriangles(), chunks.slotsInUse());
   }
+  // The flight passes within 600 m of ground and sees ground beyond it: cull() marked both.
+  EXPECT_GT(gReach.nearRanges, 0u);
+  EXPECT_GT(gReach.farRanges, 0u);
 }
 
 TEST(TerrainChunks, ALogTooSmallForAnUpdateFallsBackToAReread) {
