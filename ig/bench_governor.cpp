@@ -242,9 +242,20 @@ struct Run {
     }
     const int64_t t1 = nowNs();
     renderer.beginFrame(cam, light);
-    // As the service's slots path: without the near-ground detail when the eye is that high
-    // above the highest post.
-    renderer.drawTerrainMesh(glm::dvec3(0.0), static_cast<size_t>(slots->highWater()) * 3, cam.eye_m.z - relief.maxHeight_m);
+    // Without the near-ground detail when every triangle drawn lies beyond its reach (the
+    // distance from the eye to each triangle's box; the slots hold exactly these triangles).
+    double nearest_m = 1e300;
+    for (size_t i = 0; i < n && nearest_m >= render::kTerrainDetailReach_m; ++i) {
+      glm::dvec3 lo(1e300), hi(-1e300);
+      for (const lod::RoamVertex& v : triangles[i].v) {
+        const glm::dvec3 at(v.x * kSpacing_m, v.y * kSpacing_m,
+                           static_cast<double>(relief.heights[static_cast<size_t>(v.y) * static_cast<size_t>(relief.n) + static_cast<size_t>(v.x)]));
+        lo = glm::min(lo, at);
+        hi = glm::max(hi, at);
+      }
+      nearest_m = std::min(nearest_m, glm::length(glm::max(glm::max(lo - cam.eye_m, cam.eye_m - hi), glm::dvec3(0.0))));
+    }
+    renderer.drawTerrainMesh(glm::dvec3(0.0), static_cast<size_t>(slots->highWater()) * 3, nearest_m);
     renderer.endFrame();
     const int64_t t2 = nowNs();
     renderer.finish();

@@ -179,9 +179,7 @@ struct TerrainMeshLayer {
   // now_s is the frame's simulation-loop time for geomorphing; NaN = no morphing (one-off
   // frames converge to the true surface).
   void select(const lod::Camera& cam, double viewportHeight_px, Clock* clock, double now_s) {
-    // The slots path draws the whole buffer in one range: without the near-ground detail only
-    // when no post can come within its reach (the eye that high above the highest one).
-    wholeMeshNear = cam.eye_m.z - (origin_m.z + maxHeight_m) < render::kTerrainDetailReach_m ? 1u : 0u;
+
     lod::RoamView view;
     view.camera = cam;
     view.viewportHeight_px = viewportHeight_px;
@@ -246,6 +244,25 @@ struct TerrainMeshLayer {
       n = block->emitTriangles(std::span(triangles.get(), triangleRoom));
     }
     emitted = n;
+    // The slots path draws the whole buffer in one range, without the near-ground detail only
+    // when all of it lies beyond the detail's reach: without morphing the buffer holds exactly
+    // these triangles (each within the box of its posts); morphing vertices and ghosts move
+    // between heights, so then only an eye that high above the highest post.
+    wholeMeshNear = cam.eye_m.z - (origin_m.z + maxHeight_m) < render::kTerrainDetailReach_m ? 1u : 0u;
+    if (wholeMeshNear && !morph && !morphOut) {
+      bool near = false;
+      const glm::dvec3 eye = cam.eye_m - origin_m;
+      for (size_t i = 0; i < n && !near; ++i) {
+        glm::dvec3 lo(1e300), hi(-1e300);
+        for (const lod::RoamVertex& v : triangles[i].v) {
+          const glm::dvec3 at(v.x * spacing_m, v.y * spacing_m, sampleHeight(v.x, v.y));
+          lo = glm::min(lo, at);
+          hi = glm::max(hi, at);
+        }
+        near = glm::length(glm::max(glm::max(lo - eye, eye - hi), glm::dvec3(0.0))) < render::kTerrainDetailReach_m;
+      }
+      wholeMeshNear = near ? 1u : 0u;
+    }
     // Write only what changed: freed slots become degenerate, new triangles take slots. The
     // GPU is idle here (the previous frame ended with glFinish).
     const lod::TriangleSlots::Changes c =
