@@ -242,10 +242,10 @@ struct Run {
     }
     const int64_t t1 = nowNs();
     renderer.beginFrame(cam, light);
-    // Without the near-ground detail when every triangle drawn lies beyond its reach (the
+    // The ground detail terms whose reach every triangle drawn lies beyond are left out (the
     // distance from the eye to each triangle's box; the slots hold exactly these triangles).
     double nearest_m = 1e300;
-    for (size_t i = 0; i < n && nearest_m >= render::kTerrainDetailReach_m; ++i) {
+    for (size_t i = 0; i < n && nearest_m >= render::kTerrainFineDetailReach_m; ++i) {
       glm::dvec3 lo(1e300), hi(-1e300);
       for (const lod::RoamVertex& v : triangles[i].v) {
         const glm::dvec3 at(v.x * kSpacing_m, v.y * kSpacing_m,

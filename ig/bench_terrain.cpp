@@ -620,12 +620,13 @@ int runTerrainBench(const TerrainBenchOptions& o) {
       roam.update(fv, lod::RoamMode::Deferred);
       const auto t1 = BenchClock::now();
       const lod::TerrainChunks::Changes c = chunks.apply();
-      const size_t live = chunks.cull(cam, ranges, render::kTerrainDetailReach_m);
+      double nearest_m = 0.0;
+      const size_t live = chunks.cull(cam, ranges, render::kTerrainDetailReach_m, &nearest_m);
       const auto t2 = BenchClock::now();
       writeDirty();
       const auto t3 = BenchClock::now();
       renderer->beginFrame(cam, light);
-      renderer->drawTerrainMeshRanges({0, 0, 0}, ranges);
+      renderer->drawTerrainMeshRanges({0, 0, 0}, ranges, nearest_m);
       renderer->endFrame();
       renderer->finish();
       const auto t4 = BenchClock::now();

@@ -92,7 +92,7 @@ struct TerrainMeshLayer {
   glm::dvec3 origin_m{0.0};      // ENU of sample (0, 0)
   double heightRange_m = 1.0;
   double maxHeight_m = 0.0;     // the highest post (relative to origin_m)
-  uint32_t wholeMeshNear = 1;   // slots path: 0 when the eye is kTerrainDetailReach_m above every post
+  double drawNearest_m = 0.0;   // a lower bound on the distance from the eye to what is drawn (terrain detail variant)
   std::unique_ptr<lod::Roam> roam;
   lod::RoamMode roamMode = lod::RoamMode::Deferred;
   std::unique_ptr<lod::BlockLod> block;
@@ -244,24 +244,24 @@ struct TerrainMeshLayer {
       n = block->emitTriangles(std::span(triangles.get(), triangleRoom));
     }
     emitted = n;
-    // The slots path draws the whole buffer in one range, without the near-ground detail only
-    // when all of it lies beyond the detail's reach: without morphing the buffer holds exactly
-    // these triangles (each within the box of its posts); morphing vertices and ghosts move
-    // between heights, so then only an eye that high above the highest post.
-    wholeMeshNear = cam.eye_m.z - (origin_m.z + maxHeight_m) < render::kTerrainDetailReach_m ? 1u : 0u;
-    if (wholeMeshNear && !morph && !morphOut) {
-      bool near = false;
+    // The slots path draws the whole buffer in one range; the ground detail terms whose reach
+    // all of it lies beyond are left out (render::kTerrainDetailReach_m). Without morphing the
+    // buffer holds exactly these triangles (each within the box of its posts); morphing vertices
+    // and ghosts move between heights, so then only the eye's height above the highest post.
+    drawNearest_m = std::max(0.0, cam.eye_m.z - (origin_m.z + maxHeight_m));
+    if (!morph && !morphOut) {
+      double nearest = 1e300;
       const glm::dvec3 eye = cam.eye_m - origin_m;
-      for (size_t i = 0; i < n && !near; ++i) {
+      for (size_t i = 0; i < n && nearest >= render::kTerrainFineDetailReach_m; ++i) {
         glm::dvec3 lo(1e300), hi(-1e300);
         for (const lod::RoamVertex& v : triangles[i].v) {
           const glm::dvec3 at(v.x * spacing_m, v.y * spacing_m, sampleHeight(v.x, v.y));
           lo = glm::min(lo, at);
           hi = glm::max(hi, at);
         }
-        near = glm::length(glm::max(glm::max(lo - eye, eye - hi), glm::dvec3(0.0))) < render::kTerrainDetailReach_m;
+        nearest = std::min(nearest, glm::length(glm::max(glm::max(lo - eye, eye - hi), glm::dvec3(0.0))));
       }
-      wholeMeshNear = near ? 1u : 0u;
+      drawNearest_m = std::max(drawNearest_m, nearest);
     }
     // Write only what changed: freed slots become degenerate, new triangles take slots. The
     // GPU is idle here (the previous frame ended with glFinish).
@@ -363,7 +363,8 @@ struct TerrainMeshLayer {
   std::span<const lod::TerrainDrawRange> drawRanges() {
     if (!chunks) {
       ranges.clear();
-      if (vertexCount() > 0) ranges.push_back({0, static_cast<uint32_t>(vertexCount() / 3), wholeMeshNear});
+      if (vertexCount() > 0)
+        ranges.push_back({0, static_cast<uint32_t>(vertexCount() / 3), drawNearest_m < render::kTerrainDetailReach_m ? 1u : 0u});
     }
     return ranges;
   }
@@ -374,7 +375,7 @@ struct TerrainMeshLayer {
     chunks->forEachDirty([&](uint32_t s, const lod::RoamTriangle& t) { writeTriangle(s, t, 1e300); },
                          [&](uint32_t s) { hideSlot(s); });
     uploadedTriangles = c.dirty;
-    const size_t n = chunks->cull(cam, ranges, render::kTerrainDetailReach_m);
+    const size_t n = chunks->cull(cam, ranges, render::kTerrainDetailReach_m, &drawNearest_m);
     emitted = n;
     meshPerVisible = n > 0 ? std::max(1.0, static_cast<double>(roam->triangleCount()) / static_cast<double>(n)) : 1.0;
     // The buffer holds the whole mesh: lower the mesh cap while leaves find no slot (the
@@ -691,7 +692,7 @@ struct Service::Impl {
   render::RenderStats submit(const lod::Camera& cam, const io::HostState& host, Clock* clock = nullptr) {
     renderer.beginFrame(cam, lightingFor(host));
     if (terrain) renderer.drawTerrain(std::span(terrain->selected.data(), terrain->selectedCount));
-    if (terrainMesh) renderer.drawTerrainMeshRanges(terrainMesh->origin_m, terrainMesh->drawRanges());
+    if (terrainMesh) renderer.drawTerrainMeshRanges(terrainMesh->origin_m, terrainMesh->drawRanges(), terrainMesh->drawNearest_m);
     if (forest) forest->draw(renderer, terrainMesh->origin_m, terrainMesh->ranges);
     if (hdlod) hdlod->draw(renderer);
     if (cells) {

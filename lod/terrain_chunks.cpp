@@ -347,8 +347,10 @@ TerrainChunks::Changes TerrainChunks::apply() {
   return ch;
 }
 
-size_t TerrainChunks::cull(const Camera& camera, std::vector<TerrainDrawRange>& ranges, double nearReach_m) const {
+size_t TerrainChunks::cull(const Camera& camera, std::vector<TerrainDrawRange>& ranges, double nearReach_m,
+                           double* nearest_m) const {
   ranges.clear();
+  double nearest = std::numeric_limits<double>::infinity();
   const Frustum frustum = makeFrustum(camera);
   size_t triangles = 0;
   for (uint32_t gi = 0; gi < groups_.size(); ++gi) {
@@ -358,17 +360,20 @@ size_t TerrainChunks::cull(const Camera& camera, std::vector<TerrainDrawRange>& 
     for (int cy = gy * kGroupSide; cy < std::min(chunksY_, (gy + 1) * kGroupSide); ++cy)
       for (int cx = gx * kGroupSide; cx < std::min(chunksX_, (gx + 1) * kGroupSide); ++cx)
         triangles += cullChunk(chunks_[static_cast<size_t>(cy) * static_cast<size_t>(chunksX_) + static_cast<size_t>(cx)],
-                               frustum, camera.eye_m, nearReach_m, ranges);
+                               frustum, camera.eye_m, nearReach_m, ranges, nearest);
   }
+  if (nearest_m) *nearest_m = nearest;
   return triangles;
 }
 
 size_t TerrainChunks::cullChunk(const Chunk& c, const Frustum& frustum, const glm::dvec3& eye, double nearReach_m,
-                                std::vector<TerrainDrawRange>& ranges) const {
+                                std::vector<TerrainDrawRange>& ranges, double& nearest_m) const {
   if (c.live == 0 || !frustum.intersects(Aabb{c.lo - eye, c.hi - eye})) return 0;
   // Distance from the eye to the chunk's box (0 inside it).
   const glm::dvec3 gap = glm::max(glm::max(c.lo - eye, eye - c.hi), glm::dvec3(0.0));
-  const uint32_t near = glm::length(gap) < nearReach_m ? 1u : 0u;
+  const double distance = glm::length(gap);
+  const uint32_t near = distance < nearReach_m ? 1u : 0u;
+  nearest_m = std::min(nearest_m, distance);
   for (uint32_t b = c.firstBlock; b != kNone; b = blocks_[b].next) {
     const Block& k = blocks_[b];
     if (k.used == 0) continue;

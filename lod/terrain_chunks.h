@@ -84,9 +84,10 @@ class TerrainChunks {
   // live triangles in those chunks (the degenerate slots in the ranges are not counted).
   // `nearReach_m`: a range is marked `near` when its chunk's box comes closer to the eye than
   // this (the renderer shades near ground with detail that far ground does not need); ranges
-  // of different marks are not merged. +inf: every range near.
+  // of different marks are not merged. +inf: every range near. `nearest_m` (optional): the
+  // smallest distance from the eye to the box of a chunk drawn (+inf: none drawn).
   size_t cull(const Camera& camera, std::vector<TerrainDrawRange>& ranges,
-              double nearReach_m = std::numeric_limits<double>::infinity()) const;
+              double nearReach_m = std::numeric_limits<double>::infinity(), double* nearest_m = nullptr) const;
 
   size_t capacity() const { return capacity_; }
   size_t liveTriangles() const { return live_; }
@@ -126,7 +127,7 @@ class TerrainChunks {
   };
   void updateGroup(uint32_t g);
   size_t cullChunk(const Chunk& c, const Frustum& frustum, const glm::dvec3& eye, double nearReach_m,
-                   std::vector<TerrainDrawRange>& ranges) const;
+                   std::vector<TerrainDrawRange>& ranges, double& nearest_m) const;
   uint32_t groupOf(uint32_t chunk) const {
     return static_cast<uint32_t>((chunk / static_cast<uint32_t>(chunksX_)) / kGroupSide * static_cast<uint32_t>(groupsX_) +
                                  (chunk % static_cast<uint32_t>(chunksX_)) / kGroupSide);

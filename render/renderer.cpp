@@ -29,7 +29,8 @@ void main() {
 }
 )";
 
-// Compiled twice: with TERRAIN_DETAIL 1 for ground within kTerrainDetailReach_m, 0 beyond.
+// Compiled three times (detailLevel()): TERRAIN_DETAIL 2 with both noises for ground within
+// kTerrainFineDetailReach_m, 1 with the 2 m noise only within kTerrainDetailReach_m, 0 beyond.
 const char* kTerrainFs = R"(#version 450 core
 in vec3 vEyeToPoint;
 in vec3 vNormal;
@@ -56,14 +57,16 @@ void main() {
   float slope = 1.0 - n.z;
   float h = vLocal.z / max(uHeightScale, 1.0);
   // Ground detail for low-level flight: 0.25 m and 2 m value noise, faded out with distance
-  // before it would alias (0 from 400 m: kTerrainDetailReach_m). Only the program variant for
-  // near ground has it: llvmpipe runs both sides of a branch, and the noise is a third of a
-  // frame seen from the air.
+  // before it would alias (0 from 40 m and from 400 m: kTerrainFineDetailReach_m,
+  // kTerrainDetailReach_m). Each program variant has only the terms that are not 0 where it
+  // draws: llvmpipe runs both sides of a branch, and the noise is a third of a frame.
   float dist = length(vEyeToPoint);
-#if TERRAIN_DETAIL
+#if TERRAIN_DETAIL >= 1
   vec2 q = vLocal.xy + uDetailPhase;
-  float detail = (noise(q * 4.0, 4096.0) - 0.5) * (1.0 - smoothstep(5.0, 40.0, dist)) +
-                 (noise(q * 0.5, 512.0) - 0.5) * (1.0 - smoothstep(60.0, 400.0, dist));
+  float detail = (noise(q * 0.5, 512.0) - 0.5) * (1.0 - smoothstep(60.0, 400.0, dist));
+#if TERRAIN_DETAIL >= 2
+  detail = (noise(q * 4.0, 4096.0) - 0.5) * (1.0 - smoothstep(5.0, 40.0, dist)) + detail;
+#endif
 #else
   float detail = 0.0;
 #endif
@@ -87,6 +90,12 @@ std::string withDefine(const char* source, const char* name, int value) {
   std::string s(source);
   const size_t line = s.find('\n') + 1;
   return s.insert(line, std::string("#define ") + name + " " + std::to_string(value) + "\n");
+}
+
+// The terrain program variant for ground at least `nearest_m` from the eye: 0 beyond both noise
+// terms' reach, 1 beyond the fine term's, else 2.
+int detailLevel(double nearest_m) {
+  return nearest_m >= kTerrainDetailReach_m ? 0 : nearest_m >= kTerrainFineDetailReach_m ? 1 : 2;
 }
 
 // Distance from a point to a box (0 inside).
@@ -121,7 +130,7 @@ bool completeFramebuffer(GLuint fbo, int width_px, int height_px, std::string& e
 class TerrainPass {
  public:
   bool initProgram(double heightScale_m, std::string& error) {
-    for (int detail = 0; detail < 2; ++detail) {
+    for (int detail = 0; detail < 3; ++detail) {
       Program& g = programs_[detail];
       g.program = buildProgram(kTerrainVs, withDefine(kTerrainFs, "TERRAIN_DETAIL", detail).c_str(), error);
       if (!g.program) {
@@ -185,7 +194,7 @@ class TerrainPass {
 
   std::span<lod::TerrainVertex> mapped() const { return mapped_; }
 
-  // Chunks in the given order; those within kTerrainDetailReach_m with the detail program.
+  // Chunks in the given order, each with the program variant for its distance from the eye.
   void draw(const lod::Camera& camera, const Lighting& lighting, std::span<const uint32_t> chunkIndices,
             RenderStats& stats) {
     gl.BindVertexArray(vertexArray_.id());
@@ -193,7 +202,7 @@ class TerrainPass {
     GLuint p = 0;
     for (uint32_t i : chunkIndices) {
       const lod::TerrainChunk& c = chunks_[i];
-      const int detail = boxDistance(camera.eye_m, c.bounds) < kTerrainDetailReach_m ? 1 : 0;
+      const int detail = detailLevel(boxDistance(camera.eye_m, c.bounds));
       if (detail != current) {
         p = begin(camera, lighting, detail);
         current = detail;
@@ -208,13 +217,13 @@ class TerrainPass {
     gl.BindVertexArray(0);
   }
 
-  // Draws the first `count` vertices of the mapped buffer as a triangle list; with the detail
-  // program unless every vertex is at least kTerrainDetailReach_m from the eye (`nearest_m`).
+  // Draws the first `count` vertices of the mapped buffer as a triangle list, with the program
+  // variant for `nearest_m` (a lower bound on the distance from the eye to every vertex).
   void drawDynamic(const lod::Camera& camera, const Lighting& lighting, const glm::dvec3& origin_m, size_t count,
                    double nearest_m, RenderStats& stats) {
     const size_t n = std::min(count, mapped_.size()) / 3 * 3;
     if (n == 0) return;
-    const GLuint p = begin(camera, lighting, nearest_m < kTerrainDetailReach_m ? 1 : 0);
+    const GLuint p = begin(camera, lighting, detailLevel(nearest_m));
     setOrigin(p, origin_m, camera);
     gl.BindVertexArray(dynamicArray_.id());
     gl.DrawArrays(GL_TRIANGLES, 0, static_cast<GLsizei>(n));
@@ -224,9 +233,10 @@ class TerrainPass {
   }
 
   // Ranges of triangle slots (lod/terrain_chunks.h): one multi-draw for the far ranges, one with
-  // the detail program for the near ones (TerrainDrawRange::near).
+  // the detail for `nearest_m` (a lower bound on their distance) for the near ones
+  // (TerrainDrawRange::near).
   void drawDynamicRanges(const lod::Camera& camera, const Lighting& lighting, const glm::dvec3& origin_m,
-                         std::span<const lod::TerrainDrawRange> ranges, RenderStats& stats) {
+                         std::span<const lod::TerrainDrawRange> ranges, double nearest_m, RenderStats& stats) {
     const size_t limit = mapped_.size() / 3;
     for (uint32_t detail = 0; detail < 2; ++detail) {
       firsts_.clear();
@@ -240,7 +250,7 @@ class TerrainPass {
         triangles += n;
       }
       if (firsts_.empty()) continue;
-      const GLuint p = begin(camera, lighting, static_cast<int>(detail));
+      const GLuint p = begin(camera, lighting, detail == 0 ? 0 : std::max(1, detailLevel(nearest_m)));
       setOrigin(p, origin_m, camera);
       gl.BindVertexArray(dynamicArray_.id());
       gl.MultiDrawArrays(GL_TRIANGLES, firsts_.data(), counts_.data(), static_cast<GLsizei>(firsts_.size()));
@@ -269,8 +279,8 @@ class TerrainPass {
     return GlVertexArray::wrap(vao);
   }
 
-  // Per-draw uniforms shared by both paths; binds and returns the program variant (1: with the
-  // near-ground detail).
+  // Per-draw uniforms shared by both paths; binds and returns the program variant (0: no ground
+  // detail, 1: the 2 m noise, 2: both).
   GLuint begin(const lod::Camera& camera, const Lighting& lighting, int detail) {
     const Program& g = programs_[detail];
     const GLuint p = g.program.id();
@@ -308,7 +318,7 @@ class TerrainPass {
 
   std::vector<GLint> firsts_;    // drawDynamicRanges: grown once, reused
   std::vector<GLsizei> counts_;
-  Program programs_[2];              // [0]: far ground, [1]: with the near-ground detail
+  Program programs_[3];              // by detailLevel()
   const Program* current_ = nullptr;  // the variant begin() bound
   GlBuffer vertexBuffer_, indexBuffer_, dynamicBuffer_;
   GlVertexArray vertexArray_, dynamicArray_;
@@ -404,8 +414,9 @@ void Renderer::drawTerrainMesh(const glm::dvec3& origin_m, size_t vertexCount, d
   if (terrainMesh_) terrainMesh_->drawDynamic(camera_, lighting_, origin_m, vertexCount, nearest_m, stats_);
 }
 
-void Renderer::drawTerrainMeshRanges(const glm::dvec3& origin_m, std::span<const lod::TerrainDrawRange> ranges) {
-  if (terrainMesh_) terrainMesh_->drawDynamicRanges(camera_, lighting_, origin_m, ranges, stats_);
+void Renderer::drawTerrainMeshRanges(const glm::dvec3& origin_m, std::span<const lod::TerrainDrawRange> ranges,
+                                     double nearest_m) {
+  if (terrainMesh_) terrainMesh_->drawDynamicRanges(camera_, lighting_, origin_m, ranges, nearest_m, stats_);
 }
 
 void Renderer::drawTerrainMesh(const glm::dvec3& origin_m, std::span<const lod::TerrainVertex> vertices) {

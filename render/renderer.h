@@ -35,9 +35,11 @@ struct RenderStats {
 
 class TerrainPass;
 
-// Terrain within this distance of the eye is shaded with its near-ground detail (0.25 m and 2 m
-// noise, faded out by 400 m); beyond it a cheaper program draws the same colours.
+// Terrain within these distances of the eye is shaded with its near-ground detail: 2 m value
+// noise faded out by 400 m, 0.25 m noise faded out by 40 m. Beyond them cheaper program variants
+// draw the same colours (the noise terms are 0 there).
 inline constexpr double kTerrainDetailReach_m = 400.0;
+inline constexpr double kTerrainFineDetailReach_m = 40.0;
 
 class Renderer {
  public:
@@ -68,13 +70,15 @@ class Renderer {
   void drawTerrain(std::span<const uint32_t> chunkIndices);
   // Draws the first `vertexCount` vertices of the mapped buffer (3 a triangle, positions
   // relative to `origin_m`; degenerate triangles mark free slots). `nearest_m`: a lower bound on
-  // the distance from the eye to the mesh; from kTerrainDetailReach_m on the ground is shaded
-  // without its near detail (which is 0 there anyway), for a third less fragment work.
+  // the distance from the eye to the mesh; the ground detail terms whose reach it exceeds are
+  // left out (they are 0 there anyway): up to a third less fragment work.
   void drawTerrainMesh(const glm::dvec3& origin_m, size_t vertexCount, double nearest_m = 0.0);
   // Draws ranges of triangle slots of the mapped buffer (the chunks of lod/terrain_chunks.h inside
-  // the frustum): one multi-draw for the ranges marked near (with the detail), one for the rest.
+  // the frustum): one multi-draw for the ranges marked near (with the detail; `nearest_m`: a
+  // lower bound on their distance from the eye, TerrainChunks::cull's), one for the rest.
   // Pass kTerrainDetailReach_m to TerrainChunks::cull().
-  void drawTerrainMeshRanges(const glm::dvec3& origin_m, std::span<const lod::TerrainDrawRange> ranges);
+  void drawTerrainMeshRanges(const glm::dvec3& origin_m, std::span<const lod::TerrainDrawRange> ranges,
+                             double nearest_m = 0.0);
   // Convenience: copies a whole triangle list into the mapped buffer, then draws it.
   void drawTerrainMesh(const glm::dvec3& origin_m, std::span<const lod::TerrainVertex> vertices);
   RenderStats endFrame();

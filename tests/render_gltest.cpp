@@ -285,11 +285,12 @@ TEST(RenderGL, TheSameSetUpWithA24BitDepthBufferFails) {
   EXPECT_GT(redPixelsLeft(testCamera(), fbo, 128, 128, 50000.0, 2.0), 128 * 128 / 2);
 }
 
-// Near-ground detail (render::kTerrainDetailReach_m): the terrain's fragment shader has a
-// variant without the 0.25 m / 2 m ground noise, used where the caller says every fragment is
-// beyond the reach (the noise is 0 there, and a third of a frame seen from the air on llvmpipe).
-// Close to the ground the detail shows; from the air both variants give the same bits; ranges
-// marked far are drawn without it and the split into two multi-draws changes nothing else.
+// Near-ground detail (render::kTerrainDetailReach_m, kTerrainFineDetailReach_m): the terrain's
+// fragment shader has variants without the 0.25 m noise (0 from 40 m) and without both noises
+// (0 from 400 m), chosen from a lower bound on the distance to what is drawn (the noise is a
+// third of a frame seen from the air on llvmpipe, which runs both sides of a branch). Close to
+// the ground each term shows; where a term is 0 the variants give the same bits; ranges marked
+// far are drawn without the detail and the split into two multi-draws changes nothing else.
 TEST(RenderGL, TerrainDetailOnlyNearTheGroundAndTheSamePictureFar) {
   constexpr int kW = 160, kH = 120, kPosts = 65;
   constexpr double kSpacing = 16.0, kRelief = 40.0;  // 1,024 m square
@@ -328,11 +329,11 @@ TEST(RenderGL, TerrainDetailOnlyNearTheGroundAndTheSamePictureFar) {
     return finish();
   };
   // The mesh's two halves as ranges, each marked near (1) or far (0).
-  auto halves = [&](const lod::Camera& cam, uint32_t nearA, uint32_t nearB) {
+  auto halves = [&](const lod::Camera& cam, uint32_t nearA, uint32_t nearB, double nearest_m) {
     const auto t = static_cast<uint32_t>(n / 3);
     const lod::TerrainDrawRange ranges[2] = {{0, t / 2, nearA}, {t / 2, t - t / 2, nearB}};
     renderer.beginFrame(cam, light);
-    renderer.drawTerrainMeshRanges(glm::dvec3(0.0), ranges);
+    renderer.drawTerrainMeshRanges(glm::dvec3(0.0), ranges, nearest_m);
     return finish();
   };
   lod::Camera low;
@@ -347,14 +348,22 @@ TEST(RenderGL, TerrainDetailOnlyNearTheGroundAndTheSamePictureFar) {
   high.eye_m = {512.0, -600.0, 1500.0};  // every point of the terrain over 1,400 m away
   high.pitch_deg = -60.0;
 
-  const render::Image lowDetail = whole(low, 0.0), lowPlain = whole(low, 1e9);
-  EXPECT_GT(render::rmse(lowDetail, lowPlain), 0.5) << "the near-ground detail does not show";
-  const render::Image highDetail = whole(high, 0.0), highPlain = whole(high, 1400.0);
-  EXPECT_EQ(highDetail.rgba, highPlain.rgba) << "beyond the reach both variants must give the same bits";
-  EXPECT_GT(render::rmse(highDetail, lowDetail), 10.0);  // the views differ: the check above is not vacuous
+  lod::Camera mid = low;  // every point of the terrain 150 ... 400 m away in view
+  mid.eye_m.z = 200.0;
 
-  EXPECT_EQ(halves(low, 1, 1).rgba, lowDetail.rgba);
-  EXPECT_EQ(halves(low, 0, 0).rgba, lowPlain.rgba);
-  EXPECT_GT(render::rmse(halves(low, 1, 0), lowDetail), 0.0) << "a range marked far is drawn without the detail";
-  EXPECT_EQ(halves(high, 0, 1).rgba, highDetail.rgba);
+  const render::Image lowFull = whole(low, 0.0), lowCoarse = whole(low, 100.0), lowPlain = whole(low, 1e9);
+  EXPECT_GT(render::rmse(lowFull, lowCoarse), 0.2) << "the 0.25 m noise does not show near the ground";
+  EXPECT_GT(render::rmse(lowCoarse, lowPlain), 0.5) << "the 2 m noise does not show near the ground";
+  const render::Image midFull = whole(mid, 0.0), midCoarse = whole(mid, 150.0), midPlain = whole(mid, 1e9);
+  EXPECT_EQ(midFull.rgba, midCoarse.rgba) << "beyond 40 m the 0.25 m noise is 0: the same bits";
+  EXPECT_GT(render::rmse(midCoarse, midPlain), 0.2) << "the 2 m noise shows within 400 m";
+  const render::Image highFull = whole(high, 0.0), highPlain = whole(high, 1400.0);
+  EXPECT_EQ(highFull.rgba, highPlain.rgba) << "beyond the reach every variant must give the same bits";
+  EXPECT_GT(render::rmse(highFull, midFull), 10.0);  // the views differ: the checks above are not vacuous
+
+  EXPECT_EQ(halves(low, 1, 1, 0.0).rgba, lowFull.rgba);
+  EXPECT_EQ(halves(low, 1, 1, 100.0).rgba, lowCoarse.rgba);
+  EXPECT_EQ(halves(low, 0, 0, 0.0).rgba, lowPlain.rgba);
+  EXPECT_GT(render::rmse(halves(low, 1, 0, 0.0), lowFull), 0.0) << "a range marked far is drawn without the detail";
+  EXPECT_EQ(halves(high, 0, 1, 0.0).rgba, highFull.rgba);
 }
