@@ -244,17 +244,8 @@ struct Run {
     renderer.beginFrame(cam, light);
     // The ground detail terms whose reach every triangle drawn lies beyond are left out (the
     // distance from the eye to each triangle's box; the slots hold exactly these triangles).
-    double nearest_m = 1e300;
-    for (size_t i = 0; i < n && nearest_m >= render::kTerrainFineDetailReach_m; ++i) {
-      glm::dvec3 lo(1e300), hi(-1e300);
-      for (const lod::RoamVertex& v : triangles[i].v) {
-        const glm::dvec3 at(v.x * kSpacing_m, v.y * kSpacing_m,
-                           static_cast<double>(relief.heights[static_cast<size_t>(v.y) * static_cast<size_t>(relief.n) + static_cast<size_t>(v.x)]));
-        lo = glm::min(lo, at);
-        hi = glm::max(hi, at);
-      }
-      nearest_m = std::min(nearest_m, glm::length(glm::max(glm::max(lo - cam.eye_m, cam.eye_m - hi), glm::dvec3(0.0))));
-    }
+    const double nearest_m = lod::nearestTriangleBox(std::span(triangles.data(), n), relief.heights, relief.n, relief.n,
+                                                     kSpacing_m, cam.eye_m, render::kTerrainFineDetailReach_m);
     renderer.drawTerrainMesh(glm::dvec3(0.0), static_cast<size_t>(slots->highWater()) * 3, nearest_m);
     renderer.endFrame();
     const int64_t t2 = nowNs();

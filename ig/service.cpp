@@ -179,7 +179,6 @@ struct TerrainMeshLayer {
   // now_s is the frame's simulation-loop time for geomorphing; NaN = no morphing (one-off
   // frames converge to the true surface).
   void select(const lod::Camera& cam, double viewportHeight_px, Clock* clock, double now_s) {
-
     lod::RoamView view;
     view.camera = cam;
     view.viewportHeight_px = viewportHeight_px;
@@ -249,20 +248,10 @@ struct TerrainMeshLayer {
     // buffer holds exactly these triangles (each within the box of its posts); morphing vertices
     // and ghosts move between heights, so then only the eye's height above the highest post.
     drawNearest_m = std::max(0.0, cam.eye_m.z - (origin_m.z + maxHeight_m));
-    if (!morph && !morphOut) {
-      double nearest = 1e300;
-      const glm::dvec3 eye = cam.eye_m - origin_m;
-      for (size_t i = 0; i < n && nearest >= render::kTerrainFineDetailReach_m; ++i) {
-        glm::dvec3 lo(1e300), hi(-1e300);
-        for (const lod::RoamVertex& v : triangles[i].v) {
-          const glm::dvec3 at(v.x * spacing_m, v.y * spacing_m, sampleHeight(v.x, v.y));
-          lo = glm::min(lo, at);
-          hi = glm::max(hi, at);
-        }
-        nearest = std::min(nearest, glm::length(glm::max(glm::max(lo - eye, eye - hi), glm::dvec3(0.0))));
-      }
-      drawNearest_m = std::max(drawNearest_m, nearest);
-    }
+    if (!morph && !morphOut)
+      drawNearest_m = std::max(drawNearest_m, lod::nearestTriangleBox(std::span(triangles.get(), n), heights_m, width, height,
+                                                                      spacing_m, cam.eye_m - origin_m,
+                                                                      render::kTerrainFineDetailReach_m));
     // Write only what changed: freed slots become degenerate, new triangles take slots. The
     // GPU is idle here (the previous frame ended with glFinish).
     const lod::TriangleSlots::Changes c =

@@ -1424,4 +1424,21 @@ bool Roam::validate(std::string* why) const {
   return true;
 }
 
+double nearestTriangleBox(std::span<const RoamTriangle> triangles, std::span<const float> heights_m, int width, int height,
+                          double spacing_m, const glm::dvec3& point, double enough) {
+  double nearest = std::numeric_limits<double>::infinity();
+  for (size_t i = 0; i < triangles.size() && nearest >= enough; ++i) {
+    Aabb box{glm::dvec3(std::numeric_limits<double>::infinity()), glm::dvec3(-std::numeric_limits<double>::infinity())};
+    for (const RoamVertex& v : triangles[i].v) {
+      const int x = std::clamp(v.x, 0, width - 1), y = std::clamp(v.y, 0, height - 1);
+      const glm::dvec3 at(x * spacing_m, y * spacing_m,
+                          static_cast<double>(heights_m[static_cast<size_t>(y) * static_cast<size_t>(width) + static_cast<size_t>(x)]));
+      box.min = glm::min(box.min, at);
+      box.max = glm::max(box.max, at);
+    }
+    nearest = std::min(nearest, distanceToBox(box, point));
+  }
+  return nearest;
+}
+
 }  // namespace ig::lod

@@ -157,6 +157,13 @@ struct RoamTriangle {
   RoamVertex v[3];  // counter-clockwise seen from above (+z)
 };
 
+// The smallest distance from `point` (relative to sample (0, 0)) to the boxes of the triangles,
+// their corners at the height-field samples (clamped into the field, as heightFieldVertex places
+// them): a lower bound on the distance to the triangles drawn from those samples. Stops once it
+// is below `enough` (then returns a value below it). +inf without triangles.
+double nearestTriangleBox(std::span<const RoamTriangle> triangles, std::span<const float> heights_m, int width, int height,
+                          double spacing_m, const glm::dvec3& point, double enough);
+
 class Roam {
  public:
   // heights_m: width * height samples, row-major (row = y, north); width, height >= 2;

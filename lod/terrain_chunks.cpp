@@ -369,9 +369,7 @@ size_t TerrainChunks::cull(const Camera& camera, std::vector<TerrainDrawRange>& 
 size_t TerrainChunks::cullChunk(const Chunk& c, const Frustum& frustum, const glm::dvec3& eye, double nearReach_m,
                                 std::vector<TerrainDrawRange>& ranges, double& nearest_m) const {
   if (c.live == 0 || !frustum.intersects(Aabb{c.lo - eye, c.hi - eye})) return 0;
-  // Distance from the eye to the chunk's box (0 inside it).
-  const glm::dvec3 gap = glm::max(glm::max(c.lo - eye, eye - c.hi), glm::dvec3(0.0));
-  const double distance = glm::length(gap);
+  const double distance = distanceToBox(Aabb{c.lo, c.hi}, eye);
   const uint32_t near = distance < nearReach_m ? 1u : 0u;
   nearest_m = std::min(nearest_m, distance);
   for (uint32_t b = c.firstBlock; b != kNone; b = blocks_[b].next) {

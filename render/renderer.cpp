@@ -98,11 +98,6 @@ int detailLevel(double nearest_m) {
   return nearest_m >= kTerrainDetailReach_m ? 0 : nearest_m >= kTerrainFineDetailReach_m ? 1 : 2;
 }
 
-// Distance from a point to a box (0 inside).
-double boxDistance(const glm::dvec3& p, const lod::Aabb& b) {
-  return glm::length(glm::max(glm::max(b.min - p, p - b.max), glm::dvec3(0.0)));
-}
-
 }  // namespace
 
 struct Renderer::Target {
@@ -202,7 +197,7 @@ class TerrainPass {
     GLuint p = 0;
     for (uint32_t i : chunkIndices) {
       const lod::TerrainChunk& c = chunks_[i];
-      const int detail = detailLevel(boxDistance(camera.eye_m, c.bounds));
+      const int detail = detailLevel(lod::distanceToBox(c.bounds, camera.eye_m));
       if (detail != current) {
         p = begin(camera, lighting, detail);
         current = detail;

@@ -744,3 +744,29 @@ TEST(Roam, MeshHeightAndLeafAt) {
     }
   }
 }
+
+// nearestTriangleBox: a lower bound on the distance to triangles drawn from height-field samples
+// (the service and igbench governor choose the terrain's detail variant with it).
+TEST(Roam, NearestTriangleBoxIsTheDistanceToTheClosestBox) {
+  // 4 x 4 samples, 10 m apart, all 5 m high except (3, 3) at 50 m.
+  std::vector<float> h(16, 5.0f);
+  h[15] = 50.0f;
+  const std::vector<RoamTriangle> tris = {
+      {{{0, 0}, {1, 0}, {0, 1}}},  // box [0, 10] x [0, 10] x [5, 5]
+      {{{2, 2}, {3, 2}, {3, 3}}},  // box [20, 30] x [20, 30] x [5, 50]
+  };
+  const glm::dvec3 above(5.0, 5.0, 105.0);
+  // 100 m down to the first box, but the second's top corner (20, 20, 50) is closer.
+  EXPECT_DOUBLE_EQ(nearestTriangleBox(tris, h, 4, 4, 10.0, above, 0.0), std::sqrt(15.0 * 15.0 + 15.0 * 15.0 + 55.0 * 55.0));
+  EXPECT_DOUBLE_EQ(nearestTriangleBox(std::span(tris).first(1), h, 4, 4, 10.0, above, 0.0), 100.0);
+  // Only the second triangle: from (25, 25, 105) straight down to its top at 50 m.
+  EXPECT_DOUBLE_EQ(nearestTriangleBox(std::span(tris).subspan(1), h, 4, 4, 10.0, {25.0, 25.0, 105.0}, 0.0), 55.0);
+  // Inside a box: 0.
+  EXPECT_DOUBLE_EQ(nearestTriangleBox(tris, h, 4, 4, 10.0, {25.0, 25.0, 20.0}, 0.0), 0.0);
+  // Corners beyond the field are clamped onto its edge, as heightFieldVertex places them.
+  const std::vector<RoamTriangle> outside = {{{{5, 5}, {6, 5}, {5, 6}}}};
+  EXPECT_DOUBLE_EQ(nearestTriangleBox(outside, h, 4, 4, 10.0, {30.0, 30.0, 60.0}, 0.0), 10.0);
+  // Stops once below `enough`; +inf without triangles.
+  EXPECT_LT(nearestTriangleBox(tris, h, 4, 4, 10.0, above, 1000.0), 1000.0);
+  EXPECT_TRUE(std::isinf(nearestTriangleBox({}, h, 4, 4, 10.0, above, 0.0)));
+}
