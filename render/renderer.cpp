@@ -193,6 +193,12 @@ class TerrainPass {
   void draw(const lod::Camera& camera, const Lighting& lighting, std::span<const uint32_t> chunkIndices,
             RenderStats& stats) {
     gl.BindVertexArray(vertexArray_.id());
+    if (!chunks_.empty()) warmUp([&] {
+      const lod::TerrainChunk& c = chunks_.front();
+      gl.DrawElementsBaseVertex(GL_TRIANGLES, 3, GL_UNSIGNED_INT,
+                                reinterpret_cast<const void*>(static_cast<uintptr_t>(c.firstIndex) * sizeof(uint32_t)),
+                                static_cast<GLint>(c.firstVertex));
+    });
     int current = -1;
     GLuint p = 0;
     for (uint32_t i : chunkIndices) {
@@ -218,9 +224,10 @@ class TerrainPass {
                    double nearest_m, RenderStats& stats) {
     const size_t n = std::min(count, mapped_.size()) / 3 * 3;
     if (n == 0) return;
+    gl.BindVertexArray(dynamicArray_.id());
+    warmUp([] { gl.DrawArrays(GL_TRIANGLES, 0, 3); });
     const GLuint p = begin(camera, lighting, detailLevel(nearest_m));
     setOrigin(p, origin_m, camera);
-    gl.BindVertexArray(dynamicArray_.id());
     gl.DrawArrays(GL_TRIANGLES, 0, static_cast<GLsizei>(n));
     gl.BindVertexArray(0);
     stats.triangles += n / 3;
@@ -233,6 +240,10 @@ class TerrainPass {
   void drawDynamicRanges(const lod::Camera& camera, const Lighting& lighting, const glm::dvec3& origin_m,
                          std::span<const lod::TerrainDrawRange> ranges, double nearest_m, RenderStats& stats) {
     const size_t limit = mapped_.size() / 3;
+    if (limit > 0) {
+      gl.BindVertexArray(dynamicArray_.id());
+      warmUp([] { gl.DrawArrays(GL_TRIANGLES, 0, 3); });
+    }
     for (uint32_t detail = 0; detail < 2; ++detail) {
       firsts_.clear();
       counts_.clear();
@@ -272,6 +283,23 @@ class TerrainPass {
     gl.VertexArrayAttribFormat(vao, 1, 3, GL_FLOAT, GL_FALSE, offsetof(lod::TerrainVertex, normal));
     gl.VertexArrayAttribBinding(vao, 1, 0);
     return GlVertexArray::wrap(vao);
+  }
+
+  // llvmpipe compiles a program's fragment code for the pipeline state at its first draw (~10 ms
+  // here): the pass's first draw also draws one triangle, wholly clipped (every vertex at w = -1),
+  // with each variant, so that none of them stalls a later frame (when the eye first comes near
+  // the ground). `draw3` draws three vertices with the bound vertex array.
+  template <typename Draw3>
+  void warmUp(Draw3&& draw3) {
+    if (warmed_) return;
+    warmed_ = true;
+    glm::mat4 clipped(0.0f);
+    clipped[3][3] = -1.0f;
+    for (const Program& g : programs_) {
+      gl.ProgramUniformMatrix4fv(g.program.id(), g.uViewProjection, 1, GL_FALSE, glm::value_ptr(clipped));
+      gl.UseProgram(g.program.id());
+      draw3();
+    }
   }
 
   // Per-draw uniforms shared by both paths; binds and returns the program variant (0: no ground
@@ -321,6 +349,7 @@ class TerrainPass {
   std::vector<lod::TerrainChunk> chunks_;
   uint64_t bytes_ = 0;
   float heightScale_ = 1.0f;
+  bool warmed_ = false;  // warmUp() done
 };
 
 Renderer::Renderer() = default;
