@@ -24,6 +24,8 @@
 //   sweep                    per (layers, near distance): frame_ms (p50) and psnr_db against a
 //                            reference that draws every tree within the far plane as a 3D model
 //                            (offline, slow)
+//   drawn_sweep              the frame governor's layer knob: layers_drawn = n/2, n/4 ... 1 of the
+//                            main run's n layers (composited groups) at near 500 m: frame_ms, psnr_db
 #pragma once
 
 #include <cstdint>

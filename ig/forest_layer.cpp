@@ -197,6 +197,8 @@ bool ForestLayer::setFades(const lod::NearFade& nearFade, const lod::FarFade& fa
   return true;
 }
 
+void ForestLayer::setLayersDrawn(int layers) { layersDrawn_ = std::max(layers, 0); }
+
 bool ForestLayer::setNearDistance(double end_m) {
   if (end_m == nearFade_.fadeOutEnd_m) return true;
   const double k = end_m / config_.nearFadeEnd_m;
@@ -229,9 +231,9 @@ void ForestLayer::draw(render::Renderer& r, const glm::dvec3& terrainOrigin_m, s
 void ForestLayer::draw(render::Renderer& r, const glm::dvec3& terrainOrigin_m,
                        std::span<const lod::TerrainDrawRange> terrainRanges) {
   if (drawTrees_) pass_.drawTrees(r, selectedTrees(), modelRanges_);
-  if (drawLayers_) pass_.drawLayers(r, terrainOrigin_m, terrainRanges, pass_.layerCount());
+  if (drawLayers_) pass_.drawLayers(r, terrainOrigin_m, terrainRanges, layersDrawn());
   if (drawFins_) pass_.drawFins(r, std::span(groups_.data(), groupsSelected_));
-  stats_.layers = drawLayers_ ? pass_.layerCount() : 0;
+  stats_.layers = drawLayers_ ? layersDrawn() : 0;
   pass_.takeStats();
 }
 

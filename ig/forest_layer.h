@@ -8,6 +8,7 @@
 // frame, no thread.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <memory>
@@ -88,6 +89,18 @@ class ForestLayer {
   // would no longer be valid (the fade-in would pass the layers' fade-out).
   bool setNearDistance(double end_m);
   double nearDistance() const { return nearFade_.fadeOutEnd_m; }
+  // How many shell layers are drawn (the frame governor's second forest knob: the layers are
+  // fill over most of the screen, the larger part of a forest frame): 1 ... layerCount(), the
+  // scene's `layers` at start. Fewer layers draw the same forest coarser (ForestPass::drawLayers);
+  // a value out of range is clamped; 0 = all (also after the textures change their count).
+  void setLayersDrawn(int layers);
+  // Prepares the counts in [least, most] (their textures made now, not on first use: the frame
+  // governor's knob, whose first cut comes when a frame is already late). GL context current.
+  void prepareLayersDrawn(int least, int most) {
+    for (int n = std::max(least, 1); n <= most; ++n) pass_.prepareLayers(n);
+  }
+  int layersDrawn() const { return layersDrawn_ > 0 ? std::min(layersDrawn_, pass_.layerCount()) : pass_.layerCount(); }
+  int layerCount() const { return pass_.layerCount(); }
   void enableParts(bool trees, bool layers, bool fins) {
     drawTrees_ = trees, drawLayers_ = layers, drawFins_ = fins;
   }
@@ -107,6 +120,7 @@ class ForestLayer {
   size_t selected_ = 0, groupsSelected_ = 0;
   ForestLayerStats stats_;
   bool drawTrees_ = true, drawLayers_ = true, drawFins_ = true;
+  int layersDrawn_ = 0;
 };
 
 }  // namespace ig

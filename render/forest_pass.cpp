@@ -131,7 +131,9 @@ layout(location = 1) in vec3 aNormal;
 uniform mat4 uViewProjection;
 uniform vec3 uOffset;                     // terrain origin - eye (double on the CPU)
 uniform float uLayerStep;                 // H / n
-uniform int uLayerBase;                   // layer of instance 0 (one draw per layer over ranges)
+uniform int uLayerBase;                   // drawn layer of instance 0 (one draw per layer over ranges)
+uniform int uLayersDrawn;                 // m <= n drawn: layer j stands for slabs [j n / m, (j + 1) n / m)
+uniform int uLayerCount;                  // n (slabs of T)
 uniform vec2 uMapScale;                   // 1 / map extent
 uniform vec2 uMapBias;                    // (terrain origin - map origin) / extent
 uniform float uTileScale;                 // 1 / tile
@@ -141,12 +143,15 @@ out vec3 vNormal;
 out vec2 vMapUv;
 out vec3 vTileUv;
 void main() {
-  float layer = float(gl_InstanceID + uLayerBase);
-  vec3 rel = aPosition + vec3(0.0, 0.0, (layer + 1.0) * uLayerStep) + uOffset;
+  // Drawn layer j stands for a group of slabs, at the top one's height, with slice j of the
+  // texture bound: T itself when m = n (one slab each), else T's slabs composited per group.
+  int j = gl_InstanceID + uLayerBase;
+  float top = float(((j + 1) * uLayerCount) / uLayersDrawn);
+  vec3 rel = aPosition + vec3(0.0, 0.0, top * uLayerStep) + uOffset;
   vRel = rel;
   vNormal = aNormal;
   vMapUv = aPosition.xy * uMapScale + uMapBias;
-  vTileUv = vec3(aPosition.xy * uTileScale + uTileBias, layer);
+  vTileUv = vec3(aPosition.xy * uTileScale + uTileBias, float(j));
   gl_Position = uViewProjection * vec4(rel, 1.0);
 }
 )";
@@ -611,12 +616,15 @@ struct ForestPass::Impl {
   Locations layerLoc, finLoc;
   std::vector<GLint> layerFirsts;  // drawLayers over ranges
   std::vector<GLsizei> layerCounts;
-  GLint lOffset = -1, lLayerStep = -1, lLayerBase = -1, lMapScale = -1, lMapBias = -1, lTileScale = -1, lTileBias = -1;
+  GLint lOffset = -1, lLayerStep = -1, lLayerBase = -1, lLayersDrawn = -1, lLayerCount = -1, lMapScale = -1, lMapBias = -1, lTileScale = -1, lTileBias = -1;
   GLint fOffset = -1, fMapScale = -1, fTileScale = -1;
   GlVertexArray layerVao, finVao;
   GLuint layerVaoBuffer = 0;
   GlBuffer finBuffer;
   GlTexture grTex, layerTex, finTex;
+  // Fewer layers drawn (m < n): T's slabs composited in m groups, made on first use per m.
+  Image layerImage;
+  std::vector<GlTexture> groupTex;  // [m], empty texture until used
   uint64_t bytes = 0, finBytes = 0;
   int layerCount = 0;
   double tile_m = 24.0, height_m = 20.0;
@@ -626,9 +634,13 @@ struct ForestPass::Impl {
   std::vector<GLsizei> counts;
   ForestDrawStats stats;
 
+  const GlTexture& groupTexture(int m);  // m in [1, layerCount)
   void setTextures(const ForestTextures& t) {
     const int tw = t.layers.height;
     layerTex = makeArrayTexture(t.layers, tw, t.layerCount, GL_REPEAT);
+    layerImage = t.layers;
+    groupTex.clear();
+    groupTex.resize(static_cast<size_t>(t.layerCount) + 1);
     finTex = makeArrayTexture(t.fins, t.fins.width / t.finSlices, t.finSlices, GL_CLAMP_TO_EDGE);
     layerCount = t.layerCount;
     tile_m = t.tile_m;
@@ -636,6 +648,51 @@ struct ForestPass::Impl {
     bytes = trees.bytes + finBytes + static_cast<uint64_t>(t.layers.rgba.size() + t.fins.rgba.size()) * 4 / 3;
   }
 };
+
+// The n slabs of T (side by side in `t`, size x size each) in m groups, group j = slabs
+// [j n / m, (j + 1) n / m): each texel the group seen from above, its slabs composited top down
+// ("over": colour sum of c a times the transmittance above, alpha 1 - product of (1 - a)); a
+// texel no slab covers keeps the top slab's colour at alpha 0 (filtering stays on the forest's hue).
+Image compositeLayerGroups(const Image& t, int n, int m) {
+  const int size = t.height;
+  Image out;
+  out.width = size * m;
+  out.height = size;
+  out.rgba.assign(static_cast<size_t>(out.width) * static_cast<size_t>(size) * 4, 0);
+  for (int j = 0; j < m; ++j) {
+    const int g0 = j * n / m, g1 = (j + 1) * n / m;
+    for (int y = 0; y < size; ++y)
+      for (int x = 0; x < size; ++x) {
+        double c[3] = {0.0, 0.0, 0.0}, trans = 1.0;
+        for (int s = g1 - 1; s >= g0; --s) {
+          const uint8_t* p = t.rgba.data() + (static_cast<size_t>(y) * static_cast<size_t>(t.width) +
+                                              static_cast<size_t>(s) * static_cast<size_t>(size) + static_cast<size_t>(x)) * 4;
+          const double a = p[3] / 255.0;
+          for (int k = 0; k < 3; ++k) c[k] += trans * a * p[k];
+          trans *= 1.0 - a;
+        }
+        const double alpha = 1.0 - trans;
+        const uint8_t* top = t.rgba.data() + (static_cast<size_t>(y) * static_cast<size_t>(t.width) +
+                                              static_cast<size_t>(g1 - 1) * static_cast<size_t>(size) + static_cast<size_t>(x)) * 4;
+        uint8_t* q = out.rgba.data() + (static_cast<size_t>(y) * static_cast<size_t>(out.width) +
+                                        static_cast<size_t>(j) * static_cast<size_t>(size) + static_cast<size_t>(x)) * 4;
+        for (int k = 0; k < 3; ++k)
+          q[k] = alpha > 1e-6 ? static_cast<uint8_t>(std::clamp(std::lround(c[k] / alpha), 0L, 255L)) : top[k];
+        q[3] = static_cast<uint8_t>(std::clamp(std::lround(alpha * 255.0), 0L, 255L));
+      }
+  }
+  return out;
+}
+
+const GlTexture& ForestPass::Impl::groupTexture(int m) {
+  GlTexture& t = groupTex[static_cast<size_t>(m)];
+  if (t.id() == 0) {
+    const Image img = compositeLayerGroups(layerImage, layerCount, m);
+    t = makeArrayTexture(img, img.height, m, GL_REPEAT);
+    bytes += static_cast<uint64_t>(img.rgba.size()) * 4 / 3;
+  }
+  return t;
+}
 
 ForestPass::ForestPass() = default;
 ForestPass::~ForestPass() = default;
@@ -659,6 +716,8 @@ bool ForestPass::init(const ForestPassDesc& desc, const lod::ForestMap& map, con
   m->lOffset = gl.GetUniformLocation(lp, "uOffset");
   m->lLayerStep = gl.GetUniformLocation(lp, "uLayerStep");
   m->lLayerBase = gl.GetUniformLocation(lp, "uLayerBase");
+  m->lLayersDrawn = gl.GetUniformLocation(lp, "uLayersDrawn");
+  m->lLayerCount = gl.GetUniformLocation(lp, "uLayerCount");
   m->lMapScale = gl.GetUniformLocation(lp, "uMapScale");
   m->lMapBias = gl.GetUniformLocation(lp, "uMapBias");
   m->lTileScale = gl.GetUniformLocation(lp, "uTileScale");
@@ -793,6 +852,8 @@ void ForestPass::drawLayers(Renderer& r, const glm::dvec3& origin, std::span<con
   const glm::vec3 offset(origin - cam.eye_m);
   gl.ProgramUniform3fv(p, m.lOffset, 1, glm::value_ptr(offset));
   gl.ProgramUniform1f(p, m.lLayerStep, static_cast<float>(m.height_m / m.layerCount));
+  gl.ProgramUniform1i(p, m.lLayersDrawn, n);
+  gl.ProgramUniform1i(p, m.lLayerCount, m.layerCount);
   const glm::vec2 mapScale(1.0 / m.mapExtent.x, 1.0 / m.mapExtent.y);
   const glm::vec2 mapBias((origin.x - m.mapOrigin.x) / m.mapExtent.x, (origin.y - m.mapOrigin.y) / m.mapExtent.y);
   gl.ProgramUniform2fv(p, m.lMapScale, 1, glm::value_ptr(mapScale));
@@ -801,7 +862,7 @@ void ForestPass::drawLayers(Renderer& r, const glm::dvec3& origin, std::span<con
   const auto fract = [&](double v) { return static_cast<float>(v / m.tile_m - std::floor(v / m.tile_m)); };
   const glm::vec2 tileBias(fract(origin.x), fract(origin.y));
   gl.ProgramUniform2fv(p, m.lTileBias, 1, glm::value_ptr(tileBias));
-  gl.BindTextureUnit(0, m.layerTex.id());
+  gl.BindTextureUnit(0, n == m.layerCount ? m.layerTex.id() : m.groupTexture(n).id());
   gl.BindTextureUnit(1, m.grTex.id());
   gl.UseProgram(p);
   gl.BindVertexArray(m.layerVao.id());
@@ -886,6 +947,10 @@ bool ForestPass::setTextures(const ForestTextures& textures, std::string& error)
   if (!validateForestTextures(textures, error)) return false;
   impl_->setTextures(textures);
   return true;
+}
+
+void ForestPass::prepareLayers(int layers) {
+  if (impl_ && layers >= 1 && layers < impl_->layerCount) impl_->groupTexture(layers);
 }
 
 ForestDrawStats ForestPass::takeStats() {

@@ -103,7 +103,11 @@ class ForestPass {
   void drawTrees(Renderer& r, std::span<const lod::ForestInstance> instances,
                  std::span<const lod::ForestModelRange> models);
   // Shell layers over the first `vertexCount` vertices of the terrain mesh buffer (positions
-  // relative to `terrainOrigin_m`). `layers` <= layerCount() (0: none).
+  // relative to `terrainOrigin_m`). `layers` = m of the n = layerCount() slabs of T (clamped to
+  // n; 0: none): fewer layers are a coarser forest of the same height and density, not its lower
+  // part. Drawn layer j stands for slabs [j n / m, (j + 1) n / m): at the top one's height, with
+  // its slice, and as opaque as the group (Beer-Lambert: 1 - (1 - a)^(slabs / cos)); m = n draws
+  // every slab as itself. The frame governor's knob for the layers' fill (ForestLayer).
   void drawLayers(Renderer& r, const glm::dvec3& terrainOrigin_m, size_t vertexCount, int layers);
   // The same over ranges of triangle slots (the terrain chunks in view, lod/terrain_chunks.h).
   void drawLayers(Renderer& r, const glm::dvec3& terrainOrigin_m, std::span<const lod::TerrainDrawRange> ranges,
@@ -111,6 +115,9 @@ class ForestPass {
   // Fins of the given groups (selectFinGroups output: indices into fins->groups).
   void drawFins(Renderer& r, std::span<const uint32_t> groups);
 
+  // Makes the composited textures drawLayers needs for `layers` < layerCount() now (else on the
+  // first draw with that count: ~10 ms for 256 px and 8 layers on llvmpipe). GL context current.
+  void prepareLayers(int layers);
   // Replaces T and S (e.g. another layer count); false with `error` for invalid textures.
   bool setTextures(const ForestTextures& textures, std::string& error);
 

@@ -23,5 +23,9 @@ assert near == sorted(near) and drawn == sorted(drawn), d["cull_sweep"]  # a lon
 assert len(d["sweep"]) >= 4, d["sweep"]
 for s in d["sweep"]:
     assert s["frame_ms"] > 0 and 10 < s["psnr_db"] < 99, s  # rendered, close to but not equal to the reference
+# Fewer layers drawn of the 8 (composited): 4, 2, 1, each rendered and close to the reference.
+assert [s["layers_drawn"] for s in d["drawn_sweep"]] == [4, 2, 1], d["drawn_sweep"]
+for s in d["drawn_sweep"]:
+    assert s["layers"] == 8 and s["frame_ms"] > 0 and 10 < s["psnr_db"] < 99, s
 print("forest_bench_test: 1 passed, 0 failed")
 PY

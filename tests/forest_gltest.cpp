@@ -231,6 +231,71 @@ TEST(ForestGL, FarLayersWhereTheMapHasDensityNothingInGlades) {
   EXPECT_EQ(w.renderer.errors(), "");
 }
 
+// The frame governor's second forest knob: how many shell layers are drawn. Fewer layers are a
+// coarser forest of the same height and density (each drawn layer as thick as the slabs it
+// stands for), not the lower part of it: the mean colour over the forest stays near the full
+// count's, far nearer than the terrain without the forest; the glade stays untouched, and all
+// layers again draw the very same frame.
+TEST(ForestGL, FewerLayersDrawTheSameForestCoarser) {
+  World w;
+  ASSERT_NO_FATAL_FAILURE(w.setUp());
+  std::string error;
+  auto forest = ForestLayer::create(w.config(), w.ground(), error);
+  ASSERT_TRUE(forest) << error;
+  EXPECT_EQ(forest->layersDrawn(), 4);
+  lod::Camera cam = downCamera(1500.0);
+  cam.pitch_deg = -50.0;  // oblique: rays cross several slabs
+  cam.heading_deg = 90.0;
+  cam.eye_m = {-200.0, 512.0, 1500.0};
+  const render::Image without = w.frame(cam, nullptr);
+  const render::Image full = w.frame(cam, forest.get());
+  EXPECT_EQ(forest->stats().layers, 4);
+  lod::Camera skyCam = cam;
+  skyCam.pitch_deg = 90.0;
+  const render::Image sky = w.frame(skyCam, nullptr);
+  // Mean |a - b| over the pixels that show terrain.
+  auto meanDiff = [&](const render::Image& a, const render::Image& b) {
+    double sum = 0.0;
+    size_t n = 0;
+    for (int y = 0; y < kH; ++y)
+      for (int x = 0; x < kW; ++x) {
+        if (isSky(without, sky, x, y)) continue;
+        sum += channelDiff(a, b, x, y);
+        ++n;
+      }
+    return n ? sum / static_cast<double>(n) : 0.0;
+  };
+  const double forestEffect = meanDiff(without, full);
+  EXPECT_GT(forestEffect, 5.0);
+  for (int m : {2, 1}) {
+    forest->setLayersDrawn(m);
+    EXPECT_EQ(forest->layersDrawn(), m);
+    const render::Image coarse = w.frame(cam, forest.get());
+    EXPECT_EQ(forest->stats().layers, m);
+    const double d = meanDiff(full, coarse);
+    EXPECT_LT(d, 0.35 * forestEffect) << m << " layers: mean change " << d << " against the forest's " << forestEffect;
+    EXPECT_GT(d, 0.0) << m << " layers drew the same frame as 4";
+    // Straight down over the glade border: nothing in the glade, the forest half tinted.
+    const lod::Camera down = downCamera(2500.0);
+    const render::Image downWithout = w.frame(down, nullptr);
+    const render::Image downWith = w.frame(down, forest.get());
+    lod::Camera downSky = down;
+    downSky.pitch_deg = 90.0;
+    const render::Image downSkyImg = w.frame(downSky, nullptr);
+    int gladeMax = 0;
+    double forestChanged = 0.0;
+    compareHalves(downWithout, downWith, downSkyImg, kW / 2 - 2, kW / 2 + 2, gladeMax, forestChanged);
+    EXPECT_EQ(gladeMax, 0) << m << " layers drawn in the glade";
+    EXPECT_GT(forestChanged, 0.5) << m << " layers should tint the forest half";
+  }
+  forest->setLayersDrawn(99);  // clamped to the textures' 4
+  EXPECT_EQ(forest->layersDrawn(), 4);
+  EXPECT_EQ(render::rmse(w.frame(cam, forest.get()), full), 0.0);
+  forest->setLayersDrawn(0);  // all
+  EXPECT_EQ(forest->layersDrawn(), 4);
+  EXPECT_EQ(w.renderer.errors(), "");
+}
+
 TEST(ForestGL, TexturesCoverageAndLowerLayersDarker) {
   World w;
   ASSERT_NO_FATAL_FAILURE(w.setUp());
