@@ -559,9 +559,11 @@ bool parseService(const std::string& text, const std::string& name, const std::s
   r.get(govTerrain, "min_px", g.terrainMin_px, closed(0.0, 1000.0));
   r.get(govTerrain, "max_px", g.terrainMax_px, openClosed(0.0, 1000.0));
   r.get(govTerrain, "load_exponent", g.terrainLoadExponent, closed(-10.0, -0.1));
-  const Table govForest = r.table(gov, "forest", {"min_m", "max_m"});
+  const Table govForest = r.table(gov, "forest", {"min_m", "max_m", "min_layers", "max_layers"});
   r.get(govForest, "min_m", g.forestMin_m, openClosed(0.0, 1e6));
   r.get(govForest, "max_m", g.forestMax_m, closed(0.0, 1e6));
+  r.get(govForest, "min_layers", g.forestMinLayers, IntRange{1, 32});
+  r.get(govForest, "max_layers", g.forestMaxLayers, IntRange{0, 32});
   const Table govHdlod = r.table(gov, "hdlod", {"min_px", "max_px", "load_exponent"});
   r.get(govHdlod, "min_px", g.hdlodMin_px, closed(0.0, 1000.0));
   r.get(govHdlod, "max_px", g.hdlodMax_px, openClosed(0.0, 1000.0));
@@ -585,6 +587,11 @@ bool parseService(const std::string& text, const std::string& name, const std::s
     const std::string message = cat("must be below governor.forest.max_m (", formatNumber(g.forestMax_m), ")");
     if (const toml::node* node = r.find(govForest, "min_m")) r.fail(*node, govForest.keyOf("min_m"), message);
     else r.fail(govForest.line_, govForest.keyOf("min_m"), formatNumber(g.forestMin_m), message);
+  }
+  if (r.ok() && g.forestMaxLayers > 0 && g.forestMinLayers > g.forestMaxLayers) {
+    const std::string message = cat("must be at most governor.forest.max_layers (", std::to_string(g.forestMaxLayers), ")");
+    if (const toml::node* node = r.find(govForest, "min_layers")) r.fail(*node, govForest.keyOf("min_layers"), message);
+    else r.fail(govForest.line_, govForest.keyOf("min_layers"), std::to_string(g.forestMinLayers), message);
   }
   if (r.ok() && g.hdlodMin_px > 0.0 && g.hdlodMin_px >= g.hdlodMax_px) {
     const std::string message = cat("must be below governor.hdlod.max_px (", formatNumber(g.hdlodMax_px), ")");

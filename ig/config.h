@@ -51,6 +51,8 @@ struct GovernorSettings {
   double terrainLoadExponent = -1.5;
   double forestMin_m = 100.0;         // [governor.forest] min_m: the 3D trees' near distance
   double forestMax_m = 0.0;           // [governor.forest] max_m; 0 = the scene's near_fade_end_m
+  int forestMinLayers = 1;            // [governor.forest] min_layers: shell layers drawn at least
+  int forestMaxLayers = 0;            // [governor.forest] max_layers; 0 = the scene's layers
   double hdlodMin_px = 0.0;           // [governor.hdlod] min_px; 0 = the scene's tolerance_px
   double hdlodMax_px = 16.0;
   double hdlodLoadExponent = -2.0;

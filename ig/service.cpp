@@ -563,6 +563,21 @@ struct Service::Impl {
       k.min = std::min(g.forestMin_m, 0.5 * k.max);
       k.loadExponent = 2.0;
       k.loadUnit = 1e4;
+      // The shell layers drawn (their fill ~ the count): the scene's count is the start value
+      // and the most; a count the textures cannot coarsen (1 layer, or min = max) is not a knob.
+      const int count = forest->layerCount();
+      const int most = g.forestMaxLayers > 0 ? std::min(g.forestMaxLayers, count) : count;
+      const int least = std::min(g.forestMinLayers, most);
+      if (least < most) {
+        lod::GovKnob& n = c.knobs[static_cast<size_t>(lod::GovLayer::ForestLayers)];
+        n.present = true;
+        n.initial = most;
+        n.min = least;
+        n.max = most;
+        n.loadExponent = 1.0;
+        n.quantum = 1.0;
+        n.loadUnit = 1.0;
+      }
     }
     if (cells && scene.cells) {
       // The voxel budget: the scene's is the start value and, unless max_voxels says otherwise,
@@ -587,6 +602,9 @@ struct Service::Impl {
     std::array<double, lod::kGovLayers> d{};
     for (int l = 0; l < lod::kGovLayers; ++l) d[static_cast<size_t>(l)] = governor->knob(static_cast<lod::GovLayer>(l));
     if (forest) d[static_cast<size_t>(lod::GovLayer::Forest)] = forest->nearDistance();
+    // The layer count only where it is a knob (the scene's count can be coarsened).
+    if (forest && !std::isnan(d[static_cast<size_t>(lod::GovLayer::ForestLayers)]))
+      d[static_cast<size_t>(lod::GovLayer::ForestLayers)] = forest->layersDrawn();
     return d;
   }
 
@@ -633,7 +651,11 @@ struct Service::Impl {
     }
     if (forest) {
       const int64_t t0 = clock ? clock->now_ns() : 0;
-      if (governor) forest->setNearDistance(governor->knob(lod::GovLayer::Forest));
+      if (governor) {
+        forest->setNearDistance(governor->knob(lod::GovLayer::Forest));
+        const double n = governor->knob(lod::GovLayer::ForestLayers);
+        forest->setLayersDrawn(std::isnan(n) ? 0 : static_cast<int>(std::lround(n)));
+      }
       forest->select(cam);
       forestSelect_ms = clock ? static_cast<double>(clock->now_ns() - t0) * 1e-6 : 0.0;
     }
@@ -839,6 +861,14 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
       }
       m.governor.emplace(g);
       s->info_.layers.push_back("governor");
+      // The forest's coarser layer counts the governor may choose, made now rather than in the
+      // late frame that first needs one.
+      const lod::GovKnob& n = g.knobs[static_cast<size_t>(lod::GovLayer::ForestLayers)];
+      if (m.forest && n.present) {
+        const uint64_t before = m.forest->bufferBytes();
+        m.forest->prepareLayersDrawn(static_cast<int>(n.min), static_cast<int>(n.max) - 1);
+        s->info_.gpuBufferBytes += m.forest->bufferBytes() - before;
+      }
     }
   }
   // Real-time scheduling for this (the render) thread only: every thread started above keeps
@@ -949,6 +979,7 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
       const std::array<double, lod::kGovLayers> d = m.governorDetail();
       c.terrainTolerance_px = d[static_cast<size_t>(lod::GovLayer::Terrain)];
       c.forestNear_m = d[static_cast<size_t>(lod::GovLayer::Forest)];
+      c.forestLayers = d[static_cast<size_t>(lod::GovLayer::ForestLayers)];
       c.hdlodTolerance_px = d[static_cast<size_t>(lod::GovLayer::Hdlod)];
       c.cellsVoxelBudget = d[static_cast<size_t>(lod::GovLayer::Cells)];
       const lod::GovStats& g = m.governor->stats();
@@ -1073,6 +1104,7 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
       r.predicted_ms = m.governor->predicted_ms();
       if (m.terrainMesh) r.terrainTolerance_px = m.terrainMesh->tolerance_px;
       if (m.forest) r.forestNear_m = m.forest->nearDistance();
+      if (m.forest && !std::isnan(m.governor->knob(lod::GovLayer::ForestLayers))) r.forestLayers = m.forest->layersDrawn();
       if (m.hdlod) r.hdlodTolerance_px = m.hdlod->tolerance_px();
       if (m.cells) r.cellsVoxelBudget = static_cast<double>(m.cells->voxelBudget());
     }
@@ -1090,6 +1122,7 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
       // Loads: what each layer drew (absent layers are ignored whatever they hold).
       if (m.terrainMesh) gs.load[static_cast<size_t>(lod::GovLayer::Terrain)] = static_cast<double>(m.terrainMesh->emitted);
       if (m.forest) gs.load[static_cast<size_t>(lod::GovLayer::Forest)] = static_cast<double>(m.forest->stats().treesDrawn);
+      if (m.forest) gs.load[static_cast<size_t>(lod::GovLayer::ForestLayers)] = static_cast<double>(m.forest->stats().layers);
       if (m.hdlod) gs.load[static_cast<size_t>(lod::GovLayer::Hdlod)] = static_cast<double>(m.hdlod->stats().select.triangles);
       if (m.cells) gs.load[static_cast<size_t>(lod::GovLayer::Cells)] = static_cast<double>(m.cells->stats().select.drawnVoxels);
       gs.frame_ms = r.timing.work_ms;
@@ -1162,6 +1195,7 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
         case lod::GovLayer::Forest: std::snprintf(buf, sizeof buf, "%sforest near distance now %.0f m", sep, v); break;
         case lod::GovLayer::Hdlod: std::snprintf(buf, sizeof buf, "%shdlod tolerance now %.2f px", sep, v); break;
         case lod::GovLayer::Cells: std::snprintf(buf, sizeof buf, "%scells voxel budget now %.0f", sep, v); break;
+        case lod::GovLayer::ForestLayers: std::snprintf(buf, sizeof buf, "%sforest shell layers now %.0f", sep, v); break;
         case lod::GovLayer::Count: buf[0] = '\0'; break;
       }
       knobs += buf;

@@ -20,7 +20,7 @@ bool StatsWriter::open(const std::string& file, StatsFormat format, const std::s
   if (format_ == StatsFormat::Csv) {
     std::fputs("frame,t_ms,period_ms,interval_ms,lateness_ms", file_);
     for (int p = 0; p < kPhaseCount; ++p) std::fprintf(file_, ",%s_ms", phaseName(static_cast<Phase>(p)));
-    std::fputs(",work_ms,overrun,missed_slots,triangles,draw_calls,passes,uploads,host_frame,sim_time_s,eye_east_m,eye_north_m,eye_up_m,heading_deg,host_lost,between_ms,gov_predicted_ms,terrain_tolerance_px,forest_near_m,hdlod_tolerance_px,cells_voxel_budget\n", file_);
+    std::fputs(",work_ms,overrun,missed_slots,triangles,draw_calls,passes,uploads,host_frame,sim_time_s,eye_east_m,eye_north_m,eye_up_m,heading_deg,host_lost,between_ms,gov_predicted_ms,terrain_tolerance_px,forest_near_m,hdlod_tolerance_px,cells_voxel_budget,forest_layers\n", file_);
   } else {
     std::fprintf(file_, "{\"run\":{%s}}\n", runInfo.c_str());
   }
@@ -32,19 +32,21 @@ void StatsWriter::write(const FrameRecord& r) {
   const FrameTiming& t = r.timing;
   const auto& ph = t.phase_ms;
   if (format_ == StatsFormat::Csv) {
-    std::fprintf(file_, "%lld,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%d,%lld,%llu,%u,%u,%llu,%llu,%.4f,%.2f,%.2f,%.2f,%.3f,%d,%.3f,%.3f,%.3f,%.1f,%.3f,%.0f\n",
+    std::fprintf(file_, "%lld,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%d,%lld,%llu,%u,%u,%llu,%llu,%.4f,%.2f,%.2f,%.2f,%.3f,%d,%.3f,%.3f,%.3f,%.1f,%.3f,%.0f,%.0f\n",
                  static_cast<long long>(t.frame), static_cast<double>(t.start_ns) * 1e-6, r.period_ms, t.interval_ms,
                  static_cast<double>(t.lateness_ns) * 1e-6, ph[0], ph[1], ph[2], ph[3], ph[4], t.work_ms,
                  t.overrun ? 1 : 0, static_cast<long long>(t.missedSlots),
                  static_cast<unsigned long long>(r.triangles), r.drawCalls, r.passes,
                  static_cast<unsigned long long>(r.uploads), static_cast<unsigned long long>(r.hostFrame),
                  r.simTime_s, r.eyeEast_m, r.eyeNorth_m, r.eyeHeight_m, r.heading_deg, r.hostLost ? 1 : 0, t.between_ms,
-                 r.predicted_ms, r.terrainTolerance_px, r.forestNear_m, r.hdlodTolerance_px, r.cellsVoxelBudget);
+                 r.predicted_ms, r.terrainTolerance_px, r.forestNear_m, r.hdlodTolerance_px, r.cellsVoxelBudget,
+                 r.forestLayers);
   } else {
     // JSON has no NaN: a value that is not there is null.
-    char gov[5][32];
-    const double govValues[5] = {r.predicted_ms, r.terrainTolerance_px, r.forestNear_m, r.hdlodTolerance_px, r.cellsVoxelBudget};
-    for (int i = 0; i < 5; ++i) {
+    char gov[6][32];
+    const double govValues[6] = {r.predicted_ms, r.terrainTolerance_px, r.forestNear_m, r.hdlodTolerance_px, r.cellsVoxelBudget,
+                                 r.forestLayers};
+    for (int i = 0; i < 6; ++i) {
       if (std::isnan(govValues[i])) std::snprintf(gov[i], sizeof gov[i], "null");
       else std::snprintf(gov[i], sizeof gov[i], "%.3f", govValues[i]);
     }
@@ -54,14 +56,15 @@ void StatsWriter::write(const FrameRecord& r) {
                  "\"overrun\":%s,\"missed_slots\":%lld,\"triangles\":%llu,\"draw_calls\":%u,\"passes\":%u,\"uploads\":%llu,"
                  "\"host_frame\":%llu,\"sim_time_s\":%.4f,\"eye_east_m\":%.2f,\"eye_north_m\":%.2f,\"eye_up_m\":%.2f,"
                  "\"heading_deg\":%.3f,\"host_lost\":%s,\"between_ms\":%.3f,\"gov_predicted_ms\":%s,"
-                 "\"terrain_tolerance_px\":%s,\"forest_near_m\":%s,\"hdlod_tolerance_px\":%s,\"cells_voxel_budget\":%s}\n",
+                 "\"terrain_tolerance_px\":%s,\"forest_near_m\":%s,\"hdlod_tolerance_px\":%s,\"cells_voxel_budget\":%s,"
+                 "\"forest_layers\":%s}\n",
                  static_cast<long long>(t.frame), static_cast<double>(t.start_ns) * 1e-6, r.period_ms, t.interval_ms,
                  static_cast<double>(t.lateness_ns) * 1e-6, ph[0], ph[1], ph[2], ph[3], ph[4], t.work_ms,
                  t.overrun ? "true" : "false", static_cast<long long>(t.missedSlots),
                  static_cast<unsigned long long>(r.triangles), r.drawCalls, r.passes,
                  static_cast<unsigned long long>(r.uploads), static_cast<unsigned long long>(r.hostFrame),
                  r.simTime_s, r.eyeEast_m, r.eyeNorth_m, r.eyeHeight_m, r.heading_deg, r.hostLost ? "true" : "false", t.between_ms,
-                 gov[0], gov[1], gov[2], gov[3], gov[4]);
+                 gov[0], gov[1], gov[2], gov[3], gov[4], gov[5]);
   }
 }
 

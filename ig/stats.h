@@ -35,6 +35,7 @@ struct FrameRecord {
   double predicted_ms = kStatsNaN;        // the governor's prediction of this frame's work
   double terrainTolerance_px = kStatsNaN;
   double forestNear_m = kStatsNaN;        // 3D trees drawn up to here
+  double forestLayers = kStatsNaN;        // shell layers drawn
   double hdlodTolerance_px = kStatsNaN;
   double cellsVoxelBudget = kStatsNaN;    // this frame's voxel budget (the knob, capped by the load cap)
 };

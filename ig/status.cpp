@@ -119,7 +119,8 @@ const std::string& StatusReporter::report(int64_t now_ns, const StatusContext& c
     const std::pair<const char*, double> knobs[] = {{"terrain_tolerance_px", ctx.terrainTolerance_px},
                                                     {"forest_near_m", ctx.forestNear_m},
                                                     {"hdlod_tolerance_px", ctx.hdlodTolerance_px},
-                                                    {"cells_voxel_budget", ctx.cellsVoxelBudget}};
+                                                    {"cells_voxel_budget", ctx.cellsVoxelBudget},
+                                                    {"forest_layers", ctx.forestLayers}};
     json_ += ",\"governor\":{";
     for (const auto& [name, value] : knobs) {
       if (std::isnan(value)) appendf(json_, "\"%s\":null,", name);
@@ -148,6 +149,7 @@ const std::string& StatusReporter::report(int64_t now_ns, const StatusContext& c
     }
     if (!std::isnan(ctx.forestNear_m)) {
       appendf(line_, "%sforest trees to %.0f m", sep, ctx.forestNear_m);
+      if (!std::isnan(ctx.forestLayers)) appendf(line_, ", %.0f shell layers", ctx.forestLayers);
       sep = ", ";
     }
     if (!std::isnan(ctx.hdlodTolerance_px)) {

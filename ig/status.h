@@ -37,6 +37,7 @@ struct StatusContext {
   // has no such layer) and its decisions so far.
   bool haveGovernor = false;
   double terrainTolerance_px = kNaN, forestNear_m = kNaN, hdlodTolerance_px = kNaN, cellsVoxelBudget = kNaN;
+  double forestLayers = kNaN;  // shell layers drawn
   int64_t governorDecreases = 0, governorIncreases = 0, governorEmergencies = 0;
 };
 

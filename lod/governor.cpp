@@ -28,7 +28,8 @@ size_t idx(GovLayer l) { return static_cast<size_t>(l); }
 // Input, Submit and Gpu run every frame; the layer phases only with their layer.
 bool alwaysPresent(GovPhase p) { return p == GovPhase::Input || p == GovPhase::Submit || p == GovPhase::Gpu; }
 
-// The layer whose own phase p is (Terrain, Forest, Hdlod, Cells), or Count for Input, Submit, Gpu.
+// The layer whose own phase p is (Terrain, Forest, Hdlod, Cells), or Count for Input and Submit
+// (Gpu: ForestLayers, but Gpu is always present).
 GovLayer phaseLayer(GovPhase p) {
   for (int l = 0; l < kGovLayers; ++l)
     if (layerPhase(static_cast<GovLayer>(l)) == p) return static_cast<GovLayer>(l);
@@ -68,6 +69,7 @@ const char* govLayerName(GovLayer l) {
     case GovLayer::Forest: return "forest";
     case GovLayer::Hdlod: return "hdlod";
     case GovLayer::Cells: return "cells";
+    case GovLayer::ForestLayers: return "forest_layers";
     case GovLayer::Count: break;
   }
   return "?";
@@ -265,6 +267,9 @@ void Governor::configure(const GovernorConfig& c, bool keepState) {
       load_[i] = prevLoad_[i] = trend_[i] = 0.0;
       prevKnob_[i] = knob_[i];
       lastDirection_[i] = 0;
+      quantumRaiseFrame_[i] = quantumWait_[i] = 0;
+      quantumPending_[i] = false;
+      quantumRaise_ms_[i] = quantumFrom_ms_[i] = 0.0;
     }
   }
   if (!keepState) {
@@ -522,6 +527,16 @@ const GovDecision& Governor::update(const GovSample& sample) {
   if (hold_ > 0) --hold_;
   if (emergencyLeft_ > 0) --emergencyLeft_;
 
+  // Waits of coarse knobs' one-quantum raises (see quantumWait_): over when the last raise held,
+  // or when the frame is much lighter than the one that took a raise back.
+  for (size_t l = 0; l < static_cast<size_t>(kGovLayers); ++l) {
+    if (quantumPending_[l] && stats_.frames - quantumRaiseFrame_[l] > std::max(1, c.holdAfterDecrease_frames)) {
+      quantumPending_[l] = false;
+      quantumWait_[l] = 0;
+    }
+    if (quantumWait_[l] > 0 && frame_ms < 0.6 * quantumFrom_ms_[l]) quantumWait_[l] = 0;
+  }
+
   // Movable layers: present, with load, and not at the bound in the wanted direction.
   auto movable = [&](bool decrease) {
     std::array<bool, kGovLayers> m{};
@@ -567,10 +582,16 @@ const GovDecision& Governor::update(const GovSample& sample) {
     for (size_t l = 0; l < static_cast<size_t>(kGovLayers); ++l) {
       const GovKnob& k = c.knobs[l];
       if (!layerPresent_[l] || k.quantum <= 0.0 || next[l] != knob_[l] || !movable(false)[l]) continue;
+      if (stats_.frames - quantumRaiseFrame_[l] < quantumWait_[l]) continue;  // a recent one was taken back
       const double v = quantise(static_cast<GovLayer>(l), knob_[l] + (k.loadExponent < 0 ? -k.quantum : k.quantum), false);
       std::array<double, kGovLayers> step = knob_;
       step[l] = v;
-      if (predict(knobLoadScales(step)).total_ms < aim) next[l] = v;
+      if (predict(knobLoadScales(step)).total_ms < aim) {
+        next[l] = v;
+        quantumRaiseFrame_[l] = stats_.frames;
+        quantumPending_[l] = true;
+        quantumRaise_ms_[l] = frame_ms;
+      }
     }
     framesSinceRaise_ = 0;
   } else {
@@ -609,6 +630,13 @@ const GovDecision& Governor::update(const GovSample& sample) {
     const int dir = (k.loadExponent < 0) == (next[l] < knob_[l]) ? 1 : -1;
     if (lastDirection_[l] != 0 && dir != lastDirection_[l]) ++stats_.directionChanges[l];
     lastDirection_[l] = dir;
+    if (dir < 0 && quantumPending_[l]) {
+      // A one-quantum raise taken back within the hold: wait longer before the next.
+      const int64_t hold = std::max(1, c.holdAfterDecrease_frames);
+      quantumWait_[l] = std::min(std::max(4 * hold, 2 * quantumWait_[l]), 64 * hold);
+      quantumFrom_ms_[l] = quantumRaise_ms_[l];
+      quantumPending_[l] = false;
+    }
     (dir > 0 ? raised : lowered) = true;
   }
   if (raised) ++stats_.increases;

@@ -1,5 +1,5 @@
 // Frame governor: keeps a fixed frame rate by steering each layer's LOD knob (terrain pixel
-// tolerance, forest near distance or layer count, HDLOD r, the cells' voxel budget) from a PREDICTION of the next frame's
+// tolerance, forest near distance and shell layer count, HDLOD r, the cells' voxel budget) from a PREDICTION of the next frame's
 // work, so detail drops before a frame overruns, not only after one. Issue 7 item 3; the time
 // model follows paper 002 (shared/SEEDS.md: frame time = sum of per-phase costs linear in the
 // work, calibrated on the machine), here fitted online by least squares with forgetting instead
@@ -17,7 +17,8 @@
 // Cost model, per present phase p (Input, Terrain, Forest, Hdlod, Submit, Gpu, Cells):
 //     ms_p = a_p + sum over the layers l feeding p of b_pl * load_l / loadUnit_l
 // (Terrain, Forest, Hdlod, Cells phases: their own layer; Submit and Gpu: every present layer;
-// Input: a constant), fitted by recursive least squares with forgetting factor `forgetting`, the
+// Input: a constant; ForestLayers, the forest's shell layers, is GPU fill and has no phase of
+// its own: its "own" phase is Gpu), fitted by recursive least squares with forgetting factor `forgetting`, the
 // covariance bounded (no wind-up while the load does not move); once a model has 10 samples its
 // residuals are clipped at 4 times their smoothed size (an outlier frame moves it little),
 // except in a frame whose load jumped by more than 1.5x (that residual is news, not noise).
@@ -83,13 +84,18 @@ namespace ig::lod {
 
 enum class GovPhase : int { Input, Terrain, Forest, Hdlod, Submit, Gpu, Cells, Count };
 inline constexpr int kGovPhases = static_cast<int>(GovPhase::Count);
-enum class GovLayer : int { Terrain, Forest, Hdlod, Cells, Count };
+// ForestLayers: how many of the forest's shell layers are drawn (a second forest knob; the
+// layers are blended fill over most of the screen, on llvmpipe most of a forest frame).
+enum class GovLayer : int { Terrain, Forest, Hdlod, Cells, ForestLayers, Count };
 inline constexpr int kGovLayers = static_cast<int>(GovLayer::Count);
 const char* govPhaseName(GovPhase p);  // "input", "terrain", "forest", "hdlod", "submit", "gpu", "cells"
-const char* govLayerName(GovLayer l);  // "terrain", "forest", "hdlod", "cells"
-// The phase in which a layer's CPU work (selection, refinement) runs.
+const char* govLayerName(GovLayer l);  // "terrain", "forest", "hdlod", "cells", "forest_layers"
+// The phase in which a layer's CPU work (selection, refinement) runs; the forest's shell layers
+// have none (their cost is the GPU's fill): Gpu.
 constexpr GovPhase layerPhase(GovLayer l) {
-  return l == GovLayer::Cells ? GovPhase::Cells : static_cast<GovPhase>(static_cast<int>(l) + 1);
+  return l == GovLayer::Cells          ? GovPhase::Cells
+         : l == GovLayer::ForestLayers ? GovPhase::Gpu
+                                       : static_cast<GovPhase>(static_cast<int>(l) + 1);
 }
 
 // One layer's LOD knob.
@@ -99,7 +105,7 @@ struct GovKnob {
   double min = 1.0;            // bounds the governor never leaves (min < max, both > 0)
   double max = 16.0;
   // load ~ value^loadExponent (non-zero): terrain tolerance_px about -2 (-1 on rough relief),
-  // HDLOD r about -2, forest near distance +2, forest layer count +1. Only the step size depends
+  // HDLOD r about -2, forest near distance +2, forest layer count +1 (the load: layers drawn). Only the step size depends
   // on it: the loop is closed on the measured load, so a wrong exponent slows it, no more.
   double loadExponent = -2.0;
   double quantum = 0.0;        // > 0: the value is a multiple of this (1 for a layer count)
@@ -140,7 +146,7 @@ struct GovernorConfig {
   // Kept as the maxima of ten blocks of window / 10 frames. 0 = off (default: it costs detail
   // wherever the scene is heavy; docs/governor.md has the trade measured).
   int spikeWindow_frames = 0;
-  std::array<GovKnob, kGovLayers> knobs{};  // Terrain, Forest, Hdlod, Cells
+  std::array<GovKnob, kGovLayers> knobs{};  // Terrain, Forest, Hdlod, Cells, ForestLayers
 };
 
 inline constexpr double kGovNaN = std::numeric_limits<double>::quiet_NaN();
@@ -149,7 +155,7 @@ inline constexpr double kGovNaN = std::numeric_limits<double>::quiet_NaN();
 // holds (0 is fine).
 struct GovSample {
   std::array<double, kGovPhases> phase_ms{kGovNaN, kGovNaN, kGovNaN, kGovNaN, kGovNaN, kGovNaN, kGovNaN};
-  std::array<double, kGovLayers> load{kGovNaN, kGovNaN, kGovNaN, kGovNaN};  // per layer, e.g. triangles drawn
+  std::array<double, kGovLayers> load{kGovNaN, kGovNaN, kGovNaN, kGovNaN, kGovNaN};  // per layer, e.g. triangles drawn
   double frame_ms = kGovNaN;  // the frame's whole work; NaN = the sum of the present phases
 };
 
@@ -168,7 +174,7 @@ struct GovDecision {
   bool overrun = false;            // the measured frame exceeded the budget
   // Per layer, the most load the next frame may take on (Governor::loadCap); +inf: no cap
   // (warm-up), NaN: absent layer.
-  std::array<double, kGovLayers> loadCap{kGovNaN, kGovNaN, kGovNaN, kGovNaN};
+  std::array<double, kGovLayers> loadCap{kGovNaN, kGovNaN, kGovNaN, kGovNaN, kGovNaN};
 };
 
 struct GovStats {
@@ -190,7 +196,7 @@ struct GovStats {
 // winds it up nor freezes a direction.
 class ForgettingLeastSquares {
  public:
-  static constexpr int kMax = 5;
+  static constexpr int kMax = 1 + kGovLayers;  // a constant and one slope per layer (Submit, Gpu)
   ForgettingLeastSquares() = default;
   // n in [1, kMax]; initial covariance delta * I; lambda in (0, 1].
   ForgettingLeastSquares(int n, double lambda, double delta = 10.0);
@@ -329,6 +335,15 @@ class Governor {
   std::array<double, kGovLayers> prevKnob_{};  // knob that produced prevLoad_
   std::array<double, kGovLayers> trend_{};     // smoothed log load change per frame, knob removed
   std::array<int, kGovLayers> lastDirection_{};  // +1 more detail, -1 less, 0 none yet
+  // One-quantum raises of a coarse knob (a layer count): the frame of the last one, and how
+  // many frames the next must wait (0: no wait). A raise taken back by a decrease within
+  // holdAfterDecrease_frames doubles the wait (from 4 holds, at most 64): the model cannot tell
+  // a step's cost from the fixed cost while the knob stands still, so it would retry in a cycle.
+  // The wait ends when a raise holds for that long, or when frames become much lighter than the
+  // one after which the failed raise was made (quantumFrom_ms_: its work): the scene changed.
+  std::array<int64_t, kGovLayers> quantumRaiseFrame_{}, quantumWait_{};
+  std::array<bool, kGovLayers> quantumPending_{};
+  std::array<double, kGovLayers> quantumRaise_ms_{}, quantumFrom_ms_{};
   double other_ms_ = 0.0;       // frame work outside the modelled phases, smoothed
   double errorScale_ = 0.0;     // 1.25 * smoothed |prediction error| (a robust sigma)
   std::array<double, 10> spikeBlocks_{};  // largest excess over the prediction per block of the window

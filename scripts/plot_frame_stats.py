@@ -19,7 +19,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 PHASES = ["input_ms", "lod_ms", "submit_ms", "gpu_finish_ms", "present_ms"]
 # The governor's knobs, and whether a larger value is more detail.
 KNOBS = [("terrain_tolerance_px", False), ("forest_near_m", True), ("hdlod_tolerance_px", False),
-         ("cells_voxel_budget", True)]
+         ("cells_voxel_budget", True), ("forest_layers", True)]
 
 
 def load(path):

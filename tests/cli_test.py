@@ -34,7 +34,7 @@ STATS_COLUMNS = [
     "work_ms", "overrun", "missed_slots", "triangles", "draw_calls", "passes", "uploads",
     "host_frame", "sim_time_s", "eye_east_m", "eye_north_m", "eye_up_m", "heading_deg", "host_lost",
     "between_ms", "gov_predicted_ms", "terrain_tolerance_px", "forest_near_m", "hdlod_tolerance_px",
-    "cells_voxel_budget",
+    "cells_voxel_budget", "forest_layers",
 ]
 GOVERNOR_STATS_COLUMNS = STATS_COLUMNS[STATS_COLUMNS.index("gov_predicted_ms"):]
 
@@ -632,16 +632,36 @@ class Control(Tmp):
         local = self.example_scene("forest_roam.toml")
         given = re.search(r"(?m)^near_fade_end_m = ([0-9.]+)", open(local, encoding="utf-8").read())
         near = float(given.group(1)) if given else 500.0  # [forest] near_fade_end_m, default 500
+        given = re.search(r"(?m)^layers = (\d+)", open(local, encoding="utf-8").read())
+        layers = int(given.group(1)) if given else 8  # [forest] layers, default 8
         config, _ = self.configs()
         self.governed(config)
-        p = self.run_small(config, 30, scene=local)
+        p = self.run_small(config, 30, "--stats", os.path.join(self.tmp, "s.csv"), scene=local)
         self.assertExit(p, 0)
-        m = re.search(r"governor: terrain tolerance now ([0-9.]+) px, forest near distance now ([0-9.]+) m; "
-                      r"(\d+) decreases, (\d+) increases", p.stderr)
+        m = re.search(r"governor: terrain tolerance now ([0-9.]+) px, forest near distance now ([0-9.]+) m, "
+                      r"forest shell layers now (\d+); (\d+) decreases, (\d+) increases", p.stderr)
         self.assertIsNotNone(m, describe(p))
         self.assertLess(float(m.group(2)), near, "the 3D trees' distance should have been cut from the scene's")
         self.assertGreaterEqual(float(m.group(2)), 100.0, "below governor.forest.min_m")
-        self.assertEqual(int(m.group(4)), 0, "no raise while every frame overruns")
+        self.assertLess(int(m.group(3)), layers, "the shell layers should have been cut from the scene's")
+        self.assertGreaterEqual(int(m.group(3)), 1, "below governor.forest.min_layers")
+        self.assertEqual(int(m.group(5)), 0, "no raise while every frame overruns")
+        # Each frame's stats say how many layers it drew: whole numbers, from the scene's count
+        # down, never up while every frame overruns.
+        rows = [dict(zip(STATS_COLUMNS, l.split(","))) for l in complete_lines(os.path.join(self.tmp, "s.csv"))[1:]]
+        counts = [float(r["forest_layers"]) for r in rows]
+        self.assertEqual(counts[0], float(layers))
+        self.assertEqual(counts[-1], float(m.group(3)))
+        self.assertTrue(all(c == int(c) for c in counts), counts)
+        self.assertEqual(counts, sorted(counts, reverse=True), counts)
+        # With min_layers = max_layers the count is fixed: no such knob, the scene's layers drawn.
+        write(config, re.sub(r"(?m)^min_layers = 1$", f"min_layers = {layers}", open(config, encoding="utf-8").read()))
+        p = self.run_small(config, 5, "--stats", os.path.join(self.tmp, "s.csv"), scene=local)
+        self.assertExit(p, 0)
+        self.assertNotIn("forest shell layers now", p.stderr)
+        rows = [dict(zip(STATS_COLUMNS, l.split(","))) for l in complete_lines(os.path.join(self.tmp, "s.csv"))[1:]]
+        self.assertTrue(all(r["forest_layers"] == "nan" for r in rows), rows)
+        self.assertIsNone(self.status()["governor"]["forest_layers"])
 
     def test_governor_steers_the_hdlod_tolerance(self):
         local = self.example_scene("construction_site.toml")

@@ -776,6 +776,20 @@ TEST(ConfigGovernor, ForestNearDistanceBounds) {
   e = serviceError(std::string(kMinimalService) + "[governor.forest]\nmin_m = 0\n");
   EXPECT_EQ(e.key, "governor.forest.min_m");
   EXPECT_EQ(e.value, "0");
+  // The shell layer count's bounds.
+  EXPECT_EQ(cfg.governor.forestMinLayers, 1);
+  EXPECT_EQ(cfg.governor.forestMaxLayers, 0);
+  cfg = parseServiceOk(std::string(kMinimalService) + "[governor.forest]\nmin_layers = 2\nmax_layers = 6\n", "/cfg");
+  EXPECT_EQ(cfg.governor.forestMinLayers, 2);
+  EXPECT_EQ(cfg.governor.forestMaxLayers, 6);
+  e = serviceError(std::string(kMinimalService) + "[governor.forest]\nmin_layers = 7\nmax_layers = 6\n");
+  EXPECT_EQ(e.key, "governor.forest.min_layers");
+  EXPECT_NE(e.message.find("max_layers (6)"), std::string::npos) << e.what();
+  e = serviceError(std::string(kMinimalService) + "[governor.forest]\nmin_layers = 0\n");
+  EXPECT_EQ(e.key, "governor.forest.min_layers");
+  EXPECT_EQ(e.value, "0");
+  e = serviceError(std::string(kMinimalService) + "[governor.forest]\nmax_layers = 33\n");
+  EXPECT_EQ(e.key, "governor.forest.max_layers");
 }
 
 TEST(ConfigGovernor, HdlodToleranceBounds) {

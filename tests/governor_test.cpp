@@ -724,3 +724,67 @@ TEST(Governor, ABudgetKnobNeedsLoadExponentOne) {
   c.knobs[static_cast<size_t>(GovLayer::Cells)].loadExponent = 1.0;
   EXPECT_EQ(Governor::validate(c), "");
 }
+
+// The forest as igd steers it: two knobs, the 3D trees' near distance (CPU selection and GPU,
+// load = trees drawn ~ distance^2) and how many shell layers are drawn (load = layers drawn:
+// blended fill on the GPU only, no phase of its own). The fill per layer swings 6x as the view
+// turns between the forest (12 ms a layer) and the open sky (2 ms): the rate holds, the layer
+// count (whole numbers within its bounds) goes down with the fill and back up when it is light,
+// and only the GPU and submit models see the layers.
+TEST(Governor, ForestLayerCountIsAGpuKnobThatFollowsTheFill) {
+  GovernorConfig c;
+  c.rate_hz = 30.0;
+  GovKnob& near = c.knobs[static_cast<size_t>(GovLayer::Forest)];
+  near.present = true;
+  near.initial = near.max = 500.0;
+  near.min = 100.0;
+  near.loadExponent = 2.0;
+  near.loadUnit = 1e4;
+  GovKnob& layers = c.knobs[static_cast<size_t>(GovLayer::ForestLayers)];
+  layers.present = true;
+  layers.initial = layers.max = 8.0;
+  layers.min = 1.0;
+  layers.loadExponent = 1.0;
+  layers.quantum = 1.0;
+  layers.loadUnit = 1.0;
+  ASSERT_EQ(Governor::validate(c), "");
+  Governor g(c);
+  Noise rng;
+  auto jitter = [&] { return 1.0 + 0.03 * rng.next(); };
+  int overruns = 0, heavyMax = 0, lightMin = 8, heavyRaises[3] = {0, 0, 0};
+  for (int i = 0; i < 3600; ++i) {
+    const bool heavy = (i / 600) % 2 == 1;  // 20 s over the forest, 20 s towards the sky
+    const double n = g.knob(GovLayer::ForestLayers), d = g.knob(GovLayer::Forest);
+    ASSERT_EQ(n, std::round(n)) << i;
+    ASSERT_TRUE(n >= 1.0 && n <= 8.0) << i;
+    ASSERT_TRUE(d >= 100.0 && d <= 500.0) << i;
+    const double trees = 4000.0 * (d / 500.0) * (d / 500.0);
+    GovSample s;
+    s.phase_ms[static_cast<size_t>(GovPhase::Input)] = 0.1 * jitter();
+    s.phase_ms[static_cast<size_t>(GovPhase::Forest)] = (0.2 + 0.5 * trees / 1e4) * jitter();
+    s.phase_ms[static_cast<size_t>(GovPhase::Submit)] = (0.3 + 0.05 * n) * jitter();
+    s.phase_ms[static_cast<size_t>(GovPhase::Gpu)] = (2.0 + 3.0 * trees / 1e4 + (heavy ? 12.0 : 2.0) * n) * jitter();
+    s.load[static_cast<size_t>(GovLayer::Forest)] = trees;
+    s.load[static_cast<size_t>(GovLayer::ForestLayers)] = n;
+    const GovDecision& dec = g.update(s);
+    const int phase = i % 600;
+    if (heavy && phase > 2 && g.knob(GovLayer::ForestLayers) > n) ++heavyRaises[i / 1200];
+    if (dec.overrun && phase > 2) ++overruns;  // the frame that finds the change may overrun
+    if (heavy && phase >= 300) heavyMax = std::max(heavyMax, static_cast<int>(n));
+    if (!heavy && i >= 600 && phase >= 400) lightMin = std::min(lightMin, static_cast<int>(n));
+  }
+  EXPECT_LE(overruns, 4);  // <= 0.1 % of the frames
+  EXPECT_LE(heavyMax, 2);  // 12 ms a layer: at most 2 of them fit beside the rest
+  EXPECT_GE(lightMin, 7);  // light again: the layers come back (8 at 2 ms a layer fit)
+  // The layers feed the GPU and submit models only (a constant and one slope per layer there;
+  // the forest phase has its own near-distance slope and no layer slope).
+  EXPECT_EQ(g.model(GovPhase::Gpu).size(), 3);
+  EXPECT_EQ(g.model(GovPhase::Submit).size(), 3);
+  EXPECT_EQ(g.model(GovPhase::Forest).size(), 2);
+  EXPECT_FALSE(g.phasePresent(GovPhase::Terrain));
+  // While heavy, a raise to 2 layers (predicted to fit: the model cannot tell the layers' cost
+  // from the fixed cost while the count stands at 1) is taken back, and the next waits 4, 8, ...
+  // holds: 3 tries in 20 s, not one every hold (30 frames: 5 in the first 200 frames, 18 in all).
+  for (int k = 0; k < 3; ++k) EXPECT_LE(heavyRaises[k], 3) << "heavy phase " << k;
+  EXPECT_LE(g.stats().directionChanges[static_cast<size_t>(GovLayer::ForestLayers)], 24);
+}

@@ -141,11 +141,12 @@ TEST(Status, ReportCoversTheIntervalAndReplacesTheFile) {
   ctx.forestNear_m = std::numeric_limits<double>::quiet_NaN();  // no [forest]
   ctx.hdlodTolerance_px = std::numeric_limits<double>::quiet_NaN();
   ctx.cellsVoxelBudget = 12000.0;
+  ctx.forestLayers = std::numeric_limits<double>::quiet_NaN();
   ctx.governorDecreases = 3;
   const std::string governed = r.report(4'000'000'000, ctx);
   EXPECT_NE(governed.find("; detail: terrain 4.00 px, cells 12000 voxels"), std::string::npos) << governed;
   EXPECT_NE(r.json().find("\"governor\":{\"terrain_tolerance_px\":4.000,\"forest_near_m\":null,"
-                          "\"hdlod_tolerance_px\":null,\"cells_voxel_budget\":12000.000,\"decreases\":3,"),
+                          "\"hdlod_tolerance_px\":null,\"cells_voxel_budget\":12000.000,\"forest_layers\":null,\"decreases\":3,"),
             std::string::npos)
       << r.json();
   std::filesystem::remove_all(dir);
