@@ -524,6 +524,15 @@ struct Service::Impl {
   double hdlodSelect_ms = 0.0;                 // this frame's HDLOD selection (governor phase)
   double cellsSelect_ms = 0.0, cellsDraw_ms = 0.0;  // this frame's cells selection and draw
 
+  // The forest's shell layers the governor may draw, {least, most}: [governor.forest] min_layers
+  // and max_layers (0: the scene's count), within the scene's count. With least = most the count
+  // is fixed there (no knob).
+  std::pair<int, int> forestLayerBounds() const {
+    const int count = forest ? forest->layerCount() : 0;
+    const int most = config.governor.forestMaxLayers > 0 ? std::min(config.governor.forestMaxLayers, count) : count;
+    return {std::min(config.governor.forestMinLayers, most), most};
+  }
+
   // The governor's config from [governor] and the layers this scene has.
   lod::GovernorConfig governorConfig() const {
     const GovernorSettings& g = config.governor;
@@ -563,11 +572,9 @@ struct Service::Impl {
       k.min = std::min(g.forestMin_m, 0.5 * k.max);
       k.loadExponent = 2.0;
       k.loadUnit = 1e4;
-      // The shell layers drawn (their fill ~ the count): the scene's count is the start value
-      // and the most; a count the textures cannot coarsen (1 layer, or min = max) is not a knob.
-      const int count = forest->layerCount();
-      const int most = g.forestMaxLayers > 0 ? std::min(g.forestMaxLayers, count) : count;
-      const int least = std::min(g.forestMinLayers, most);
+      // The shell layers drawn (their fill ~ the count): the most is the start value; a count
+      // that cannot move (1 layer, or min_layers = max_layers) is not a knob.
+      const auto [least, most] = forestLayerBounds();
       if (least < most) {
         lod::GovKnob& n = c.knobs[static_cast<size_t>(lod::GovLayer::ForestLayers)];
         n.present = true;
@@ -602,9 +609,7 @@ struct Service::Impl {
     std::array<double, lod::kGovLayers> d{};
     for (int l = 0; l < lod::kGovLayers; ++l) d[static_cast<size_t>(l)] = governor->knob(static_cast<lod::GovLayer>(l));
     if (forest) d[static_cast<size_t>(lod::GovLayer::Forest)] = forest->nearDistance();
-    // The layer count only where it is a knob (the scene's count can be coarsened).
-    if (forest && !std::isnan(d[static_cast<size_t>(lod::GovLayer::ForestLayers)]))
-      d[static_cast<size_t>(lod::GovLayer::ForestLayers)] = forest->layersDrawn();
+    if (forest) d[static_cast<size_t>(lod::GovLayer::ForestLayers)] = forest->layersDrawn();  // fixed or steered
     return d;
   }
 
@@ -654,7 +659,7 @@ struct Service::Impl {
       if (governor) {
         forest->setNearDistance(governor->knob(lod::GovLayer::Forest));
         const double n = governor->knob(lod::GovLayer::ForestLayers);
-        forest->setLayersDrawn(std::isnan(n) ? 0 : static_cast<int>(std::lround(n)));
+        forest->setLayersDrawn(std::isnan(n) ? forestLayerBounds().second : static_cast<int>(std::lround(n)));
       }
       forest->select(cam);
       forestSelect_ms = clock ? static_cast<double>(clock->now_ns() - t0) * 1e-6 : 0.0;
@@ -863,10 +868,10 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
       s->info_.layers.push_back("governor");
       // The forest's coarser layer counts the governor may choose, made now rather than in the
       // late frame that first needs one.
-      const lod::GovKnob& n = g.knobs[static_cast<size_t>(lod::GovLayer::ForestLayers)];
-      if (m.forest && n.present) {
+      if (m.forest) {
         const uint64_t before = m.forest->bufferBytes();
-        m.forest->prepareLayersDrawn(static_cast<int>(n.min), static_cast<int>(n.max) - 1);
+        const auto [least, most] = m.forestLayerBounds();
+        m.forest->prepareLayersDrawn(least, most);
         s->info_.gpuBufferBytes += m.forest->bufferBytes() - before;
       }
     }
@@ -1104,7 +1109,7 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
       r.predicted_ms = m.governor->predicted_ms();
       if (m.terrainMesh) r.terrainTolerance_px = m.terrainMesh->tolerance_px;
       if (m.forest) r.forestNear_m = m.forest->nearDistance();
-      if (m.forest && !std::isnan(m.governor->knob(lod::GovLayer::ForestLayers))) r.forestLayers = m.forest->layersDrawn();
+      if (m.forest) r.forestLayers = m.forest->layersDrawn();
       if (m.hdlod) r.hdlodTolerance_px = m.hdlod->tolerance_px();
       if (m.cells) r.cellsVoxelBudget = static_cast<double>(m.cells->voxelBudget());
     }

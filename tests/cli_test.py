@@ -654,14 +654,15 @@ class Control(Tmp):
         self.assertEqual(counts[-1], float(m.group(3)))
         self.assertTrue(all(c == int(c) for c in counts), counts)
         self.assertEqual(counts, sorted(counts, reverse=True), counts)
-        # With min_layers = max_layers the count is fixed: no such knob, the scene's layers drawn.
-        write(config, re.sub(r"(?m)^min_layers = 1$", f"min_layers = {layers}", open(config, encoding="utf-8").read()))
+        # With min_layers = max_layers the count is fixed there: every frame draws 3 layers.
+        text = re.sub(r"(?m)^min_layers = 1$", "min_layers = 3", open(config, encoding="utf-8").read())
+        write(config, re.sub(r"(?m)^max_layers = 0$", "max_layers = 3", text))
         p = self.run_small(config, 5, "--stats", os.path.join(self.tmp, "s.csv"), scene=local)
         self.assertExit(p, 0)
-        self.assertNotIn("forest shell layers now", p.stderr)
+        self.assertIn("forest shell layers now 3;", p.stderr)
         rows = [dict(zip(STATS_COLUMNS, l.split(","))) for l in complete_lines(os.path.join(self.tmp, "s.csv"))[1:]]
-        self.assertTrue(all(r["forest_layers"] == "nan" for r in rows), rows)
-        self.assertIsNone(self.status()["governor"]["forest_layers"])
+        self.assertEqual([r["forest_layers"] for r in rows], ["3"] * 5)
+        self.assertEqual(self.status()["governor"]["forest_layers"], 3.0)
 
     def test_governor_steers_the_hdlod_tolerance(self):
         local = self.example_scene("construction_site.toml")
