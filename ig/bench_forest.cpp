@@ -454,6 +454,7 @@ int runForestBench(const ForestBenchOptions& in) {
     double frameMs;
     double psnr;
     double treesDrawn;
+    double switchChange = 0, switchPopped = 0;  // drawnSweep: against all n layers, the same view
   };
   std::vector<SweepPoint> sweep, drawnSweep;  // drawnSweep: `layers` = the count drawn of o.layers baked
   double referenceMs = 0.0;
@@ -503,7 +504,10 @@ int runForestBench(const ForestBenchOptions& in) {
         for (int v = 0; v < views; ++v) {
           scene.frame(viewCams[static_cast<size_t>(v)], true, &img);
           p.psnr += render::psnrDb(img, reference[static_cast<size_t>(v)]) / views;
-          if (v == 0 && n == o.layers && nearEnd == 500.0) saveImage(o.images, "forest_view.png", img);
+          if (v == 0 && n == o.layers && nearEnd == 500.0) {
+            saveImage(o.images, "forest_view.png", img);
+            prev = img;  // what a switch of the layer count changes (below)
+          }
         }
         sweep.push_back(p);
         // The frame governor's layer knob: fewer layers drawn of the main run's n, their slabs
@@ -524,6 +528,10 @@ int runForestBench(const ForestBenchOptions& in) {
           for (int v = 0; v < views; ++v) {
             scene.frame(viewCams[static_cast<size_t>(v)], true, &img);
             q.psnr += render::psnrDb(img, reference[static_cast<size_t>(v)]) / views;
+            if (v == 0) {
+              q.switchChange = meanChange(prev, img);
+              q.switchPopped = render::fractionDifferent(prev, img, kPopLevels);
+            }
           }
           drawnSweep.push_back(q);
         }
@@ -577,8 +585,10 @@ int runForestBench(const ForestBenchOptions& in) {
     }
     std::printf("],\"drawn_sweep\":[");
     for (size_t i = 0; i < drawnSweep.size(); ++i) {
-      std::printf("%s{\"layers\":%d,\"layers_drawn\":%d,\"near_m\":%.0f,\"frame_ms\":%.2f,\"psnr_db\":%.2f}", i ? "," : "",
-                  o.layers, drawnSweep[i].layers, drawnSweep[i].near_m, drawnSweep[i].frameMs, drawnSweep[i].psnr);
+      std::printf("%s{\"layers\":%d,\"layers_drawn\":%d,\"near_m\":%.0f,\"frame_ms\":%.2f,\"psnr_db\":%.2f,"
+                  "\"switch_change\":%.3f,\"switch_popped\":%.5f}",
+                  i ? "," : "", o.layers, drawnSweep[i].layers, drawnSweep[i].near_m, drawnSweep[i].frameMs, drawnSweep[i].psnr,
+                  drawnSweep[i].switchChange, drawnSweep[i].switchPopped);
     }
     std::printf("]}\n");
   } else {
@@ -598,8 +608,9 @@ int runForestBench(const ForestBenchOptions& in) {
       std::printf("  layers %2d near %4.0f m: frame %.1f ms, PSNR %.2f dB vs 3D reference, trees %.0f\n", s.layers, s.near_m,
                   s.frameMs, s.psnr, s.treesDrawn);
     for (const SweepPoint& s : drawnSweep)
-      std::printf("  %d of %d layers drawn (composited) near %4.0f m: frame %.1f ms, PSNR %.2f dB\n", s.layers, o.layers,
-                  s.near_m, s.frameMs, s.psnr);
+      std::printf("  %d of %d layers drawn (composited) near %4.0f m: frame %.1f ms, PSNR %.2f dB; a switch from %d "
+                  "changes %.3f (mean |dRGB|), %.5f of the pixels by > %d levels\n",
+                  s.layers, o.layers, s.near_m, s.frameMs, s.psnr, o.layers, s.switchChange, s.switchPopped, kPopLevels);
   }
   return main.droppedMax > 0 || droppedMax > 0 ? 1 : 0;
 }

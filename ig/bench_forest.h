@@ -25,7 +25,9 @@
 //                            reference that draws every tree within the far plane as a 3D model
 //                            (offline, slow)
 //   drawn_sweep              the frame governor's layer knob: layers_drawn = n/2, n/4 ... 1 of the
-//                            main run's n layers (composited groups) at near 500 m: frame_ms, psnr_db
+//                            main run's n layers (composited groups) at near 500 m: frame_ms, psnr_db,
+//                            and what a switch from n layers changes in one view: switch_change
+//                            (mean |dRGB|, as popping_*) and switch_popped (as transition_popped_*)
 #pragma once
 
 #include <cstdint>

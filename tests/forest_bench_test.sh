@@ -27,5 +27,6 @@ for s in d["sweep"]:
 assert [s["layers_drawn"] for s in d["drawn_sweep"]] == [4, 2, 1], d["drawn_sweep"]
 for s in d["drawn_sweep"]:
     assert s["layers"] == 8 and s["frame_ms"] > 0 and 10 < s["psnr_db"] < 99, s
+    assert 0 < s["switch_change"] < 255 and 0 <= s["switch_popped"] <= 1, s
 print("forest_bench_test: 1 passed, 0 failed")
 PY
