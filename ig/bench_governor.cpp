@@ -160,6 +160,9 @@ struct FrameRow {
   double cpu_ms = 0;       // process CPU time over the frame (all threads)
   bool capped = false;     // ROAM stopped at the governor's load cap
   uint64_t drawnSlots = 0; // triangles submitted: the slots up to the high-water mark (freed ones degenerate)
+  // Wall-clock phases of the frame (they add up to ms): ROAM update, emission and upload; draw
+  // calls; glFinish. They tell which part of an overrun frame was not predicted.
+  double terrain_ms = 0, submit_ms = 0, gpu_ms = 0;
 };
 
 // One configuration: its own ROAM, triangle slots and renderer (FBO + mapped vertex buffer).
@@ -424,13 +427,15 @@ int runGovernorBench(const GovernorBenchOptions& o0) {
     // refine the new view, so the load of a jump arrives over those frames.
     bool afterStep = false;
     for (int k = 0; k <= 3 && k <= f; ++k) afterStep = afterStep || flightStep(f - k, o.rate_hz, lap_s);
-    governed.rows.push_back({g.frame_ms, predicted, tol, g.triangles, g.frame_ms > budget_ms, afterStep, g.cpu_ms, g.capped, g.drawnSlots});
+    governed.rows.push_back({g.frame_ms, predicted, tol, g.triangles, g.frame_ms > budget_ms, afterStep, g.cpu_ms, g.capped,
+                             g.drawnSlots, g.terrain_ms, g.submit_ms, g.gpu_ms});
     if (f > 0) predictionError.push_back(std::abs(g.frame_ms - predicted));
     // Fixed: the scene's tolerance and the service's ROAM work budget.
     const lod::WorkBudget fixedBudget =
         o.lodBudget_ms > 0 ? lod::WorkBudget(nowNs() + static_cast<int64_t>(o.lodBudget_ms * 1e6), {}) : lod::WorkBudget();
     const Run::Phases x = fixed.frame(cam, o.tolerance_px, fixedBudget, o.height_px, light);
-    fixed.rows.push_back({x.frame_ms, 0.0, o.tolerance_px, x.triangles, x.frame_ms > budget_ms, afterStep, x.cpu_ms, false, x.drawnSlots});
+    fixed.rows.push_back({x.frame_ms, 0.0, o.tolerance_px, x.triangles, x.frame_ms > budget_ms, afterStep, x.cpu_ms, false,
+                          x.drawnSlots, x.terrain_ms, x.submit_ms, x.gpu_ms});
   }
   const std::string glErr = governed.renderer.errors() + fixed.renderer.errors();
   if (!glErr.empty()) {
@@ -491,11 +496,11 @@ int runGovernorBench(const GovernorBenchOptions& o0) {
       std::snprintf(buf, sizeof buf,
                     "%s{\"frame\":%zu,\"ms\":%.3f,\"predicted_ms\":%.3f,\"tolerance_px\":%.4f,\"triangles\":%llu,"
                     "\"fixed_ms\":%.3f,\"fixed_triangles\":%llu,\"cpu_ms\":%.3f,\"fixed_cpu_ms\":%.3f,\"capped\":%d,"
-                    "\"drawn_slots\":%llu,\"fixed_drawn_slots\":%llu}",
+                    "\"drawn_slots\":%llu,\"fixed_drawn_slots\":%llu,\"terrain_ms\":%.3f,\"submit_ms\":%.3f,\"gpu_ms\":%.3f}",
                     i ? "," : "", i, r.ms, r.predicted_ms, r.tolerance_px, static_cast<unsigned long long>(r.triangles),
                     fixed.rows[i].ms, static_cast<unsigned long long>(fixed.rows[i].triangles), r.cpu_ms,
                     fixed.rows[i].cpu_ms, r.capped ? 1 : 0, static_cast<unsigned long long>(r.drawnSlots),
-                    static_cast<unsigned long long>(fixed.rows[i].drawnSlots));
+                    static_cast<unsigned long long>(fixed.rows[i].drawnSlots), r.terrain_ms, r.submit_ms, r.gpu_ms);
       json += buf;
     }
     json += "]}";
