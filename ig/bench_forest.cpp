@@ -10,6 +10,7 @@
 
 #include <time.h>
 
+#include "ig/clock.h"
 #include "ig/forest_layer.h"
 #include "ig/forest_tool.h"
 #include "io/dem.h"
@@ -41,13 +42,6 @@ double msSince(BenchClock::time_point t0) {
   return std::chrono::duration<double, std::milli>(BenchClock::now() - t0).count();
 }
 
-// CPU time of this thread: unlike wall time it does not count time the thread was preempted
-// (on a shared machine a preemption costs a whole scheduler tick, ~4 ms).
-double threadCpuMs() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
-}
 constexpr size_t kInstanceCapacity = 1 << 18;
 constexpr int kPopLevels = 8;            // a pixel "pops" when a channel changes by more in one frame
 constexpr size_t kNearTriangles = 120;   // near LOD of each model (meshoptimizer)

@@ -13,6 +13,7 @@
 
 #include <glm/geometric.hpp>
 
+#include "ig/clock.h"
 #include "ig/hdlod_tool.h"
 #include "lod/hdlod_build.h"
 #include "lod/hdlod_cache.h"
@@ -29,13 +30,6 @@ namespace {
 namespace hd = lod::hdlod;
 using BenchClock = std::chrono::steady_clock;
 double secondsSince(BenchClock::time_point t0) { return std::chrono::duration<double>(BenchClock::now() - t0).count(); }
-// This thread's CPU time (ms): unlike the wall clock, it does not count time the thread waited
-// for a core on a loaded machine.
-double threadCpuMs() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
-}
 
 double median(std::vector<double> v) {
   if (v.empty()) return 0.0;

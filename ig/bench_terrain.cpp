@@ -33,13 +33,6 @@ double msSince(BenchClock::time_point t0) { return std::chrono::duration<double,
 
 // The hard end of a budgeted Deferred update, as igd sets it (ig::RoamDeadline on this clock).
 MonotonicClock deadlineClock;
-// CPU time of this thread: what the work itself cost, without the time other processes on a
-// shared machine took the core away (wall-clock times are reported too).
-double threadCpuMs() {
-  timespec t{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
-  return static_cast<double>(t.tv_sec) * 1e3 + static_cast<double>(t.tv_nsec) * 1e-6;
-}
 
 // The height field the bench runs on: decoded into memory, or mapped from the raw cache.
 struct Field {

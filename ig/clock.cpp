@@ -20,4 +20,10 @@ void MonotonicClock::sleepUntil_ns(int64_t deadline_ns) {
   }
 }
 
+double threadCpuMs() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
+}
+
 }  // namespace ig

@@ -22,6 +22,10 @@ class MonotonicClock final : public Clock {
   void sleepUntil_ns(int64_t deadline_ns) override;
 };
 
+// CPU time of the calling thread in ms (CLOCK_THREAD_CPUTIME_ID): what the work itself cost,
+// without the time other processes on a shared machine took the core away. For benchmarks.
+double threadCpuMs();
+
 // Test clock: time moves only when told to. Sleeping jumps to the deadline. Safe to read from
 // other threads (a host link stamping samples) while the test advances it.
 class FakeClock final : public Clock {
