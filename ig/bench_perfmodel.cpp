@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "ig/clock.h"
 #include "ig/stats.h"
 #include "lod/perfmodel.h"
 #include "render/context.h"
@@ -29,6 +30,7 @@ struct Point {
   double fragments = 0;
   double area_px = 0, sqrtArea_px = 0;  // sums over the boxes drawn: projected area, its square root
   double submit_ms = 0;  // median time until the GL calls returned (the rest is glFinish)
+  double appCpu_ms = 0;  // median CPU time of this thread until the GL calls returned
   uint64_t samples = 0;  // samples that passed the depth test (GL_SAMPLES_PASSED, first warm-up frame)
   uint64_t triangles = 0;
   double vertex_ms = 0, fragment_ms = 0, commands_ms = 0;  // terms of (2): T_vert, T_frag, T_buf + T_fc
@@ -84,6 +86,7 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
   co.height_px = o.height_px;
   co.fragmentWork = o.fragmentWork;
   co.budget_s = o.quick ? 1.5 : 10.0;
+  co.runs = o.calibrationRuns > 0 ? o.calibrationRuns : o.quick ? 1 : 3;
   render::CalibrationResult cal;
   std::string warning;
   if (!render::calibrate(o.cachePath, co, cal, error, &warning)) {
@@ -165,7 +168,7 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
     for (render::DynamicStrategy s : {render::DynamicStrategy::PerCommand, render::DynamicStrategy::Octree}) {
       const size_t pointIndex = 2 * sizeIndex + static_cast<size_t>(strategyIndex++);
       pass.setStrategy(s);
-      std::vector<double> ms, subMs;
+      std::vector<double> ms, subMs, appMs;
       // llvmpipe runs the first frames after the calibration (its large scenes freed) and after
       // a change of strategy slowly: 20 frames before the first point, 5 before the others.
       const int warm = points.empty() ? 20 : 5;
@@ -173,15 +176,18 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
         // The first warm-up frame counts the samples that pass the depth test (counting costs
         // the rasterizer time, so the timed frames do not); the next frame reads the count.
         pass.setMeasureSamples(r == 0);
+        const double c0 = threadCpuMs();
         const auto a = BenchClock::now();
         renderer.beginFrame(cam, light);
         pass.draw(renderer, frame++);
         renderer.endFrame();
         const auto submitted = BenchClock::now();
+        const double c1 = threadCpuMs();
         renderer.finish();
         if (r >= warm) {
           ms.push_back(std::chrono::duration<double, std::milli>(BenchClock::now() - a).count());
           subMs.push_back(std::chrono::duration<double, std::milli>(submitted - a).count());
+          appMs.push_back(c1 - c0);
         }
       }
       // The frame's statistics: the pass's counters, the fragments that passed the depth test (a
@@ -207,6 +213,7 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
       p.error_pct = 100.0 * std::abs(pred - p.measured_ms) / std::max(p.measured_ms, 1e-9);
       p.measuredQ1_ms = percentile(ms, 25);
       p.submit_ms = percentile(subMs, 50);
+      p.appCpu_ms = percentile(appMs, 50);
       p.samples = static_cast<uint64_t>(load.fragments);
       p.errorQ1_pct = 100.0 * std::abs(pred - p.measuredQ1_ms) / std::max(p.measuredQ1_ms, 1e-9);
       p.fragments = load.fragments;
@@ -228,6 +235,7 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
       if (p.measured_ms < q.measured_ms) {
         q.measured_ms = p.measured_ms;
         q.submit_ms = p.submit_ms;
+        q.appCpu_ms = p.appCpu_ms;
         q.error_pct = 100.0 * std::abs(q.predicted_ms - q.measured_ms) / std::max(q.measured_ms, 1e-9);
       }
       if (p.measuredQ1_ms < q.measuredQ1_ms) {
@@ -247,22 +255,33 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
   const double med = percentile(errs, 50), mx = *std::max_element(errs.begin(), errs.end());
   const double medQ1 = percentile(errsQ1, 50), mxQ1 = *std::max_element(errsQ1.begin(), errsQ1.end());
 
+  // T_tri by the triangles of a submission (lod::PerfConstants::triByDraw_ns), as JSON and text.
+  std::string byDrawJson = "{", byDrawText;
+  for (size_t i = 0; i < k.triByDraw_ns.size(); ++i) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%s\"%u\":%.2f", i ? "," : "", 12u << i, k.triByDraw_ns[i]);
+    byDrawJson += buf;
+    std::snprintf(buf, sizeof buf, "%s%u: %.1f", i ? ", " : "", 12u << i, k.triByDraw_ns[i]);
+    byDrawText += buf;
+  }
+  byDrawJson += "}";
   if (o.json) {
     std::printf("{\"bench\":\"perfmodel\",\"device\":\"%s\",\"viewport\":[%d,%d],\"fragment_work\":%u,\"coverage\":%g,"
-                "\"repeats\":%d,\"calibration\":{\"from_cache\":%s,\"seconds\":%.3f,\"frame_ns\":%.1f,\"tri_ns\":%.3f,"
+                "\"repeats\":%d,\"calibration\":{\"from_cache\":%s,\"runs\":%d,\"seconds\":%.3f,\"frame_ns\":%.1f,\"tri_ns\":%.3f,"
                 "\"frag_ns\":%.4f,\"raster_tri_ns\":%.3f,\"edge_ns\":%.3f,\"depth_frag_ns\":%.4f,\"state_ns\":%.1f,\"command_ns\":%.1f,\"rerecord_ns\":%.1f,"
-                "\"submit_ns\":%.1f,\"cull_ns\":%.2f,\"occlusion_test_ns\":%.1f,\"overlap\":%.3f,\"overlap_triangles\":%.0f},\"points\":[",
+                "\"submit_ns\":%.1f,\"cull_ns\":%.2f,\"occlusion_test_ns\":%.1f,\"overlap\":%.3f,\"overlap_triangles\":%.0f,\"command_count\":%.0f,\"command_large_ns\":%.1f,\"command_large_count\":%.0f,\"tri_ns_by_draw\":%s},\"points\":[",
                 cal.key.c_str(), o.width_px, o.height_px, o.fragmentWork, o.coverage, repeats,
-                cal.fromCache ? "true" : "false", cal.seconds, k.frame_ns, k.tri_ns, k.frag_ns, k.rasterTri_ns, k.edge_ns, k.depthFrag_ns,
-                k.state_ns, k.command_ns, k.rerecord_ns, k.submit_ns, k.cull_ns, k.occlusionTest_ns, k.overlap, k.overlapTriangles);
+                cal.fromCache ? "true" : "false", cal.fromCache ? 0 : co.runs, cal.seconds, k.frame_ns, k.tri_ns, k.frag_ns, k.rasterTri_ns, k.edge_ns, k.depthFrag_ns,
+                k.state_ns, k.command_ns, k.rerecord_ns, k.submit_ns, k.cull_ns, k.occlusionTest_ns, k.overlap, k.overlapTriangles,
+                k.commandCount, k.commandLarge_ns, k.commandLargeCount, byDrawJson.c_str());
     for (size_t i = 0; i < points.size(); ++i) {
       const Point& p = points[i];
       std::printf("%s{\"objects\":%u,\"strategy\":\"%s\",\"measured_ms\":%.4f,\"predicted_ms\":%.4f,\"error_pct\":%.2f,"
                   "\"measured_q1_ms\":%.4f,\"error_q1_pct\":%.2f,\"triangles\":%llu,\"fragments\":%.0f,\"vertex_ms\":%.4f,"
-                  "\"fragment_ms\":%.4f,\"commands_ms\":%.4f,\"bound\":\"%s\",\"area_px\":%.0f,\"sqrt_area_px\":%.0f,\"submit_ms\":%.4f,\"samples\":%llu}",
+                  "\"fragment_ms\":%.4f,\"commands_ms\":%.4f,\"bound\":\"%s\",\"area_px\":%.0f,\"sqrt_area_px\":%.0f,\"submit_ms\":%.4f,\"app_cpu_ms\":%.4f,\"samples\":%llu}",
                   i ? "," : "", p.objects, p.strategy, p.measured_ms, p.predicted_ms, p.error_pct, p.measuredQ1_ms, p.errorQ1_pct,
                   static_cast<unsigned long long>(p.triangles), p.fragments, p.vertex_ms, p.fragment_ms, p.commands_ms, p.bound,
-                  p.area_px, p.sqrtArea_px, p.submit_ms, static_cast<unsigned long long>(p.samples));
+                  p.area_px, p.sqrtArea_px, p.submit_ms, p.appCpu_ms, static_cast<unsigned long long>(p.samples));
     }
     std::printf("],\"error_pct_median\":%.2f,\"error_pct_max\":%.2f,\"error_q1_pct_median\":%.2f,"
                 "\"error_q1_pct_max\":%.2f,\"sweeps\":%d,\"sweep_spread_pct_median\":%.2f,\"sweep_spread_pct_max\":%.2f,"
@@ -275,6 +294,9 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
                 "rerecord %.0f ns, submit %.0f ns, cull %.1f ns, occlusion test %.0f ns, overlap %.2f above %.0f triangles\n",
                 k.frame_ns, k.tri_ns, k.frag_ns, k.rasterTri_ns, k.edge_ns, k.state_ns, k.command_ns, k.rerecord_ns, k.submit_ns,
                 k.cull_ns, k.occlusionTest_ns, k.overlap, k.overlapTriangles);
+    std::printf("T_tri by the triangles of a submission (ns): %s; t_c %.0f ns with %.0f "
+                "commands, %.0f ns with %.0f\n",
+                byDrawText.c_str(), k.command_ns, k.commandCount, k.commandLarge_ns, k.commandLargeCount);
     std::printf("%9s %-11s %12s %12s %8s %12s %8s  %-8s %8s %8s %8s\n", "objects", "strategy", "measured ms", "predicted ms",
                 "error %", "q1 ms", "error %", "bound", "vert ms", "frag ms", "cmd ms");
     for (const Point& p : points)

@@ -24,6 +24,7 @@ struct PerfModelBenchOptions {
   int repeats = 7;                // timed frames per point (median)
   int sweeps = 0;                 // the sweep run this often (0: 2, --quick 1); a point's time is its fastest sweep's median
   uint32_t seed = 1;
+  int calibrationRuns = 0;        // calibration runs, each constant their median (0: 3, --quick 1)
   std::string cachePath;          // calibration cache; "" = calibrate every run
   bool quick = false;             // CI size: 10 100 1000 4000 boxes, 5 repeats, short calibration
   bool json = false;

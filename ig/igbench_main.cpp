@@ -366,6 +366,9 @@ int main(int argc, char** argv) {
                    "--quick 1)")
       ->check(CLI::Range(1, 100));
   perf->add_option("--seed", perfOptions.seed, "Scene seed")->capture_default_str();
+  perf->add_option("--calibration-runs", perfOptions.calibrationRuns,
+                   "Calibration runs; each constant is the median of the runs (default 3, --quick 1)")
+      ->check(CLI::Range(1, 9));
   perf->add_option("--cache", perfOptions.cachePath, "Calibration cache file ('' = calibrate every run)");
   perf->add_flag("--quick", perfOptions.quick, "CI size: 10 ... 4000 boxes, fewer repeats, short calibration");
   perf->add_flag("--json", perfOptions.json, "Print one JSON object instead of the human summary");

@@ -36,27 +36,54 @@ uint64_t sceneMemoryBytes(const MemoryModelInput& in) {
 bool valid(const PerfConstants& c) {
   const double all[] = {c.frame_ns,   c.tri_ns,      c.frag_ns,   c.rasterTri_ns, c.edge_ns,          c.depthFrag_ns,
                         c.state_ns,   c.command_ns,  c.rerecord_ns, c.submit_ns,  c.cull_ns,          c.occlusionTest_ns,
-                        c.overlapTriangles};
+                        c.overlapTriangles, c.commandCount, c.commandLarge_ns, c.commandLargeCount};
   for (double v : all)
+    if (!std::isfinite(v) || v < 0.0) return false;
+  for (double v : c.triByDraw_ns)
     if (!std::isfinite(v) || v < 0.0) return false;
   if (!(c.overlap >= 0.0 && c.overlap <= 1.0)) return false;
   return c.tri_ns > 0.0 && c.frag_ns > 0.0;
 }
 
+double commandCost_ns(const PerfConstants& c, double commands) {
+  const double base = clean(c.command_ns), large = clean(c.commandLarge_ns);
+  const double n0 = clean(c.commandCount), n1 = clean(c.commandLargeCount);
+  if (!(n0 > 0.0 && n1 > n0 && large > 0.0) || !(std::isfinite(commands) && commands > n0)) return base;
+  if (commands >= n1) return large;
+  return base + (large - base) * std::log(commands / n0) / std::log(n1 / n0);
+}
+
+double triangleCost_ns(const PerfConstants& c, double trianglesPerSubmission) {
+  const auto& t = c.triByDraw_ns;
+  for (double v : t)
+    if (!(std::isfinite(v) && v > 0.0)) return clean(c.tri_ns);  // not measured (or invalid)
+  if (!(std::isfinite(trianglesPerSubmission) && trianglesPerSubmission > 0.0)) return clean(c.tri_ns);
+  const double x = std::log2(trianglesPerSubmission / 12.0);
+  if (x <= 0.0) return t.front();
+  if (x >= PerfConstants::kDrawSizes - 1) return t.back();
+  const auto i = static_cast<size_t>(x);
+  const double f = x - static_cast<double>(i);
+  return t[i] + f * (t[i + 1] - t[i]);
+}
+
 double predictFrame_ns(const PerfConstants& c, const PassLoad& s, const PassLoad& h, TimeBreakdown* out) {
   TimeBreakdown b;
-  const double tc = clean(c.command_ns), ts = clean(c.submit_ns), tv = clean(c.occlusionTest_ns);
+  const double ts = clean(c.submit_ns), tv = clean(c.occlusionTest_ns);
   const double tr = clean(c.rerecord_ns);
-  b.bufS = clean(s.commands) * tc + clean(s.rerecorded) * tr + clean(s.submissions) * ts + clean(s.occlusionTests) * tv;
+  b.bufS = clean(s.commands) * commandCost_ns(c, clean(s.commands)) + clean(s.rerecorded) * tr +
+           clean(s.submissions) * ts + clean(s.occlusionTests) * tv;
   b.stateS = clean(s.stateChanges) * clean(c.state_ns);
-  b.vertS = clean(s.triangles) * clean(c.tri_ns);
+  // Triangles per submission; none counted: their size is unknown (tri_ns).
+  const auto perCall = [](const PassLoad& l) { return l.submissions > 0.0 ? l.triangles / l.submissions : 0.0; };
+  b.vertS = clean(s.triangles) * triangleCost_ns(c, perCall(s));
   const double trS = clean(s.triangles), trH = clean(h.triangles);
   b.fragS = clean(s.fragments) * clean(c.frag_ns) + clean(s.depthFragments) * clean(c.depthFrag_ns) +
             trS * clean(c.rasterTri_ns) + clean(s.edgePx) * clean(c.edge_ns);
   b.fcS = clean(s.frustumTests) * clean(c.cull_ns);
-  b.bufH = clean(h.commands) * tc + clean(h.rerecorded) * tr + clean(h.submissions) * ts + clean(h.occlusionTests) * tv;
+  b.bufH = clean(h.commands) * commandCost_ns(c, clean(h.commands)) + clean(h.rerecorded) * tr +
+           clean(h.submissions) * ts + clean(h.occlusionTests) * tv;
   b.stateH = clean(h.stateChanges) * clean(c.state_ns);
-  b.vertH = clean(h.triangles) * clean(c.tri_ns);
+  b.vertH = clean(h.triangles) * triangleCost_ns(c, perCall(h));
   b.fragH = clean(h.fragments) * clean(c.frag_ns) + trH * clean(c.rasterTri_ns) + clean(h.edgePx) * clean(c.edge_ns);
   b.zbufH = clean(h.depthFragments) * clean(c.depthFrag_ns);
   b.fcH = clean(h.frustumTests) * clean(c.cull_ns);

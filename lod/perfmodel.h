@@ -38,7 +38,16 @@ uint64_t sceneMemoryBytes(const MemoryModelInput& in);
 struct PerfConstants {
   double frame_ns = 0.0;          // fixed cost of a frame (clear, flush, finish, the tiles'
                                   // load and store); not in (2)
-  double tri_ns = 0.0;            // T_tri: one triangle through the vertex stage (the material)
+  double tri_ns = 0.0;            // T_tri: one triangle through the vertex stage (the material), in
+                                  // long draws (and wherever the size of the draws is not known)
+  // T_tri by the size of a submission (one multi-draw call). Entry i: one triangle in
+  // submissions of 12 * 2^i triangles (1 ... 64 boxes of 12 triangles), each submission's t_c
+  // and t_s charged apart. llvmpipe sets its vertex pipeline up per call and runs it per
+  // instance: a box costs it more in a call of a few boxes than in one of 32 or more. All 0: not
+  // measured, tri_ns for every draw. triangleCost_ns() interpolates in log2 of the triangles per
+  // submission.
+  static constexpr int kDrawSizes = 7;
+  std::array<double, kDrawSizes> triByDraw_ns{};
   double frag_ns = 0.0;           // T_frag: one shaded fragment (the material)
   double rasterTri_ns = 0.0;      // one triangle through the rasterizer's set-up (edge equations,
                                   // binning into tiles), counted with the fragment stage
@@ -48,7 +57,13 @@ struct PerfConstants {
   double depthFrag_ns = 0.0;      // one depth-test-only fragment (occlusion boxes: T_z-buffer)
   double state_ns = 0.0;          // T_state: one pipeline state change (one draw set-up)
   double command_ns = 0.0;        // t_c: record and issue one draw command (in GL this includes
-                                  // the driver's set-up of that draw)
+                                  // the driver's set-up of that draw), in a frame of commandCount
+  // t_c grows once a frame's per-object commands and their records no longer fit the caches:
+  // commandLarge_ns in a frame of commandLargeCount commands; commandCost_ns() interpolates in
+  // log(commands) between the two. commandLargeCount <= commandCount: t_c is one constant.
+  double commandCount = 0.0;
+  double commandLarge_ns = 0.0;
+  double commandLargeCount = 0.0;
   double rerecord_ns = 0.0;       // rewrite one object into a node's command range (octree modes)
   double submit_ns = 0.0;         // t_s: submit one command range (one GL multi-draw call),
                                   // beyond the commands in it
@@ -66,6 +81,14 @@ struct PerfConstants {
 // True if every constant is finite and >= 0, overlap is in [0, 1] and T_tri, T_frag are > 0.
 // (The overlap of a frame is stageOverlap().)
 bool valid(const PerfConstants& c);
+// T_tri for submissions of `trianglesPerSubmission` triangles: triByDraw_ns interpolated
+// linearly in log2(trianglesPerSubmission / 12), the end entries beyond the table; tri_ns when
+// the table is not measured or the size is not a number > 0 (unknown: long draws).
+double triangleCost_ns(const PerfConstants& c, double trianglesPerSubmission);
+// t_c in a frame of `commands` draw commands: command_ns up to commandCount, commandLarge_ns
+// from commandLargeCount on, linear in log(commands) between (command_ns when the two are not
+// measured, or `commands` is not a number).
+double commandCost_ns(const PerfConstants& c, double commands);
 
 // Statistics of one set drawn in a frame: the objects S or the hierarchy H (bounding boxes of
 // tested nodes). Counts, not times.
@@ -96,8 +119,8 @@ struct TimeBreakdown {
 
 // T(S,H) = T_frame + T_buf(S) + T_fc(S) + max(T_state(S), T_vert(S), T_frag(S))
 //        + T_fc(H) + T_buf(H) + max(T_state(H), T_vert(H), T_frag(H), T_z(H))           (2)
-// with T_buf = commands t_c + rerecorded t_r + submissions t_s + occlusionTests T_vis,
-// T_vert = N_tri T_tri (3),
+// with T_buf = commands t_c(commands) + rerecorded t_r + submissions t_s + occlusionTests T_vis,
+// T_vert = N_tri T_tri (3) with T_tri = triangleCost_ns(triangles / submissions),
 // T_frag = f T_frag (4) + N_tri T_rtri + edgePx T_edge, T_state = stateChanges T_state,
 // T_fc = frustumTests T_cull.
 // This implementation's additions: T_fc(S) (per-object culling of strategy 1) and T_frame ((2)

@@ -656,9 +656,9 @@ lod::DynamicMode DynamicPass::chooseMode() {
   // Fragments from the samples-passed query (async), scaled with the objects drawn.
   const double frags = static_cast<double>(lastSamples_);
   lod::ModeInputs in;
-  in.bufS_ns = visS * c.command_ns + c.submit_ns;
+  in.bufS_ns = visS * lod::commandCost_ns(c, visS) + c.submit_ns;
   in.fcS_ns = n * c.cull_ns;
-  in.bufH_ns = std::min(rewritten, n) * c.rerecord_ns + nodes * (c.command_ns + c.submit_ns);
+  in.bufH_ns = std::min(rewritten, n) * c.rerecord_ns + nodes * (lod::commandCost_ns(c, nodes) + c.submit_ns);
   in.fcH_ns = h.frustumTests * c.cull_ns;
   lod::PassLoad all;
   all.triangles = visS * kBoxTriangles;

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 #include <fstream>
 #include <functional>
 #include <memory>
@@ -24,7 +25,9 @@ using Clock = std::chrono::steady_clock;
 // 2: measured with a settled heap (settleHeap) and with frag_block_px; version 1 caches hold a
 // T_tri ten or more times too high. 3: the rasterizer's costs per triangle and per edge pixel
 // instead of frag_block_px, T_tri from the application thread's side, overlap by frame size.
-constexpr int kCacheVersion = 3;
+// 4: T_tri by the size of a submission (tri_ns_12 ... tri_ns_768), t_c by the commands of a
+// frame (command_count, command_large_ns, command_large_count).
+constexpr int kCacheVersion = 4;
 
 struct Field {
   const char* name;
@@ -45,7 +48,21 @@ constexpr Field kFields[] = {
     {"occlusion_test_ns", &lod::PerfConstants::occlusionTest_ns},
     {"overlap", &lod::PerfConstants::overlap},
     {"overlap_triangles", &lod::PerfConstants::overlapTriangles},
+    {"command_count", &lod::PerfConstants::commandCount},
+    {"command_large_ns", &lod::PerfConstants::commandLarge_ns},
+    {"command_large_count", &lod::PerfConstants::commandLargeCount},
 };
+
+// Cache field of triByDraw_ns[i]: "tri_ns_" and the triangles of the draw.
+std::string drawField(size_t i) { return "tri_ns_" + std::to_string(12u << i); }
+
+// CPU time of this thread (ms): the application side of a frame without the time other
+// processes on a shared machine took the core away.
+double threadMs() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
+}
 
 std::string glString(GLenum e) {
   const auto* s = reinterpret_cast<const char*>(gl.GetString(e));
@@ -162,6 +179,7 @@ bool readCalibrationCache(const std::string& path, const std::string& key, lod::
   }
   std::string line;
   bool haveVersion = false, haveKey = false;
+  static_assert(std::size(kFields) + lod::PerfConstants::kDrawSizes <= 32, "seen is a 32-bit mask");
   uint32_t seen = 0;
   lod::PerfConstants c;
   int lineNo = 0;
@@ -193,11 +211,25 @@ bool readCalibrationCache(const std::string& path, const std::string& key, lod::
       c.*kFields[i].member = v;
       seen |= 1u << i;
     }
+    for (size_t i = 0; i < c.triByDraw_ns.size() && !known; ++i) {
+      if (name != drawField(i)) continue;
+      known = true;
+      const uint32_t bit = 1u << (std::size(kFields) + i);
+      if (seen & bit) return why = where + name + " repeated", false;
+      char* end = nullptr;
+      const double v = std::strtod(value.c_str(), &end);
+      if (value.empty() || end == value.c_str() || *end != '\0' || !std::isfinite(v) || v < 0.0)
+        return why = where + name + " = '" + value + "': not a finite number >= 0", false;
+      c.triByDraw_ns[i] = v;
+      seen |= bit;
+    }
     if (!known) return why = where + "unknown field '" + name + "'", false;
   }
   if (!haveVersion || !haveKey) return why = path + ": no version or key line", false;
   for (size_t i = 0; i < std::size(kFields); ++i)
     if (!(seen & (1u << i))) return why = path + ": " + kFields[i].name + " missing", false;
+  for (size_t i = 0; i < c.triByDraw_ns.size(); ++i)
+    if (!(seen & (1u << (std::size(kFields) + i)))) return why = path + ": " + drawField(i) + " missing", false;
   if (!lod::valid(c)) return why = path + ": constants out of range", false;
   out = c;
   return true;
@@ -216,29 +248,21 @@ bool writeCalibrationCache(const std::string& path, const std::string& key, cons
       std::snprintf(buf, sizeof buf, "%s %.9g\n", fl.name, c.*fl.member);
       f << buf;
     }
+    for (size_t i = 0; i < c.triByDraw_ns.size(); ++i) {
+      std::snprintf(buf, sizeof buf, "%s %.9g\n", drawField(i).c_str(), c.triByDraw_ns[i]);
+      f << buf;
+    }
     if (!f.flush()) return error = tmp + ": write failed", false;
   }
   if (std::rename(tmp.c_str(), path.c_str()) != 0) return error = path + ": cannot replace", false;
   return true;
 }
 
-bool calibrate(const std::string& cachePath, const CalibrationOptions& o, CalibrationResult& out, std::string& error,
-               std::string* warning) {
-  if (o.width_px <= 0 || o.height_px <= 0 || o.width_px > 16384 || o.height_px > 16384) {
-    error = "calibration: viewport " + std::to_string(o.width_px) + "x" + std::to_string(o.height_px) + ": out of range";
-    return false;
-  }
-  if (!std::isfinite(o.budget_s) || o.budget_s <= 0.0) {
-    error = "calibration: budget_s = " + std::to_string(o.budget_s) + ": must be > 0";
-    return false;
-  }
-  out = {};
-  out.key = calibrationKey(o);
-  std::string why;
-  if (!cachePath.empty() && !o.ignoreCache && readCalibrationCache(cachePath, out.key, out.constants, why)) {
-    out.fromCache = true;
-    return true;
-  }
+namespace {
+
+// One run of the measurements (see perf_calibration.h) into `c`.
+bool measure(const CalibrationOptions& o, lod::PerfConstants& c, std::string& error) {
+  c = {};
   settleHeap();
   Bench b;
   b.budget_s = o.budget_s;
@@ -248,43 +272,30 @@ bool calibrate(const std::string& cachePath, const CalibrationOptions& o, Calibr
   b.camera.far_m = 10000.0;
   b.light.fog = false;
   const double pixels = static_cast<double>(o.width_px) * o.height_px;
-  lod::PerfConstants c;
 
-  // T_frag: full-screen boxes, far first, one per-object command each. The fixed cost of a frame
-  // is the intercept of the same line: a frame that draws anything loads and stores its tiles,
-  // which an empty one does not.
+  // T_frag: 1 and 4 full-screen boxes, far first, one per-object command each (measured with the
+  // other small differences below, interleaved). The fixed cost of a frame is the intercept of
+  // the same line: a frame that draws anything loads and stores its tiles, which an empty one
+  // does not.
+  DynamicPass full1, full4;
+  for (int k : {1, 4}) {
+    DynamicPass& pass = k == 1 ? full1 : full4;
+    if (!makePass(pass, 64, 0, 1000.0, o.fragmentWork, error)) return false;
+    pass.setStrategy(DynamicStrategy::PerCommand);
+    for (int i = 0; i < k; ++i) {
+      const double d = 50.0 - i;
+      pass.add({{0.0, d, 0.0}, {3.0 * d, 0.4, 3.0 * d}, 0.0, 0xff8080ffu});
+    }
+  }
   {
     DynamicPass pass;
     if (!makePass(pass, 64, 0, 1000.0, o.fragmentWork, error)) return false;
-    pass.setStrategy(DynamicStrategy::PerCommand);
-    const auto layers = [&](int k) {
-      pass.clear();
-      for (int i = 0; i < k; ++i) {
-        const double d = 50.0 - i;
-        pass.add({{0.0, d, 0.0}, {3.0 * d, 0.4, 3.0 * d}, 0.0, 0xff8080ffu});
-      }
-    };
-    const auto draw = [&] { pass.draw(b.renderer, b.frame); };
-    std::vector<double> s, fixed;
-    for (int k = 0; k < b.rounds; ++k) {
-      layers(1);
-      const double a = b.median(draw);
-      layers(4);
-      const double z = b.median(draw);
-      s.push_back((z - a) * 1e6 / (3.0 * pixels));
-      fixed.push_back((a - (z - a) / 3.0) * 1e6);
-    }
-    std::sort(s.begin(), s.end());
-    std::sort(fixed.begin(), fixed.end());
-    c.frag_ns = s[s.size() / 2];
-    c.frame_ns = std::max(0.0, fixed[fixed.size() / 2]);
     // Depth-only fragments of occlusion boxes over a depth buffer at the far plane.
     std::vector<lod::Aabb> boxes;
     for (int i = 0; i < 8; ++i) {
       const double d = 50.0 - i;
       boxes.push_back({{-3.0 * d, d - 0.4, -3.0 * d}, {3.0 * d, d + 0.4, 3.0 * d}});
     }
-    pass.clear();
     c.depthFrag_ns = std::max(0.0, b.slope([&] { pass.drawDepthBoxes(b.renderer, std::span(boxes).first(1)); }, pixels,
                                            [&] { pass.drawDepthBoxes(b.renderer, boxes); }, 8.0 * pixels));
   }
@@ -364,24 +375,38 @@ bool calibrate(const std::string& cachePath, const CalibrationOptions& o, Calibr
     edgeMid = edgeSum(midBoxes);
   }
   // One tiny box per octree leaf (2 m cells): one node range, one indirect call per box.
-  // `perNode` boxes in each cell (the second 0.4 m beside the first, same cell).
+  // `perNode` (<= 64) boxes in each cell, 0.4 m apart on a 4 x 4 x 4 lattice inside it.
   const auto grid = [&](DynamicPass& pass, uint32_t n, int perNode) {
     uint32_t k = 0;
     for (int layer = 0; layer < 4 && k < n; ++layer)
       for (int zi = -6; zi < 6 && k < n; ++zi)
         for (int xi = -14; xi < 14 && k < n; ++xi, ++k)
           for (int j = 0; j < perNode; ++j)
-            pass.add({{2.0 * xi + 1.0 + 0.4 * j, 41.0 + 2.0 * layer, 2.0 * zi + 1.0}, glm::dvec3(kTinyHalf_m), 0.0,
-                      0xffffffffu});
+            pass.add({{2.0 * xi + 1.0 + 0.4 * (j % 4), 41.0 + 2.0 * layer + 0.4 * (j / 16), 2.0 * zi + 1.0 + 0.4 * ((j / 4) % 4)},
+                      glm::dvec3(kTinyHalf_m), 0.0, 0xffffffffu});
   };
   grid(nodesHigh, kNodesHigh, 1);
   grid(nodesDouble, kNodesHigh, 2);
+  // T_tri by the size of a call: the same 900 leaves holding 1, 2, 4 ... 64 boxes each (one
+  // instanced call of k boxes per node), against a frame without boxes. The application
+  // thread's CPU time (llvmpipe shades, clips, sets up and bins on it; these boxes are culled
+  // in set-up, so the rasterizer has nothing to do), so preemption does not count.
+  constexpr size_t kSizes = lod::PerfConstants::kDrawSizes;
+  std::array<std::unique_ptr<DynamicPass>, kSizes> perDraw;
+  for (size_t i = 2; i < kSizes; ++i) {
+    perDraw[i] = std::make_unique<DynamicPass>();
+    if (!makePass(*perDraw[i], kNodesHigh << i, 6, 64.0, o.fragmentWork, error)) return false;
+    grid(*perDraw[i], kNodesHigh, 1 << i);
+  }
+  DynamicPass empty;
+  if (!makePass(empty, 1, 6, 64.0, o.fragmentWork, error)) return false;
   nodesHigh.setStrategy(DynamicStrategy::Octree);
   {
     // Whole frame (ms), and in `cpu` the part until the GL calls return (before glFinish).
-    double cpuLast = 0.0;
+    double cpuLast = 0.0, threadLast = 0.0;
     const auto frameMs = [&](DynamicPass& p, DynamicStrategy s, uint32_t stateChanges = 0) {
       p.setStrategy(s);
+      const double thread0 = threadMs();
       const auto t0 = Clock::now();
       b.renderer.beginFrame(b.camera, b.light);
       if (stateChanges)
@@ -390,6 +415,7 @@ bool calibrate(const std::string& cachePath, const CalibrationOptions& o, Calibr
         p.draw(b.renderer, b.frame++);
       b.renderer.endFrame();
       cpuLast = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+      threadLast = threadMs() - thread0;
       b.renderer.finish();
       return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
     };
@@ -402,17 +428,17 @@ bool calibrate(const std::string& cachePath, const CalibrationOptions& o, Calibr
     // consecutive repeats, which a median of paired differences does not survive).
     enum Load {
       kDouble, kManyOctree, kManyCommands, kNodesCommands, kNodesOctree, kState200, kState2000, kLayer, kLayerSmall,
-      kLayerMid, kLoads
+      kLayerMid, kFull1, kFull4, kEmpty, kDraw4, kLoads = kDraw4 + kSizes - 2
     };
-    std::vector<double> ms[kLoads], cpu[kLoads], fin[kLoads];
+    std::vector<double> ms[kLoads], cpu[kLoads], fin[kLoads], thread[kLoads];
     double manyTests = 0.0, manyNodes = 112.0, nodeTests = 0.0;
     const int reps = b.overBudget() || b.budget_s < 1.0 ? 5 : b.budget_s >= 8.0 ? 25 : 11;
     const auto keep = [&](Load l, double frame) {
-      ms[l].push_back(frame), cpu[l].push_back(cpuLast), fin[l].push_back(frame - cpuLast);
+      ms[l].push_back(frame), cpu[l].push_back(cpuLast), fin[l].push_back(frame - cpuLast), thread[l].push_back(threadLast);
     };
     for (int r = 0; r <= reps; ++r) {
-      // llvmpipe's cost per instance grows with the instances in one draw: measure the box in
-      // the small instanced draws of big scenes (one vs two boxes per node, same nodes).
+      // One vs two tiny boxes in each of the 900 nodes: the box of T_state's draws (and T_tri's
+      // fallback when the table cannot be measured).
       const bool warm = r > 0;  // r == 0: warm-up (node ranges built, shaders compiled)
       if (const double t = frameMs(nodesDouble, DynamicStrategy::Octree); warm) keep(kDouble, t);
       if (const double t = frameMs(many, DynamicStrategy::Octree); warm) keep(kManyOctree, t);
@@ -427,6 +453,11 @@ bool calibrate(const std::string& cachePath, const CalibrationOptions& o, Calibr
       if (const double t = frameMs(layerOnly, DynamicStrategy::PerCommand); warm) keep(kLayer, t);
       if (const double t = frameMs(layerSmall, DynamicStrategy::PerCommand); warm) keep(kLayerSmall, t);
       if (const double t = frameMs(layerMid, DynamicStrategy::PerCommand); warm) keep(kLayerMid, t);
+      if (const double t = frameMs(full1, DynamicStrategy::PerCommand); warm) keep(kFull1, t);
+      if (const double t = frameMs(full4, DynamicStrategy::PerCommand); warm) keep(kFull4, t);
+      if (const double t = frameMs(empty, DynamicStrategy::Octree); warm) keep(kEmpty, t);
+      for (size_t i = 2; i < kSizes; ++i)
+        if (const double t = frameMs(*perDraw[i], DynamicStrategy::Octree); warm) keep(static_cast<Load>(kDraw4 + i - 2), t);
       // Samples are counted in the warm-up frame only: counting costs the rasterizer time.
       if (r == 0)
         for (DynamicPass* p : {&layerOnly, &layerSmall, &layerMid}) p->setMeasureSamples(false);
@@ -442,6 +473,12 @@ bool calibrate(const std::string& cachePath, const CalibrationOptions& o, Calibr
     // Frame and CPU-side (until the GL calls return) differences between two loads, ns.
     const auto diff = [&](Load a, Load z) { return (quartile(ms[a]) - quartile(ms[z])) * 1e6; };
     const auto cpuDiff = [&](Load a, Load z) { return (quartile(cpu[a]) - quartile(cpu[z])) * 1e6; };
+    c.frag_ns = diff(kFull4, kFull1) / (3.0 * pixels);
+    if (!(c.frag_ns > 0.0)) {
+      error = "calibration: 4 full-screen layers did not take longer than 1 (T_frag not measurable)";
+      return false;
+    }
+    c.frame_ns = std::max(0.0, quartile(ms[kFull1]) * 1e6 - c.frag_ns * pixels);
     // T_tri: the application thread's side of an instanced tiny box (its 12 triangles shaded,
     // clipped, set up and binned; the rasterizer works at the finish, counted below). Noise: the
     // whole frame's difference, else an upper bound (the whole frame of `many` over its boxes).
@@ -495,10 +532,45 @@ bool calibrate(const std::string& cachePath, const CalibrationOptions& o, Calibr
     const auto command = [&](double d) {
       return (d + (manyNodes - 1.0) * c.submit_ns - (nMany - manyTests) * c.cull_ns) / (nMany - manyNodes);
     };
+    c.commandCount = nMany;
     c.command_ns = command(diff(kManyCommands, kManyOctree));
     if (!(c.command_ns > 0.0)) c.command_ns = command(cpuDiff(kManyCommands, kManyOctree));
     if (!(c.command_ns > 0.0)) c.command_ns = recordFloor_ns();
     c.state_ns = std::max(0.0, diff(kState2000, kState200) / 1800.0 - perBox);
+    // T_tri by submission size: k boxes in each of the 900 node draws, less the frame without
+    // boxes and the nodes' own costs (a command, a submission, the frustum tests), per triangle.
+    // A box costs less in a longer call, so the table is made non-increasing (pooled where noise
+    // breaks that, as in isotonic regression). A value that comes out <= 0 (noise) takes its
+    // neighbour's; if none is positive, no table (tri_ns for every draw).
+    {
+      const double base = quartile(thread[kEmpty]);
+      const double nodes = (nNodes * (c.command_ns + c.submit_ns) + nodeTests * c.cull_ns) * 1e-6;
+      for (size_t i = 0; i < kSizes; ++i) {
+        const Load l = i == 0 ? kNodesOctree : i == 1 ? kDouble : static_cast<Load>(kDraw4 + i - 2);
+        c.triByDraw_ns[i] = std::max(0.0, (quartile(thread[l]) - base - nodes) * 1e6 / (nNodes * 12.0 * (1u << i)));
+      }
+      for (size_t i = kSizes - 1; i-- > 0;)
+        if (!(c.triByDraw_ns[i] > 0.0)) c.triByDraw_ns[i] = c.triByDraw_ns[i + 1];
+      for (size_t i = 1; i < kSizes; ++i)
+        if (!(c.triByDraw_ns[i] > 0.0)) c.triByDraw_ns[i] = c.triByDraw_ns[i - 1];
+      // Pool adjacent violators: blocks of equal value, merged while a later block is higher.
+      std::vector<std::pair<double, int>> blocks;  // (mean, entries)
+      for (double v : c.triByDraw_ns) {
+        blocks.push_back({v, 1});
+        while (blocks.size() > 1 && blocks.back().first > blocks[blocks.size() - 2].first) {
+          const auto [m, n] = blocks.back();
+          blocks.pop_back();
+          auto& prev = blocks.back();
+          prev.first = (prev.first * prev.second + m * n) / (prev.second + n);
+          prev.second += n;
+        }
+      }
+      size_t at = 0;
+      for (const auto& [m, n] : blocks)
+        for (int j = 0; j < n; ++j) c.triByDraw_ns[at++] = m;
+      // tri_ns: long draws (where the size of the draws is not known).
+      if (c.triByDraw_ns.back() > 0.0) c.tri_ns = c.triByDraw_ns.back();
+    }
     // T_edge and T_rtri from the rasterizer's side of the layered loads (see above).
     {
       const auto finDiff = [&](Load a, Load z) { return (quartile(fin[a]) - quartile(fin[z])) * 1e6; };
@@ -590,6 +662,36 @@ bool calibrate(const std::string& cachePath, const CalibrationOptions& o, Calibr
       w[k] = smaller > 0.0 ? std::clamp((sum - ms * 1e6) / smaller, 0.0, 1.0) : 0.0;
       tris[k] = load.triangles;
     }
+    // t_c with many commands: the 135,000 boxes as per-object commands against the same in
+    // their node ranges, alternately, the application thread's CPU time (the commands and their
+    // records no longer fit the caches). Less the node ranges' submissions and the difference
+    // in frustum tests, per command beyond the nodes.
+    {
+      std::vector<double> perObject, nodes;
+      double nodeCount = 1.0, nodeTestCount = 0.0;
+      for (int r = 0; r <= 3; ++r)
+        for (DynamicStrategy s : {DynamicStrategy::Octree, DynamicStrategy::PerCommand}) {
+          pass.setStrategy(s);
+          const double t0 = threadMs();
+          b.renderer.beginFrame(b.camera, b.light);
+          pass.draw(b.renderer, b.frame++);
+          b.renderer.endFrame();
+          const double t = threadMs() - t0;
+          b.renderer.finish();
+          if (s == DynamicStrategy::Octree)
+            nodeCount = std::max(1u, pass.stats().submissions), nodeTestCount = pass.stats().frustumTests;
+          if (r > 0) (s == DynamicStrategy::Octree ? nodes : perObject).push_back(t);
+        }
+      pass.setStrategy(DynamicStrategy::Octree);
+      std::sort(perObject.begin(), perObject.end());
+      std::sort(nodes.begin(), nodes.end());
+      const double n = kBig[1];
+      const double large = ((perObject[0] - nodes[0]) * 1e6 + (nodeCount - 1.0) * c.submit_ns -
+                            (n - nodeTestCount) * c.cull_ns) / (n - nodeCount);
+      // Noise, or no growth seen: one constant t_c.
+      c.commandLarge_ns = large > c.command_ns ? large : c.command_ns;
+      c.commandLargeCount = large > c.command_ns ? n : 0.0;
+    }
     // w_k N_k = w (N_k - T0): two equations in w and T0.
     const double wMax = tris[1] > tris[0] ? (w[1] * tris[1] - w[0] * tris[0]) / (tris[1] - tris[0]) : w[1];
     if (wMax > 0.0 && w[0] < wMax) {
@@ -609,8 +711,47 @@ bool calibrate(const std::string& cachePath, const CalibrationOptions& o, Calibr
     error = buf;
     return false;
   }
+  return true;
+}
+
+}  // namespace
+
+bool calibrate(const std::string& cachePath, const CalibrationOptions& o, CalibrationResult& out, std::string& error,
+               std::string* warning) {
+  if (o.width_px <= 0 || o.height_px <= 0 || o.width_px > 16384 || o.height_px > 16384) {
+    error = "calibration: viewport " + std::to_string(o.width_px) + "x" + std::to_string(o.height_px) + ": out of range";
+    return false;
+  }
+  if (!std::isfinite(o.budget_s) || o.budget_s <= 0.0) {
+    error = "calibration: budget_s = " + std::to_string(o.budget_s) + ": must be > 0";
+    return false;
+  }
+  out = {};
+  out.key = calibrationKey(o);
+  std::string why;
+  if (!cachePath.empty() && !o.ignoreCache && readCalibrationCache(cachePath, out.key, out.constants, why)) {
+    out.fromCache = true;
+    return true;
+  }
+  const auto start = Clock::now();
+  const int runs = std::clamp(o.runs, 1, 9);
+  std::vector<lod::PerfConstants> measured(static_cast<size_t>(runs));
+  for (lod::PerfConstants& m : measured)
+    if (!measure(o, m, error)) return false;
+  // Each constant the median of the runs (each entry of the T_tri table too, which keeps it
+  // non-increasing): a slow phase of a shared machine that covers one run does not decide it.
+  lod::PerfConstants c = measured.front();
+  const auto median = [&](const auto& get) {
+    std::vector<double> v;
+    for (lod::PerfConstants& m : measured) v.push_back(get(m));
+    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+    return v[v.size() / 2];
+  };
+  for (const Field& f : kFields) c.*f.member = median([&](lod::PerfConstants& m) -> double { return m.*f.member; });
+  for (size_t i = 0; i < c.triByDraw_ns.size(); ++i)
+    c.triByDraw_ns[i] = median([&](lod::PerfConstants& m) -> double { return m.triByDraw_ns[i]; });
   out.constants = c;
-  out.seconds = std::chrono::duration<double>(Clock::now() - b.start).count();
+  out.seconds = std::chrono::duration<double>(Clock::now() - start).count();
   if (!cachePath.empty()) {
     std::string werr;
     if (!writeCalibrationCache(cachePath, out.key, c, werr) && warning) *warning = werr;

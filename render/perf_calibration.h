@@ -1,11 +1,14 @@
 // Start-up calibration of the performance model of paper 002 (lod/perfmodel.h) on the GL
 // implementation actually in use, with the material and box mesh of render/dynamic_pass.h:
-//   frag_ns      full-screen boxes drawn back to front (every fragment shaded): T_frag
+//   frag_ns      1 vs 4 full-screen boxes drawn back to front (every fragment shaded): T_frag
 //   frame_ns     the intercept of the same line (a frame that draws: clear, tiles, finish)
 //   depthFrag_ns the same boxes depth-only, as occlusion boxes are drawn
-//   tri_ns       tiny boxes (0.2 px) in 112 fixed octree leaves, one instanced draw per node,
-//                the application thread's side (until the GL calls return): T_tri
-//   raster_tri_ns, edge_ns  3000 boxes of ~6 px and of ~60 px in front of a full-screen layer
+//   tri_ns_12 ... tri_ns_768 (triByDraw_ns)  900 octree leaves holding 1, 2, 4 ... 64 tiny
+//                boxes each (one instanced call per node) against a frame without boxes, less
+//                the nodes' t_c, t_s and frustum tests: T_tri by the triangles of a call, from
+//                the application thread's CPU time (llvmpipe's vertex stage runs on it)
+//   tri_ns       the last of them (long calls; where the size of the calls is not known)
+//   raster_tri_ns, edge_ns  6000 boxes of ~6 px and of ~30 px in front of a full-screen layer
 //                against the layer alone, the rasterizer's side (after the GL calls returned),
 //                fragments counted by GL_SAMPLES_PASSED: per triangle and per edge pixel
 //   command_ns   20000 tiny boxes as per-object commands vs the same in their 112 node ranges: t_c
@@ -14,14 +17,16 @@
 //   cull_ns      per-object frustum tests of boxes behind the camera
 //   rerecord_ns  every object moved each frame in octree mode (node ranges rewritten): t_r
 //   occlusionTest_ns  q queries on tiny nodes minus the same frame without: one test
-//   overlap, overlap_triangles  30,000 and 90,000 boxes of a few pixels: how much (2) without
+//   overlap, overlap_triangles  45,000 and 135,000 boxes of a few pixels: how much (2) without
 //                overlap over-predicts each, as a share of the smaller stage; the line
 //                w (1 - T0 / N_tri) through the two (a software rasterizer overlaps its stages
 //                only once a frame overflows its scene buffer)
-// Each constant is the slope between two loads (lower quartile of repeated frames, glFinish + a
-// monotonic clock; the median of three such slopes), so fixed costs cancel; T_tri, t_c, t_s,
-// T_state, T_rtri and T_edge (small differences) from loads measured interleaved frame by frame
-// (11 repeats, the lower quartile of each load). Results are
+// Each constant is a difference between loads (lower quartile of repeated frames, glFinish + a
+// monotonic clock), so fixed costs cancel. The loads of T_frag, T_tri, t_c, t_s, T_state,
+// T_rtri and T_edge are measured interleaved, one frame of each per repeat (11 repeats,
+// 25 with a budget of 8 s or more), so a slow phase of the machine weighs on all of them alike;
+// the others are the median of three slopes. With `runs` > 1 the whole measurement is repeated
+// and each constant is the median of the runs. Results are
 // cached in a small text file keyed by GL_VENDOR / GL_RENDERER / GL_VERSION, the material and
 // the viewport; a cache for another key, or one that does not parse, is ignored and rewritten.
 // The measurements run with a settled C heap (a large block freed first): glibc trims the heap
@@ -42,6 +47,9 @@ struct CalibrationOptions {
   uint32_t fragmentWork = 0;   // material: DynamicPassConfig::fragmentWork of the pass to model
   double budget_s = 3.0;       // repeats are cut when the measurements run longer than this
   bool ignoreCache = false;    // measure even if the cache matches (the cache is rewritten)
+  int runs = 1;                // the measurements run this often (1 ... 9; budget_s each) and each
+                               // constant is the median of the runs: a shared machine slows down
+                               // in phases of seconds, and one run can fall into one
 };
 
 struct CalibrationResult {

@@ -375,6 +375,10 @@ TEST_F(DynamicGl, CalibrationCacheRoundTripsAndRejectsCorruptFiles) {
   c.overlapTriangles = 250000;
   c.rasterTri_ns = 3.5;
   c.edge_ns = 150.5;
+  c.commandCount = 20000;
+  c.commandLarge_ns = 310.5;
+  c.commandLargeCount = 135000;
+  c.triByDraw_ns = {80.5, 70, 66, 62, 58, 55, 33.25};
   const std::string path = tempPath("cache.txt"), key = "vendor|renderer|4.5|work=0|64x64";
   std::string error, why;
   ASSERT_TRUE(render::writeCalibrationCache(path, key, c, error)) << error;
@@ -387,6 +391,10 @@ TEST_F(DynamicGl, CalibrationCacheRoundTripsAndRejectsCorruptFiles) {
   EXPECT_DOUBLE_EQ(r.overlapTriangles, c.overlapTriangles);
   EXPECT_DOUBLE_EQ(r.rasterTri_ns, c.rasterTri_ns);
   EXPECT_DOUBLE_EQ(r.edge_ns, c.edge_ns);
+  EXPECT_DOUBLE_EQ(r.commandCount, c.commandCount);
+  EXPECT_DOUBLE_EQ(r.commandLarge_ns, c.commandLarge_ns);
+  EXPECT_DOUBLE_EQ(r.commandLargeCount, c.commandLargeCount);
+  for (size_t i = 0; i < c.triByDraw_ns.size(); ++i) EXPECT_DOUBLE_EQ(r.triByDraw_ns[i], c.triByDraw_ns[i]) << i;
   EXPECT_FALSE(render::readCalibrationCache(path, "other|device", r, why));
   EXPECT_NE(why.find("key"), std::string::npos) << why;
   std::string text;
@@ -411,9 +419,14 @@ TEST_F(DynamicGl, CalibrationCacheRoundTripsAndRejectsCorruptFiles) {
   corrupt("tri_ns 33.25", "tri_ns 33.25x");
   corrupt("tri_ns 33.25\n", "");                 // missing
   corrupt("cull_ns", "cull_ms");                 // unknown field
-  corrupt("version 3", "version 7");
-  corrupt("version 3", "version 1");             // an older calibration (heap not settled)
-  corrupt("version 3", "version 2");             // an older model (frag_block_px, no rasterizer terms)
+  corrupt("version 4", "version 7");
+  corrupt("version 4", "version 1");             // an older calibration (heap not settled)
+  corrupt("version 4", "version 2");             // an older model (frag_block_px, no rasterizer terms)
+  corrupt("version 4", "version 3");             // one T_tri for every draw size, no binning term
+  EXPECT_NE(corrupt("tri_ns_96 62\n", "").find("tri_ns_96 missing"), std::string::npos);
+  corrupt("tri_ns_24 70", "tri_ns_24 inf");
+  corrupt("tri_ns_24 70", "tri_ns_24 70\ntri_ns_24 71");  // repeated
+  corrupt("command_large_ns 310.5\n", "");  // missing
   corrupt("overlap 0.25", "overlap 3");          // out of range
   corrupt("overlap_triangles 250000", "overlap_triangles -1");
   corrupt("frag_ns 1.125", "frag_ns 1.125\nfrag_ns 2");  // repeated

@@ -115,6 +115,76 @@ TEST(PerfModel, OverlapGrowsWithTheFrameBeyondOverlapTriangles) {
   EXPECT_DOUBLE_EQ(predictFrame_ns(c, s, {}), 10000 + 5e5 + 2e6);
 }
 
+// T_tri by the size of a submission (llvmpipe sets its vertex pipeline up per call: a box costs
+// more in a call of a few boxes).
+TEST(PerfModel, TriangleCostFollowsTheSubmissionSize) {
+  PerfConstants c = handConstants();
+  EXPECT_DOUBLE_EQ(triangleCost_ns(c, 12), 10);  // no table: tri_ns for every size
+  c.triByDraw_ns = {80, 60, 50, 40, 30, 20, 10};
+  ASSERT_TRUE(valid(c));
+  EXPECT_DOUBLE_EQ(triangleCost_ns(c, 12), 80);
+  EXPECT_DOUBLE_EQ(triangleCost_ns(c, 1), 80);  // below the table: its first entry
+  EXPECT_DOUBLE_EQ(triangleCost_ns(c, 48), 50);
+  EXPECT_NEAR(triangleCost_ns(c, 12 * std::sqrt(2.0)), 70, 1e-9);  // halfway in log2
+  EXPECT_DOUBLE_EQ(triangleCost_ns(c, 768), 10);
+  EXPECT_DOUBLE_EQ(triangleCost_ns(c, 1e9), 10);  // beyond it: the last entry
+  EXPECT_DOUBLE_EQ(triangleCost_ns(c, 0), 10);    // size unknown: tri_ns
+  EXPECT_DOUBLE_EQ(triangleCost_ns(c, std::nan("")), 10);
+  // The same 1,200 triangles in 100 calls of one box, in 25 calls of four, in one call.
+  PassLoad s;
+  s.triangles = 1200;
+  s.commands = 100;
+  s.submissions = 100;
+  TimeBreakdown b;
+  predictFrame_ns(c, s, {}, &b);
+  EXPECT_DOUBLE_EQ(b.vertS, 1200 * 80.0);
+  s.submissions = 25;
+  predictFrame_ns(c, s, {}, &b);
+  EXPECT_DOUBLE_EQ(b.vertS, 1200 * 50.0);
+  s.submissions = 1;
+  predictFrame_ns(c, s, {}, &b);
+  EXPECT_DOUBLE_EQ(b.vertS, 1200 * 10.0);
+  s.submissions = 0;  // not counted: tri_ns
+  predictFrame_ns(c, s, {}, &b);
+  EXPECT_DOUBLE_EQ(b.vertS, 1200 * 10.0);
+  // An entry that is not a finite number >= 0: the table counts as not measured, the
+  // constants as invalid.
+  c.triByDraw_ns[3] = std::nan("");
+  EXPECT_FALSE(valid(c));
+  EXPECT_DOUBLE_EQ(triangleCost_ns(c, 96), 10);
+  c.triByDraw_ns[3] = -1.0;
+  EXPECT_FALSE(valid(c));
+  c.triByDraw_ns[3] = std::numeric_limits<double>::infinity();
+  EXPECT_FALSE(valid(c));
+}
+
+// t_c grows once a frame's commands no longer fit the caches: interpolated in log(commands)
+// between the two measured sizes, constant outside.
+TEST(PerfModel, CommandCostGrowsWithTheCommandsOfAFrame) {
+  PerfConstants c = handConstants();  // t_c 1000
+  EXPECT_DOUBLE_EQ(commandCost_ns(c, 1e6), 1000);  // not measured: one constant
+  c.commandCount = 1000;
+  c.commandLarge_ns = 3000;
+  c.commandLargeCount = 100000;
+  ASSERT_TRUE(valid(c));
+  EXPECT_DOUBLE_EQ(commandCost_ns(c, 10), 1000);
+  EXPECT_DOUBLE_EQ(commandCost_ns(c, 1000), 1000);
+  EXPECT_NEAR(commandCost_ns(c, 10000), 2000, 1e-9);  // halfway in log
+  EXPECT_DOUBLE_EQ(commandCost_ns(c, 100000), 3000);
+  EXPECT_DOUBLE_EQ(commandCost_ns(c, 1e7), 3000);  // not extrapolated
+  EXPECT_DOUBLE_EQ(commandCost_ns(c, std::nan("")), 1000);
+  PassLoad s;
+  s.commands = 10000;
+  s.submissions = 1;
+  TimeBreakdown b;
+  predictFrame_ns(c, s, {}, &b);
+  EXPECT_NEAR(b.bufS, 10000 * 2000.0 + 500.0, 1e-6);
+  c.commandLargeCount = 500;  // not above commandCount: one constant
+  EXPECT_DOUBLE_EQ(commandCost_ns(c, 10000), 1000);
+  c.commandLarge_ns = std::nan("");
+  EXPECT_FALSE(valid(c));
+}
+
 TEST(PerfModel, NanAndNegativeInputsCountAsZero) {
   const PerfConstants c = handConstants();
   PassLoad s;
