@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # igbench perfmodel --quick (two sweeps) and igbench adaptive --quick print one JSON object each with the
-# fields issue 7 names; predictions are positive and finite, every mode of the adaptive run drew
+# fields issue 7 names; predictions are positive and finite, the calibration's T_tri table and t_c
+# pair are consistent, every mode of the adaptive run drew
 # every frame, and the ratios are consistent with the per-mode means. (Timing goals are
 # benchmark results, not asserted here.)
 set -euo pipefail
@@ -24,6 +25,22 @@ for pt in p["points"]:
 # spread between the sweeps is reported.
 assert p["sweeps"] == 2, p["sweeps"]
 assert 0 <= p["sweep_spread_pct_median"] <= p["sweep_spread_pct_max"], p
+# The calibration: T_tri by the triangles of a call (12 ... 768), non-increasing, its last entry
+# the long-call T_tri; t_c at 20,000 commands and at the large count (never below it); one run
+# with --quick.
+c = p["calibration"]
+assert c["from_cache"] is False and c["runs"] == 1, c
+by = c["tri_ns_by_draw"]
+assert list(by.keys()) == [str(12 << i) for i in range(7)], by
+vals = list(by.values())
+assert all(v > 0 for v in vals) and all(a >= b for a, b in zip(vals, vals[1:])), by
+assert abs(c["tri_ns"] - vals[-1]) < 0.01, (c["tri_ns"], vals)
+assert c["command_count"] == 20000, c
+assert c["command_large_ns"] >= c["command_ns"] - 0.05, c
+assert c["command_large_count"] in (0, 135000), c
+# The application thread's CPU time until the GL calls return: within that wall time.
+for pt in p["points"]:
+    assert 0 <= pt["app_cpu_ms"] <= pt["submit_ms"] + 0.05, pt
 errs = sorted(pt["error_pct"] for pt in p["points"])
 assert abs(p["error_pct_max"] - errs[-1]) < 0.01, (p["error_pct_max"], errs)
 a = json.loads(sys.argv[2])
