@@ -53,8 +53,14 @@ constexpr Field kFields[] = {
     {"command_large_count", &lod::PerfConstants::commandLargeCount},
 };
 
-// Cache field of triByDraw_ns[i]: "tri_ns_" and the triangles of the draw.
-std::string drawField(size_t i) { return "tri_ns_" + std::to_string(12u << i); }
+// Every field of the cache in file order, by name: the scalars of kFields, then triByDraw_ns[i]
+// as "tri_ns_" and the triangles of the call.
+std::vector<std::pair<std::string, double*>> cacheFields(lod::PerfConstants& c) {
+  std::vector<std::pair<std::string, double*>> f;
+  for (const Field& k : kFields) f.emplace_back(k.name, &(c.*k.member));
+  for (size_t i = 0; i < c.triByDraw_ns.size(); ++i) f.emplace_back("tri_ns_" + std::to_string(12u << i), &c.triByDraw_ns[i]);
+  return f;
+}
 
 // CPU time of this thread (ms): the application side of a frame without the time other
 // processes on a shared machine took the core away.
@@ -179,9 +185,9 @@ bool readCalibrationCache(const std::string& path, const std::string& key, lod::
   }
   std::string line;
   bool haveVersion = false, haveKey = false;
-  static_assert(std::size(kFields) + lod::PerfConstants::kDrawSizes <= 32, "seen is a 32-bit mask");
-  uint32_t seen = 0;
   lod::PerfConstants c;
+  const auto fields = cacheFields(c);
+  std::vector<bool> seen(fields.size(), false);
   int lineNo = 0;
   while (std::getline(in, line)) {
     ++lineNo;
@@ -199,37 +205,20 @@ bool readCalibrationCache(const std::string& path, const std::string& key, lod::
       haveKey = true;
       continue;
     }
-    bool known = false;
-    for (size_t i = 0; i < std::size(kFields); ++i) {
-      if (name != kFields[i].name) continue;
-      known = true;
-      if (seen & (1u << i)) return why = where + name + " repeated", false;
-      char* end = nullptr;
-      const double v = std::strtod(value.c_str(), &end);
-      if (value.empty() || end == value.c_str() || *end != '\0' || !std::isfinite(v) || v < 0.0)
-        return why = where + name + " = '" + value + "': not a finite number >= 0", false;
-      c.*kFields[i].member = v;
-      seen |= 1u << i;
-    }
-    for (size_t i = 0; i < c.triByDraw_ns.size() && !known; ++i) {
-      if (name != drawField(i)) continue;
-      known = true;
-      const uint32_t bit = 1u << (std::size(kFields) + i);
-      if (seen & bit) return why = where + name + " repeated", false;
-      char* end = nullptr;
-      const double v = std::strtod(value.c_str(), &end);
-      if (value.empty() || end == value.c_str() || *end != '\0' || !std::isfinite(v) || v < 0.0)
-        return why = where + name + " = '" + value + "': not a finite number >= 0", false;
-      c.triByDraw_ns[i] = v;
-      seen |= bit;
-    }
-    if (!known) return why = where + "unknown field '" + name + "'", false;
+    const auto f = std::find_if(fields.begin(), fields.end(), [&](const auto& x) { return x.first == name; });
+    if (f == fields.end()) return why = where + "unknown field '" + name + "'", false;
+    const auto i = static_cast<size_t>(f - fields.begin());
+    if (seen[i]) return why = where + name + " repeated", false;
+    char* end = nullptr;
+    const double v = std::strtod(value.c_str(), &end);
+    if (value.empty() || end == value.c_str() || *end != '\0' || !std::isfinite(v) || v < 0.0)
+      return why = where + name + " = '" + value + "': not a finite number >= 0", false;
+    *f->second = v;
+    seen[i] = true;
   }
   if (!haveVersion || !haveKey) return why = path + ": no version or key line", false;
-  for (size_t i = 0; i < std::size(kFields); ++i)
-    if (!(seen & (1u << i))) return why = path + ": " + kFields[i].name + " missing", false;
-  for (size_t i = 0; i < c.triByDraw_ns.size(); ++i)
-    if (!(seen & (1u << (std::size(kFields) + i)))) return why = path + ": " + drawField(i) + " missing", false;
+  for (size_t i = 0; i < fields.size(); ++i)
+    if (!seen[i]) return why = path + ": " + fields[i].first + " missing", false;
   if (!lod::valid(c)) return why = path + ": constants out of range", false;
   out = c;
   return true;
@@ -244,12 +233,9 @@ bool writeCalibrationCache(const std::string& path, const std::string& key, cons
     f << "# igd performance-model calibration (paper 002, render/perf_calibration.h); rewritten when stale\n";
     f << "version " << kCacheVersion << "\nkey " << key << "\n";
     char buf[96];
-    for (const Field& fl : kFields) {
-      std::snprintf(buf, sizeof buf, "%s %.9g\n", fl.name, c.*fl.member);
-      f << buf;
-    }
-    for (size_t i = 0; i < c.triByDraw_ns.size(); ++i) {
-      std::snprintf(buf, sizeof buf, "%s %.9g\n", drawField(i).c_str(), c.triByDraw_ns[i]);
+    lod::PerfConstants copy = c;
+    for (const auto& [name, value] : cacheFields(copy)) {
+      std::snprintf(buf, sizeof buf, "%s %.9g\n", name.c_str(), *value);
       f << buf;
     }
     if (!f.flush()) return error = tmp + ": write failed", false;
