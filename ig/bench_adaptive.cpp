@@ -10,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include "ig/clock.h"
+
 #include "ig/stats.h"
 #include "render/context.h"
 #include "render/dynamic_pass.h"
@@ -34,6 +36,7 @@ struct TraceRow {
   std::array<int, 3> adaptiveModes{};  // frames in each mode within the window
   uint32_t q = 0;
   uint64_t hidden = 0;
+  lod::ModeInputs inputs;  // the adaptive pass's model terms on the window's last frame
 };
 
 double median(std::vector<double> v) { return v.empty() ? 0.0 : percentile(std::move(v), 50); }
@@ -96,10 +99,13 @@ int runAdaptiveBench(const AdaptiveBenchOptions& o0) {
     int mode = 0;
     uint32_t q = 0;
     uint64_t hidden = 0;
+    lod::ModeInputs inputs;
   };
   std::vector<std::vector<AdaptiveFrame>> chosen(static_cast<size_t>(o.repeats));
   std::vector<uint32_t> objectsAt(static_cast<size_t>(frames));
   uint32_t switches = 0;
+  // The application thread's CPU time per mode (until the GL calls return), summed over frames and repetitions.
+  std::array<double, kModes> appCpu{};
   const auto t0 = BenchClock::now();
   for (int rep = 0; rep < o.repeats; ++rep) {
     // A fresh scene and fresh passes: every repetition replays the same animation.
@@ -185,14 +191,17 @@ int runAdaptiveBench(const AdaptiveBenchOptions& o0) {
       for (int k = 0; k < kModes; ++k) {
         const int m = (k + f + rep) % kModes;
         const auto a = BenchClock::now();
+        const double c0 = threadCpuMs();
         renderer.beginFrame(cam, light);
         passes[m]->draw(renderer, static_cast<uint64_t>(f) + 1);
         renderer.endFrame();
+        appCpu[m] += threadCpuMs() - c0;
         renderer.finish();
         repMs[m].push_back(std::chrono::duration<double, std::milli>(BenchClock::now() - a).count());
       }
       const render::DynamicFrameStats& as = passes[3]->stats();
-      chosen[static_cast<size_t>(rep)].push_back({static_cast<int>(as.mode), passes[3]->lastQ(), as.hiddenEstimate});
+      chosen[static_cast<size_t>(rep)].push_back(
+          {static_cast<int>(as.mode), passes[3]->lastQ(), as.hiddenEstimate, passes[3]->lastModeInputs()});
       objectsAt[static_cast<size_t>(f)] = static_cast<uint32_t>(objs.size());
     }
     switches = passes[3]->modeSwitches();
@@ -245,6 +254,7 @@ int runAdaptiveBench(const AdaptiveBenchOptions& o0) {
       ++row.adaptiveModes[a.mode];
       row.q = std::max(row.q, a.q);
       row.hidden = std::max(row.hidden, a.hidden);
+      row.inputs = a.inputs;
     }
     trace.push_back(row);
   }
@@ -284,7 +294,8 @@ int runAdaptiveBench(const AdaptiveBenchOptions& o0) {
                 cal.constants.rasterTri_ns, cal.constants.edge_ns, cal.constants.overlap, cal.constants.overlapTriangles);
   out += buf;
   for (int m = 0; m < kModes; ++m) {
-    std::snprintf(buf, sizeof buf, "%s\"%s\":{\"mean_ms\":%.3f,\"p99_ms\":%.3f}", m ? "," : "", names[m], mean[m], p99[m]);
+    std::snprintf(buf, sizeof buf, "%s\"%s\":{\"mean_ms\":%.3f,\"p99_ms\":%.3f,\"app_cpu_mean_ms\":%.3f}", m ? "," : "",
+                  names[m], mean[m], p99[m], appCpu[m] / (static_cast<double>(frames) * o.repeats));
     out += buf;
   }
   std::snprintf(buf, sizeof buf,
@@ -301,9 +312,12 @@ int runAdaptiveBench(const AdaptiveBenchOptions& o0) {
                                           r.adaptiveModes.begin());
     std::snprintf(buf, sizeof buf,
                   "%s{\"frame\":%d,\"phase\":\"%s\",\"objects\":%u,\"percommand_ms\":%.3f,\"octree_ms\":%.3f,"
-                  "\"occlusion_ms\":%.3f,\"adaptive_ms\":%.3f,\"adaptive_mode\":\"%s\",\"q\":%u,\"hidden\":%llu}",
+                  "\"occlusion_ms\":%.3f,\"adaptive_ms\":%.3f,\"adaptive_mode\":\"%s\",\"q\":%u,\"hidden\":%llu,"
+                  "\"cond5_percommand_ms\":%.3f,\"cond5_octree_ms\":%.3f,\"cond6_all_ms\":%.3f,\"cond6_visible_ms\":%.3f}",
                   i ? "," : "", r.frame, r.phase, r.objects, r.ms[0], r.ms[1], r.ms[2], r.ms[3],
-                  lod::modeName(static_cast<lod::DynamicMode>(dominant)), r.q, static_cast<unsigned long long>(r.hidden));
+                  lod::modeName(static_cast<lod::DynamicMode>(dominant)), r.q, static_cast<unsigned long long>(r.hidden),
+                  (r.inputs.bufS_ns + r.inputs.fcS_ns) * 1e-6, (r.inputs.bufH_ns + r.inputs.fcH_ns) * 1e-6,
+                  r.inputs.frameAll_ns * 1e-6, (r.inputs.frameVisible_ns + r.inputs.visTests_ns) * 1e-6);
     out += buf;
   }
   out += "]}\n";

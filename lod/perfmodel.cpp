@@ -178,6 +178,9 @@ DynamicMode ModeSwitcher::update(const ModeInputs& in) {
   switch (mode_) {
     case DynamicMode::PerCommand:
       if (ok5 && l5 > r5 * (1.0 + h)) next = DynamicMode::Octree;
+      // Hidden objects found while drawing per-object commands: the whole per-object frame
+      // (T(S) with the per-object buffers in place of the node ranges') against occlusion culling.
+      else if (ok5 && ok6 && r6 < l6 && l6 - r5 + l5 > r6 * (1.0 + h)) next = DynamicMode::Occlusion;
       break;
     case DynamicMode::Octree:
       if (ok5 && l5 < r5 * (1.0 - h)) next = DynamicMode::PerCommand;

@@ -172,6 +172,10 @@ struct ModeSwitchConfig {
 
 // Mode choice with hysteresis:
 //   PerCommand -> Octree     when (5) fails:  bufS + fcS > (bufH + fcH) (1 + h)
+//   PerCommand -> Occlusion  when (5) holds but (6) fails and the per-object frame exceeds
+//                            occlusion culling's: T(S) > T(S_vis) + T_vis(H) and
+//                            T(S) - (bufH + fcH) + (bufS + fcS) > (T(S_vis) + T_vis(H)) (1 + h)
+//                            (the estimate of hidden objects runs in PerCommand mode too)
 //   Octree     -> PerCommand when (5) holds clearly: bufS + fcS < (bufH + fcH) (1 - h)
 //   Octree     -> Occlusion  when (6) fails:  T(S) > (T(S_vis) + T_vis(H)) (1 + h)
 //   Occlusion  -> Octree     when (6) holds clearly: T(S) < (T(S_vis) + T_vis(H)) (1 - h)

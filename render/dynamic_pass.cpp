@@ -719,10 +719,12 @@ void DynamicPass::draw(Renderer& r, uint64_t frame) {
       const glm::dvec3 forward = watchOccluders(r.camera(), frame);
       mode = chooseMode();
       const lod::PerfConstants& c = config_.constants;
-      if (mode == lod::DynamicMode::Octree) {
+      if (mode == lod::DynamicMode::Octree || (mode == lod::DynamicMode::PerCommand && warmed_)) {
         // The estimate of hidden objects: tests worth about 5 % of the predicted frame, each
         // costed with its box's fragments (issueQueries stops there); less often while it
-        // finds nothing and nothing changed that could hide objects (estimateNow).
+        // finds nothing and nothing changed that could hide objects (estimateNow). With
+        // per-object commands too (after the warm-up frame): without it a pass that starts
+        // there would never see what occlusion culling could save (condition (6)).
         if (frame == occluderFrame_) {
           // An object that could hide others just appeared or moved: test every candidate on
           // this frame (what the fixed occlusion strategy does every frame), so that condition
@@ -800,8 +802,10 @@ void DynamicPass::draw(Renderer& r, uint64_t frame) {
     if (strategy_ == DynamicStrategy::Adaptive && lastInputs_.bufS_ns + lastInputs_.fcS_ns > lastInputs_.bufH_ns + lastInputs_.fcH_ns)
       rebuildDirtyNodes();
     if (strategy_ == DynamicStrategy::Adaptive && !warmed_) warmUp(r, frame);
-    if (strategy_ == DynamicStrategy::Adaptive && frame >= lastTraversalFrame_ + 8) {
-      // Node statistics for condition (5), every 8 frames.
+    if (strategy_ == DynamicStrategy::Adaptive && (q > 0 || frame >= lastTraversalFrame_ + 8)) {
+      // Node statistics for conditions (5) and (6), every 8 frames and with each estimate of
+      // hidden objects: its tests go to the candidate nodes of this traversal, against the depth
+      // of the objects just drawn, as in Octree mode.
       lod::DynamicOctree::Traversal t;
       t.frame = frame;
       t.eye_m = r.camera().eye_m;
@@ -811,6 +815,12 @@ void DynamicPass::draw(Renderer& r, uint64_t frame) {
       lastNodeStats_.frustumTests = tr.frustumTests;
       lastNodeStats_.hiddenEstimate = tr.hiddenObjects;
       lastTraversalFrame_ = frame;
+      stats_.hiddenEstimate = tr.hiddenObjects;
+      if (q > 0) {
+        endSamples();  // one occlusion query target at a time
+        stats_.occlusionTests = tr.candidates;  // issueQueries() turns this into the tests issued
+        issueQueries(r, frame, q, estimateBudget_ns);
+      }
     }
   } else {
     rebuildDirtyNodes();

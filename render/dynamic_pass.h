@@ -80,7 +80,8 @@ struct DynamicFrameStats {
   uint32_t occlusionTests = 0;    // queries issued this frame (q)
   uint32_t resultsRead = 0;       // query results read this frame (all issued in earlier frames)
   uint32_t queriesPending = 0;    // queries in flight after this frame
-  uint64_t hiddenEstimate = 0;    // objects under nodes skipped as occluded
+  uint64_t hiddenEstimate = 0;    // objects under nodes found occluded (skipped in Occlusion mode; in the
+                                  // other modes the estimate of what culling would skip)
   uint64_t triangles = 0;
   uint32_t nonEmptyNodes = 0;     // n0
   double predicted_ns = 0.0;      // Adaptive: the model's T for the chosen mode

@@ -2,8 +2,8 @@
 # igbench perfmodel --quick (two sweeps) and igbench adaptive --quick print one JSON object each with the
 # fields issue 7 names; predictions are positive and finite, the calibration's T_tri table and t_c
 # pair are consistent, every mode of the adaptive run drew
-# every frame, and the ratios are consistent with the per-mode means. (Timing goals are
-# benchmark results, not asserted here.)
+# every frame, and the ratios are consistent with the per-mode means; the adaptive pass ends the
+# occluded phase in occlusion culling. (Timing goals are benchmark results, not asserted here.)
 set -euo pipefail
 igbench=$1
 dir=$(mktemp -d)
@@ -48,6 +48,16 @@ for mode in ("percommand", "octree", "occlusion", "adaptive"):
     m = a["modes"][mode]
     assert m["mean_ms"] > 0 and m["p99_ms"] >= m["mean_ms"] * 0.5, (mode, m)
 assert a["adaptive_worst_ratio"] > 0 and a["adaptive_mean_ratio"] > 0, a
+for mode, m in a["modes"].items():
+    assert 0 < m["app_cpu_mean_ms"] <= 2 * m["mean_ms"], (mode, m)
+# The walls of the last phase hide most boxes: whichever mode the growing phase ended in, the
+# adaptive pass's estimate sees them and it ends in occlusion culling (condition (6), or its
+# per-object form).
+last = a["trace"][-1]
+assert last["phase"] == "occluded" and last["adaptive_mode"] == "occlusion" and last["hidden"] > 0, last
+assert last["cond6_visible_ms"] < last["cond6_all_ms"], last
+for row in a["trace"]:
+    assert all(row[k] >= 0 for k in ("cond5_percommand_ms", "cond5_octree_ms", "cond6_all_ms", "cond6_visible_ms")), row
 assert json.load(open(sys.argv[3]))["modes"].keys() == a["modes"].keys()
 print(f"perfmodel: error median {p['error_pct_median']:.1f} % max {p['error_pct_max']:.1f} %; "
       f"adaptive worst {a['adaptive_worst_ratio']:.2f} mean {a['adaptive_mean_ratio']:.2f}")

@@ -276,6 +276,28 @@ TEST(PerfModel, ModeSwitchingFollowsConditions5And6WithHysteresis) {
   EXPECT_EQ(m.switches(), 4u);
 }
 
+// Per-object commands hold (5), but the estimate finds hidden objects: straight to occlusion
+// culling when the whole per-object frame costs more than the culled one (by the hysteresis);
+// not while culling saves nothing, nor within minFrames.
+TEST(PerfModel, ModeSwitchingLeavesPerObjectCommandsForOcclusionWhenObjectsAreHidden) {
+  ModeSwitcher m({0.15, 3});
+  // (6) fails, but T(S) - r5 + l5 = 10,000 - 1,000 + 900 = 9,900 <= 9,000 * 1.15.
+  for (int i = 0; i < 10; ++i) EXPECT_EQ(m.update(inputs(900, 1000, 10000, 9000)), DynamicMode::PerCommand);
+  EXPECT_EQ(m.update(inputs(900, 1000, 10000, 8700)), DynamicMode::PerCommand);  // 9,900 <= 10,005
+  EXPECT_EQ(m.switches(), 0u);
+  EXPECT_EQ(m.update(inputs(900, 1000, 10000, 8500)), DynamicMode::Occlusion);  // 9,900 > 9,775
+  EXPECT_EQ(m.switches(), 1u);
+  // Not within minFrames of the start (or of the last change).
+  ModeSwitcher k({0.15, 3});
+  for (int i = 0; i < 3; ++i) EXPECT_EQ(k.update(inputs(900, 1000, 10000, 5000)), DynamicMode::PerCommand);
+  EXPECT_EQ(k.update(inputs(900, 1000, 10000, 5000)), DynamicMode::Occlusion);
+  // Culling that saves nothing never starts from per-object commands, however the frames compare.
+  ModeSwitcher n({0.15, 3});
+  for (int i = 0; i < 10; ++i) EXPECT_EQ(n.update(inputs(1100, 1000, 0, 0)), DynamicMode::PerCommand);
+  for (int i = 0; i < 10; ++i) EXPECT_EQ(n.update(inputs(1100, 1000, 5000, 5000)), DynamicMode::PerCommand);
+  EXPECT_EQ(n.switches(), 0u);
+}
+
 TEST(PerfModel, OptimalQMatchesBruteForceMinimum) {
   std::mt19937 rng(11);
   std::uniform_real_distribution<double> u(0.0, 1.0);
