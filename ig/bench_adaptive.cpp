@@ -286,12 +286,12 @@ int runAdaptiveBench(const AdaptiveBenchOptions& o0) {
                 "{\"bench\":\"adaptive\",\"device\":\"%s\",\"viewport\":[%d,%d],\"objects\":%u,\"frames\":%d,\"window\":%d,"
                 "\"calibration_from_cache\":%s,\"calibration\":{\"frame_ns\":%.0f,\"tri_ns\":%.2f,\"frag_ns\":%.3f,"
                 "\"command_ns\":%.0f,\"rerecord_ns\":%.0f,\"submit_ns\":%.0f,\"cull_ns\":%.1f,"
-                "\"occlusion_test_ns\":%.0f,\"raster_tri_ns\":%.1f,\"edge_ns\":%.1f,\"overlap\":%.2f,"
+                "\"occlusion_test_ns\":%.0f,\"raster_tri_ns\":%.1f,\"edge_ns\":%.1f,\"draw_raster_ns\":%.1f,\"overlap\":%.2f,"
                 "\"overlap_triangles\":%.0f},\"modes\":{",
                 cal.key.c_str(), o.width_px, o.height_px, o.objects, frames, o.window, cal.fromCache ? "true" : "false",
                 cal.constants.frame_ns, cal.constants.tri_ns, cal.constants.frag_ns, cal.constants.command_ns,
                 cal.constants.rerecord_ns, cal.constants.submit_ns, cal.constants.cull_ns, cal.constants.occlusionTest_ns,
-                cal.constants.rasterTri_ns, cal.constants.edge_ns, cal.constants.overlap, cal.constants.overlapTriangles);
+                cal.constants.rasterTri_ns, cal.constants.edge_ns, cal.constants.drawRaster_ns, cal.constants.overlap, cal.constants.overlapTriangles);
   out += buf;
   for (int m = 0; m < kModes; ++m) {
     std::snprintf(buf, sizeof buf, "%s\"%s\":{\"mean_ms\":%.3f,\"p99_ms\":%.3f,\"app_cpu_mean_ms\":%.3f}", m ? "," : "",

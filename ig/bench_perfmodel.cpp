@@ -268,11 +268,11 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
   if (o.json) {
     std::printf("{\"bench\":\"perfmodel\",\"device\":\"%s\",\"viewport\":[%d,%d],\"fragment_work\":%u,\"coverage\":%g,"
                 "\"repeats\":%d,\"calibration\":{\"from_cache\":%s,\"runs\":%d,\"seconds\":%.3f,\"frame_ns\":%.1f,\"tri_ns\":%.3f,"
-                "\"frag_ns\":%.4f,\"raster_tri_ns\":%.3f,\"edge_ns\":%.3f,\"depth_frag_ns\":%.4f,\"state_ns\":%.1f,\"command_ns\":%.1f,\"rerecord_ns\":%.1f,"
+                "\"frag_ns\":%.4f,\"raster_tri_ns\":%.3f,\"edge_ns\":%.3f,\"draw_raster_ns\":%.1f,\"depth_frag_ns\":%.4f,\"state_ns\":%.1f,\"command_ns\":%.1f,\"rerecord_ns\":%.1f,"
                 "\"submit_ns\":%.1f,\"cull_ns\":%.2f,\"occlusion_test_ns\":%.1f,\"overlap\":%.3f,\"overlap_triangles\":%.0f,\"command_count\":%.0f,\"command_large_ns\":%.1f,\"command_large_count\":%.0f,\"tri_ns_by_draw\":%s},\"points\":[",
                 cal.key.c_str(), o.width_px, o.height_px, o.fragmentWork, o.coverage, repeats,
-                cal.fromCache ? "true" : "false", cal.fromCache ? 0 : co.runs, cal.seconds, k.frame_ns, k.tri_ns, k.frag_ns, k.rasterTri_ns, k.edge_ns, k.depthFrag_ns,
-                k.state_ns, k.command_ns, k.rerecord_ns, k.submit_ns, k.cull_ns, k.occlusionTest_ns, k.overlap, k.overlapTriangles,
+                cal.fromCache ? "true" : "false", cal.fromCache ? 0 : co.runs, cal.seconds, k.frame_ns, k.tri_ns, k.frag_ns, k.rasterTri_ns, k.edge_ns, k.drawRaster_ns,
+                k.depthFrag_ns, k.state_ns, k.command_ns, k.rerecord_ns, k.submit_ns, k.cull_ns, k.occlusionTest_ns, k.overlap, k.overlapTriangles,
                 k.commandCount, k.commandLarge_ns, k.commandLargeCount, byDrawJson.c_str());
     for (size_t i = 0; i < points.size(); ++i) {
       const Point& p = points[i];
@@ -290,9 +290,9 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
   } else {
     std::printf("perfmodel: %s, %dx%d, material work %u, calibration %s (%.1f s)\n", cal.key.c_str(), o.width_px,
                 o.height_px, o.fragmentWork, cal.fromCache ? "from cache" : "measured", cal.seconds);
-    std::printf("constants: frame %.0f ns, tri %.1f ns, frag %.2f ns, raster tri %.1f ns, edge %.1f ns, state %.0f ns, command %.0f ns, "
+    std::printf("constants: frame %.0f ns, tri %.1f ns, frag %.2f ns, raster tri %.1f ns, edge %.1f ns, draw (rasterizer) %.0f ns, state %.0f ns, command %.0f ns, "
                 "rerecord %.0f ns, submit %.0f ns, cull %.1f ns, occlusion test %.0f ns, overlap %.2f above %.0f triangles\n",
-                k.frame_ns, k.tri_ns, k.frag_ns, k.rasterTri_ns, k.edge_ns, k.state_ns, k.command_ns, k.rerecord_ns, k.submit_ns,
+                k.frame_ns, k.tri_ns, k.frag_ns, k.rasterTri_ns, k.edge_ns, k.drawRaster_ns, k.state_ns, k.command_ns, k.rerecord_ns, k.submit_ns,
                 k.cull_ns, k.occlusionTest_ns, k.overlap, k.overlapTriangles);
     std::printf("T_tri by the triangles of a submission (ns): %s; t_c %.0f ns with %.0f "
                 "commands, %.0f ns with %.0f\n",

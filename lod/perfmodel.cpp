@@ -34,7 +34,7 @@ uint64_t sceneMemoryBytes(const MemoryModelInput& in) {
 }
 
 bool valid(const PerfConstants& c) {
-  const double all[] = {c.frame_ns,   c.tri_ns,      c.frag_ns,   c.rasterTri_ns, c.edge_ns,          c.depthFrag_ns,
+  const double all[] = {c.frame_ns,   c.tri_ns,      c.frag_ns,   c.rasterTri_ns, c.edge_ns,          c.depthFrag_ns, c.drawRaster_ns,
                         c.state_ns,   c.command_ns,  c.rerecord_ns, c.submit_ns,  c.cull_ns,          c.occlusionTest_ns,
                         c.overlapTriangles, c.commandCount, c.commandLarge_ns, c.commandLargeCount};
   for (double v : all)
@@ -78,13 +78,14 @@ double predictFrame_ns(const PerfConstants& c, const PassLoad& s, const PassLoad
   b.vertS = clean(s.triangles) * triangleCost_ns(c, perCall(s));
   const double trS = clean(s.triangles), trH = clean(h.triangles);
   b.fragS = clean(s.fragments) * clean(c.frag_ns) + clean(s.depthFragments) * clean(c.depthFrag_ns) +
-            trS * clean(c.rasterTri_ns) + clean(s.edgePx) * clean(c.edge_ns);
+            trS * clean(c.rasterTri_ns) + clean(s.edgePx) * clean(c.edge_ns) + clean(s.commands) * clean(c.drawRaster_ns);
   b.fcS = clean(s.frustumTests) * clean(c.cull_ns);
   b.bufH = clean(h.commands) * commandCost_ns(c, clean(h.commands)) + clean(h.rerecorded) * tr +
            clean(h.submissions) * ts + clean(h.occlusionTests) * tv;
   b.stateH = clean(h.stateChanges) * clean(c.state_ns);
   b.vertH = clean(h.triangles) * triangleCost_ns(c, perCall(h));
-  b.fragH = clean(h.fragments) * clean(c.frag_ns) + trH * clean(c.rasterTri_ns) + clean(h.edgePx) * clean(c.edge_ns);
+  b.fragH = clean(h.fragments) * clean(c.frag_ns) + trH * clean(c.rasterTri_ns) + clean(h.edgePx) * clean(c.edge_ns) +
+            clean(h.commands) * clean(c.drawRaster_ns);
   b.zbufH = clean(h.depthFragments) * clean(c.depthFrag_ns);
   b.fcH = clean(h.frustumTests) * clean(c.cull_ns);
   const double argS[3] = {b.stateS, b.vertS, b.fragS};

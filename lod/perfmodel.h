@@ -54,6 +54,10 @@ struct PerfConstants {
   double edge_ns = 0.0;           // per pixel of an object's footprint edge, sqrt(area): the
                                   // partly covered shading blocks along its (and its triangles')
                                   // edges, counted with the fragment stage
+  double drawRaster_ns = 0.0;     // per draw command that reaches the rasterizer (each command of a
+                                  // multi-draw call is a draw of its own there: its state and
+                                  // commands binned into every tile it touches), counted with the
+                                  // fragment stage
   double depthFrag_ns = 0.0;      // one depth-test-only fragment (occlusion boxes: T_z-buffer)
   double state_ns = 0.0;          // T_state: one pipeline state change (one draw set-up)
   double command_ns = 0.0;        // t_c: record and issue one draw command (in GL this includes
@@ -121,12 +125,12 @@ struct TimeBreakdown {
 //        + T_fc(H) + T_buf(H) + max(T_state(H), T_vert(H), T_frag(H), T_z(H))           (2)
 // with T_buf = commands t_c(commands) + rerecorded t_r + submissions t_s + occlusionTests T_vis,
 // T_vert = N_tri T_tri (3) with T_tri = triangleCost_ns(triangles / submissions),
-// T_frag = f T_frag (4) + N_tri T_rtri + edgePx T_edge, T_state = stateChanges T_state,
+// T_frag = f T_frag (4) + N_tri T_rtri + edgePx T_edge + commands T_draw, T_state = stateChanges T_state,
 // T_fc = frustumTests T_cull.
 // This implementation's additions: T_fc(S) (per-object culling of strategy 1) and T_frame ((2)
 // has T_fc only for H, and no fixed per-frame cost); in T_frag the rasterizer's cost per
-// triangle and per edge pixel (the paper's "fragments" of a small object are mostly its edges:
-// a rasterizer shades whole blocks); f counts the fragments that pass the depth test. Each max()
+// triangle, per edge pixel (the paper's "fragments" of a small object are mostly its edges:
+// a rasterizer shades whole blocks) and per draw command (set up in each tile it touches); f counts the fragments that pass the depth test. Each max()
 // is generalised by the overlap w of the frame, stageOverlap(): max(a, b, ..) + (1 - w)
 // (a + b + .. - max(a, b, ..)), which is (2) for w = 1. Returns ns; `out` gets the terms.
 // Invalid inputs (NaN, < 0) are clamped to 0; the return value is always finite and >= 0.

@@ -656,9 +656,11 @@ lod::DynamicMode DynamicPass::chooseMode() {
   // Fragments from the samples-passed query (async), scaled with the objects drawn.
   const double frags = static_cast<double>(lastSamples_);
   lod::ModeInputs in;
-  in.bufS_ns = visS * lod::commandCost_ns(c, visS) + c.submit_ns;
+  // A command costs t_c to record and T_draw in the rasterizer (each command is a draw there):
+  // per-object commands pay T_draw per object, node ranges per node.
+  in.bufS_ns = visS * (lod::commandCost_ns(c, visS) + c.drawRaster_ns) + c.submit_ns;
   in.fcS_ns = n * c.cull_ns;
-  in.bufH_ns = std::min(rewritten, n) * c.rerecord_ns + nodes * (lod::commandCost_ns(c, nodes) + c.submit_ns);
+  in.bufH_ns = std::min(rewritten, n) * c.rerecord_ns + nodes * (lod::commandCost_ns(c, nodes) + c.drawRaster_ns + c.submit_ns);
   in.fcH_ns = h.frustumTests * c.cull_ns;
   lod::PassLoad all;
   all.triangles = visS * kBoxTriangles;

@@ -26,8 +26,9 @@ using Clock = std::chrono::steady_clock;
 // T_tri ten or more times too high. 3: the rasterizer's costs per triangle and per edge pixel
 // instead of frag_block_px, T_tri from the application thread's side, overlap by frame size.
 // 4: T_tri by the size of a submission (tri_ns_12 ... tri_ns_768), t_c by the commands of a
-// frame (command_count, command_large_ns, command_large_count).
-constexpr int kCacheVersion = 4;
+// frame (command_count, command_large_ns, command_large_count). 5: the rasterizer's cost per draw
+// command (draw_raster_ns), taken out of raster_tri_ns.
+constexpr int kCacheVersion = 5;
 
 struct Field {
   const char* name;
@@ -39,6 +40,7 @@ constexpr Field kFields[] = {
     {"frag_ns", &lod::PerfConstants::frag_ns},
     {"raster_tri_ns", &lod::PerfConstants::rasterTri_ns},
     {"edge_ns", &lod::PerfConstants::edge_ns},
+    {"draw_raster_ns", &lod::PerfConstants::drawRaster_ns},
     {"depth_frag_ns", &lod::PerfConstants::depthFrag_ns},
     {"state_ns", &lod::PerfConstants::state_ns},
     {"command_ns", &lod::PerfConstants::command_ns},
@@ -414,10 +416,11 @@ bool measure(const CalibrationOptions& o, lod::PerfConstants& c, std::string& er
     // consecutive repeats, which a median of paired differences does not survive).
     enum Load {
       kDouble, kManyOctree, kManyCommands, kNodesCommands, kNodesOctree, kState200, kState2000, kLayer, kLayerSmall,
-      kLayerMid, kFull1, kFull4, kEmpty, kDraw4, kLoads = kDraw4 + kSizes - 2
+      kLayerMid, kLayerSmallNodes, kFull1, kFull4, kEmpty, kDraw4, kLoads = kDraw4 + kSizes - 2
     };
     std::vector<double> ms[kLoads], cpu[kLoads], fin[kLoads], thread[kLoads];
     double manyTests = 0.0, manyNodes = 112.0, nodeTests = 0.0;
+    uint32_t smallDraws = kLayered + 1, smallNodeDraws = kLayered + 1;  // draws of `layerSmall` per object / in nodes
     const int reps = b.overBudget() || b.budget_s < 1.0 ? 5 : b.budget_s >= 8.0 ? 25 : 11;
     const auto keep = [&](Load l, double frame) {
       ms[l].push_back(frame), cpu[l].push_back(cpuLast), fin[l].push_back(frame - cpuLast), thread[l].push_back(threadLast);
@@ -438,6 +441,11 @@ bool measure(const CalibrationOptions& o, lod::PerfConstants& c, std::string& er
       if (const double t = frameMs(low, DynamicStrategy::PerCommand, 2000); warm) keep(kState2000, t);
       if (const double t = frameMs(layerOnly, DynamicStrategy::PerCommand); warm) keep(kLayer, t);
       if (const double t = frameMs(layerSmall, DynamicStrategy::PerCommand); warm) keep(kLayerSmall, t);
+      smallDraws = layerSmall.stats().draws;
+      layerSmall.setMeasureSamples(false);  // its count is the per-object frame's (the same fragments)
+      if (const double t = frameMs(layerSmall, DynamicStrategy::Octree); warm) keep(kLayerSmallNodes, t);
+      layerSmall.setMeasureSamples(r == 0);
+      smallNodeDraws = layerSmall.stats().draws;
       if (const double t = frameMs(layerMid, DynamicStrategy::PerCommand); warm) keep(kLayerMid, t);
       if (const double t = frameMs(full1, DynamicStrategy::PerCommand); warm) keep(kFull1, t);
       if (const double t = frameMs(full4, DynamicStrategy::PerCommand); warm) keep(kFull4, t);
@@ -566,8 +574,14 @@ bool measure(const CalibrationOptions& o, lod::PerfConstants& c, std::string& er
       const double s0 = static_cast<double>(layerOnly.samplesPassed()), s1 = static_cast<double>(layerSmall.samplesPassed()),
                    s2 = static_cast<double>(layerMid.samplesPassed());
       c.edge_ns = std::max(0.0, (finDiff(kLayerMid, kLayerSmall) - c.frag_ns * (s2 - s1)) / std::max(1.0, edgeMid - edgeSmall));
-      c.rasterTri_ns =
-          std::max(0.0, (finDiff(kLayerSmall, kLayer) - c.frag_ns * (s1 - s0) - c.edge_ns * edgeSmall) / (12.0 * kLayered));
+      // T_draw: the small boxes as per-object commands (a draw each) against their node ranges
+      // (~113 draws): same triangles, same fragments (the layer is drawn first either way).
+      c.drawRaster_ns = smallDraws > smallNodeDraws ? std::max(0.0, finDiff(kLayerSmall, kLayerSmallNodes) /
+                                                                         static_cast<double>(smallDraws - smallNodeDraws))
+                                                    : 0.0;
+      c.rasterTri_ns = std::max(0.0, (finDiff(kLayerSmall, kLayer) - c.frag_ns * (s1 - s0) - c.edge_ns * edgeSmall -
+                                      c.drawRaster_ns * kLayered) /
+                                         (12.0 * kLayered));
     }
     // t_r: every object moved (in place) each frame in octree mode: its node range is rewritten.
     high.setStrategy(DynamicStrategy::Octree);

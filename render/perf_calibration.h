@@ -11,6 +11,8 @@
 //   raster_tri_ns, edge_ns  6000 boxes of ~6 px and of ~30 px in front of a full-screen layer
 //                against the layer alone, the rasterizer's side (after the GL calls returned),
 //                fragments counted by GL_SAMPLES_PASSED: per triangle and per edge pixel
+//   draw_raster_ns  the ~6 px boxes as per-object commands against their ~113 node ranges, the
+//                rasterizer's side: per draw (taken out of raster_tri_ns)
 //   command_ns   20000 tiny boxes as per-object commands vs the same in their 112 node ranges: t_c
 //   submit_ns    900 tiny boxes, one per octree leaf, as node ranges vs per-object commands: t_s
 //   state_ns     one tiny box per draw with a uniform change between draws, minus the box: T_state

@@ -375,6 +375,7 @@ TEST_F(DynamicGl, CalibrationCacheRoundTripsAndRejectsCorruptFiles) {
   c.overlapTriangles = 250000;
   c.rasterTri_ns = 3.5;
   c.edge_ns = 150.5;
+  c.drawRaster_ns = 210.25;
   c.commandCount = 20000;
   c.commandLarge_ns = 310.5;
   c.commandLargeCount = 135000;
@@ -391,6 +392,7 @@ TEST_F(DynamicGl, CalibrationCacheRoundTripsAndRejectsCorruptFiles) {
   EXPECT_DOUBLE_EQ(r.overlapTriangles, c.overlapTriangles);
   EXPECT_DOUBLE_EQ(r.rasterTri_ns, c.rasterTri_ns);
   EXPECT_DOUBLE_EQ(r.edge_ns, c.edge_ns);
+  EXPECT_DOUBLE_EQ(r.drawRaster_ns, c.drawRaster_ns);
   EXPECT_DOUBLE_EQ(r.commandCount, c.commandCount);
   EXPECT_DOUBLE_EQ(r.commandLarge_ns, c.commandLarge_ns);
   EXPECT_DOUBLE_EQ(r.commandLargeCount, c.commandLargeCount);
@@ -419,10 +421,13 @@ TEST_F(DynamicGl, CalibrationCacheRoundTripsAndRejectsCorruptFiles) {
   corrupt("tri_ns 33.25", "tri_ns 33.25x");
   corrupt("tri_ns 33.25\n", "");                 // missing
   corrupt("cull_ns", "cull_ms");                 // unknown field
-  corrupt("version 4", "version 7");
-  corrupt("version 4", "version 1");             // an older calibration (heap not settled)
-  corrupt("version 4", "version 2");             // an older model (frag_block_px, no rasterizer terms)
-  corrupt("version 4", "version 3");             // one T_tri for every draw size, no binning term
+  corrupt("version 5", "version 7");
+  corrupt("version 5", "version 1");             // an older calibration (heap not settled)
+  corrupt("version 5", "version 2");             // an older model (frag_block_px, no rasterizer terms)
+  corrupt("version 5", "version 3");             // one T_tri for every draw size, no binning term
+  corrupt("version 5", "version 4");             // no per-draw rasterizer cost (in raster_tri_ns)
+  EXPECT_NE(corrupt("draw_raster_ns 210.25\n", "").find("draw_raster_ns"), std::string::npos);  // missing
+  corrupt("draw_raster_ns 210.25", "draw_raster_ns -3");
   EXPECT_NE(corrupt("tri_ns_96 62\n", "").find("tri_ns_96 missing"), std::string::npos);
   corrupt("tri_ns_24 70", "tri_ns_24 inf");
   corrupt("tri_ns_24 70", "tri_ns_24 70\ntri_ns_24 71");  // repeated

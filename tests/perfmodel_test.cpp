@@ -94,6 +94,15 @@ TEST(PerfModel, TimeModelOnHandMadeNumbers) {
   EXPECT_EQ(b.boundS, 2);
   EXPECT_DOUBLE_EQ(b.fragS, 28000);
   EXPECT_DOUBLE_EQ(b.fragH, 800);
+  // So does each draw command (a draw of its own in the rasterizer): 100 commands of the objects.
+  raster.drawRaster_ns = 30.0;  // 3000
+  h.commands = 4;               // t_c: 4000 in the hierarchy's T_buf; T_draw: 120 in its fragments
+  EXPECT_DOUBLE_EQ(predictFrame_ns(raster, s, h, &b),
+                   10000 + 100500 + 2000 + (20000 + 6000 + 2000 + 3000) + 160 + (30000 + 4000) + 2000);
+  EXPECT_DOUBLE_EQ(b.fragS, 31000);
+  EXPECT_DOUBLE_EQ(b.fragH, 800 + 120);
+  raster.drawRaster_ns = -1.0;  // invalid: the constants are rejected
+  EXPECT_FALSE(valid(raster));
 }
 
 // A software rasterizer overlaps its stages only once a frame overflows its scene: the overlap
