@@ -29,6 +29,7 @@ struct Point {
   double slowest_ms = 0;                      // the slowest sweep's median (measured_ms: the fastest's)
   double fragments = 0;
   double area_px = 0, sqrtArea_px = 0;  // sums over the boxes drawn: projected area, its square root
+  double rasterShare = 1;               // the share of the boxes that reach the rasterizer (lod::PassLoad)
   double submit_ms = 0;  // median time until the GL calls returned (the rest is glFinish)
   double appCpu_ms = 0;  // median CPU time of this thread until the GL calls returned
   uint64_t samples = 0;  // samples that passed the depth test (GL_SAMPLES_PASSED, first warm-up frame)
@@ -153,7 +154,7 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
     double area1 = 0.0;
     for (const auto& ob : objs) area1 += std::max(0.0, lod::projectedBoxArea_px(vp, eyeCorners(ob, cam.eye_m), o.width_px, o.height_px));
     const double scale = std::sqrt(o.coverage * screen / std::max(area1, 1e-9));
-    double areaSum = 0.0, sqrtSum = 0.0;
+    double areaSum = 0.0, sqrtSum = 0.0, reachSum = 0.0, edgeSum = 0.0;
     pass.clear();
     for (auto& ob : objs) {
       ob.halfSize_m *= scale;
@@ -162,6 +163,9 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
       const double a = std::max(0.0, lod::projectedBoxArea_px(vp, eyeCorners(ob, cam.eye_m), o.width_px, o.height_px));
       areaSum += a;
       sqrtSum += std::sqrt(a);
+      // Triangles that cover no pixel centre are dropped in set-up (lod::PassLoad::rasterShare).
+      reachSum += lod::boxRasterShare(a);
+      edgeSum += std::sqrt(a) * lod::boxRasterShare(a);
       pass.add(ob);
     }
     int strategyIndex = 0;
@@ -197,7 +201,8 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
       lod::PassLoad load;
       load.triangles = static_cast<double>(st.triangles);
       load.fragments = static_cast<double>(pass.samplesPassed());
-      load.edgePx = sqrtSum * drawnShare;
+      load.edgePx = edgeSum * drawnShare;
+      load.rasterShare = n ? reachSum / n : 1.0;
       load.stateChanges = 1;
       load.commands = st.commands;
       load.rerecorded = st.rerecorded;
@@ -219,6 +224,7 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
       p.fragments = load.fragments;
       p.area_px = areaSum * drawnShare;
       p.sqrtArea_px = sqrtSum * drawnShare;
+      p.rasterShare = load.rasterShare;
       p.triangles = st.triangles;
       p.vertex_ms = tb.vertS * 1e-6;
       p.fragment_ms = tb.fragS * 1e-6;
@@ -278,10 +284,10 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
       const Point& p = points[i];
       std::printf("%s{\"objects\":%u,\"strategy\":\"%s\",\"measured_ms\":%.4f,\"predicted_ms\":%.4f,\"error_pct\":%.2f,"
                   "\"measured_q1_ms\":%.4f,\"error_q1_pct\":%.2f,\"triangles\":%llu,\"fragments\":%.0f,\"vertex_ms\":%.4f,"
-                  "\"fragment_ms\":%.4f,\"commands_ms\":%.4f,\"bound\":\"%s\",\"area_px\":%.0f,\"sqrt_area_px\":%.0f,\"submit_ms\":%.4f,\"app_cpu_ms\":%.4f,\"samples\":%llu}",
+                  "\"fragment_ms\":%.4f,\"commands_ms\":%.4f,\"bound\":\"%s\",\"raster_share\":%.3f,\"area_px\":%.0f,\"sqrt_area_px\":%.0f,\"submit_ms\":%.4f,\"app_cpu_ms\":%.4f,\"samples\":%llu}",
                   i ? "," : "", p.objects, p.strategy, p.measured_ms, p.predicted_ms, p.error_pct, p.measuredQ1_ms, p.errorQ1_pct,
                   static_cast<unsigned long long>(p.triangles), p.fragments, p.vertex_ms, p.fragment_ms, p.commands_ms, p.bound,
-                  p.area_px, p.sqrtArea_px, p.submit_ms, p.appCpu_ms, static_cast<unsigned long long>(p.samples));
+                  p.rasterShare, p.area_px, p.sqrtArea_px, p.submit_ms, p.appCpu_ms, static_cast<unsigned long long>(p.samples));
     }
     std::printf("],\"error_pct_median\":%.2f,\"error_pct_max\":%.2f,\"error_q1_pct_median\":%.2f,"
                 "\"error_q1_pct_max\":%.2f,\"sweeps\":%d,\"sweep_spread_pct_median\":%.2f,\"sweep_spread_pct_max\":%.2f,"

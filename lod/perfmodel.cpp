@@ -11,6 +11,8 @@ namespace ig::lod {
 namespace {
 
 double clean(double v) { return std::isfinite(v) && v > 0.0 ? v : 0.0; }
+// PassLoad::rasterShare: unknown (not finite) means every triangle reaches the rasterizer.
+double share(const PassLoad& l) { return std::isfinite(l.rasterShare) ? std::clamp(l.rasterShare, 0.0, 1.0) : 1.0; }
 
 uint64_t satAdd(uint64_t a, uint64_t b) {
   return a > std::numeric_limits<uint64_t>::max() - b ? std::numeric_limits<uint64_t>::max() : a + b;
@@ -78,14 +80,16 @@ double predictFrame_ns(const PerfConstants& c, const PassLoad& s, const PassLoad
   b.vertS = clean(s.triangles) * triangleCost_ns(c, perCall(s));
   const double trS = clean(s.triangles), trH = clean(h.triangles);
   b.fragS = clean(s.fragments) * clean(c.frag_ns) + clean(s.depthFragments) * clean(c.depthFrag_ns) +
-            trS * clean(c.rasterTri_ns) + clean(s.edgePx) * clean(c.edge_ns) + clean(s.commands) * clean(c.drawRaster_ns);
+            share(s) * (trS * clean(c.rasterTri_ns) + clean(s.commands) * clean(c.drawRaster_ns)) +
+            clean(s.edgePx) * clean(c.edge_ns);
   b.fcS = clean(s.frustumTests) * clean(c.cull_ns);
   b.bufH = clean(h.commands) * commandCost_ns(c, clean(h.commands)) + clean(h.rerecorded) * tr +
            clean(h.submissions) * ts + clean(h.occlusionTests) * tv;
   b.stateH = clean(h.stateChanges) * clean(c.state_ns);
   b.vertH = clean(h.triangles) * triangleCost_ns(c, perCall(h));
-  b.fragH = clean(h.fragments) * clean(c.frag_ns) + trH * clean(c.rasterTri_ns) + clean(h.edgePx) * clean(c.edge_ns) +
-            clean(h.commands) * clean(c.drawRaster_ns);
+  b.fragH = clean(h.fragments) * clean(c.frag_ns) +
+            share(h) * (trH * clean(c.rasterTri_ns) + clean(h.commands) * clean(c.drawRaster_ns)) +
+            clean(h.edgePx) * clean(c.edge_ns);
   b.zbufH = clean(h.depthFragments) * clean(c.depthFrag_ns);
   b.fcH = clean(h.frustumTests) * clean(c.cull_ns);
   const double argS[3] = {b.stateS, b.vertS, b.fragS};
@@ -151,6 +155,8 @@ double projectedBoxArea_px(const glm::dmat4& vp, const std::array<glm::dvec3, 8>
   for (size_t i = 0; i < na; ++i) area += a[i].x * a[(i + 1) % na].y - a[(i + 1) % na].x * a[i].y;
   return std::abs(area) * 0.5;
 }
+
+double boxRasterShare(double area_px) { return area_px > 0.0 ? std::min(1.0, area_px) : 0.0; }
 
 double stageOverlap(const PerfConstants& c, double triangles) {
   const double w = std::isfinite(c.overlap) ? std::clamp(c.overlap, 0.0, 1.0) : 1.0;

@@ -101,7 +101,13 @@ struct PassLoad {
   double fragments = 0;        // shaded fragments: samples that pass the depth test (a
                                // GL_SAMPLES_PASSED count of an earlier frame, or the projected
                                // areas where nothing is hidden)
-  double edgePx = 0;           // sum over the objects drawn of sqrt(projected area in px)
+  double edgePx = 0;           // sum over the objects drawn of sqrt(projected area in px), each
+                               // weighted by its boxRasterShare() (see rasterShare)
+  double rasterShare = 1;      // the share of the triangles and draw commands that reach the
+                               // rasterizer: a triangle that covers no pixel centre is dropped
+                               // in set-up (on llvmpipe on the application thread, which T_tri
+                               // counts). The mean of boxRasterShare() over the objects drawn;
+                               // 1 where the sizes are not known. Not finite: 1; clamped to [0, 1]
   double depthFragments = 0;   // depth-only fragments (occlusion boxes)
   double stateChanges = 0;     // draw set-ups / state changes
   double commands = 0;         // draw commands recorded / issued this frame
@@ -125,7 +131,7 @@ struct TimeBreakdown {
 //        + T_fc(H) + T_buf(H) + max(T_state(H), T_vert(H), T_frag(H), T_z(H))           (2)
 // with T_buf = commands t_c(commands) + rerecorded t_r + submissions t_s + occlusionTests T_vis,
 // T_vert = N_tri T_tri (3) with T_tri = triangleCost_ns(triangles / submissions),
-// T_frag = f T_frag (4) + N_tri T_rtri + edgePx T_edge + commands T_draw, T_state = stateChanges T_state,
+// T_frag = f T_frag (4) + rasterShare (N_tri T_rtri + commands T_draw) + edgePx T_edge, T_state = stateChanges T_state,
 // T_fc = frustumTests T_cull.
 // This implementation's additions: T_fc(S) (per-object culling of strategy 1) and T_frame ((2)
 // has T_fc only for H, and no fixed per-frame cost); in T_frag the rasterizer's cost per
@@ -139,6 +145,13 @@ double predictFrame_ns(const PerfConstants& c, const PassLoad& objects, const Pa
 // The overlap of the stages in a frame of `triangles` triangles: overlap * (1 - overlapTriangles /
 // triangles), at least 0 (overlap when overlapTriangles is 0).
 double stageOverlap(const PerfConstants& c, double triangles);
+
+// The expected share of a box's triangles that reach the rasterizer, by its projected area A
+// (px): a box smaller than a pixel covers a pixel centre with a probability of about its area,
+// and one that covers none is dropped in set-up. min(1, A); 0 for A <= 0 or NaN. (Per triangle,
+// min(1, A / 6) for the ~6 a box shows, predicted frames of 50,000 ... 100,000 boxes of ~1 ... 2 px
+// 15 ... 34 % too fast on llvmpipe.) PassLoad::rasterShare is its mean over the objects drawn.
+double boxRasterShare(double area_px);
 
 // ---------------------------------------------------------------------------------------------
 // Scene statistics helpers.

@@ -27,8 +27,9 @@ using Clock = std::chrono::steady_clock;
 // instead of frag_block_px, T_tri from the application thread's side, overlap by frame size.
 // 4: T_tri by the size of a submission (tri_ns_12 ... tri_ns_768), t_c by the commands of a
 // frame (command_count, command_large_ns, command_large_count). 5: the rasterizer's cost per draw
-// command (draw_raster_ns), taken out of raster_tri_ns.
-constexpr int kCacheVersion = 5;
+// command (draw_raster_ns), taken out of raster_tri_ns. 6: the overlap (and the edges) with the
+// share of the boxes that reach the rasterizer (lod::PassLoad::rasterShare).
+constexpr int kCacheVersion = 6;
 
 struct Field {
   const char* name;
@@ -330,19 +331,23 @@ bool measure(const CalibrationOptions& o, lod::PerfConstants& c, std::string& er
   constexpr double kSmallHalf_m = 0.05, kMidHalf_m = 0.11;
   const glm::dmat4 vp = lod::reverseZProjection(b.camera.fovY_deg, b.camera.aspect, b.camera.near_m, b.camera.far_m) *
                         glm::dmat4(lod::viewRotation(b.camera));
-  // Sum over `boxes` of sqrt(projected area in px): lod::PassLoad::edgePx.
-  const auto edgeSum = [&](const std::vector<DynamicObject>& boxes) {
-    double q = 0.0;
+  // Sum over `boxes` of sqrt(projected area in px), weighted as lod::PassLoad::edgePx, and
+  // their share that reaches the rasterizer (lod::PassLoad::rasterShare) in `share`.
+  const auto edgeSum = [&](const std::vector<DynamicObject>& boxes, double* share = nullptr) {
+    double q = 0.0, reach = 0.0;
     for (const DynamicObject& ob : boxes) {
       std::array<glm::dvec3, 8> corners;
       for (int k = 0; k < 8; ++k)
         corners[static_cast<size_t>(k)] = ob.center_m - b.camera.eye_m +
                                           ob.halfSize_m * glm::dvec3(k & 1 ? 1 : -1, k & 2 ? 1 : -1, k & 4 ? 1 : -1);
-      q += std::sqrt(std::max(0.0, lod::projectedBoxArea_px(vp, corners, o.width_px, o.height_px)));
+      const double a = std::max(0.0, lod::projectedBoxArea_px(vp, corners, o.width_px, o.height_px));
+      q += std::sqrt(a) * lod::boxRasterShare(a);
+      reach += lod::boxRasterShare(a);
     }
+    if (share) *share = boxes.empty() ? 1.0 : reach / static_cast<double>(boxes.size());
     return q;
   };
-  double edgeSmall = 0.0, edgeMid = 0.0;
+  double edgeSmall = 0.0, edgeMid = 0.0, shareSmall = 1.0;
   {
     const DynamicObject back{{0.0, 50.0, 0.0}, {150.0, 0.4, 150.0}, 0.0, 0xff8080ffu};
     std::vector<DynamicObject> smallBoxes, midBoxes;
@@ -359,7 +364,7 @@ bool measure(const CalibrationOptions& o, lod::PerfConstants& c, std::string& er
     }
     for (const DynamicObject& ob : smallBoxes) layerSmall.add(ob);
     for (const DynamicObject& ob : midBoxes) layerMid.add(ob);
-    edgeSmall = edgeSum(smallBoxes);
+    edgeSmall = edgeSum(smallBoxes, &shareSmall);  // ~6 px boxes: all of them reach the rasterizer
     edgeMid = edgeSum(midBoxes);
   }
   // One tiny box per octree leaf (2 m cells): one node range, one indirect call per box.
@@ -576,12 +581,13 @@ bool measure(const CalibrationOptions& o, lod::PerfConstants& c, std::string& er
       c.edge_ns = std::max(0.0, (finDiff(kLayerMid, kLayerSmall) - c.frag_ns * (s2 - s1)) / std::max(1.0, edgeMid - edgeSmall));
       // T_draw: the small boxes as per-object commands (a draw each) against their node ranges
       // (~113 draws): same triangles, same fragments (the layer is drawn first either way).
+      const double reached = std::max(shareSmall, 1e-3);
       c.drawRaster_ns = smallDraws > smallNodeDraws ? std::max(0.0, finDiff(kLayerSmall, kLayerSmallNodes) /
-                                                                         static_cast<double>(smallDraws - smallNodeDraws))
+                                                                         (reached * static_cast<double>(smallDraws - smallNodeDraws)))
                                                     : 0.0;
       c.rasterTri_ns = std::max(0.0, (finDiff(kLayerSmall, kLayer) - c.frag_ns * (s1 - s0) - c.edge_ns * edgeSmall -
-                                      c.drawRaster_ns * kLayered) /
-                                         (12.0 * kLayered));
+                                      c.drawRaster_ns * kLayered * reached) /
+                                         (12.0 * kLayered * reached));
     }
     // t_r: every object moved (in place) each frame in octree mode: its node range is rewritten.
     high.setStrategy(DynamicStrategy::Octree);
@@ -652,7 +658,7 @@ bool measure(const CalibrationOptions& o, lod::PerfConstants& c, std::string& er
       lod::PassLoad load;
       load.triangles = static_cast<double>(st.triangles);
       load.fragments = static_cast<double>(pass.samplesPassed());
-      load.edgePx = edgeSum(boxes);
+      load.edgePx = edgeSum(boxes, &load.rasterShare);
       load.commands = st.commands;
       load.submissions = st.submissions;
       load.frustumTests = st.frustumTests;

@@ -101,8 +101,42 @@ TEST(PerfModel, TimeModelOnHandMadeNumbers) {
                    10000 + 100500 + 2000 + (20000 + 6000 + 2000 + 3000) + 160 + (30000 + 4000) + 2000);
   EXPECT_DOUBLE_EQ(b.fragS, 31000);
   EXPECT_DOUBLE_EQ(b.fragH, 800 + 120);
+  // Only the triangles and commands that reach the rasterizer cost it T_rtri and T_draw: half of
+  // the objects' (6000 + 3000 -> 4500), all of the hierarchy's (the default share 1).
+  s.rasterShare = 0.5;
+  EXPECT_DOUBLE_EQ(predictFrame_ns(raster, s, h, &b),
+                   10000 + 100500 + 2000 + (20000 + 4500 + 2000) + 160 + (30000 + 4000) + 2000);
+  EXPECT_DOUBLE_EQ(b.fragS, 26500);
+  EXPECT_DOUBLE_EQ(b.vertS, 12000);  // set-up on the application side: every triangle
+  s.rasterShare = 0.0;
+  predictFrame_ns(raster, s, h, &b);
+  EXPECT_DOUBLE_EQ(b.fragS, 22000);
+  // Out of range or not finite: clamped, or unknown (every triangle reaches it).
+  s.rasterShare = 3.0;
+  predictFrame_ns(raster, s, h, &b);
+  EXPECT_DOUBLE_EQ(b.fragS, 31000);
+  s.rasterShare = -2.0;
+  predictFrame_ns(raster, s, h, &b);
+  EXPECT_DOUBLE_EQ(b.fragS, 22000);
+  s.rasterShare = std::numeric_limits<double>::quiet_NaN();
+  predictFrame_ns(raster, s, h, &b);
+  EXPECT_DOUBLE_EQ(b.fragS, 31000);
+  s.rasterShare = std::numeric_limits<double>::infinity();
+  predictFrame_ns(raster, s, h, &b);
+  EXPECT_DOUBLE_EQ(b.fragS, 31000);
   raster.drawRaster_ns = -1.0;  // invalid: the constants are rejected
   EXPECT_FALSE(valid(raster));
+}
+
+// A box smaller than a pixel covers a pixel centre with a probability of about its area.
+TEST(PerfModel, BoxRasterShareByProjectedArea) {
+  EXPECT_DOUBLE_EQ(boxRasterShare(0.25), 0.25);
+  EXPECT_DOUBLE_EQ(boxRasterShare(1.0), 1.0);
+  EXPECT_DOUBLE_EQ(boxRasterShare(40.0), 1.0);
+  EXPECT_DOUBLE_EQ(boxRasterShare(0.0), 0.0);
+  EXPECT_DOUBLE_EQ(boxRasterShare(-3.0), 0.0);
+  EXPECT_DOUBLE_EQ(boxRasterShare(std::numeric_limits<double>::quiet_NaN()), 0.0);
+  EXPECT_DOUBLE_EQ(boxRasterShare(std::numeric_limits<double>::infinity()), 1.0);
 }
 
 // A software rasterizer overlaps its stages only once a frame overflows its scene: the overlap
