@@ -28,8 +28,9 @@ using Clock = std::chrono::steady_clock;
 // 4: T_tri by the size of a submission (tri_ns_12 ... tri_ns_768), t_c by the commands of a
 // frame (command_count, command_large_ns, command_large_count). 5: the rasterizer's cost per draw
 // command (draw_raster_ns), taken out of raster_tri_ns. 6: the overlap (and the edges) with the
-// share of the boxes that reach the rasterizer (lod::PassLoad::rasterShare).
-constexpr int kCacheVersion = 6;
+// share of the boxes that reach the rasterizer (lod::PassLoad::rasterShare). 7: edge_ns from
+// whole frames (the application thread's part of larger boxes too).
+constexpr int kCacheVersion = 7;
 
 struct Field {
   const char* name;
@@ -573,19 +574,26 @@ bool measure(const CalibrationOptions& o, lod::PerfConstants& c, std::string& er
       // tri_ns: long draws (where the size of the draws is not known).
       if (c.triByDraw_ns.back() > 0.0) c.tri_ns = c.triByDraw_ns.back();
     }
-    // T_edge and T_rtri from the rasterizer's side of the layered loads (see above).
+    // T_edge and T_rtri from the layered loads (see above).
     {
       const auto finDiff = [&](Load a, Load z) { return (quartile(fin[a]) - quartile(fin[z])) * 1e6; };
       const double s0 = static_cast<double>(layerOnly.samplesPassed()), s1 = static_cast<double>(layerSmall.samplesPassed()),
                    s2 = static_cast<double>(layerMid.samplesPassed());
-      c.edge_ns = std::max(0.0, (finDiff(kLayerMid, kLayerSmall) - c.frag_ns * (s2 - s1)) / std::max(1.0, edgeMid - edgeSmall));
+      const double edges = std::max(1.0, edgeMid - edgeSmall);
+      const double edgeRaster = std::max(0.0, (finDiff(kLayerMid, kLayerSmall) - c.frag_ns * (s2 - s1)) / edges);
+      // T_edge from whole frames: a larger box also costs the application thread more (llvmpipe
+      // sets it up and bins it into more of its bins there), 20 ... 70 ns per edge pixel on top of
+      // the rasterizer's 120 ... 200 here. The two sizes differ in nothing else (same boxes,
+      // commands and triangles). Measured on the rasterizer's side only, frames of 1,000 ... 10,000
+      // boxes of a few to ~25 px were predicted 10 ... 25 % too fast (2026-12-05).
+      c.edge_ns = std::max(edgeRaster, (diff(kLayerMid, kLayerSmall) - c.frag_ns * (s2 - s1)) / edges);
       // T_draw: the small boxes as per-object commands (a draw each) against their node ranges
       // (~113 draws): same triangles, same fragments (the layer is drawn first either way).
       const double reached = std::max(shareSmall, 1e-3);
       c.drawRaster_ns = smallDraws > smallNodeDraws ? std::max(0.0, finDiff(kLayerSmall, kLayerSmallNodes) /
                                                                          (reached * static_cast<double>(smallDraws - smallNodeDraws)))
                                                     : 0.0;
-      c.rasterTri_ns = std::max(0.0, (finDiff(kLayerSmall, kLayer) - c.frag_ns * (s1 - s0) - c.edge_ns * edgeSmall -
+      c.rasterTri_ns = std::max(0.0, (finDiff(kLayerSmall, kLayer) - c.frag_ns * (s1 - s0) - edgeRaster * edgeSmall -
                                       c.drawRaster_ns * kLayered * reached) /
                                          (12.0 * kLayered * reached));
     }

@@ -421,12 +421,13 @@ TEST_F(DynamicGl, CalibrationCacheRoundTripsAndRejectsCorruptFiles) {
   corrupt("tri_ns 33.25", "tri_ns 33.25x");
   corrupt("tri_ns 33.25\n", "");                 // missing
   corrupt("cull_ns", "cull_ms");                 // unknown field
-  corrupt("version 6", "version 7");
-  corrupt("version 6", "version 1");             // an older calibration (heap not settled)
-  corrupt("version 6", "version 2");             // an older model (frag_block_px, no rasterizer terms)
-  corrupt("version 6", "version 3");             // one T_tri for every draw size, no binning term
-  corrupt("version 6", "version 4");             // no per-draw rasterizer cost (in raster_tri_ns)
-  corrupt("version 6", "version 5");             // the overlap fitted with every box rasterized
+  corrupt("version 7", "version 8");
+  corrupt("version 7", "version 1");             // an older calibration (heap not settled)
+  corrupt("version 7", "version 2");             // an older model (frag_block_px, no rasterizer terms)
+  corrupt("version 7", "version 3");             // one T_tri for every draw size, no binning term
+  corrupt("version 7", "version 4");             // no per-draw rasterizer cost (in raster_tri_ns)
+  corrupt("version 7", "version 5");             // the overlap fitted with every box rasterized
+  corrupt("version 7", "version 6");             // T_edge from the rasterizer's side only
   EXPECT_NE(corrupt("draw_raster_ns 210.25\n", "").find("draw_raster_ns"), std::string::npos);  // missing
   corrupt("draw_raster_ns 210.25", "draw_raster_ns -3");
   EXPECT_NE(corrupt("tri_ns_96 62\n", "").find("tri_ns_96 missing"), std::string::npos);
