@@ -3,16 +3,30 @@
 # fields issue 7 names; predictions are positive and finite, the calibration's T_tri table and t_c
 # pair are consistent, every mode of the adaptive run drew
 # every frame, and the ratios are consistent with the per-mode means; the adaptive pass ends the
-# occluded phase in occlusion culling. (Timing goals are benchmark results, not asserted here.)
+# occluded phase in occlusion culling; boxes under a pixel count as partly rasterized
+# (raster_share). (Timing goals are benchmark results, not asserted here.)
 set -euo pipefail
 igbench=$1
 dir=$(mktemp -d)
 trap 'rm -rf "$dir"' EXIT
 perf=$("$igbench" perfmodel --quick --sweeps 2 --json --cache "$dir/calibration.txt")
+# 10 boxes of ~1,000 px and 20,000 of ~0.6 px (0.05 screens): most of the small ones cover no
+# pixel centre, so only a share of their triangles reaches the rasterizer. (Before the adaptive
+# run: its viewport has a calibration of its own, which replaces this one in the cache file.)
+tiny=$("$igbench" perfmodel --sizes 10,20000 --coverage 0.05 --repeats 3 --sweeps 1 --json --cache "$dir/calibration.txt")
 adaptive=$("$igbench" adaptive --quick --json --cache "$dir/calibration.txt" --trace "$dir/trace.json")
-/usr/bin/python3 - "$perf" "$adaptive" "$dir/trace.json" <<'PY'
+/usr/bin/python3 - "$perf" "$adaptive" "$dir/trace.json" "$tiny" <<'PY'
 import json, math, sys
+t = json.loads(sys.argv[4])
+assert t["calibration"]["from_cache"] is True, t["calibration"]
+for pt in t["points"]:
+    if pt["objects"] == 10:
+        assert pt["raster_share"] >= 0.99, pt
+    else:
+        assert 0.05 < pt["raster_share"] < 0.9, pt
 p = json.loads(sys.argv[1])
+for pt in p["points"]:
+    assert 0 <= pt["raster_share"] <= 1, pt
 for k in ("points", "error_pct_median", "error_pct_max", "calibration"):
     assert k in p, k
 assert len(p["points"]) >= 4, p["points"]
