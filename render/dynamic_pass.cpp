@@ -251,6 +251,7 @@ bool DynamicPass::init(const DynamicPassConfig& config, std::string& error) {
   gpu_ = std::move(g);
   objects_.assign(config.maxObjects, DynamicObject{});
   alive_.assign(config.maxObjects, 0);
+  idEnd_ = 0;
   freeIds_.clear();
   freeIds_.reserve(config.maxObjects);
   for (uint32_t i = config.maxObjects; i-- > 0;) freeIds_.push_back(i);
@@ -294,6 +295,7 @@ uint32_t DynamicPass::add(const DynamicObject& o) {
   freeIds_.pop_back();
   objects_[id] = o;
   alive_[id] = 1;
+  idEnd_ = std::max(idEnd_, id + 1);
   writeInstance(id);
   ++movedThisFrame_;
   noteChanged(o);
@@ -367,10 +369,11 @@ bool DynamicPass::remove(uint32_t id) {
 }
 
 void DynamicPass::clear() {
-  for (uint32_t id = 0; id < alive_.size(); ++id)
+  for (uint32_t id = 0; id < idEnd_; ++id)
     if (alive_[id]) remove(id);
   freeIds_.clear();  // ids are handed out from 0 again
   for (auto i = static_cast<uint32_t>(alive_.size()); i-- > 0;) freeIds_.push_back(i);
+  idEnd_ = 0;
 }
 
 void DynamicPass::setStrategy(DynamicStrategy s) {
@@ -446,8 +449,7 @@ void DynamicPass::drawPerCommand(Renderer& r) {
   const lod::Frustum frustum = lod::makeFrustum(r.camera());
   const glm::dvec3 eye = r.camera().eye_m;
   uint32_t k = 0;
-  const auto n = static_cast<uint32_t>(alive_.size());
-  for (uint32_t id = 0; id < n; ++id) {
+  for (uint32_t id = 0; id < idEnd_; ++id) {
     if (!alive_[id]) continue;
     ++stats_.frustumTests;
     const lod::Aabb& b = octree_.boxOf(id);

@@ -162,6 +162,10 @@ class DynamicPass {
   lod::DynamicOctree octree_;
   std::vector<DynamicObject> objects_;
   std::vector<uint8_t> alive_;
+  // One past the largest id handed out since init or clear(): ids come lowest first, so every
+  // live object is below it and the per-object pass scans that many, not maxObjects (a pass
+  // sized for 300,000 objects drawing ten scanned 300,000 flags a frame: 0.17 ms).
+  uint32_t idEnd_ = 0;
   std::vector<uint32_t> freeIds_;
   std::vector<uint32_t> drawList_, testList_;
   // Node slot blocks: first slot and capacity per node (power of two), free lists per size class.

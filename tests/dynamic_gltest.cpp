@@ -135,6 +135,33 @@ TEST_F(DynamicGl, ThreeStrategiesDrawTheSameImageOfAStaticScene) {
   }
 }
 
+// Per-object commands draw every live object whatever ids they hold after removals, re-adds and
+// a clear (the pass scans ids up to the largest handed out, not its capacity).
+TEST_F(DynamicGl, PerObjectCommandsDrawEveryLiveObjectAfterRemovalsAndClear) {
+  auto p = makePass(glm::dvec3(0.0), 100000);
+  const std::vector<DynamicObject> all = scene(false);
+  std::vector<uint32_t> ids;
+  for (size_t i = 0; i < 40; ++i) ids.push_back(p->add(all[i]));
+  for (size_t i = 0; i < 40; i += 3) ASSERT_TRUE(p->remove(ids[i]));  // 14 removed, 26 left
+  for (size_t i = 40; i < 50; ++i) ASSERT_NE(p->add(all[i]), render::DynamicPass::kNone);  // reuse freed ids
+  ASSERT_TRUE(p->remove(ids[38]));  // the largest id not re-used
+  p->setStrategy(DynamicStrategy::PerCommand);
+  const render::Image perObject = frame(*p, 1);
+  EXPECT_EQ(p->stats().objectsDrawn, 35u);
+  EXPECT_EQ(p->stats().frustumTests, 35u);
+  p->setStrategy(DynamicStrategy::Octree);
+  const render::Image nodes = frame(*p, 2);
+  EXPECT_EQ(p->stats().objectsDrawn, 35u);
+  EXPECT_LT(render::fractionDifferent(perObject, nodes, 2), 0.002);
+  p->clear();
+  p->setStrategy(DynamicStrategy::PerCommand);
+  frame(*p, 3);
+  EXPECT_EQ(p->stats().objectsDrawn, 0u);
+  for (size_t i = 100; i < 103; ++i) ASSERT_NE(p->add(all[i]), render::DynamicPass::kNone);
+  frame(*p, 4);
+  EXPECT_EQ(p->stats().objectsDrawn, 3u);
+}
+
 // Adaptive starts with per-object commands; on its first frame it also draws one node's range
 // and issues one occlusion test (so that their first use, ~1 ms on llvmpipe, does not fall on the
 // first switch) and leaves the image exactly as the per-object strategy draws it.
