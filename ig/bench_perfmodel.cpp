@@ -164,8 +164,9 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
       areaSum += a;
       sqrtSum += std::sqrt(a);
       // Triangles that cover no pixel centre are dropped in set-up (lod::PassLoad::rasterShare).
-      reachSum += lod::boxRasterShare(a);
-      edgeSum += std::sqrt(a) * lod::boxRasterShare(a);
+      const double reach = lod::boxRasterShare(a);
+      reachSum += reach;
+      edgeSum += std::sqrt(a) * reach;
       pass.add(ob);
     }
     int strategyIndex = 0;

@@ -342,8 +342,9 @@ bool measure(const CalibrationOptions& o, lod::PerfConstants& c, std::string& er
         corners[static_cast<size_t>(k)] = ob.center_m - b.camera.eye_m +
                                           ob.halfSize_m * glm::dvec3(k & 1 ? 1 : -1, k & 2 ? 1 : -1, k & 4 ? 1 : -1);
       const double a = std::max(0.0, lod::projectedBoxArea_px(vp, corners, o.width_px, o.height_px));
-      q += std::sqrt(a) * lod::boxRasterShare(a);
-      reach += lod::boxRasterShare(a);
+      const double r = lod::boxRasterShare(a);
+      q += std::sqrt(a) * r;
+      reach += r;
     }
     if (share) *share = boxes.empty() ? 1.0 : reach / static_cast<double>(boxes.size());
     return q;
