@@ -4,6 +4,8 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <memory>
 #include <random>
 #include <string>
 #include <vector>
@@ -11,6 +13,7 @@
 #include "ig/bench_cells_path.h"
 #include "ig/cells_tool.h"
 #include "ig/stats.h"
+#include "ig/worker_pair.h"
 #include "lod/cells.h"
 #include "lod/cells_select.h"
 #include "lod/cells_voxel.h"
@@ -23,15 +26,26 @@ double msSince(BenchClock::time_point t0) { return std::chrono::duration<double,
 
 constexpr double kSceneEdge_m = kCellsSceneEdge_m;
 
-// What a frame chose, in a few numbers: equal in every replay of the same views and arrivals.
-uint64_t choiceSignature(const lod::CellSelectStats& s) {
-  return s.drawnVoxels * 0x9E3779B97F4A7C15ull ^ (uint64_t{s.drawnCells} << 40) ^ (uint64_t{s.requestedCells} << 20) ^
-         s.requestedBytes ^ (uint64_t{s.splits} << 52) ^ (uint64_t{s.merges} << 30);
+// What a frame chose: its stats, its draw list (cells and voxel sizes, in order) and its requests,
+// hashed; equal in every replay of the same views and arrivals, with one thread or two.
+uint64_t choiceSignature(const lod::CellSelectStats& s, const std::vector<lod::CellDraw>& draw,
+                         const std::vector<uint32_t>& requests) {
+  uint64_t h = s.drawnVoxels * 0x9E3779B97F4A7C15ull ^ (uint64_t{s.drawnCells} << 40) ^ (uint64_t{s.requestedCells} << 20) ^
+               s.requestedBytes ^ (uint64_t{s.splits} << 52) ^ (uint64_t{s.merges} << 30);
+  auto mix = [&h](uint64_t v) { h = (h ^ v) * 0x100000001B3ull; };
+  for (uint32_t k = 0; k < s.drawnCells && k < draw.size(); ++k) {
+    uint32_t bits = 0;
+    std::memcpy(&bits, &draw[k].voxel_px, 4);
+    mix(uint64_t{draw[k].cell} << 32 | bits);
+  }
+  for (uint32_t k = 0; k < s.requestedCells && k < requests.size(); ++k) mix(requests[k]);
+  return h;
 }
 
 struct SweepPoint {
   uint64_t budget = 0;
   double minQualityP50_px = 0.0, minQualityMax_px = 0.0, selectP50_ms = 0.0, selectP99_ms = 0.0;
+  double oneThreadP50_ms = 0.0, oneThreadP99_ms = 0.0;  // the same frames on one thread
   uint64_t voxelsP50 = 0, cutCellsP50 = 0;
 };
 
@@ -110,28 +124,37 @@ int runCellsBench(const CellsBenchOptions& o) {
   // Replayed `repeats` times with a fresh selector and nothing resident: the selection depends on
   // the views and the arrivals only (never on the clock), so every replay makes the same choices
   // (checked: `replays_differ_frames`), and a frame's time is the fastest of its replays (what
-  // other processes on the machine add is not the selection's cost).
+  // other processes on the machine add is not the selection's cost). With two select threads each
+  // replay runs twice, on two threads and on one, alternating, so that the two are compared in the
+  // same minutes; both must choose the same (`threads_differ_frames`).
   const int repeats = std::max(1, o.repeats);
+  const bool twoThreads = o.selectThreads >= 2;
+  std::unique_ptr<WorkerPair> workers;
+  if (twoThreads) workers = std::make_unique<WorkerPair>();
   std::vector<lod::Residency> residency(tree.size());
   std::vector<int> arrival(tree.size(), 0);
   std::vector<uint32_t> inFlight;
   inFlight.reserve(tree.size());
   lod::CellSelectorConfig selectorConfig;
   if (o.maxOps > 0) selectorConfig.maxOperations = o.maxOps;
+  lod::CellSelectorConfig oneThreadConfig = selectorConfig;
+  selectorConfig.runner = workers.get();
   lod::CellView view;
   view.viewportHeight_px = o.height_px;
   view.minVoxel_px = 1.0;
   view.voxelBudget = o.voxelBudget;
   view.byteBudget = o.wBytes;
-  std::vector<double> selectMs(static_cast<size_t>(o.frames), 1e300), firstMs, voxelsDrawn, quality, cutCells;
+  std::vector<double> selectMs(static_cast<size_t>(o.frames), 1e300), oneThreadMs(selectMs), firstMs, voxelsDrawn,
+      quality, cutCells;
   std::vector<uint64_t> signature(static_cast<size_t>(o.frames), 0);
   uint64_t bytesMax = 0, bytesTotal = 0;
   // Frames over a budget (drawn voxels > voxel budget or requested bytes > W, path and sweep):
   // the exit status is 1 if there is any.
-  int exceeded = 0, teleportFrame = 2 * o.frames / 3, fullQualityFrame = -1, replaysDiffer = 0;
+  int exceeded = 0, teleportFrame = 2 * o.frames / 3, fullQualityFrame = -1, replaysDiffer = 0, threadsDiffer = 0;
   uint32_t unfetchable = 0;
-  for (int rep = 0; rep < repeats; ++rep) {
-    lod::CellSelector selector(tree, selectorConfig);
+  for (int run = 0; run < repeats * (twoThreads ? 2 : 1); ++run) {
+    const bool oneThread = twoThreads && run % 2 == 1;
+    lod::CellSelector selector(tree, oneThread ? oneThreadConfig : selectorConfig);
     std::fill(residency.begin(), residency.end(), lod::Residency::Absent);
     inFlight.clear();
     for (int i = 0; i < o.frames; ++i) {
@@ -148,9 +171,10 @@ int runCellsBench(const CellsBenchOptions& o) {
       const lod::CellSelectStats s = selector.select(view, residency, draw, requests);
       const double ms = msSince(t0);
       const size_t fi = static_cast<size_t>(i);
-      selectMs[fi] = std::min(selectMs[fi], ms);
-      const uint64_t sig = choiceSignature(s);
-      if (rep == 0) {
+      std::vector<double>& times = oneThread ? oneThreadMs : selectMs;
+      times[fi] = std::min(times[fi], ms);
+      const uint64_t sig = choiceSignature(s, draw, requests);
+      if (run == 0) {
         signature[fi] = sig;
         firstMs.push_back(ms);
         voxelsDrawn.push_back(static_cast<double>(s.drawnVoxels));
@@ -161,14 +185,14 @@ int runCellsBench(const CellsBenchOptions& o) {
         bytesTotal += s.requestedBytes;
         unfetchable = std::max(unfetchable, s.unfetchable);
       } else if (sig != signature[fi]) {
-        ++replaysDiffer;
+        ++(oneThread ? threadsDiffer : replaysDiffer);
       }
       for (uint32_t k = 0; k < s.requestedCells; ++k) {
         residency[requests[k]] = lod::Residency::InFlight;
         arrival[requests[k]] = i + o.latencyFrames;
         inFlight.push_back(requests[k]);
       }
-      if (rep == 0 && i >= teleportFrame && fullQualityFrame < 0 && s.requestedCells == 0 && s.blockedSplits == 0 &&
+      if (run == 0 && i >= teleportFrame && fullQualityFrame < 0 && s.requestedCells == 0 && s.blockedSplits == 0 &&
           inFlight.empty())
         fullQualityFrame = i;
     }
@@ -184,30 +208,39 @@ int runCellsBench(const CellsBenchOptions& o) {
     lod::CellView v = view;
     v.voxelBudget = p.budget;
     v.byteBudget = o.wBytes;
-    std::vector<double> q, ms, vox, cut;
+    std::vector<double> q, ms, ms1, vox, cut;
     std::vector<uint64_t> sigs;
-    for (int rep = 0; rep < repeats; ++rep) {
-      lod::CellSelector sel(tree);
+    for (int run = 0; run < repeats * (twoThreads ? 2 : 1); ++run) {
+      const bool oneThread = twoThreads && run % 2 == 1;
+      lod::CellSelectorConfig sweepConfig;
+      sweepConfig.runner = oneThread ? nullptr : workers.get();
+      lod::CellSelector sel(tree, sweepConfig);
       size_t k = 0;
       for (int i = 0; i < o.frames; i += 4) {
         v.camera = cellsPathCamera(i, o.frames);
         const auto t0 = BenchClock::now();
         const lod::CellSelectStats s = sel.select(v, {}, draw, requests);
         const double dt = msSince(t0);
-        if (rep == 0 && (!s.valid || s.drawnVoxels > p.budget || s.requestedBytes > v.byteBudget)) ++exceeded;
+        if (run == 0 && (!s.valid || s.drawnVoxels > p.budget || s.requestedBytes > v.byteBudget)) ++exceeded;
         if (i == 0 || i == ((teleportFrame + 3) / 4) * 4) continue;  // from the root / the teleport: not steady
-        if (rep > 0) {
-          ms[k] = std::min(ms[k], dt);
-          if (choiceSignature(s) != sigs[k]) ++replaysDiffer;
+        if (run > 0) {
+          std::vector<double>& times = oneThread ? ms1 : ms;
+          if (times.size() <= k) times.push_back(dt);
+          else times[k] = std::min(times[k], dt);
+          if (choiceSignature(s, draw, requests) != sigs[k]) ++(oneThread ? threadsDiffer : replaysDiffer);
           ++k;
           continue;
         }
         ms.push_back(dt);
-        sigs.push_back(choiceSignature(s));
+        sigs.push_back(choiceSignature(s, draw, requests));
         q.push_back(static_cast<double>(s.maxVoxel_px));
         vox.push_back(static_cast<double>(s.drawnVoxels));
         cut.push_back(s.cutCells);
       }
+    }
+    if (twoThreads) {
+      p.oneThreadP50_ms = percentile(ms1, 50);
+      p.oneThreadP99_ms = percentile(ms1, 99);
     }
     p.cutCellsP50 = static_cast<uint64_t>(percentile(cut, 50));
     p.minQualityP50_px = percentile(q, 50);
@@ -243,20 +276,25 @@ int runCellsBench(const CellsBenchOptions& o) {
                 "\"budget_exceeded_frames\":%d,\"bytes_per_frame_max\":%llu,\"w_bytes\":%llu,\"bytes_total\":%llu,"
                 "\"unfetchable_cells\":%u,\"frames_to_settle_after_teleport\":%d,\"seconds_to_settle_after_teleport\":%.3f,"
                 "\"max_voxel_px_p50\":%.3f,\"cut_cells_p50\":%.0f,\"repeats\":%d,\"select_ms_p99_first_replay\":%.4f,"
-                "\"replays_differ_frames\":%d,\"select_sweep\":[",
+                "\"replays_differ_frames\":%d,\"select_threads\":%d,\"select_ms_p50_one_thread\":%.4f,"
+                "\"select_ms_p99_one_thread\":%.4f,\"threads_differ_frames\":%d,\"select_sweep\":[",
                 o.frames, o.latencyFrames, o.maxOps, percentile(selectMs, 50), percentile(selectMs, 99),
                 *std::max_element(selectMs.begin(), selectMs.end()), teleportMs, percentile(voxelsDrawn, 50),
                 static_cast<unsigned long long>(o.voxelBudget), exceeded, static_cast<unsigned long long>(bytesMax),
                 static_cast<unsigned long long>(o.wBytes), static_cast<unsigned long long>(bytesTotal), unfetchable,
                 fullQualityFrame < 0 ? -1 : fullQualityFrame - teleportFrame, secondsToFull, percentile(quality, 50),
-                percentile(cutCells, 50), repeats, percentile(firstMs, 99), replaysDiffer);
+                percentile(cutCells, 50), repeats, percentile(firstMs, 99), replaysDiffer, twoThreads ? 2 : 1,
+                twoThreads ? percentile(oneThreadMs, 50) : percentile(selectMs, 50),
+                twoThreads ? percentile(oneThreadMs, 99) : percentile(selectMs, 99), threadsDiffer);
     for (size_t k = 0; k < sweep.size(); ++k) {
       const SweepPoint& p = sweep[k];
       std::printf("%s{\"voxel_budget\":%llu,\"voxels_drawn_p50\":%llu,\"min_quality_px\":%.3f,\"min_quality_px_max\":%.3f,"
-                  "\"cut_cells_p50\":%llu,\"select_ms\":%.4f,\"select_ms_p99\":%.4f}",
+                  "\"cut_cells_p50\":%llu,\"select_ms\":%.4f,\"select_ms_p99\":%.4f,\"select_ms_one_thread\":%.4f,"
+                  "\"select_ms_p99_one_thread\":%.4f}",
                   k ? "," : "", static_cast<unsigned long long>(p.budget), static_cast<unsigned long long>(p.voxelsP50),
                   p.minQualityP50_px, p.minQualityMax_px, static_cast<unsigned long long>(p.cutCellsP50), p.selectP50_ms,
-                  p.selectP99_ms);
+                  p.selectP99_ms, twoThreads ? p.oneThreadP50_ms : p.selectP50_ms,
+                  twoThreads ? p.oneThreadP99_ms : p.selectP99_ms);
     }
     std::printf("]");
     if (o.withMesh) {
@@ -280,11 +318,19 @@ int runCellsBench(const CellsBenchOptions& o) {
                 percentile(selectMs, 50), percentile(selectMs, 99), repeats, percentile(firstMs, 99), replaysDiffer,
                 teleportMs, percentile(voxelsDrawn, 50), static_cast<unsigned long long>(o.voxelBudget), exceeded,
                 static_cast<unsigned long long>(bytesMax), secondsToFull);
-    std::printf("  sweep (all resident): budget, voxels p50, largest voxel px p50 / max, cut cells p50, select ms p50 / p99\n");
-    for (const SweepPoint& p : sweep)
-      std::printf("    %9llu %9llu %8.2f %8.2f %8llu %8.3f %8.3f\n", static_cast<unsigned long long>(p.budget),
+    if (twoThreads)
+      std::printf("    on %d select threads; the same frames on one thread: p50 %.3f ms, p99 %.3f ms (frames that chose "
+                  "differently: %d)\n",
+                  2, percentile(oneThreadMs, 50), percentile(oneThreadMs, 99), threadsDiffer);
+    std::printf("  sweep (all resident): budget, voxels p50, largest voxel px p50 / max, cut cells p50, select ms p50 / p99"
+                "%s\n", twoThreads ? ", one thread p50 / p99" : "");
+    for (const SweepPoint& p : sweep) {
+      std::printf("    %9llu %9llu %8.2f %8.2f %8llu %8.3f %8.3f", static_cast<unsigned long long>(p.budget),
                   static_cast<unsigned long long>(p.voxelsP50), p.minQualityP50_px, p.minQualityMax_px,
                   static_cast<unsigned long long>(p.cutCellsP50), p.selectP50_ms, p.selectP99_ms);
+      if (twoThreads) std::printf(" %8.3f %8.3f", p.oneThreadP50_ms, p.oneThreadP99_ms);
+      std::printf("\n");
+    }
     if (o.withMesh) {
       std::printf("  mesh %s: %u cells, %d levels, %.1f MB; full detail %llu voxels drawn in %.1f ms\n",
                   o.mesh.mesh.c_str(), bunny.cells, bunny.levels, static_cast<double>(bunny.fileBytes) / 1e6,
@@ -300,7 +346,7 @@ int runCellsBench(const CellsBenchOptions& o) {
                     r.qualityMonotonic ? "yes" : "NO", static_cast<unsigned long long>(r.arrivedBytes), r.effectiveMbit);
     }
   }
-  return exceeded == 0 ? 0 : 1;
+  return exceeded == 0 && threadsDiffer == 0 ? 0 : 1;
 }
 
 }  // namespace ig

@@ -26,6 +26,8 @@ struct CellsBenchOptions {
   uint32_t maxOps = 512;        // splits + merges per frame on the path (CellSelectorConfig::maxOperations; 0: no cap)
   uint32_t seed = 1;
   int repeats = 3;              // the path and the sweep replayed this often; each frame's time is the fastest
+  int selectThreads = 2;        // 2: the selection's passes on two threads (ig/worker_pair.h), each replay also
+                                // run on one thread for comparison; 1: one thread only
   bool json = false;
   // The real mesh, the pictures and nginx (ig/bench_cells_stream.h); off: selection only.
   bool withMesh = true;

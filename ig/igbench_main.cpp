@@ -278,6 +278,11 @@ int main(int argc, char** argv) {
                     "fastest of its replays")
       ->capture_default_str()
       ->check(CLI::Range(1, 100));
+  cells->add_option("--select-threads", cellsOptions.selectThreads,
+                    "Threads for the selection's per-frame passes: 2 (the caller and one helper; every replay also "
+                    "runs on one thread, reported as *_one_thread, and both must choose the same) or 1")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 2));
   cells->add_flag("--json", cellsOptions.json, "Print one JSON object instead of the human summary");
   cells->add_flag("!--no-mesh", cellsOptions.withMesh,
                   "Selection only: skip the bunny (PSNR sweep with splats, streaming through nginx)");

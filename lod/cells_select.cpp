@@ -266,6 +266,18 @@ CellSelector::CellSelector(const CellTree& tree, const CellSelectorConfig& confi
   scratch_.reserve(n);
   evicted_.reserve(leaves);
   unknownCover_.reserve(n);
+  parts_[0].covers.reserve(leaves);
+  if (config_.runner != nullptr) {
+    chunkCells_ = (std::max(config_.chunkCells, 8u) + 7u) / 8u * 8u;
+    Part& p1 = parts_[1];
+    p1.marks.reserve((leaves + chunkCells_ - 1) / chunkCells_ + (n - leaves + chunkCells_ - 1) / chunkCells_ + 2);
+    p1.evicted.reserve(leaves);
+    p1.unknown.reserve(n);
+    p1.covers.reserve(std::min<size_t>(leaves, chunkCells_));
+    p1.splits.reserve(leaves);
+    p1.childSum.assign(childSum_.size(), 0);
+    drawBuf_.resize(leaves);
+  }
   splitHeap_.reserve(2 * n + 64);
   mergeHeap_.reserve(2 * n + 64);
   reset();
@@ -418,7 +430,7 @@ bool CellSelector::childrenDrawable(uint32_t c) {
 
 // mc(c) = min(V, sum mc(children)) for a live refinable cell cut by the frustum boundary (a cell
 // wholly inside has mc = V: every descendant is live and octree images are monotone).
-uint64_t CellSelector::coverCost(uint32_t c, Ev x) {
+uint64_t CellSelector::coverCost(uint32_t c, Ev x, std::vector<uint32_t>& unknown) {
   const uint64_t v = node_[c].voxels;
   if (!(x.flags & kLive)) return 0;
   if ((x.flags & kInside) || !refinable(c, x)) return v;
@@ -439,7 +451,7 @@ uint64_t CellSelector::coverCost(uint32_t c, Ev x) {
     }
     if (sum >= v) return v;
     if (!drawableAll) {
-      if (unknownCover_.size() < unknownCover_.capacity()) unknownCover_.push_back(c);
+      if (unknown.size() < unknown.capacity()) unknown.push_back(c);
       return v;
     }
     uint32_t deferred = 0;
@@ -461,7 +473,7 @@ uint64_t CellSelector::coverCost(uint32_t c, Ev x) {
     }
     for (uint32_t i = 0; i < count && deferred != 0 && sum < v; ++i) {
       if (!((deferred >> i) & 1)) continue;
-      sum += cost(first + i);
+      sum += cost(first + i, unknown);
       deferred &= ~(1u << i);
     }
     return std::min(v, sum);
@@ -472,7 +484,7 @@ uint64_t CellSelector::coverCost(uint32_t c, Ev x) {
     if (ev(first + i).flags & kInside) sum += node_[first + i].voxels;
   if (sum >= v) return v;
   if (!childrenDrawable(c)) {
-    if (unknownCover_.size() < unknownCover_.capacity()) unknownCover_.push_back(c);
+    if (unknown.size() < unknown.capacity()) unknown.push_back(c);
     return v;
   }
   // The other children: plain ones first (outside: 0, not refinable: V), then those cut by the
@@ -487,13 +499,13 @@ uint64_t CellSelector::coverCost(uint32_t c, Ev x) {
       ++deferred;
       continue;
     }
-    sum += cost(ch);
+    sum += cost(ch, unknown);
   }
   for (uint32_t i = 0; i < count && deferred > 0 && sum < v; ++i) {
     const uint32_t ch = first + i;
     const Ev y = ev(ch);
     if (!(y.flags & kInside) && (y.flags & kLive) && refinable(ch, y) && node_[ch].state == kBelow && !costed(ch)) {
-      sum += cost(ch);
+      sum += cost(ch, unknown);
       --deferred;
     }
   }
@@ -510,7 +522,7 @@ uint64_t CellSelector::coverCost(uint32_t c, Ev x) {
 // a grandchild, bit 7 set for a live leaf (costs V: tested live on a shrunk box) rather than a
 // wholly inside cell; up to 7 codes, their count in the top byte; 0: none.
 uint64_t CellSelector::makeCertificate(uint32_t c) {
-  struct Part {
+  struct Piece {
     uint64_t value;
     uint32_t boxes;
     uint8_t code[8];
@@ -522,13 +534,13 @@ uint64_t CellSelector::makeCertificate(uint32_t c) {
     const Node &p = node_[parent], &q = node_[cell];
     return static_cast<uint8_t>((q.x > p.x ? 1 : 0) | (q.y > p.y ? 2 : 0) | (q.z > p.z ? 4 : 0));
   };
-  Part parts[8];
+  Piece parts[8];
   uint32_t np = 0;
   const uint32_t first = node_[c].firstChild, count = node_[c].childCount;
   for (uint32_t i = 0; i < count; ++i) {
     const uint32_t ch = first + i;
     const Ev y = ev(ch);
-    Part& p = parts[np];
+    Piece& p = parts[np];
     p.boxes = 0;
     p.value = 0;
     if (y.flags & kInside) {
@@ -611,11 +623,11 @@ bool CellSelector::certificateHolds(const CellSet& s, uint32_t i) const {
   return true;
 }
 
-uint64_t CellSelector::cost(uint32_t c) {
+uint64_t CellSelector::cost(uint32_t c, std::vector<uint32_t>& unknown) {
   if (node_[c].state == kCut) return cut_.mc[node_[c].slot];
   if (node_[c].state == kMergeable) return mergeable_.mc[node_[c].slot];
   if (costed(c)) return node_[c].mc;
-  const uint64_t v = coverCost(c, ev(c));
+  const uint64_t v = coverCost(c, ev(c), unknown);
   node_[c].flags = static_cast<uint8_t>(node_[c].flags | kCosted);
   node_[c].mc = static_cast<uint32_t>(v);
   return v;
@@ -838,6 +850,285 @@ size_t CellSelector::realization(std::span<uint32_t> out) const {
   return std::min(n, out.size());
 }
 
+// The per-frame passes. With a runner each pass is split in chunks of chunkCells_ cut cells (the
+// eval pass: then chunks of the mergeable cells); worker 0 takes a prefix of the chunks in order
+// and writes to the selector's own outputs, worker 1 the rest, from the back, into its Part with
+// a mark per chunk; afterwards worker 1's outputs are appended in chunk order, so every list is
+// the one a single pass would have made.
+void CellSelector::runPass(Pass pass) {
+  pass_ = pass;
+  Part& p0 = parts_[0];
+  p0.begin();
+  if (config_.runner == nullptr) {
+    switch (pass) {
+      case Pass::Eval:
+        evalChunk(0, p0, true);
+        evaluateSet(mergeable_);
+        break;
+      case Pass::Cost:
+        costChunk(0, cut_.n, p0, true);
+        break;
+      case Pass::Draw:
+        drawChunk(0, cut_.n, p0);
+        break;
+    }
+    return;
+  }
+  Part& p1 = parts_[1];
+  p1.begin();
+  const uint32_t size = chunkCells_;
+  cutChunks_ = (cut_.n + size - 1) / size;
+  uint32_t chunks = cutChunks_;
+  if (pass == Pass::Eval) chunks += (mergeable_.n + size - 1) / size;
+  if (pass == Pass::Cost) std::fill_n(p1.childSum.begin(), mergeable_.n, uint64_t{0});
+  if (pass == Pass::Draw) {
+    p1.out = drawBuf_.data();
+    p1.cap = static_cast<uint32_t>(drawBuf_.size());
+  }
+  if (chunks > 0) config_.runner->forEach(chunks, &CellSelector::passChunk, this);
+  // Worker 1's outputs in chunk order: its marks are in the order it took them (descending).
+  const size_t m = p1.marks.size();
+  for (size_t k = m; k-- > 0;) {
+    const Part::Mark& a = p1.marks[k];
+    const bool last = k + 1 == m;
+    if (pass == Pass::Eval) {
+      const uint32_t end = last ? static_cast<uint32_t>(p1.evicted.size()) : p1.marks[k + 1].evicted;
+      for (uint32_t j = a.evicted; j < end; ++j) evicted_.push_back(p1.evicted[j]);
+    } else if (pass == Pass::Cost) {
+      const uint32_t endS = last ? static_cast<uint32_t>(p1.splits.size()) : p1.marks[k + 1].splits;
+      for (uint32_t j = a.splits; j < endS; ++j) splitHeap_.push_back(p1.splits[j]);
+      const uint32_t endU = last ? static_cast<uint32_t>(p1.unknown.size()) : p1.marks[k + 1].unknown;
+      for (uint32_t j = a.unknown; j < endU && unknownCover_.size() < unknownCover_.capacity(); ++j)
+        unknownCover_.push_back(p1.unknown[j]);
+    } else {
+      const uint32_t end = last ? p1.written : p1.marks[k + 1].draw;
+      const uint32_t n = end - a.draw, room = p0.cap - p0.written;
+      const uint32_t take = std::min(n, room);
+      if (take > 0) std::memcpy(p0.out + p0.written, p1.out + a.draw, take * sizeof(CellDraw));
+      p0.written += take;
+      if (take < n) p0.truncated = true;
+    }
+  }
+  if (pass == Pass::Cost) p0.cost += p1.cost;
+  if (pass == Pass::Draw) {
+    p0.cutCells += p1.cutCells;
+    p0.drawnVoxels += p1.drawnVoxels;
+    p0.maxE = std::max(p0.maxE, p1.maxE);
+    p0.truncated = p0.truncated || p1.truncated;
+  }
+}
+
+void CellSelector::passChunk(void* self, uint32_t chunk, uint32_t worker) {
+  CellSelector& s = *static_cast<CellSelector*>(self);
+  Part& part = s.parts_[worker != 0 ? 1 : 0];
+  const bool mine = worker == 0;
+  if (!mine) {
+    part.marks.push_back({chunk, static_cast<uint32_t>(part.evicted.size()), static_cast<uint32_t>(part.splits.size()),
+                          static_cast<uint32_t>(part.unknown.size()), part.written});
+  }
+  const uint32_t size = s.chunkCells_, begin = chunk * size;
+  if (s.pass_ == Pass::Eval) {
+    if (chunk < s.cutChunks_) {
+      s.evalChunk(chunk, part, mine);
+    } else {
+      const uint32_t b = (chunk - s.cutChunks_) * size, n = std::min(s.mergeable_.n - b, size);
+      CellSet& m = s.mergeable_;
+      evalCells(s.vc_, n, m.x.data() + b, m.y.data() + b, m.z.data() + b, m.edge.data() + b, m.voxels.data() + b,
+                m.e.data() + b, m.flags.data() + b);
+    }
+  } else if (s.pass_ == Pass::Cost) {
+    s.costChunk(begin, std::min(s.cut_.n, begin + size), part, mine);
+  } else {
+    s.drawChunk(begin, std::min(s.cut_.n, begin + size), part);
+  }
+}
+
+// Re-evaluation of a chunk of the cut (without a runner: all of it) and the drawn cells in it that
+// stopped being resident.
+void CellSelector::evalChunk(uint32_t chunk, Part& part, bool mine) {
+  const uint32_t b = chunkCells_ == 0 ? 0 : chunk * chunkCells_;
+  const uint32_t e = chunkCells_ == 0 ? cut_.n : std::min(cut_.n, b + chunkCells_);
+  CellSet& c = cut_;
+  evalCells(vc_, e - b, c.x.data() + b, c.y.data() + b, c.z.data() + b, c.edge.data() + b, c.voxels.data() + b,
+            c.e.data() + b, c.flags.data() + b);
+  if (residency_.empty()) return;
+  std::vector<uint32_t>& out = mine ? evicted_ : part.evicted;
+  for (uint32_t i = b; i < e; ++i)
+    if ((c.flags[i] & kLive) && !resident(c.cell[i]) && c.cell[i] != 0) out.push_back(c.cell[i]);
+}
+
+// Costs of a range of the cut: mc of every cell (V when live), the sums of the mergeable cells'
+// children, the split candidates of the heap window, then the cheapest covers of the cells cut
+// by the frustum boundary whose certificate does not hold.
+void CellSelector::costChunk(uint32_t begin, uint32_t end, Part& part, bool mine) {
+  std::vector<HeapEntry>& splits = mine ? splitHeap_ : part.splits;
+  std::vector<uint32_t>& unknown = mine ? unknownCover_ : part.unknown;
+  std::vector<uint32_t>& covers = part.covers;
+  uint64_t* sums = mine ? childSum_.data() : part.childSum.data();
+  covers.clear();
+  uint64_t total = 0;
+  const uint8_t* flags = cut_.flags.data();
+  const uint32_t *voxels = cut_.voxels.data(), *up = cut_.up.data(), *cells = cut_.cell.data();
+  const float* es = cut_.e.data();
+  uint32_t* mcs = cut_.mc.data();
+  const float alpha = alpha_, floor = splitFloor_;
+  // Cells without a mergeable parent add to a spare slot past the real ones (no branch).
+  const uint32_t spare = static_cast<uint32_t>(childSum_.size() - 1);
+  // A cell that is refinable (live, with children, e > alpha) is a split candidate of the
+  // window (bit 0: e >= floor) and, when cut by the frustum boundary, needs its cheapest cover
+  // unless its certificate holds (bit 1). Few cells are either: the masks come four at a time.
+  auto visit = [&](uint32_t i, uint32_t want) {
+    if (want & 1) splits.push_back({es[i], cells[i]});
+    if ((want & 2) && (cut_.cert[i] == 0 || !certificateHolds(cut_, i))) covers.push_back(i);
+  };
+  uint32_t i = begin;
+#if defined(__SSE2__) && !defined(IG_CELLS_NO_SIMD)
+  {
+    const __m128i zero = _mm_setzero_si128(), live1 = _mm_set1_epi32(kLive), kids = _mm_set1_epi32(kHasChildren),
+                  inside = _mm_set1_epi32(kInside);
+    const __m128 va = _mm_set1_ps(alpha), vf = _mm_set1_ps(floor);
+    __m128i acc = zero;  // two 64-bit sums
+    for (; i + 4 <= end; i += 4) {
+      int32_t f4;
+      std::memcpy(&f4, flags + i, 4);
+      const __m128i f = _mm_unpacklo_epi16(_mm_unpacklo_epi8(_mm_cvtsi32_si128(f4), zero), zero);
+      const __m128i live = _mm_cmpeq_epi32(_mm_and_si128(f, live1), live1);
+      const __m128i mc = _mm_and_si128(_mm_loadu_si128(reinterpret_cast<const __m128i*>(voxels + i)), live);
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(mcs + i), mc);
+      acc = _mm_add_epi64(acc, _mm_add_epi64(_mm_unpacklo_epi32(mc, zero), _mm_unpackhi_epi32(mc, zero)));
+      for (uint32_t k = 0; k < 4; ++k) sums[std::min(up[i + k], spare)] += mcs[i + k];
+      const __m128 e = _mm_loadu_ps(es + i);
+      const __m128i refinable = _mm_and_si128(_mm_and_si128(live, _mm_cmpeq_epi32(_mm_and_si128(f, kids), kids)),
+                                              _mm_castps_si128(_mm_cmpgt_ps(e, va)));
+      const int cand = _mm_movemask_ps(_mm_castsi128_ps(_mm_and_si128(refinable, _mm_castps_si128(_mm_cmpge_ps(e, vf)))));
+      const int strad = _mm_movemask_ps(
+          _mm_castsi128_ps(_mm_andnot_si128(_mm_cmpeq_epi32(_mm_and_si128(f, inside), inside), refinable)));
+      if ((cand | strad) == 0) continue;
+      for (uint32_t k = 0; k < 4; ++k) visit(i + k, static_cast<uint32_t>(((cand >> k) & 1) | (((strad >> k) & 1) << 1)));
+    }
+    uint64_t lanes[2];
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(lanes), acc);
+    total = lanes[0] + lanes[1];
+  }
+#endif
+  for (; i < end; ++i) {
+    const uint8_t f = flags[i];
+    const uint32_t mc = (f & kLive) ? voxels[i] : 0;
+    mcs[i] = mc;
+    total += mc;
+    sums[std::min(up[i], spare)] += mc;
+    if ((f & (kLive | kHasChildren)) != (kLive | kHasChildren) || !(es[i] > alpha)) continue;
+    visit(i, (es[i] >= floor ? 1u : 0u) | (f & kInside ? 0u : 2u));
+  }
+  // The covers, each cell's node and then its children's fetched a few cells ahead (the tree walk
+  // waits on memory).
+  constexpr size_t kAhead = 6;
+  for (size_t k = 0; k < std::min(2 * kAhead, covers.size()); ++k) __builtin_prefetch(&node_[cut_.cell[covers[k]]]);
+  for (size_t k = 0; k < std::min(kAhead, covers.size()); ++k) prefetchChildren(cut_.cell[covers[k]]);
+  for (size_t k = 0; k < covers.size(); ++k) {
+    if (k + 2 * kAhead < covers.size()) __builtin_prefetch(&node_[cut_.cell[covers[k + 2 * kAhead]]]);
+    if (k + kAhead < covers.size()) prefetchChildren(cut_.cell[covers[k + kAhead]]);
+    const uint32_t j = covers[k];
+    const uint64_t mc = coverCost(cut_.cell[j], {cut_.e[j], cut_.flags[j]}, unknown);
+    cut_.cert[j] = mc == cut_.voxels[j] ? makeCertificate(cut_.cell[j]) : 0;
+    total -= cut_.voxels[j] - mc;
+    sums[std::min(cut_.up[j], spare)] -= cut_.voxels[j] - mc;
+    cut_.mc[j] = static_cast<uint32_t>(mc);
+  }
+  part.cost += total;
+}
+
+// The drawn cells of a range of the cut, in its order (covers expanded), into part.out.
+void CellSelector::drawChunk(uint32_t begin, uint32_t end, Part& part) {
+  uint32_t written = part.written, cutCells = 0;
+  uint64_t drawnVoxels = 0;
+  float maxE = part.maxE;
+  bool truncated = part.truncated;
+  CellDraw* out = part.out;
+  const uint32_t cap = part.cap;
+  auto emit = [&](uint32_t cell, Ev x) {
+    ++cutCells;
+    if (!(x.flags & kLive)) return;
+    drawnVoxels += node_[cell].voxels;
+    maxE = std::max(maxE, x.e);
+    if (written < cap) out[written++] = {cell, x.e};
+    else truncated = true;
+  };
+  const uint8_t* flags = cut_.flags.data();
+  const uint32_t *cells = cut_.cell.data(), *voxels = cut_.voxels.data(), *mcs = cut_.mc.data();
+  const float* es = cut_.e.data();
+  const bool rootMissing = rootMissing_;
+  // One cut cell: not live (counted, not drawn), the root not arrived yet (neither), drawn as
+  // its cheaper cover, or drawn itself.
+  auto emitCut = [&](uint32_t k) {
+    if (!(flags[k] & kLive)) {
+      ++cutCells;
+      return;
+    }
+    const uint32_t c = cells[k];
+    if (c == 0 && rootMissing) return;
+    if (mcs[k] < voxels[k]) {
+      emitCover(c, false, emit);
+      return;
+    }
+    ++cutCells;
+    drawnVoxels += voxels[k];
+    maxE = std::max(maxE, es[k]);
+    if (written < cap) out[written++] = {c, es[k]};
+    else truncated = true;
+  };
+  uint32_t i = begin;
+#if defined(__SSE2__) && !defined(IG_CELLS_NO_SIMD)
+  // Four cells at a time while no cover is among them (~93 % of the groups) and the root is
+  // resident: the live ones are written in order, four in two stores when all are live.
+  static_assert(sizeof(CellDraw) == 8 && offsetof(CellDraw, voxel_px) == 4);
+  if (!rootMissing) {
+    const __m128i zero = _mm_setzero_si128(), live1 = _mm_set1_epi32(kLive);
+    __m128i voxelSum = zero;  // two 64-bit sums
+    __m128 maxV = _mm_setzero_ps();
+    for (; i + 4 <= end && written + 4 <= cap; i += 4) {
+      int32_t f4;
+      std::memcpy(&f4, flags + i, 4);
+      const __m128i f = _mm_unpacklo_epi16(_mm_unpacklo_epi8(_mm_cvtsi32_si128(f4), zero), zero);
+      const __m128i live = _mm_cmpeq_epi32(_mm_and_si128(f, live1), live1);
+      const __m128i v = _mm_loadu_si128(reinterpret_cast<const __m128i*>(voxels + i));
+      const __m128i plain = _mm_cmpeq_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(mcs + i)), v);
+      const int lm = _mm_movemask_ps(_mm_castsi128_ps(live));
+      if (_mm_movemask_ps(_mm_castsi128_ps(_mm_andnot_si128(plain, live))) != 0) {
+        for (uint32_t k = i; k < i + 4; ++k) emitCut(k);  // a cover among them: one by one, in order
+        continue;
+      }
+      cutCells += 4;
+      const __m128 e = _mm_loadu_ps(es + i);
+      const __m128i kept = _mm_and_si128(v, live);
+      voxelSum = _mm_add_epi64(voxelSum, _mm_add_epi64(_mm_unpacklo_epi32(kept, zero), _mm_unpackhi_epi32(kept, zero)));
+      maxV = _mm_max_ps(maxV, _mm_and_ps(e, _mm_castsi128_ps(live)));
+      if (lm == 15) {
+        const __m128i c = _mm_loadu_si128(reinterpret_cast<const __m128i*>(cells + i));
+        _mm_storeu_si128(reinterpret_cast<__m128i*>(out + written), _mm_unpacklo_epi32(c, _mm_castps_si128(e)));
+        _mm_storeu_si128(reinterpret_cast<__m128i*>(out + written + 2), _mm_unpackhi_epi32(c, _mm_castps_si128(e)));
+        written += 4;
+      } else {
+        for (uint32_t k = 0; k < 4; ++k)
+          if ((lm >> k) & 1) out[written++] = {cells[i + k], es[i + k]};
+      }
+    }
+    uint64_t sums[2];
+    float maxes[4];
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(sums), voxelSum);
+    _mm_storeu_ps(maxes, maxV);
+    drawnVoxels += sums[0] + sums[1];
+    maxE = std::max(std::max(maxE, std::max(maxes[0], maxes[1])), std::max(maxes[2], maxes[3]));
+  }
+#endif
+  for (; i < end; ++i) emitCut(i);
+  part.written = written;
+  part.cutCells += cutCells;
+  part.drawnVoxels += drawnVoxels;
+  part.maxE = maxE;
+  part.truncated = truncated;
+}
+
 CellSelectStats CellSelector::select(const CellView& view, std::span<const Residency> residency,
                                      std::span<CellDraw> draw, std::span<uint32_t> requests) {
   CellSelectStats stats;
@@ -861,22 +1152,18 @@ CellSelectStats CellSelector::select(const CellView& view, std::span<const Resid
   unfetchable_ = 0;
   uint32_t ops = 0;
 
-  // 1. Evaluate the cut and the mergeable cells (one pass each over packed arrays).
-  evaluateSet(cut_);
-  evaluateSet(mergeable_);
+  // 1. Evaluate the cut and the mergeable cells (one pass each over packed arrays); collect the
+  // drawn cells that stopped being resident.
+  evicted_.clear();
+  runPass(Pass::Eval);
 
   // 2. Drawn cells that stopped being resident: fall back to the nearest drawable ancestor
   // (collected first: collapsing reorders the cut).
-  if (!residency_.empty()) {
-    evicted_.clear();
-    for (uint32_t i = 0; i < cut_.n; ++i)
-      if ((cut_.flags[i] & kLive) && !resident(cut_.cell[i]) && cut_.cell[i] != 0) evicted_.push_back(cut_.cell[i]);
-    for (uint32_t c : evicted_) {
-      if (node_[c].state != kCut) continue;  // gone with an earlier repair
-      uint32_t a = tree_.parent(c);
-      while (a != 0 && !drawable(a, ev(a))) a = tree_.parent(a);
-      collapse(a);
-    }
+  for (uint32_t c : evicted_) {
+    if (node_[c].state != kCut) continue;  // gone with an earlier repair
+    uint32_t a = tree_.parent(c);
+    while (a != 0 && !drawable(a, ev(a))) a = tree_.parent(a);
+    collapse(a);
   }
 
   // 3. Costs: mc of every cut cell, then of the mergeable cells (from their children). The
@@ -891,83 +1178,9 @@ CellSelectStats CellSelector::select(const CellView& view, std::span<const Resid
   mergeHeap_.clear();
   splitFloor_ = 0.95f * lastT_;
   mergeCeil_ = lastT_ / 0.95f;
-  scratch_.clear();
   std::fill_n(childSum_.begin(), mergeable_.n, uint64_t{0});
-  {
-    uint64_t total = 0;
-    const uint32_t n = cut_.n;
-    const uint8_t* flags = cut_.flags.data();
-    const uint32_t *voxels = cut_.voxels.data(), *up = cut_.up.data(), *cells = cut_.cell.data();
-    const float* es = cut_.e.data();
-    uint32_t* mcs = cut_.mc.data();
-    uint64_t* sums = childSum_.data();
-    const float alpha = alpha_, floor = splitFloor_;
-    // Cells without a mergeable parent add to a spare slot past the real ones (no branch).
-    const uint32_t spare = static_cast<uint32_t>(childSum_.size() - 1);
-    // A cell that is refinable (live, with children, e > alpha) is a split candidate of the
-    // window (bit 0: e >= floor) and, when cut by the frustum boundary, needs its cheapest cover
-    // unless its certificate holds (bit 1). Few cells are either: the masks come four at a time.
-    auto visit = [&](uint32_t i, uint32_t want) {
-      if (want & 1) splitHeap_.push_back({es[i], cells[i]});
-      if ((want & 2) && (cut_.cert[i] == 0 || !certificateHolds(cut_, i))) scratch_.push_back(i);
-    };
-    uint32_t i = 0;
-#if defined(__SSE2__) && !defined(IG_CELLS_NO_SIMD)
-    {
-      const __m128i zero = _mm_setzero_si128(), live1 = _mm_set1_epi32(kLive), kids = _mm_set1_epi32(kHasChildren),
-                    inside = _mm_set1_epi32(kInside);
-      const __m128 va = _mm_set1_ps(alpha), vf = _mm_set1_ps(floor);
-      __m128i acc = zero;  // two 64-bit sums
-      for (; i + 4 <= n; i += 4) {
-        int32_t f4;
-        std::memcpy(&f4, flags + i, 4);
-        const __m128i f = _mm_unpacklo_epi16(_mm_unpacklo_epi8(_mm_cvtsi32_si128(f4), zero), zero);
-        const __m128i live = _mm_cmpeq_epi32(_mm_and_si128(f, live1), live1);
-        const __m128i mc = _mm_and_si128(_mm_loadu_si128(reinterpret_cast<const __m128i*>(voxels + i)), live);
-        _mm_storeu_si128(reinterpret_cast<__m128i*>(mcs + i), mc);
-        acc = _mm_add_epi64(acc, _mm_add_epi64(_mm_unpacklo_epi32(mc, zero), _mm_unpackhi_epi32(mc, zero)));
-        for (uint32_t k = 0; k < 4; ++k) sums[std::min(up[i + k], spare)] += mcs[i + k];
-        const __m128 e = _mm_loadu_ps(es + i);
-        const __m128i refinable = _mm_and_si128(_mm_and_si128(live, _mm_cmpeq_epi32(_mm_and_si128(f, kids), kids)),
-                                                _mm_castps_si128(_mm_cmpgt_ps(e, va)));
-        const int cand = _mm_movemask_ps(_mm_castsi128_ps(_mm_and_si128(refinable, _mm_castps_si128(_mm_cmpge_ps(e, vf)))));
-        const int strad = _mm_movemask_ps(
-            _mm_castsi128_ps(_mm_andnot_si128(_mm_cmpeq_epi32(_mm_and_si128(f, inside), inside), refinable)));
-        if ((cand | strad) == 0) continue;
-        for (uint32_t k = 0; k < 4; ++k)
-          visit(i + k, static_cast<uint32_t>(((cand >> k) & 1) | (((strad >> k) & 1) << 1)));
-      }
-      uint64_t lanes[2];
-      _mm_storeu_si128(reinterpret_cast<__m128i*>(lanes), acc);
-      total = lanes[0] + lanes[1];
-    }
-#endif
-    for (; i < n; ++i) {
-      const uint8_t f = flags[i];
-      const uint32_t mc = (f & kLive) ? voxels[i] : 0;
-      mcs[i] = mc;
-      total += mc;
-      sums[std::min(up[i], spare)] += mc;
-      if ((f & (kLive | kHasChildren)) != (kLive | kHasChildren) || !(es[i] > alpha)) continue;
-      visit(i, (es[i] >= floor ? 1u : 0u) | (f & kInside ? 0u : 2u));
-    }
-    cost_ = total;
-  }
-  // The covers, each cell's node and then its children's fetched a few cells ahead (the tree walk
-  // waits on memory).
-  constexpr size_t kAhead = 6;
-  for (size_t k = 0; k < std::min(2 * kAhead, scratch_.size()); ++k) __builtin_prefetch(&node_[cut_.cell[scratch_[k]]]);
-  for (size_t k = 0; k < std::min(kAhead, scratch_.size()); ++k) prefetchChildren(cut_.cell[scratch_[k]]);
-  for (size_t k = 0; k < scratch_.size(); ++k) {
-    if (k + 2 * kAhead < scratch_.size()) __builtin_prefetch(&node_[cut_.cell[scratch_[k + 2 * kAhead]]]);
-    if (k + kAhead < scratch_.size()) prefetchChildren(cut_.cell[scratch_[k + kAhead]]);
-    const uint32_t i = scratch_[k];
-    const uint64_t mc = coverCost(cut_.cell[i], {cut_.e[i], cut_.flags[i]});
-    cut_.cert[i] = mc == cut_.voxels[i] ? makeCertificate(cut_.cell[i]) : 0;
-    cost_ -= cut_.voxels[i] - mc;
-    if (cut_.up[i] != kNoCell) childSum_[cut_.up[i]] -= cut_.voxels[i] - mc;
-    cut_.mc[i] = static_cast<uint32_t>(mc);
-  }
+  runPass(Pass::Cost);
+  cost_ = parts_[0].cost;
   // 4. One pass over the mergeable cells: their cost, the merge candidates of the heap window,
   // and those that became invisible or sub-pixel (merged: minimum quality).
   scratch_.clear();
@@ -977,7 +1190,8 @@ CellSelectStats CellSelector::select(const CellView& view, std::span<const Resid
     uint64_t mc = 0;
     if (f & kLive) {
       mc = mergeable_.voxels[i];
-      if (!(f & kInside) && (f & kHasChildren) && e > alpha_) mc = std::min(mc, childSum_[i]);
+      if (!(f & kInside) && (f & kHasChildren) && e > alpha_)
+        mc = std::min(mc, config_.runner != nullptr ? childSum_[i] + parts_[1].childSum[i] : childSum_[i]);
     }
     mergeable_.mc[i] = static_cast<uint32_t>(mc);
     if (e <= mergeCeil_) mergeHeap_.push_back({e, mergeable_.cell[i]});
@@ -1087,96 +1301,18 @@ CellSelectStats CellSelector::select(const CellView& view, std::span<const Resid
 
   // 7. Emit the realization's drawn cells.
   if (stats.feasible) {
-    uint32_t written = 0, cutCells = 0;
-    uint64_t drawnVoxels = 0;
-    float maxE = 0.0f;
-    bool truncated = false;
     // Every live cut cell but the root is resident here (step 2 repaired evictions, and splits
     // and merges only make drawable cells cut cells): the root may not have arrived yet.
-    const bool rootMissing = !resident(0);
-    auto emit = [&](uint32_t cell, Ev x) {
-      ++cutCells;
-      if (!(x.flags & kLive)) return;
-      drawnVoxels += node_[cell].voxels;
-      maxE = std::max(maxE, x.e);
-      if (written < draw.size()) draw[written++] = {cell, x.e};
-      else truncated = true;
-    };
-    const uint32_t n = cut_.n;
-    const uint8_t* flags = cut_.flags.data();
-    const uint32_t *cells = cut_.cell.data(), *voxels = cut_.voxels.data(), *mcs = cut_.mc.data();
-    const float* es = cut_.e.data();
-    CellDraw* out = draw.data();
-    const uint32_t cap = static_cast<uint32_t>(std::min<size_t>(draw.size(), 0xFFFFFFFFu));
-    // One cut cell: not live (counted, not drawn), the root not arrived yet (neither), drawn as
-    // its cheaper cover, or drawn itself.
-    auto emitCut = [&](uint32_t k) {
-      if (!(flags[k] & kLive)) {
-        ++cutCells;
-        return;
-      }
-      const uint32_t c = cells[k];
-      if (c == 0 && rootMissing) return;
-      if (mcs[k] < voxels[k]) {
-        emitCover(c, false, emit);
-        return;
-      }
-      ++cutCells;
-      drawnVoxels += voxels[k];
-      maxE = std::max(maxE, es[k]);
-      if (written < cap) out[written++] = {c, es[k]};
-      else truncated = true;
-    };
-    uint32_t i = 0;
-#if defined(__SSE2__) && !defined(IG_CELLS_NO_SIMD)
-    // Four cells at a time while no cover is among them (~93 % of the groups) and the root is
-    // resident: the live ones are written in order, four in two stores when all are live.
-    static_assert(sizeof(CellDraw) == 8 && offsetof(CellDraw, voxel_px) == 4);
-    if (!rootMissing) {
-      const __m128i zero = _mm_setzero_si128(), live1 = _mm_set1_epi32(kLive);
-      __m128i voxelSum = zero;  // two 64-bit sums
-      __m128 maxV = _mm_setzero_ps();
-      for (; i + 4 <= n && written + 4 <= cap; i += 4) {
-        int32_t f4;
-        std::memcpy(&f4, flags + i, 4);
-        const __m128i f = _mm_unpacklo_epi16(_mm_unpacklo_epi8(_mm_cvtsi32_si128(f4), zero), zero);
-        const __m128i live = _mm_cmpeq_epi32(_mm_and_si128(f, live1), live1);
-        const __m128i v = _mm_loadu_si128(reinterpret_cast<const __m128i*>(voxels + i));
-        const __m128i plain = _mm_cmpeq_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(mcs + i)), v);
-        const int lm = _mm_movemask_ps(_mm_castsi128_ps(live));
-        if (_mm_movemask_ps(_mm_castsi128_ps(_mm_andnot_si128(plain, live))) != 0) {
-          for (uint32_t k = i; k < i + 4; ++k) emitCut(k);  // a cover among them: one by one, in order
-          continue;
-        }
-        cutCells += 4;
-        const __m128 e = _mm_loadu_ps(es + i);
-        const __m128i kept = _mm_and_si128(v, live);
-        voxelSum = _mm_add_epi64(voxelSum, _mm_add_epi64(_mm_unpacklo_epi32(kept, zero), _mm_unpackhi_epi32(kept, zero)));
-        maxV = _mm_max_ps(maxV, _mm_and_ps(e, _mm_castsi128_ps(live)));
-        if (lm == 15) {
-          const __m128i c = _mm_loadu_si128(reinterpret_cast<const __m128i*>(cells + i));
-          _mm_storeu_si128(reinterpret_cast<__m128i*>(out + written), _mm_unpacklo_epi32(c, _mm_castps_si128(e)));
-          _mm_storeu_si128(reinterpret_cast<__m128i*>(out + written + 2), _mm_unpackhi_epi32(c, _mm_castps_si128(e)));
-          written += 4;
-        } else {
-          for (uint32_t k = 0; k < 4; ++k)
-            if ((lm >> k) & 1) out[written++] = {cells[i + k], es[i + k]};
-        }
-      }
-      uint64_t sums[2];
-      float maxes[4];
-      _mm_storeu_si128(reinterpret_cast<__m128i*>(sums), voxelSum);
-      _mm_storeu_ps(maxes, maxV);
-      drawnVoxels += sums[0] + sums[1];
-      maxE = std::max(std::max(maxE, std::max(maxes[0], maxes[1])), std::max(maxes[2], maxes[3]));
-    }
-#endif
-    for (; i < n; ++i) emitCut(i);
-    stats.drawnCells = written;
-    stats.cutCells = cutCells;
-    stats.drawnVoxels = drawnVoxels;
-    stats.maxVoxel_px = maxE;
-    stats.drawTruncated = truncated;
+    rootMissing_ = !resident(0);
+    Part& p0 = parts_[0];
+    p0.out = draw.data();
+    p0.cap = static_cast<uint32_t>(std::min<size_t>(draw.size(), 0xFFFFFFFFu));
+    runPass(Pass::Draw);
+    stats.drawnCells = p0.written;
+    stats.cutCells = p0.cutCells;
+    stats.drawnVoxels = p0.drawnVoxels;
+    stats.maxVoxel_px = p0.maxE;
+    stats.drawTruncated = p0.truncated;
   }
   return stats;
 }

@@ -68,6 +68,16 @@
 // than W can never be requested (counted in `unfetchable`). Ancestors of drawn cells should stay
 // resident (a merge into a missing ancestor is skipped).
 //
+// Two threads. With CellSelectorConfig::runner (ig/worker_pair.h) the per-frame passes over the
+// packed arrays (re-evaluation and the eviction scan; costs, split candidates and cheapest covers;
+// the draw list) are split into chunks of the cut that the caller's thread takes from the front
+// and a helper from the back; the refinement itself stays on the caller. A chunk touches only its
+// own cut cells and the cells below them (a cover walks only below its cut cell), worker 1 sums
+// the mergeable cells' children into its own array, and every list a pass makes (evictions, split
+// candidates, unknown covers, the draw list) is put back in chunk order, so the choices, the draw
+// list and the requests are the same, bit for bit, as on one thread (tested with a runner that
+// interleaves the two workers' chunks in every way the contract allows, and on real threads).
+//
 // Memory: everything is sized at construction from the tree: about 110 bytes per cell (a packed
 // copy of the tree's fields the selection reads, 40; the packed cut and mergeable arrays, 45;
 // the mergeable cells' child sums, 8 per inner cell; stamps and lists) plus queue capacity of 32
@@ -107,8 +117,27 @@ struct CellDraw {
   float voxel_px = 0.0f;  // e(cell) this frame
 };
 
+// Runs a pass of the selection split into chunks on two threads (ig/worker_pair.h has the
+// implementation; lod/ itself starts no thread). The contract: forEach(n, fn, ctx) calls
+// fn(ctx, chunk, worker) exactly once for every chunk in [0, n) and returns when every call has
+// returned; worker 0 is the calling thread and takes chunks from the front in increasing order,
+// worker 1 takes them from the back in decreasing order (it may take none); calls with the same
+// worker never overlap. The selection puts each pass's outputs back in chunk order, so its
+// choices, draw list and requests are the same, bit for bit, as on one thread.
+class ChunkRunner {
+ public:
+  using ChunkFn = void (*)(void* ctx, uint32_t chunk, uint32_t worker);
+  virtual ~ChunkRunner() = default;
+  virtual void forEach(uint32_t chunks, ChunkFn fn, void* ctx) = 0;
+};
+
 struct CellSelectorConfig {
   uint32_t maxOperations = 1u << 30;  // splits + merges per frame; the cut stays valid when it stops
+  // The per-frame passes over the cut (re-evaluation and eviction scan; costs and cheapest
+  // covers; the draw list) run on this runner when set (it must outlive the selector), in
+  // chunks of `chunkCells` cut cells (rounded up to a multiple of 8). Null: all on the caller.
+  ChunkRunner* runner = nullptr;
+  uint32_t chunkCells = 1024;
 };
 
 struct CellSelectStats {
@@ -201,9 +230,13 @@ class CellSelector {
   Ev ev(uint32_t c);             // e and flags of any cell this frame (evaluated on demand)
   Ev evConst(uint32_t c) const;  // of a cell already evaluated this frame
   bool costed(uint32_t c) const { return node_[c].stamp == frame_ && (node_[c].flags & 8); }
-  uint64_t cost(uint32_t c);     // mc(c) this frame
+  // mc(c) this frame; cells whose cheapest cover is unknown (children not resident) go to `unknown`.
+  uint64_t cost(uint32_t c, std::vector<uint32_t>& unknown);
+  uint64_t cost(uint32_t c) { return cost(c, unknownCover_); }
   uint64_t costConst(uint32_t c) const;
-  uint64_t coverCost(uint32_t c, Ev evc);  // mc(c) from its children (c live, not wholly inside, refinable)
+  // mc(c) from its children (c live, not wholly inside, refinable)
+  uint64_t coverCost(uint32_t c, Ev evc, std::vector<uint32_t>& unknown);
+  uint64_t coverCost(uint32_t c, Ev evc) { return coverCost(c, evc, unknownCover_); }
   uint64_t makeCertificate(uint32_t c);
   bool certificateHolds(const CellSet& set, uint32_t i) const;
   bool refinable(uint32_t c, Ev x) const;
@@ -225,6 +258,48 @@ class CellSelector {
   bool mergeFront(float limit, HeapEntry& front);  // the lowest-priority mergeable cell if its e <= limit
   template <typename Emit>
   void emitCover(uint32_t c, bool liveOnly, Emit&& emit) const;
+
+  // The per-frame passes over the packed arrays, chunk by chunk, on worker 0 (the caller) or 1.
+  // Worker 0 writes to the selector's own outputs (its chunks are a prefix, in order); worker 1
+  // to its Part, with a mark per chunk, put back in chunk order after the pass.
+  enum class Pass : uint8_t { Eval, Cost, Draw };
+  struct Part {
+    struct Mark {
+      uint32_t chunk, evicted, splits, unknown, draw;
+    };
+    std::vector<Mark> marks;
+    std::vector<uint32_t> evicted, unknown, covers;
+    std::vector<HeapEntry> splits;
+    std::vector<uint64_t> childSum;  // worker 1's; worker 0 adds to childSum_
+    uint64_t cost = 0;
+    CellDraw* out = nullptr;
+    uint32_t cap = 0, written = 0, cutCells = 0;
+    uint64_t drawnVoxels = 0;
+    float maxE = 0.0f;
+    bool truncated = false;
+    void begin() {
+      marks.clear();
+      evicted.clear();
+      unknown.clear();
+      splits.clear();
+      cost = 0;
+      written = cutCells = 0;
+      drawnVoxels = 0;
+      maxE = 0.0f;
+      truncated = false;
+    }
+  };
+  void runPass(Pass pass);
+  static void passChunk(void* self, uint32_t chunk, uint32_t worker);
+  void evalChunk(uint32_t chunk, Part& part, bool mine);
+  void costChunk(uint32_t begin, uint32_t end, Part& part, bool mine);
+  void drawChunk(uint32_t begin, uint32_t end, Part& part);
+  uint32_t chunkCells_ = 0;   // 0: one chunk per pass (no runner)
+  uint32_t cutChunks_ = 0;    // this pass: chunks of the cut (Eval: then those of the mergeable cells)
+  Pass pass_ = Pass::Eval;
+  Part parts_[2];
+  std::vector<CellDraw> drawBuf_;  // worker 1's draw list (capacity: the cut's)
+  bool rootMissing_ = false;
 
   const CellTree& tree_;
   CellSelectorConfig config_;

@@ -2,6 +2,13 @@
 ig_add_test(cells_tree_test cells_tree_test.cpp LIBS ig_lod)
 ig_add_test(cells_voxel_test cells_voxel_test.cpp LIBS ig_lod)
 ig_add_test(cells_select_test cells_select_test.cpp LIBS ig_lod)
+# The selection's passes on two real threads (ig/worker_pair.h): the chunk contract, same choices.
+ig_add_test(worker_pair_test worker_pair_test.cpp LIBS ig_core)
+# The same under ThreadSanitizer (its own build; Release configuration only, like the benchmarks).
+if(NOT IG_SANITIZE)
+  add_test(NAME worker_pair_tsan_test COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/worker_pair_tsan_test.sh ${PROJECT_SOURCE_DIR})
+  set_tests_properties(worker_pair_tsan_test PROPERTIES TIMEOUT 300)
+endif()
 # The packed cell database (lod/cells_db): round trip, corruption, zlib crc.
 ig_add_test(cells_db_test cells_db_test.cpp LIBS ig_lod ZLIB::ZLIB)
 # The splat pass (render/cells_pass) on a headless context: no holes, coverage per level, arena.

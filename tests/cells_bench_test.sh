@@ -25,8 +25,14 @@ assert d["repeats"] >= 2, d["repeats"]
 assert d["replays_differ_frames"] == 0, d["replays_differ_frames"]
 assert d["select_ms_p99"] <= d["select_ms_p99_first_replay"] + 1e-9, d
 assert 1.8 < d["dimension"][-1] < 2.2, d["dimension"]  # sphere surfaces: about 2
+# Two select threads by default, every replay also run on one: both choose exactly the same
+# (stats, draw list in order, requests), and both timings are reported.
+assert d["select_threads"] == 2, d["select_threads"]
+assert d["threads_differ_frames"] == 0, d["threads_differ_frames"]
+assert d["select_ms_p50_one_thread"] > 0 and d["select_ms_p99_one_thread"] > 0, d
 for s in d["select_sweep"]:
     assert s["voxels_drawn_p50"] <= s["voxel_budget"], s
+    assert s["select_ms_one_thread"] > 0, s
 # The bunny: a surface, so about 2 at the fine levels.
 assert 1.9 < d["mesh"]["dimension"][-1] < 2.1, d["mesh"]["dimension"]
 sw = d["sweep"]

@@ -776,4 +776,166 @@ TEST(CellSelect, SelectDoesNotAllocate) {
   EXPECT_EQ(allocs, 0);
 }
 
+// A ChunkRunner on one thread that keeps the contract (worker 0 takes chunks from the front in
+// order, worker 1 from the back) but interleaves the two workers' calls in a chosen way, so that
+// anything in the selection that depended on the order of calls, or on which worker ran a chunk,
+// would show. mode 0: alternate; 1: worker 0 takes all; 2: worker 1 takes all; 3: random split,
+// random interleaving.
+class InterleavedRunner final : public ChunkRunner {
+ public:
+  explicit InterleavedRunner(int mode, uint32_t seed = 1) : mode_(mode), rng_(seed) {}
+  void forEach(uint32_t chunks, ChunkFn fn, void* ctx) override {
+    uint32_t front = 0, back = chunks;
+    const uint32_t split = mode_ == 1 ? chunks : mode_ == 2 ? 0 : mode_ == 0 ? (chunks + 1) / 2 : static_cast<uint32_t>(rng_() % (chunks + 1));
+    bool turn = false;
+    while (front < split || back > split) {
+      const bool one = mode_ == 3 ? (rng_() & 1) != 0 : turn;
+      turn = !turn;
+      if ((one && back > split) || front >= split) {
+        fn(ctx, --back, 1);
+        ++workerOne;
+      } else {
+        fn(ctx, front++, 0);
+      }
+    }
+    ++passes;
+  }
+  uint64_t passes = 0, workerOne = 0;
+
+ private:
+  int mode_;
+  std::mt19937 rng_;
+};
+
+// Everything a frame produced, exactly: stats, the draw list in order (bits of voxel_px too) and
+// the requests in order.
+void expectSameFrame(const Frame& a, const Frame& b, const std::string& what) {
+  ASSERT_EQ(a.stats.valid, b.stats.valid) << what;
+  ASSERT_EQ(a.stats.feasible, b.stats.feasible) << what;
+  EXPECT_EQ(a.stats.drawTruncated, b.stats.drawTruncated) << what;
+  EXPECT_EQ(a.stats.capped, b.stats.capped) << what;
+  EXPECT_EQ(a.stats.cutCells, b.stats.cutCells) << what;
+  EXPECT_EQ(a.stats.drawnVoxels, b.stats.drawnVoxels) << what;
+  EXPECT_EQ(a.stats.reservedVoxels, b.stats.reservedVoxels) << what;
+  EXPECT_EQ(a.stats.maxVoxel_px, b.stats.maxVoxel_px) << what;
+  EXPECT_EQ(a.stats.requestedBytes, b.stats.requestedBytes) << what;
+  EXPECT_EQ(a.stats.blockedSplits, b.stats.blockedSplits) << what;
+  EXPECT_EQ(a.stats.unfetchable, b.stats.unfetchable) << what;
+  EXPECT_EQ(a.stats.splits, b.stats.splits) << what;
+  EXPECT_EQ(a.stats.merges, b.stats.merges) << what;
+  ASSERT_EQ(a.draw.size(), b.draw.size()) << what;
+  for (size_t i = 0; i < a.draw.size(); ++i) {
+    ASSERT_EQ(a.draw[i].cell, b.draw[i].cell) << what << " draw " << i;
+    ASSERT_EQ(std::bit_cast<uint32_t>(a.draw[i].voxel_px), std::bit_cast<uint32_t>(b.draw[i].voxel_px)) << what;
+  }
+  ASSERT_EQ(a.requests, b.requests) << what;
+}
+
+TEST(CellSelect, ChunkedPassesChooseExactlyAsOnePass) {
+  // Streaming along a path with a teleport, evictions and an operation cap, then everything
+  // resident; small chunks, so that every pass has many; each runner mode against one pass.
+  std::mt19937 rng(71);
+  TreeSpec spec;
+  spec.levels = 7;
+  spec.maxChildren = 5;
+  spec.leafEarly = 0.05;
+  spec.rootEdge_m = 64.0;
+  const CellTree t = randomTree(rng, spec);
+  ASSERT_GT(t.size(), 500u);
+  for (int mode = 0; mode < 4; ++mode) {
+    for (uint32_t cap : {1u << 30, 7u}) {
+      InterleavedRunner runner(mode, 5u + static_cast<uint32_t>(mode));
+      CellSelectorConfig one, chunked;
+      one.maxOperations = chunked.maxOperations = cap;
+      chunked.runner = &runner;
+      chunked.chunkCells = 8;
+      CellSelector a(t, one), b(t, chunked);
+      Streamer s(t.size());
+      CellView v;
+      v.camera.far_m = 10000.0;
+      v.voxelBudget = 3000;
+      v.byteBudget = 2000;
+      v.minVoxel_px = 1.0;
+      for (int frame = 0; frame < 260; ++frame) {
+        const std::string what = "mode " + std::to_string(mode) + " cap " + std::to_string(cap) + " frame " +
+                                 std::to_string(frame);
+        const double r = frame * 0.02;
+        v.camera.eye_m = frame == 120 ? glm::dvec3(60.0, 60.0, 70.0)  // teleport
+                                      : glm::dvec3(32.0 + 50.0 * std::cos(r), 32.0 + 50.0 * std::sin(r), 40.0);
+        v.camera.heading_deg = 270.0 - r * 57.29578;
+        v.camera.pitch_deg = -20.0;
+        s.deliver(frame);
+        if (frame % 17 == 5) {
+          for (uint32_t c = 1; c < t.size(); c += 3)
+            if (s.res[c] == Residency::Resident) s.res[c] = Residency::Absent;
+        }
+        const bool resident = frame >= 200;  // the last frames: everything resident (no residency table)
+        const std::span<const Residency> res = resident ? std::span<const Residency>() : s.res;
+        const Frame fa = runSelect(a, t, v, res), fb = runSelect(b, t, v, res);
+        expectSameFrame(fa, fb, what);
+        if (::testing::Test::HasFatalFailure()) return;
+        if (!resident) s.request(fa.requests, frame);
+        // A draw span too small: the same first entries, truncated alike.
+        if (frame % 50 == 7 && cap > 100 && fa.draw.size() > 4) {
+          std::vector<CellDraw> da(fa.draw.size() / 2), db(da.size());
+          std::vector<uint32_t> ra(t.size()), rb(t.size());
+          CellSelectorConfig one2 = one, chunked2 = chunked;  // from the root: no cap
+          one2.maxOperations = chunked2.maxOperations = CellSelectorConfig{}.maxOperations;
+          CellSelector a2(t, one2), b2(t, chunked2);
+          const CellSelectStats sa = a2.select(v, {}, da, ra), sb = b2.select(v, {}, db, rb);
+          EXPECT_TRUE(sa.drawTruncated) << what;
+          EXPECT_EQ(sb.drawTruncated, sa.drawTruncated) << what;
+          EXPECT_EQ(sb.drawnCells, sa.drawnCells) << what;
+          for (size_t i = 0; i < da.size(); ++i) ASSERT_EQ(db[i].cell, da[i].cell) << what;
+        }
+      }
+      EXPECT_GT(runner.passes, 500u);
+      if (mode != 1) {
+        EXPECT_GT(runner.workerOne, 0u);
+      } else {
+        EXPECT_EQ(runner.workerOne, 0u);
+      }
+    }
+  }
+}
+
+TEST(CellSelect, SelectWithChunkedPassesDoesNotAllocate) {
+  std::mt19937 rng(61);
+  TreeSpec spec;
+  spec.levels = 7;
+  spec.maxChildren = 6;
+  spec.rootEdge_m = 64.0;
+  const CellTree t = randomTree(rng, spec);
+  InterleavedRunner runner(3, 9);
+  CellSelectorConfig cfg;
+  cfg.runner = &runner;
+  cfg.chunkCells = 8;
+  CellSelector sel(t, cfg);
+  Streamer s(t.size());
+  std::vector<CellDraw> draw(sel.drawBound());
+  std::vector<uint32_t> req(t.size());
+  CellView v;
+  v.voxelBudget = 5000;
+  v.byteBudget = 3000;
+  long allocs = 0;
+  for (int frame = 0; frame < 100; ++frame) {
+    v.camera.eye_m = {32.0 + 40.0 * std::cos(frame * 0.05), -30.0 + frame * 0.5, 40.0};
+    v.camera.pitch_deg = -25.0;
+    s.deliver(frame);
+    if (frame % 13 == 4) {
+      for (uint32_t c = 1; c < t.size(); c += 4)
+        if (s.res[c] == Residency::Resident) s.res[c] = Residency::Absent;
+    }
+    gAllocs = 0;
+    gCountAllocs = true;
+    const CellSelectStats st = sel.select(v, s.res, draw, req);
+    gCountAllocs = false;
+    allocs += gAllocs.load();
+    EXPECT_TRUE(st.valid);
+    s.request(std::span<const uint32_t>(req.data(), st.requestedCells), frame);
+  }
+  EXPECT_EQ(allocs, 0);
+  EXPECT_GT(runner.workerOne, 0u);
+}
+
 }  // namespace

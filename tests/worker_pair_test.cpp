@@ -1,0 +1,161 @@
+// ig::WorkerPair (ig/worker_pair.h): the chunk contract of lod::ChunkRunner on two real threads,
+// and the cells selection run on it choosing exactly as on one thread.
+#include "ig/worker_pair.h"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <bit>
+#include <chrono>
+#include <cmath>
+#include <random>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "lod/cells.h"
+#include "lod/cells_select.h"
+
+namespace {
+
+using namespace ig;
+
+struct Record {
+  std::vector<std::atomic<int>> runs;
+  std::vector<uint32_t> order[2];  // chunks in the order each worker ran them
+  int sleepUs = 0;
+  explicit Record(size_t n) : runs(n) {}
+};
+
+void recordChunk(void* ctx, uint32_t chunk, uint32_t worker) {
+  Record& r = *static_cast<Record*>(ctx);
+  r.runs[chunk].fetch_add(1, std::memory_order_relaxed);
+  r.order[worker].push_back(chunk);
+  if (r.sleepUs > 0) std::this_thread::sleep_for(std::chrono::microseconds(r.sleepUs));
+}
+
+TEST(WorkerPair, EveryChunkOnceCallerFromTheFrontHelperFromTheBack) {
+  WorkerPair pair;
+  std::mt19937 rng(3);
+  for (int pass = 0; pass < 3000; ++pass) {
+    const uint32_t n = pass < 300 ? static_cast<uint32_t>(pass % 40) : static_cast<uint32_t>(rng() % 200);
+    Record r(n);
+    pair.forEach(n, &recordChunk, &r);
+    for (uint32_t c = 0; c < n; ++c) ASSERT_EQ(r.runs[c].load(), 1) << "pass " << pass << " chunk " << c;
+    // Worker 0: 0, 1, ..., k-1; worker 1: n-1, n-2, ..., k.
+    for (size_t i = 0; i < r.order[0].size(); ++i) ASSERT_EQ(r.order[0][i], i) << "pass " << pass;
+    for (size_t i = 0; i < r.order[1].size(); ++i) ASSERT_EQ(r.order[1][i], n - 1 - i) << "pass " << pass;
+    ASSERT_EQ(r.order[0].size() + r.order[1].size(), n);
+  }
+}
+
+TEST(WorkerPair, TheHelperTakesChunksOfLongPassesAndSleepsBetween) {
+  WorkerPair pair(50);
+  uint64_t helper = 0;
+  for (int pass = 0; pass < 10; ++pass) {
+    Record r(8);
+    r.sleepUs = 2000;
+    pair.forEach(8, &recordChunk, &r);
+    helper += r.order[1].size();
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));  // longer than the spin: the helper sleeps
+  }
+  EXPECT_GT(helper, 0u);
+  EXPECT_EQ(pair.helperChunks(), helper);
+}
+
+// A random cell tree (parents before children, a parent's voxels between a sixth of its
+// children's sum and that sum).
+lod::CellTree randomTree(std::mt19937& rng, int levels) {
+  std::vector<lod::CellDesc> cells = {{lod::kNoCell, 0, 0, 0}};
+  std::vector<int> level = {0};
+  for (size_t i = 0; i < cells.size(); ++i) {
+    if (level[i] + 1 >= levels || (i > 0 && rng() % 20 == 0)) continue;
+    uint32_t mask = 0;
+    const int k = 2 + static_cast<int>(rng() % 5);
+    while (std::popcount(mask) < k) mask |= 1u << (rng() % 8);
+    for (uint8_t o = 0; o < 8; ++o) {
+      if (!(mask & (1u << o))) continue;
+      cells.push_back({static_cast<uint32_t>(i), o, 0, 0});
+      level.push_back(level[i] + 1);
+    }
+  }
+  std::vector<uint64_t> childSum(cells.size(), 0);
+  std::vector<bool> hasChild(cells.size(), false);
+  for (size_t i = cells.size(); i-- > 0;) {
+    if (!hasChild[i]) cells[i].voxels = rng() % 10 == 0 ? 0 : 1 + static_cast<uint32_t>(rng() % 60);
+    else if (childSum[i] == 0) cells[i].voxels = 0;
+    else {
+      const uint64_t lo = std::max<uint64_t>(1, childSum[i] / 6);
+      cells[i].voxels = static_cast<uint32_t>(lo + rng() % (childSum[i] - lo + 1));
+    }
+    cells[i].bytes = 16 + 3 * cells[i].voxels;
+    if (i > 0) {
+      childSum[cells[i].parent] += cells[i].voxels;
+      hasChild[cells[i].parent] = true;
+    }
+  }
+  lod::CellTree t;
+  lod::CellTreeInfo info;
+  info.rootEdge_m = 256.0;
+  info.cellVoxelDepth = 2;
+  std::string err;
+  EXPECT_TRUE(t.build(info, cells, err)) << err;
+  return t;
+}
+
+TEST(WorkerPair, CellSelectionOnTwoThreadsChoosesExactlyAsOnOne) {
+  std::mt19937 rng(11);
+  const lod::CellTree t = randomTree(rng, 8);
+  ASSERT_GT(t.size(), 8000u);
+  WorkerPair pair;
+  lod::CellSelectorConfig two;
+  two.runner = &pair;
+  two.chunkCells = 64;
+  two.maxOperations = 400;
+  lod::CellSelectorConfig one;
+  one.maxOperations = 400;
+  lod::CellSelector a(t, one), b(t, two);
+  std::vector<lod::Residency> res(t.size(), lod::Residency::Absent);
+  std::vector<int> arrival(t.size(), 0);
+  std::vector<lod::CellDraw> da(t.size()), db(t.size());
+  std::vector<uint32_t> ra(t.size()), rb(t.size());
+  lod::CellView v;
+  v.camera.far_m = 1e5;
+  v.voxelBudget = 60000;
+  v.byteBudget = 20000;
+  for (int frame = 0; frame < 240; ++frame) {
+    const double r = frame * 0.015;
+    v.camera.eye_m = frame == 150 ? glm::dvec3(200.0, 40.0, 90.0)
+                                  : glm::dvec3(128.0 + 180.0 * std::cos(r), 128.0 + 180.0 * std::sin(r), 120.0);
+    v.camera.heading_deg = 270.0 - r * 57.29578;
+    v.camera.pitch_deg = -25.0;
+    for (uint32_t c = 0; c < t.size(); ++c)
+      if (res[c] == lod::Residency::InFlight && arrival[c] <= frame) res[c] = lod::Residency::Resident;
+    if (frame % 29 == 11)
+      for (uint32_t c = 1; c < t.size(); c += 3)
+        if (res[c] == lod::Residency::Resident) res[c] = lod::Residency::Absent;
+    const lod::CellSelectStats sa = a.select(v, res, da, ra), sb = b.select(v, res, db, rb);
+    const std::string what = "frame " + std::to_string(frame);
+    ASSERT_EQ(sa.drawnCells, sb.drawnCells) << what;
+    ASSERT_EQ(sa.requestedCells, sb.requestedCells) << what;
+    EXPECT_EQ(sa.drawnVoxels, sb.drawnVoxels) << what;
+    EXPECT_EQ(sa.cutCells, sb.cutCells) << what;
+    EXPECT_EQ(sa.splits, sb.splits) << what;
+    EXPECT_EQ(sa.merges, sb.merges) << what;
+    EXPECT_EQ(sa.blockedSplits, sb.blockedSplits) << what;
+    EXPECT_EQ(sa.reservedVoxels, sb.reservedVoxels) << what;
+    EXPECT_EQ(std::bit_cast<uint32_t>(sa.maxVoxel_px), std::bit_cast<uint32_t>(sb.maxVoxel_px)) << what;
+    for (uint32_t k = 0; k < sa.drawnCells; ++k) {
+      ASSERT_EQ(da[k].cell, db[k].cell) << what << " draw " << k;
+      ASSERT_EQ(std::bit_cast<uint32_t>(da[k].voxel_px), std::bit_cast<uint32_t>(db[k].voxel_px)) << what;
+    }
+    for (uint32_t k = 0; k < sa.requestedCells; ++k) {
+      ASSERT_EQ(ra[k], rb[k]) << what << " request " << k;
+      res[ra[k]] = lod::Residency::InFlight;
+      arrival[ra[k]] = frame + 2;
+    }
+  }
+  EXPECT_GT(pair.helperChunks(), 0u);
+}
+
+}  // namespace
