@@ -72,7 +72,12 @@ std::unique_ptr<CellsLayer> CellsLayer::create(const CellsLayerConfig& config, s
     error = "[cells] source: " + config.source + ": " + why;
     return nullptr;
   }
-  layer->selector_ = std::make_unique<lod::CellSelector>(layer->tree_);
+  lod::CellSelectorConfig selectorConfig;
+  if (config.selectThreads >= 2) {
+    layer->workers_ = std::make_unique<WorkerPair>();
+    selectorConfig.runner = layer->workers_.get();
+  }
+  layer->selector_ = std::make_unique<lod::CellSelector>(layer->tree_, selectorConfig);
   layer->draws_.resize(layer->selector_->drawBound());  // sized once: select() writes into them
   layer->requests_.resize(layer->tree_.size());
   layer->view_.minVoxel_px = config.minVoxel_px;
@@ -147,10 +152,10 @@ std::string CellsLayer::describe() const {
   char buf[768];
   std::snprintf(buf, sizeof buf,
                 "cells: %s, %u cells in %d levels, root cube %.1f m at [%.1f, %.1f, %.1f], %.1f MB; voxel budget %" PRIu64
-                ", W %" PRIu64 " bytes/frame, arena %" PRId64 " MB, memory %" PRId64 " MB",
+                ", W %" PRIu64 " bytes/frame, arena %" PRId64 " MB, memory %" PRId64 " MB, %d select thread%s",
                 config_.source.c_str(), tree_.size(), tree_.levels(), info.rootEdge_m, info.rootMin_m.x, info.rootMin_m.y,
                 info.rootMin_m.z, static_cast<double>(stream_->header().fileBytes) / 1e6, view_.voxelBudget,
-                view_.byteBudget, config_.gpu_mb, config_.memory_mb);
+                view_.byteBudget, config_.gpu_mb, config_.memory_mb, workers_ ? 2 : 1, workers_ ? "s" : "");
   return buf;
 }
 

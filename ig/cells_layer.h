@@ -8,7 +8,8 @@
 // scene origin keeps float precision inside its root cube).
 //
 // Use: create() at start-up (opens the stream: reads the header and the index, blocking up to
-// open_timeout_s for an http source; starts the fetcher's worker thread), initRender() once the
+// open_timeout_s for an http source; starts the fetcher's worker thread, and with select_threads = 2
+// the selection's helper thread), initRender() once the
 // renderer exists (the GPU arena), then per frame
 //   select(camera, viewport)   the lod phase: receive arrived cells (uploads into the arena),
 //                              select for the camera within the budgets, request missing cells
@@ -24,6 +25,7 @@
 #include <vector>
 
 #include "ig/config.h"
+#include "ig/worker_pair.h"
 #include "lod/cells.h"
 #include "lod/cells_select.h"
 #include "lod/view.h"
@@ -83,7 +85,8 @@ class CellsLayer {
   const CellsLayerStats& stats() const { return stats_; }  // refreshed by select() and draw()
   const lod::CellTree& tree() const { return tree_; }  // moved to origin_m
   uint64_t gpuBytes() const;
-  uint32_t threads() const { return 1; }  // the fetcher's worker
+  // The fetcher's worker, and the selection's helper with select_threads = 2.
+  uint32_t threads() const { return workers_ ? 2 : 1; }
   // One line for the start-up log, one for the exit.
   std::string describe() const;
   std::string summaryLine() const;
@@ -93,6 +96,7 @@ class CellsLayer {
   CellsLayerConfig config_;
   std::unique_ptr<CellStream> stream_;
   lod::CellTree tree_;
+  std::unique_ptr<WorkerPair> workers_;  // before selector_: outlives it
   std::unique_ptr<lod::CellSelector> selector_;
   std::unique_ptr<render::CellsPass> pass_;
   std::unique_ptr<CellsPassSink> sink_;

@@ -756,7 +756,8 @@ bool parseScene(const std::string& text, const std::string& name, const std::str
   }
 
   const Table cells = r.table(root, "cells", {"source", "origin_m", "voxel_budget", "w_bytes", "min_voxel_px",
-                                              "gpu_mb", "memory_mb", "point_scale", "open_timeout_s"});
+                                              "gpu_mb", "memory_mb", "point_scale", "open_timeout_s",
+                                              "select_threads"});
   if (cells.present()) {
     CellsLayerConfig& c = cfg.cells.emplace();
     r.require(cells, "source", "the cell database (a file, or http://HOST:PORT/path)");
@@ -771,6 +772,7 @@ bool parseScene(const std::string& text, const std::string& name, const std::str
     r.get(cells, "memory_mb", c.memory_mb, IntRange{1, 65536});
     r.get(cells, "point_scale", c.pointScale, openClosed(0.0, 16.0));
     r.get(cells, "open_timeout_s", c.openTimeout_s, openClosed(0.0, 600.0));
+    r.get(cells, "select_threads", c.selectThreads, IntRange{1, 2});
   }
 
   const Table sun = r.table(root, "sun", {"azimuth_deg", "elevation_deg", "color", "ambient"});

@@ -99,7 +99,7 @@ ReloadPlan planReload(const ServiceConfig& runC, const SceneConfig& runS, const 
   if (runS.cells.has_value() != newS.cells.has_value()) {
     r.emplace_back("scene.cells (added or removed)");
   } else if (runS.cells && !(*mergedS.cells == *newS.cells)) {
-    r.emplace_back("scene.cells (source, origin, memory or point scale)");
+    r.emplace_back("scene.cells (source, origin, memory, point scale or select threads)");
   }
 
   // A key this function does not know yet must not be silently ignored.

@@ -835,7 +835,8 @@ namespace {
 TEST(ConfigCells, KeysParseAndTheSourceIsResolved) {
   const SceneConfig cfg = parseSceneOk(
       "[cells]\nsource = \"db/bunny.ighc\"\norigin_m = [100, -2000.5, 1e6]\nvoxel_budget = 300000\n"
-      "w_bytes = 65536\nmin_voxel_px = 2.5\ngpu_mb = 128\nmemory_mb = 48\npoint_scale = 1.5\nopen_timeout_s = 3\n",
+      "w_bytes = 65536\nmin_voxel_px = 2.5\ngpu_mb = 128\nmemory_mb = 48\npoint_scale = 1.5\nopen_timeout_s = 3\n"
+      "select_threads = 2\n",
       "/scenes");
   ASSERT_TRUE(cfg.cells.has_value());
   const CellsLayerConfig& c = *cfg.cells;
@@ -848,6 +849,7 @@ TEST(ConfigCells, KeysParseAndTheSourceIsResolved) {
   EXPECT_EQ(c.memory_mb, 48);
   EXPECT_EQ(c.pointScale, 1.5);
   EXPECT_EQ(c.openTimeout_s, 3.0);
+  EXPECT_EQ(c.selectThreads, 2);
   // A URL is kept as written; defaults elsewhere.
   const SceneConfig web = parseSceneOk("[cells]\nsource = \"http://127.0.0.1:8080/c/bunny.ighc\"\n", "/scenes");
   ASSERT_TRUE(web.cells.has_value());
@@ -875,6 +877,8 @@ TEST(ConfigCells, BadValuesAreRefusedNamingTheKey) {
       {src + "memory_mb = -5\n", "cells.memory_mb", "-5"},
       {src + "point_scale = 0\n", "cells.point_scale", "0"},
       {src + "open_timeout_s = 0\n", "cells.open_timeout_s", "0"},
+      {src + "select_threads = 3\n", "cells.select_threads", "3"},
+      {src + "select_threads = 0\n", "cells.select_threads", "0"},
       {src + "budget = 5\n", "cells.budget", ""},
   };
   for (const Case& c : cases) {
@@ -901,7 +905,7 @@ TEST(ConfigCells, ReloadAppliesTheBudgetsAndNamesTheRest) {
   EXPECT_EQ(ms.cells->minVoxel_px, 2.0);
   EXPECT_EQ(ms.cells->origin_m, run.cells->origin_m);  // needs a restart: the running value is kept
   EXPECT_EQ(joinKeys(p.applied), "scene.cells.voxel_budget, scene.cells.w_bytes, scene.cells.min_voxel_px");
-  EXPECT_EQ(joinKeys(p.needRestart), "scene.cells (source, origin, memory or point scale)");
+  EXPECT_EQ(joinKeys(p.needRestart), "scene.cells (source, origin, memory, point scale or select threads)");
   next.cells.reset();
   p = planReload(svc, run, svc, next, mc, ms);
   EXPECT_EQ(joinKeys(p.needRestart), "scene.cells (added or removed)");
