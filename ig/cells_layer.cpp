@@ -4,6 +4,7 @@
 #include <cinttypes>
 #include <cmath>
 #include <cstdio>
+#include <thread>
 
 #include "ig/cells_stream.h"
 #include "render/cells_pass.h"
@@ -30,6 +31,11 @@ bool movedTree(const lod::CellTree& from, const glm::dvec3& rootMin_m, lod::Cell
 }
 
 }  // namespace
+
+int selectThreadsFor(const CellsLayerConfig& config) {
+  if (config.selectThreads > 0) return static_cast<int>(config.selectThreads);
+  return std::thread::hardware_concurrency() >= 4 ? 2 : 1;  // 0: a helper only with cores to spare
+}
 
 CellsLayer::CellsLayer() = default;
 CellsLayer::~CellsLayer() = default;
@@ -73,7 +79,7 @@ std::unique_ptr<CellsLayer> CellsLayer::create(const CellsLayerConfig& config, s
     return nullptr;
   }
   lod::CellSelectorConfig selectorConfig;
-  if (config.selectThreads >= 2) {
+  if (selectThreadsFor(config) >= 2) {
     layer->workers_ = std::make_unique<WorkerPair>();
     selectorConfig.runner = layer->workers_.get();
   }

@@ -61,6 +61,10 @@ struct CellsLayerStats {
   uint64_t timedFrames = 0;
 };
 
+// Threads for the selection's passes that a config asks for: select_threads, or with 0 (the
+// default) 2 on a machine with at least 4 hardware threads, else 1.
+int selectThreadsFor(const CellsLayerConfig& config);
+
 class CellsLayer {
  public:
   // Opens the source and checks the database. nullptr + error (naming [cells] source and the

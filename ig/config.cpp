@@ -772,7 +772,7 @@ bool parseScene(const std::string& text, const std::string& name, const std::str
     r.get(cells, "memory_mb", c.memory_mb, IntRange{1, 65536});
     r.get(cells, "point_scale", c.pointScale, openClosed(0.0, 16.0));
     r.get(cells, "open_timeout_s", c.openTimeout_s, openClosed(0.0, 600.0));
-    r.get(cells, "select_threads", c.selectThreads, IntRange{1, 2});
+    r.get(cells, "select_threads", c.selectThreads, IntRange{0, 2});
   }
 
   const Table sun = r.table(root, "sun", {"azimuth_deg", "elevation_deg", "color", "ambient"});

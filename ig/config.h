@@ -188,7 +188,7 @@ struct CellsLayerConfig {
   int64_t memory_mb = 32;                      // decoded points kept resident (LRU over the least recently drawn)
   double pointScale = 1.0;                     // point side / voxel footprint
   double openTimeout_s = 10.0;                 // start-up: reading the header and index (http)
-  int64_t selectThreads = 1;                   // the selection's per-frame passes on 1 or 2 threads (ig/worker_pair.h)
+  int64_t selectThreads = 0;                   // the selection's per-frame passes on 1 or 2 threads (ig/worker_pair.h); 0: 2 with >= 4 cores
   bool operator==(const CellsLayerConfig&) const = default;
 };
 

@@ -168,7 +168,8 @@ TEST(CellsLayerGL, LocalFileRendersTheObjectWithinTheBudgets) {
   auto layer = makeLayer(c);
   ASSERT_TRUE(layer);
   EXPECT_EQ(layer->tree().info().rootMin_m, origin);
-  EXPECT_EQ(layer->threads(), 1u);
+  // The fetcher's thread, and the selection's helper where the machine has 4 or more cores.
+  EXPECT_EQ(layer->threads(), std::thread::hardware_concurrency() >= 4 ? 2u : 1u);
   EXPECT_GT(layer->gpuBytes(), 0u);
   const lod::Camera cam = camera(origin);
   const render::Image bg = gl.frame(cam, nullptr);
@@ -205,6 +206,25 @@ TEST(CellsLayerGL, OriginMovesTheObjectEvenAMillionMetresAway) {
   const render::Image old = gl.frame(camera(near), b.get());
   EXPECT_EQ(render::fractionDifferent(old, bg, 2), 0.0);
   EXPECT_EQ(b->stats().drawnCells, 0u);
+}
+
+TEST(CellsLayerGL, TwoSelectThreadsDrawTheSamePicture) {
+  Gl gl;
+  const glm::dvec3 origin(0.0);
+  CellsLayerConfig c1 = config(origin), c2 = c1;
+  c1.selectThreads = 1;
+  c2.selectThreads = 2;
+  auto a = makeLayer(c1);
+  auto b = makeLayer(c2);
+  ASSERT_TRUE(a && b);
+  EXPECT_EQ(a->threads(), 1u);
+  EXPECT_EQ(b->threads(), 2u);
+  EXPECT_NE(b->describe().find("2 select threads"), std::string::npos) << b->describe();
+  const render::Image imgA = converge(gl, *a, camera(origin), c1);
+  const render::Image imgB = converge(gl, *b, camera(origin), c2);
+  EXPECT_EQ(a->stats().drawnCells, b->stats().drawnCells);
+  EXPECT_EQ(a->stats().select.drawnVoxels, b->stats().select.drawnVoxels);
+  EXPECT_EQ(render::fractionDifferent(imgA, imgB, 0), 0.0);
 }
 
 TEST(CellsLayerGL, BadSourceFailsNamingIt) {

@@ -855,6 +855,7 @@ TEST(ConfigCells, KeysParseAndTheSourceIsResolved) {
   ASSERT_TRUE(web.cells.has_value());
   EXPECT_EQ(web.cells->source, "http://127.0.0.1:8080/c/bunny.ighc");
   EXPECT_EQ(web.cells->voxelBudget, CellsLayerConfig{}.voxelBudget);
+  EXPECT_EQ(web.cells->selectThreads, 0);  // 0: by the machine's cores
   EXPECT_FALSE(parseSceneOk("[terrain]\n").cells.has_value());
 }
 
@@ -878,7 +879,7 @@ TEST(ConfigCells, BadValuesAreRefusedNamingTheKey) {
       {src + "point_scale = 0\n", "cells.point_scale", "0"},
       {src + "open_timeout_s = 0\n", "cells.open_timeout_s", "0"},
       {src + "select_threads = 3\n", "cells.select_threads", "3"},
-      {src + "select_threads = 0\n", "cells.select_threads", "0"},
+      {src + "select_threads = -1\n", "cells.select_threads", "-1"},
       {src + "budget = 5\n", "cells.budget", ""},
   };
   for (const Case& c : cases) {
