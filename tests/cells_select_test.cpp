@@ -25,67 +25,15 @@
 
 #include "lod/cells.h"
 #include "lod/cells_select.h"
+#include "cells_random_tree.h"
 
 // Counts heap allocations while armed (no allocation in select()).
 #include "alloc_counter.h"
 
 using namespace ig::lod;
+using namespace ig::lod::testing_trees;
 
 namespace {
-
-struct TreeSpec {
-  int levels = 4;
-  int minChildren = 1;
-  int maxChildren = 4;
-  double leafEarly = 0.1;  // chance that a cell above the last level has no children
-  double empty = 0.1;      // chance that a leaf is empty
-  glm::dvec3 rootMin_m{0.0};
-  double rootEdge_m = 8.0;
-  int voxelDepth = 2;
-};
-
-CellTree randomTree(std::mt19937& rng, const TreeSpec& s) {
-  std::vector<CellDesc> cells = {{kNoCell, 0, 0, 0}};
-  std::vector<int> level = {0};
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  for (size_t i = 0; i < cells.size(); ++i) {
-    if (level[i] + 1 >= s.levels || (i > 0 && u(rng) < s.leafEarly)) continue;
-    const int k = s.minChildren + static_cast<int>(rng() % static_cast<uint32_t>(s.maxChildren - s.minChildren + 1));
-    uint32_t mask = 0;
-    while (std::popcount(mask) < k) mask |= 1u << (rng() % 8);
-    for (uint8_t o = 0; o < 8; ++o) {
-      if (!(mask & (1u << o))) continue;
-      cells.push_back({static_cast<uint32_t>(i), o, 0, 0});
-      level.push_back(level[i] + 1);
-    }
-  }
-  // Voxels bottom-up: leaves random (some empty), a parent between 1 and its children's sum.
-  std::vector<uint64_t> childSum(cells.size(), 0);
-  std::vector<bool> hasChild(cells.size(), false);
-  for (size_t i = cells.size(); i-- > 0;) {
-    if (!hasChild[i]) {
-      cells[i].voxels = u(rng) < s.empty ? 0 : 1 + static_cast<uint32_t>(rng() % 60);
-    } else if (childSum[i] == 0) {
-      cells[i].voxels = 0;
-    } else {
-      const uint64_t lo = std::max<uint64_t>(1, childSum[i] / 6);
-      cells[i].voxels = static_cast<uint32_t>(lo + rng() % (childSum[i] - lo + 1));
-    }
-    cells[i].bytes = 16 + 3 * cells[i].voxels + static_cast<uint32_t>(rng() % 40);
-    if (i > 0) {
-      childSum[cells[i].parent] += cells[i].voxels;
-      hasChild[cells[i].parent] = true;
-    }
-  }
-  CellTree t;
-  std::string err;
-  CellTreeInfo info;
-  info.rootMin_m = s.rootMin_m;
-  info.rootEdge_m = s.rootEdge_m;
-  info.cellVoxelDepth = s.voxelDepth;
-  EXPECT_TRUE(t.build(info, cells, err)) << err;
-  return t;
-}
 
 CellView randomView(std::mt19937& rng, const CellTree& t) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
@@ -746,36 +694,6 @@ TEST(CellSelect, RootNotResidentAndCellsLargerThanW) {
   EXPECT_EQ(f.stats.drawnVoxels, 0u);
 }
 
-TEST(CellSelect, SelectDoesNotAllocate) {
-  std::mt19937 rng(61);
-  TreeSpec spec;
-  spec.levels = 7;
-  spec.maxChildren = 6;
-  spec.rootEdge_m = 64.0;
-  const CellTree t = randomTree(rng, spec);
-  CellSelector sel(t);
-  Streamer s(t.size());
-  std::vector<CellDraw> draw(sel.drawBound());
-  std::vector<uint32_t> req(t.size());
-  CellView v;
-  v.voxelBudget = 5000;
-  v.byteBudget = 3000;
-  long allocs = 0;
-  for (int frame = 0; frame < 100; ++frame) {
-    v.camera.eye_m = {32.0 + 40.0 * std::cos(frame * 0.05), -30.0 + frame * 0.5, 40.0};
-    v.camera.pitch_deg = -25.0;
-    s.deliver(frame);
-    gAllocs = 0;
-    gCountAllocs = true;
-    const CellSelectStats st = sel.select(v, s.res, draw, req);
-    gCountAllocs = false;
-    allocs += gAllocs.load();
-    EXPECT_TRUE(st.valid);
-    s.request(std::span<const uint32_t>(req.data(), st.requestedCells), frame);
-  }
-  EXPECT_EQ(allocs, 0);
-}
-
 // A ChunkRunner on one thread that keeps the contract (worker 0 takes chunks from the front in
 // order, worker 1 from the back) but interleaves the two workers' calls in a chosen way, so that
 // anything in the selection that depended on the order of calls, or on which worker ran a chunk,
@@ -806,6 +724,52 @@ class InterleavedRunner final : public ChunkRunner {
   int mode_;
   std::mt19937 rng_;
 };
+
+TEST(CellSelect, SelectDoesNotAllocate) {
+  // On one pass, and in chunks (an interleaving runner: worker 1's lists and marks too).
+  for (const bool chunked : {false, true}) {
+    std::mt19937 rng(61);
+    TreeSpec spec;
+    spec.levels = 7;
+    spec.maxChildren = 6;
+    spec.rootEdge_m = 64.0;
+    const CellTree t = randomTree(rng, spec);
+    InterleavedRunner runner(3, 9);
+    CellSelectorConfig cfg;
+    if (chunked) {
+      cfg.runner = &runner;
+      cfg.chunkCells = 8;
+    }
+    CellSelector sel(t, cfg);
+    Streamer s(t.size());
+    std::vector<CellDraw> draw(sel.drawBound());
+    std::vector<uint32_t> req(t.size());
+    CellView v;
+    v.voxelBudget = 5000;
+    v.byteBudget = 3000;
+    long allocs = 0;
+    for (int frame = 0; frame < 100; ++frame) {
+      v.camera.eye_m = {32.0 + 40.0 * std::cos(frame * 0.05), -30.0 + frame * 0.5, 40.0};
+      v.camera.pitch_deg = -25.0;
+      s.deliver(frame);
+      if (chunked && frame % 13 == 4) {  // evictions: the eviction lists of both workers
+        for (uint32_t c = 1; c < t.size(); c += 4)
+          if (s.res[c] == Residency::Resident) s.res[c] = Residency::Absent;
+      }
+      gAllocs = 0;
+      gCountAllocs = true;
+      const CellSelectStats st = sel.select(v, s.res, draw, req);
+      gCountAllocs = false;
+      allocs += gAllocs.load();
+      EXPECT_TRUE(st.valid);
+      s.request(std::span<const uint32_t>(req.data(), st.requestedCells), frame);
+    }
+    EXPECT_EQ(allocs, 0) << (chunked ? "chunked" : "one pass");
+    if (chunked) {
+      EXPECT_GT(runner.workerOne, 0u);
+    }
+  }
+}
 
 // Everything a frame produced, exactly: stats, the draw list in order (bits of voxel_px too) and
 // the requests in order.
@@ -897,45 +861,6 @@ TEST(CellSelect, ChunkedPassesChooseExactlyAsOnePass) {
       }
     }
   }
-}
-
-TEST(CellSelect, SelectWithChunkedPassesDoesNotAllocate) {
-  std::mt19937 rng(61);
-  TreeSpec spec;
-  spec.levels = 7;
-  spec.maxChildren = 6;
-  spec.rootEdge_m = 64.0;
-  const CellTree t = randomTree(rng, spec);
-  InterleavedRunner runner(3, 9);
-  CellSelectorConfig cfg;
-  cfg.runner = &runner;
-  cfg.chunkCells = 8;
-  CellSelector sel(t, cfg);
-  Streamer s(t.size());
-  std::vector<CellDraw> draw(sel.drawBound());
-  std::vector<uint32_t> req(t.size());
-  CellView v;
-  v.voxelBudget = 5000;
-  v.byteBudget = 3000;
-  long allocs = 0;
-  for (int frame = 0; frame < 100; ++frame) {
-    v.camera.eye_m = {32.0 + 40.0 * std::cos(frame * 0.05), -30.0 + frame * 0.5, 40.0};
-    v.camera.pitch_deg = -25.0;
-    s.deliver(frame);
-    if (frame % 13 == 4) {
-      for (uint32_t c = 1; c < t.size(); c += 4)
-        if (s.res[c] == Residency::Resident) s.res[c] = Residency::Absent;
-    }
-    gAllocs = 0;
-    gCountAllocs = true;
-    const CellSelectStats st = sel.select(v, s.res, draw, req);
-    gCountAllocs = false;
-    allocs += gAllocs.load();
-    EXPECT_TRUE(st.valid);
-    s.request(std::span<const uint32_t>(req.data(), st.requestedCells), frame);
-  }
-  EXPECT_EQ(allocs, 0);
-  EXPECT_GT(runner.workerOne, 0u);
 }
 
 }  // namespace

@@ -15,6 +15,7 @@
 
 #include "lod/cells.h"
 #include "lod/cells_select.h"
+#include "cells_random_tree.h"
 
 namespace {
 
@@ -63,49 +64,15 @@ TEST(WorkerPair, TheHelperTakesChunksOfLongPassesAndSleepsBetween) {
   EXPECT_EQ(pair.helperChunks(), helper);
 }
 
-// A random cell tree (parents before children, a parent's voxels between a sixth of its
-// children's sum and that sum).
-lod::CellTree randomTree(std::mt19937& rng, int levels) {
-  std::vector<lod::CellDesc> cells = {{lod::kNoCell, 0, 0, 0}};
-  std::vector<int> level = {0};
-  for (size_t i = 0; i < cells.size(); ++i) {
-    if (level[i] + 1 >= levels || (i > 0 && rng() % 20 == 0)) continue;
-    uint32_t mask = 0;
-    const int k = 2 + static_cast<int>(rng() % 5);
-    while (std::popcount(mask) < k) mask |= 1u << (rng() % 8);
-    for (uint8_t o = 0; o < 8; ++o) {
-      if (!(mask & (1u << o))) continue;
-      cells.push_back({static_cast<uint32_t>(i), o, 0, 0});
-      level.push_back(level[i] + 1);
-    }
-  }
-  std::vector<uint64_t> childSum(cells.size(), 0);
-  std::vector<bool> hasChild(cells.size(), false);
-  for (size_t i = cells.size(); i-- > 0;) {
-    if (!hasChild[i]) cells[i].voxels = rng() % 10 == 0 ? 0 : 1 + static_cast<uint32_t>(rng() % 60);
-    else if (childSum[i] == 0) cells[i].voxels = 0;
-    else {
-      const uint64_t lo = std::max<uint64_t>(1, childSum[i] / 6);
-      cells[i].voxels = static_cast<uint32_t>(lo + rng() % (childSum[i] - lo + 1));
-    }
-    cells[i].bytes = 16 + 3 * cells[i].voxels;
-    if (i > 0) {
-      childSum[cells[i].parent] += cells[i].voxels;
-      hasChild[cells[i].parent] = true;
-    }
-  }
-  lod::CellTree t;
-  lod::CellTreeInfo info;
-  info.rootEdge_m = 256.0;
-  info.cellVoxelDepth = 2;
-  std::string err;
-  EXPECT_TRUE(t.build(info, cells, err)) << err;
-  return t;
-}
-
 TEST(WorkerPair, CellSelectionOnTwoThreadsChoosesExactlyAsOnOne) {
   std::mt19937 rng(11);
-  const lod::CellTree t = randomTree(rng, 8);
+  lod::testing_trees::TreeSpec spec;
+  spec.levels = 8;
+  spec.minChildren = 3;
+  spec.maxChildren = 7;
+  spec.leafEarly = 0.05;
+  spec.rootEdge_m = 256.0;
+  const lod::CellTree t = lod::testing_trees::randomTree(rng, spec);
   ASSERT_GT(t.size(), 8000u);
   WorkerPair pair;
   lod::CellSelectorConfig two;
