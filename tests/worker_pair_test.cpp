@@ -64,6 +64,41 @@ TEST(WorkerPair, TheHelperTakesChunksOfLongPassesAndSleepsBetween) {
   EXPECT_EQ(pair.helperChunks(), helper);
 }
 
+// Runs every pass on a WorkerPair, but the caller's first chunk of a pass waits (up to 5 s) until
+// the helper has run one chunk of it, so the helper's share of the work is certain to be exercised
+// even when the test machine is too loaded to wake the helper within a short pass.
+class HelperTakesPartRunner final : public lod::ChunkRunner {
+ public:
+  explicit HelperTakesPartRunner(WorkerPair& pair) : pair_(pair) {}
+  void forEach(uint32_t chunks, ChunkFn fn, void* ctx) override {
+    Pass p{fn, ctx, chunks};
+    if (chunks >= 2) ++forcedPasses;
+    pair_.forEach(chunks, &HelperTakesPartRunner::run, &p);
+    if (chunks >= 2 && p.helperRan.load() == 0) ++passesWithoutHelper;
+  }
+  uint64_t forcedPasses = 0, passesWithoutHelper = 0;
+
+ private:
+  struct Pass {
+    ChunkFn fn;
+    void* ctx;
+    uint32_t chunks;
+    std::atomic<uint32_t> helperRan{0};
+    bool callerWaited = false;  // touched by worker 0 only
+  };
+  static void run(void* ctx, uint32_t chunk, uint32_t worker) {
+    Pass& p = *static_cast<Pass*>(ctx);
+    if (worker == 0 && !p.callerWaited && p.chunks >= 2) {  // a lone chunk is the caller's
+      p.callerWaited = true;
+      const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+      while (p.helperRan.load() == 0 && std::chrono::steady_clock::now() < deadline) std::this_thread::yield();
+    }
+    p.fn(p.ctx, chunk, worker);
+    if (worker == 1) p.helperRan.fetch_add(1);
+  }
+  WorkerPair& pair_;
+};
+
 TEST(WorkerPair, CellSelectionOnTwoThreadsChoosesExactlyAsOnOne) {
   std::mt19937 rng(11);
   lod::testing_trees::TreeSpec spec;
@@ -75,9 +110,10 @@ TEST(WorkerPair, CellSelectionOnTwoThreadsChoosesExactlyAsOnOne) {
   const lod::CellTree t = lod::testing_trees::randomTree(rng, spec);
   ASSERT_GT(t.size(), 8000u);
   WorkerPair pair;
+  HelperTakesPartRunner runner(pair);
   lod::CellSelectorConfig two;
-  two.runner = &pair;
-  two.chunkCells = 64;
+  two.runner = &runner;
+  two.chunkCells = 8;
   two.maxOperations = 400;
   lod::CellSelectorConfig one;
   one.maxOperations = 400;
@@ -89,7 +125,7 @@ TEST(WorkerPair, CellSelectionOnTwoThreadsChoosesExactlyAsOnOne) {
   lod::CellView v;
   v.camera.far_m = 1e5;
   v.voxelBudget = 60000;
-  v.byteBudget = 20000;
+  v.byteBudget = 150000;
   for (int frame = 0; frame < 240; ++frame) {
     const double r = frame * 0.015;
     v.camera.eye_m = frame == 150 ? glm::dvec3(200.0, 40.0, 90.0)
@@ -122,7 +158,10 @@ TEST(WorkerPair, CellSelectionOnTwoThreadsChoosesExactlyAsOnOne) {
       arrival[ra[k]] = frame + 2;
     }
   }
-  EXPECT_GT(pair.helperChunks(), 0u);
+  // Every pass of two or more chunks ran some of them on the helper thread.
+  EXPECT_GT(runner.forcedPasses, 240u);
+  EXPECT_EQ(runner.passesWithoutHelper, 0u);
+  EXPECT_GT(pair.helperChunks(), runner.forcedPasses - 1);
 }
 
 }  // namespace
