@@ -1233,9 +1233,14 @@ CellSelectStats CellSelector::select(const CellView& view, std::span<const Resid
     // 6. Refine: largest on-screen voxel first; merge cells of lower priority to make room.
     uint64_t reserved = 0;
     HeapEntry s{};
+    uint32_t examined = 0;
     while (stats.feasible && splitTop(s)) {
       if (ops >= config_.maxOperations) {
         stats.capped = true;
+        break;
+      }
+      if (view.stop != nullptr && ++examined % kCellStopPoll == 0 && view.stop(view.stopContext)) {
+        stats.capped = stats.stopped = true;
         break;
       }
       const uint32_t c = s.cell;

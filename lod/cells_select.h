@@ -104,7 +104,19 @@ struct CellView {
   double minVoxel_px = 1.0;         // alpha of the pre-selection, >= 0
   uint64_t voxelBudget = 1000000;   // sum V over drawn cells never exceeds it
   uint64_t byteBudget = 1 << 20;    // W: sum S over cells requested this frame never exceeds it
+  // A hard stop for the refinement, e.g. a deadline on the caller's clock (lod/ reads no clock):
+  // polled after every kCellStopPoll candidates the refinement examined (splits, blocked splits);
+  // once it returns true the refinement ends there, as at maxOperations: the cut stays a valid
+  // realization within both budgets, the draw list and the requests so far are complete, and the
+  // next frames go on from it (CellSelectStats::stopped). The passes over the cut and the
+  // coarsening to the voxel budget are not stopped. nullptr: never.
+  bool (*stop)(void* context) = nullptr;
+  void* stopContext = nullptr;
 };
+
+// Candidates between two polls of CellView::stop: one costs ~0.1 ... 0.5 us (a blocked split
+// waits on the tree's memory), so 32 keep a stop within ~15 us of its deadline.
+inline constexpr uint32_t kCellStopPoll = 32;
 
 enum class Residency : uint8_t {
   Absent = 0,    // not in memory and not requested
@@ -144,7 +156,8 @@ struct CellSelectStats {
   bool valid = false;            // false: the view was rejected (NaN, bad fov/near/far/viewport); nothing changed or drawn
   bool feasible = true;          // false: no drawable realization fits the voxel budget; nothing drawn
   bool drawTruncated = false;    // the draw span was too small (use drawBound())
-  bool capped = false;           // maxOperations (or heap capacity) stopped the refinement
+  bool capped = false;           // maxOperations (or heap capacity, or CellView::stop) stopped the refinement
+  bool stopped = false;          // CellView::stop did (capped is set too)
   uint32_t drawnCells = 0;       // entries written to the draw span
   uint32_t cutCells = 0;         // cells of the realization, live or not
   uint64_t drawnVoxels = 0;      // sum V of drawn cells, <= voxelBudget

@@ -795,6 +795,134 @@ void expectSameFrame(const Frame& a, const Frame& b, const std::string& what) {
   ASSERT_EQ(a.requests, b.requests) << what;
 }
 
+// CellView::stop (igd's deadline for the cells phase): the refinement ends at the first poll
+// that says so, the cut stays valid and within the budgets, a stop that never fires changes
+// nothing, and once the stops end the next frame is the selection from scratch again.
+struct StopAfter {
+  int polls = 0;
+  int stopAt = 1;  // the poll that first returns true (<= 0: never)
+  static bool poll(void* self) {
+    auto* s = static_cast<StopAfter*>(self);
+    return ++s->polls >= s->stopAt && s->stopAt > 0;
+  }
+};
+
+TEST(CellSelect, AStopEndsTheRefinementThereAndTheNextFramesCatchUp) {
+  std::mt19937 rng(61);
+  TreeSpec spec;
+  spec.levels = 7;
+  spec.maxChildren = 6;
+  spec.leafEarly = 0.05;
+  spec.rootEdge_m = 64.0;
+  const CellTree t = randomTree(rng, spec);
+  CellView v;
+  v.camera.far_m = 10000.0;
+  v.camera.eye_m = {20.0, -30.0, 40.0};
+  v.camera.heading_deg = 20.0;
+  v.camera.pitch_deg = -25.0;
+  v.minVoxel_px = 0.5;
+  v.voxelBudget = 20000;
+  v.byteBudget = 1 << 30;
+  CellSelector plain(t);
+  const Frame full = runSelect(plain, t, v);
+  ASSERT_TRUE(full.stats.feasible);
+  ASSERT_GT(full.stats.splits, 4 * kCellStopPoll) << "the view must need many splits";
+
+  // Stopped at the first poll, five frames in a row: at most kCellStopPoll - 1 candidates each.
+  CellSelector sel(t);
+  StopAfter stop;
+  v.stop = &StopAfter::poll;
+  v.stopContext = &stop;
+  float last = std::numeric_limits<float>::infinity();
+  for (int frame = 0; frame < 5; ++frame) {
+    stop = {};
+    const Frame f = runSelect(sel, t, v);
+    EXPECT_TRUE(f.stats.valid && f.stats.feasible);
+    EXPECT_TRUE(f.stats.stopped) << "frame " << frame;
+    EXPECT_TRUE(f.stats.capped) << "frame " << frame;
+    EXPECT_EQ(stop.polls, 1) << "frame " << frame;
+    EXPECT_LT(f.stats.splits + f.stats.blockedSplits, kCellStopPoll) << "frame " << frame;
+    EXPECT_LE(f.stats.drawnVoxels, v.voxelBudget);
+    EXPECT_LE(f.stats.maxVoxel_px, last) << "quality dropped while the view stood still, frame " << frame;
+    if (frame == 0) {
+      EXPECT_NE(sortedCells(f.draw), sortedCells(full.draw)) << "the stop cut nothing short";
+    }
+    last = f.stats.maxVoxel_px;
+    expectValidRealization(t, sel);
+  }
+  // The stops end: the next frame is the selection from scratch.
+  v.stop = nullptr;
+  Frame f;
+  expectSameAsFresh(t, sel, v, "after the stops", f);
+  EXPECT_EQ(f.stats.maxVoxel_px, full.stats.maxVoxel_px);
+  EXPECT_FALSE(f.stats.stopped);
+
+  // A stop that is polled but never fires chooses exactly as no stop, along a path.
+  CellSelector polled(t), unpolled(t);
+  StopAfter never;
+  never.stopAt = 0;
+  for (int frame = 0; frame < 20; ++frame) {
+    v.camera.eye_m += glm::dvec3(0.5, 0.3, -0.4);
+    v.camera.heading_deg += 3.0;
+    CellView w = v;
+    w.stop = &StopAfter::poll;
+    w.stopContext = &never;
+    const Frame a = runSelect(polled, t, w), b = runSelect(unpolled, t, v);
+    expectSameFrame(a, b, "never-firing stop, frame " + std::to_string(frame));
+    EXPECT_FALSE(a.stats.stopped);
+  }
+  EXPECT_GT(never.polls, 0);
+}
+
+// Streaming with a stop in every frame (a machine too slow for the budget): the budgets hold,
+// quality never drops while the view stands still, and it still reaches full quality.
+TEST(CellSelect, StreamingUnderAStopEveryFrameReachesFullQuality) {
+  std::mt19937 rng(62);
+  TreeSpec spec;
+  spec.levels = 7;
+  spec.maxChildren = 6;
+  spec.leafEarly = 0.05;
+  spec.rootEdge_m = 64.0;
+  const CellTree t = randomTree(rng, spec);
+  CellView v;
+  v.camera.far_m = 10000.0;
+  v.camera.eye_m = {20.0, -30.0, 40.0};
+  v.camera.heading_deg = 20.0;
+  v.camera.pitch_deg = -25.0;
+  v.minVoxel_px = 0.5;
+  v.voxelBudget = 20000;
+  v.byteBudget = 1 << 30;
+  Streamer s(t.size());
+  s.latency = 2;
+  CellSelector sel(t);
+  StopAfter stop;
+  v.stop = &StopAfter::poll;
+  v.stopContext = &stop;
+  float last = std::numeric_limits<float>::infinity();
+  int frame = 0, stopped = 0;
+  for (; frame < 2000; ++frame) {
+    s.deliver(frame);
+    stop = {};
+    const Frame f = runSelect(sel, t, v, s.res);
+    expectFrameWithinBudgets(t, v, f, s);
+    EXPECT_LT(f.stats.splits + f.stats.blockedSplits, kCellStopPoll);
+    stopped += f.stats.stopped ? 1 : 0;
+    if (!f.draw.empty()) {
+      EXPECT_LE(f.stats.maxVoxel_px, last) << "frame " << frame;
+      last = f.stats.maxVoxel_px;
+    }
+    expectValidRealization(t, sel);
+    s.request(f.requests, frame);
+    if (!f.stats.stopped && f.requests.empty() && f.stats.blockedSplits == 0 && s.inFlight() == 0) break;
+  }
+  ASSERT_LT(frame, 2000) << "streaming under stops did not settle";
+  EXPECT_GT(stopped, 5) << "the stops must have cut the refinement short";
+  CellSelector all(t);
+  const Frame a = runSelect(all, t, v);
+  ASSERT_TRUE(a.stats.feasible);
+  EXPECT_EQ(a.stats.maxVoxel_px, last);
+}
+
 TEST(CellSelect, ChunkedPassesChooseExactlyAsOnePass) {
   // Streaming along a path with a teleport, evictions and an operation cap, then everything
   // resident; small chunks, so that every pass has many; each runner mode against one pass.
