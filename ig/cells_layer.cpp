@@ -113,12 +113,34 @@ void CellsLayer::setBudgets(uint64_t voxelBudget, uint64_t wBytes, double minVox
   view_.minVoxel_px = minVoxel_px;
 }
 
-void CellsLayer::select(const lod::Camera& camera, int viewportHeight_px) {
+namespace {
+// The refinement's deadline on the service's clock (lod/ reads no clock).
+struct SelectDeadline {
+  const Clock* clock = nullptr;
+  int64_t end_ns = 0;
+  static bool past(void* self) {
+    const auto* d = static_cast<const SelectDeadline*>(self);
+    return d->clock->now_ns() >= d->end_ns;
+  }
+};
+}  // namespace
+
+void CellsLayer::select(const lod::Camera& camera, int viewportHeight_px, const Clock* clock, double budget_ms) {
+  const int64_t start_ns = clock && budget_ms > 0.0 ? clock->now_ns() : 0;
   ++stats_.frames;
   if (sink_) stream_->receive(*sink_);
   view_.camera = camera;
   view_.viewportHeight_px = std::max(1, viewportHeight_px);
+  SelectDeadline deadline;
+  if (clock && budget_ms > 0.0 && std::isfinite(budget_ms)) {
+    deadline = {clock, start_ns + static_cast<int64_t>(budget_ms * 1e6)};
+    view_.stop = &SelectDeadline::past;
+    view_.stopContext = &deadline;
+  }
   stats_.select = selector_->select(view_, stream_->residency(), draws_, requests_);
+  view_.stop = nullptr;
+  view_.stopContext = nullptr;
+  if (stats_.select.stopped) ++stats_.stoppedFrames;
   drawCount_ = stats_.select.drawnCells;
   // Without an arena nothing could be drawn: do not fetch either.
   if (sink_) stream_->request({requests_.data(), stats_.select.requestedCells});
@@ -168,15 +190,17 @@ std::string CellsLayer::describe() const {
 std::string CellsLayer::summaryLine() const {
   const CellsLayerStats& s = stats_;
   const double n = s.timedFrames > 0 ? static_cast<double>(s.timedFrames) : 1.0;
-  char buf[768];
+  char buf[896];
   std::snprintf(buf, sizeof buf,
                 "cells: last frame %u cells drawn, %" PRIu64 " voxels (most %" PRIu64 ", budget %" PRIu64
                 "), largest voxel %.2f px (max %.2f); resident %.2f MB in %u cells; fetched %.2f MB in %" PRIu64
-                " cells, broken %" PRIu64 ", upload failures %" PRIu64 "; select mean %.3f ms max %.3f ms, draw mean %.3f ms max %.3f ms",
+                " cells, broken %" PRIu64 ", upload failures %" PRIu64 "; select mean %.3f ms max %.3f ms (refinement stopped at "
+                "its time budget in %" PRIu64 " of %" PRIu64 " frames), draw mean %.3f ms max %.3f ms",
                 s.drawnCells, s.drawnPoints, s.maxDrawnVoxels, view_.voxelBudget,
                 static_cast<double>(s.drawnCells > 0 ? s.select.maxVoxel_px : 0.0f), static_cast<double>(s.maxVoxel_px),
                 static_cast<double>(s.residentBytes) / 1e6, s.residentCells, static_cast<double>(s.fetchedBytes) / 1e6,
-                s.arrivedCells, s.broken, s.uploadFailures, s.select_ms_sum / n, s.select_ms_max, s.draw_ms_sum / n,
+                s.arrivedCells, s.broken, s.uploadFailures, s.select_ms_sum / n, s.select_ms_max, s.stoppedFrames, s.frames,
+                s.draw_ms_sum / n,
                 s.draw_ms_max);
   std::string line = buf;
   if (s.broken > 0 && !stream_->lastError().empty()) line += " (first: " + stream_->lastError() + ")";

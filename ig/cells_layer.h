@@ -11,8 +11,10 @@
 // open_timeout_s for an http source; starts the fetcher's worker thread, and with select_threads = 2
 // the selection's helper thread), initRender() once the
 // renderer exists (the GPU arena), then per frame
-//   select(camera, viewport)   the lod phase: receive arrived cells (uploads into the arena),
-//                              select for the camera within the budgets, request missing cells
+//   select(camera, viewport, clock, budget_ms)
+//                              the lod phase: receive arrived cells (uploads into the arena),
+//                              select for the camera within the budgets (the refinement stops
+//                              budget_ms after the call began on `clock`), request missing cells
 //   draw(renderer)             the submit phase (between Renderer::beginFrame and endFrame):
 //                              draw the selection, then pin the drawn cells and evict over the
 //                              memory budget.
@@ -24,6 +26,7 @@
 #include <string>
 #include <vector>
 
+#include "ig/clock.h"
 #include "ig/config.h"
 #include "ig/worker_pair.h"
 #include "lod/cells.h"
@@ -54,6 +57,7 @@ struct CellsLayerStats {
   uint64_t broken = 0;           // cells refused, corrupt after retries or undecodable
   uint64_t uploadFailures = 0;   // arrivals the arena had no room for
   uint64_t frames = 0;           // select() calls
+  uint64_t stoppedFrames = 0;    // select() calls whose refinement stopped at its time budget
   float maxVoxel_px = 0.0f;      // the largest on-screen voxel over all frames with cells drawn
   uint64_t maxDrawnVoxels = 0;   // the most voxels drawn in one frame
   double select_ms_sum = 0.0, select_ms_max = 0.0;  // per-frame timings the service records
@@ -74,8 +78,10 @@ class CellsLayer {
 
   // The render pass and its GPU arena (a GL context must be current).
   bool initRender(std::string& error);
-  // Per frame (lod phase).
-  void select(const lod::Camera& camera, int viewportHeight_px);
+  // Per frame (lod phase). With a clock and budget_ms > 0 the refinement stops budget_ms after
+  // this call began (CellView::stop: the cut stays valid, the next frames go on from it); the
+  // passes over the cut are not stopped. Without, it runs to the best cut.
+  void select(const lod::Camera& camera, int viewportHeight_px, const Clock* clock = nullptr, double budget_ms = 0.0);
   // Per frame, after select() (submit phase).
   void draw(render::Renderer& renderer);
   // Reload: the budgets that apply between frames.

@@ -757,7 +757,7 @@ bool parseScene(const std::string& text, const std::string& name, const std::str
 
   const Table cells = r.table(root, "cells", {"source", "origin_m", "voxel_budget", "w_bytes", "min_voxel_px",
                                               "gpu_mb", "memory_mb", "point_scale", "open_timeout_s",
-                                              "select_threads"});
+                                              "select_threads", "select_budget_ms"});
   if (cells.present()) {
     CellsLayerConfig& c = cfg.cells.emplace();
     r.require(cells, "source", "the cell database (a file, or http://HOST:PORT/path)");
@@ -773,6 +773,7 @@ bool parseScene(const std::string& text, const std::string& name, const std::str
     r.get(cells, "point_scale", c.pointScale, openClosed(0.0, 16.0));
     r.get(cells, "open_timeout_s", c.openTimeout_s, openClosed(0.0, 600.0));
     r.get(cells, "select_threads", c.selectThreads, IntRange{0, 2});
+    r.get(cells, "select_budget_ms", c.selectBudget_ms, closed(0.0, 1000.0));
   }
 
   const Table sun = r.table(root, "sun", {"azimuth_deg", "elevation_deg", "color", "ambient"});

@@ -189,6 +189,7 @@ struct CellsLayerConfig {
   double pointScale = 1.0;                     // point side / voxel footprint
   double openTimeout_s = 10.0;                 // start-up: reading the header and index (http)
   int64_t selectThreads = 0;                   // the selection's per-frame passes on 1 or 2 threads (ig/worker_pair.h); 0: 2 with >= 4 cores
+  double selectBudget_ms = 0.0;                // the selection's refinement stops there each frame; 0: the governor's cells phase budget, or none
   bool operator==(const CellsLayerConfig&) const = default;
 };
 

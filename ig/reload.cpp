@@ -95,6 +95,7 @@ ReloadPlan planReload(const ServiceConfig& runC, const SceneConfig& runS, const 
     take(*mergedS.cells, *newS.cells, &CellsLayerConfig::voxelBudget, "scene.cells.voxel_budget", a);
     take(*mergedS.cells, *newS.cells, &CellsLayerConfig::wBytes, "scene.cells.w_bytes", a);
     take(*mergedS.cells, *newS.cells, &CellsLayerConfig::minVoxel_px, "scene.cells.min_voxel_px", a);
+    take(*mergedS.cells, *newS.cells, &CellsLayerConfig::selectBudget_ms, "scene.cells.select_budget_ms", a);
   }
   if (runS.cells.has_value() != newS.cells.has_value()) {
     r.emplace_back("scene.cells (added or removed)");

@@ -678,7 +678,12 @@ struct Service::Impl {
         const double budget = std::min(governor->knob(lod::GovLayer::Cells), governor->loadCap(lod::GovLayer::Cells));
         cells->setVoxelBudget(static_cast<uint64_t>(std::max(1.0, std::floor(budget))));
       }
-      cells->select(cam, config.height_px);
+      // The refinement yields at the cells phase's budget (or the scene's, if smaller); the
+      // passes over the cut are not deferrable.
+      const double own_ms = scene.cells ? scene.cells->selectBudget_ms : 0.0;
+      const double phase_ms = governor ? governor->phaseBudget_ms(lod::GovPhase::Cells) : 0.0;
+      const double budget_ms = own_ms > 0.0 && phase_ms > 0.0 ? std::min(own_ms, phase_ms) : std::max(own_ms, phase_ms);
+      cells->select(cam, config.height_px, clock, budget_ms);
       cellsSelect_ms = clock ? static_cast<double>(clock->now_ns() - t0) * 1e-6 : 0.0;
     }
     if (terrain) {

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -17,6 +18,7 @@
 #include <thread>
 
 #include "ig/cells_layer.h"
+#include "ig/clock.h"
 #include "lod/cells_db.h"
 #include "lod/cells_voxel.h"
 #include "cells_test_db.h"
@@ -57,8 +59,8 @@ struct Gl : test::HeadlessGl {
     light.fog = false;
     light.fogColor = {0.2, 0.3, 0.4};
   }
-  render::Image frame(const lod::Camera& cam, CellsLayer* layer) {
-    if (layer) layer->select(cam, kH);
+  render::Image frame(const lod::Camera& cam, CellsLayer* layer, const Clock* clock = nullptr, double budget_ms = 0.0) {
+    if (layer) layer->select(cam, kH, clock, budget_ms);
     renderer.beginFrame(cam, light);
     if (layer) layer->draw(renderer);
     renderer.endFrame();
@@ -106,19 +108,21 @@ std::unique_ptr<CellsLayer> makeLayer(const CellsLayerConfig& c) {
 
 // Frames until nothing is requested or in flight and the drawn set stays put (streaming done),
 // checking the budgets every frame. Returns the last image.
-render::Image converge(Gl& gl, CellsLayer& layer, const lod::Camera& cam, const CellsLayerConfig& c) {
+render::Image converge(Gl& gl, CellsLayer& layer, const lod::Camera& cam, const CellsLayerConfig& c,
+                       const Clock* clock = nullptr, double budget_ms = 0.0) {
   render::Image img;
   uint64_t lastArrived = ~uint64_t{0};
   int still = 0;
   const auto t0 = std::chrono::steady_clock::now();
   for (int frame = 0; frame < 3000 && still < 3; ++frame) {
-    img = gl.frame(cam, &layer);
+    img = gl.frame(cam, &layer, clock, budget_ms);
     const CellsLayerStats& s = layer.stats();
     EXPECT_TRUE(s.select.valid);
     EXPECT_LE(s.select.drawnVoxels, c.voxelBudget) << "frame " << frame;
     EXPECT_LE(s.drawnPoints, c.voxelBudget) << "frame " << frame;
     EXPECT_LE(s.select.requestedBytes, c.wBytes) << "frame " << frame;
-    const bool idle = s.select.requestedCells == 0 && s.select.blockedSplits == 0 && s.arrivedCells == lastArrived;
+    const bool idle = s.select.requestedCells == 0 && s.select.blockedSplits == 0 && !s.select.stopped &&
+                      s.arrivedCells == lastArrived;
     still = idle ? still + 1 : 0;
     lastArrived = s.arrivedCells;
     if (std::chrono::steady_clock::now() - t0 > std::chrono::seconds(20)) break;
@@ -225,6 +229,40 @@ TEST(CellsLayerGL, TwoSelectThreadsDrawTheSamePicture) {
   EXPECT_EQ(a->stats().drawnCells, b->stats().drawnCells);
   EXPECT_EQ(a->stats().select.drawnVoxels, b->stats().select.drawnVoxels);
   EXPECT_EQ(render::fractionDifferent(imgA, imgB, 0), 0.0);
+}
+
+// A clock that moves 1 ms at every reading: every poll of the refinement's deadline finds it past.
+class SteppingClock final : public Clock {
+ public:
+  int64_t now_ns() const override { return now_ += 1'000'000; }
+  void sleepUntil_ns(int64_t) override {}
+
+ private:
+  mutable std::atomic<int64_t> now_{0};
+};
+
+// select() with a clock and a time budget (igd: the cells phase's): the refinement stops at the
+// deadline, every frame stays within the budgets, the picture sharpens over more frames and ends
+// the same as without a budget.
+TEST(CellsLayerGL, ATimeBudgetStopsTheRefinementAndThePictureStillConverges) {
+  Gl gl;
+  const glm::dvec3 origin(0.0);
+  const CellsLayerConfig c = config(origin);
+  auto a = makeLayer(c);
+  auto b = makeLayer(c);
+  ASSERT_TRUE(a && b);
+  SteppingClock clock;
+  const render::Image imgA = converge(gl, *a, camera(origin), c, &clock, 0.5);
+  const render::Image imgB = converge(gl, *b, camera(origin), c);
+  EXPECT_GT(a->stats().stoppedFrames, 0u) << "the budget never stopped the refinement";
+  EXPECT_EQ(b->stats().stoppedFrames, 0u);
+  EXPECT_GT(a->stats().frames, b->stats().frames) << "stopped refinement needs more frames";
+  EXPECT_EQ(a->stats().select.drawnVoxels, b->stats().select.drawnVoxels);
+  EXPECT_EQ(render::fractionDifferent(imgA, imgB, 0), 0.0);
+  const std::string line = a->summaryLine();
+  EXPECT_NE(line.find("stopped at its time budget in " + std::to_string(a->stats().stoppedFrames) + " of "),
+            std::string::npos)
+      << line;
 }
 
 TEST(CellsLayerGL, BadSourceFailsNamingIt) {

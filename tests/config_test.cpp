@@ -880,6 +880,8 @@ TEST(ConfigCells, BadValuesAreRefusedNamingTheKey) {
       {src + "open_timeout_s = 0\n", "cells.open_timeout_s", "0"},
       {src + "select_threads = 3\n", "cells.select_threads", "3"},
       {src + "select_threads = -1\n", "cells.select_threads", "-1"},
+      {src + "select_budget_ms = -0.5\n", "cells.select_budget_ms", "-0.5"},
+      {src + "select_budget_ms = nan\n", "cells.select_budget_ms", "nan"},
       {src + "budget = 5\n", "cells.budget", ""},
   };
   for (const Case& c : cases) {
@@ -895,7 +897,7 @@ TEST(ConfigCells, BadValuesAreRefusedNamingTheKey) {
 TEST(ConfigCells, ReloadAppliesTheBudgetsAndNamesTheRest) {
   const SceneConfig run = parseSceneOk("[cells]\nsource = \"a.ighc\"\nvoxel_budget = 100000\n");
   SceneConfig next = parseSceneOk("[cells]\nsource = \"a.ighc\"\nvoxel_budget = 50000\nw_bytes = 8192\n"
-                                  "min_voxel_px = 2\norigin_m = [1, 2, 3]\n");
+                                  "min_voxel_px = 2\nselect_budget_ms = 1.5\norigin_m = [1, 2, 3]\n");
   const ServiceConfig svc = parseServiceOk(kMinimalService);
   ServiceConfig mc;
   SceneConfig ms;
@@ -904,8 +906,10 @@ TEST(ConfigCells, ReloadAppliesTheBudgetsAndNamesTheRest) {
   EXPECT_EQ(ms.cells->voxelBudget, 50000u);
   EXPECT_EQ(ms.cells->wBytes, 8192u);
   EXPECT_EQ(ms.cells->minVoxel_px, 2.0);
+  EXPECT_EQ(ms.cells->selectBudget_ms, 1.5);
   EXPECT_EQ(ms.cells->origin_m, run.cells->origin_m);  // needs a restart: the running value is kept
-  EXPECT_EQ(joinKeys(p.applied), "scene.cells.voxel_budget, scene.cells.w_bytes, scene.cells.min_voxel_px");
+  EXPECT_EQ(joinKeys(p.applied),
+            "scene.cells.voxel_budget, scene.cells.w_bytes, scene.cells.min_voxel_px, scene.cells.select_budget_ms");
   EXPECT_EQ(joinKeys(p.needRestart), "scene.cells (source, origin, memory, point scale or select threads)");
   next.cells.reset();
   p = planReload(svc, run, svc, next, mc, ms);
