@@ -199,6 +199,72 @@ int runCellsBench(const CellsBenchOptions& o) {
   }
   const double teleportMs = selectMs[static_cast<size_t>(teleportFrame)];
 
+  // The path under a deadline (igd's cells phase budget): the refinement stops deadline_ms after
+  // select() began. Its choices depend on the clock, so the replays are not compared; their
+  // frames are pooled. Against the path above: how many more frames the voxel budget takes to
+  // fill from the start and after the teleport: 95 % of the most voxels the path above drew in
+  // that part (the budget, unless the view holds fewer).
+  struct Deadline {
+    const BenchClock::time_point* end = nullptr;
+    static bool past(void* self) { return BenchClock::now() >= *static_cast<Deadline*>(self)->end; }
+  };
+  const auto partMax = [&](int from, int to) {
+    return *std::max_element(voxelsDrawn.begin() + from, voxelsDrawn.begin() + to);
+  };
+  const double fullStart = partMax(0, teleportFrame), fullTeleport = partMax(teleportFrame, o.frames);
+  const auto framesToFill = [&](const std::vector<double>& drawn, int from) {
+    const int to = from == 0 ? teleportFrame : o.frames;
+    const double full = from == 0 ? fullStart : fullTeleport;
+    for (int i = from; i < to && i < static_cast<int>(drawn.size()); ++i)
+      if (drawn[static_cast<size_t>(i)] >= 0.95 * full) return i - from;
+    return -1;
+  };
+  std::vector<double> deadlineMs, deadlineQuality;
+  int stoppedFrames = 0, deadlineFill = -1, deadlineFillTeleport = -1;
+  if (o.deadline_ms > 0.0) {
+    int fillSum = 0, fillTeleportSum = 0, fills = 0, fillsTeleport = 0;
+    for (int run = 0; run < repeats; ++run) {
+      lod::CellSelector selector(tree, selectorConfig);
+      std::fill(residency.begin(), residency.end(), lod::Residency::Absent);
+      inFlight.clear();
+      std::vector<double> drawn;
+      BenchClock::time_point end;
+      Deadline deadline{&end};
+      lod::CellView dv = view;
+      dv.stop = &Deadline::past;
+      dv.stopContext = &deadline;
+      for (int i = 0; i < o.frames; ++i) {
+        size_t keep = 0;
+        for (uint32_t c : inFlight) {
+          if (arrival[c] <= i) residency[c] = lod::Residency::Resident;
+          else inFlight[keep++] = c;
+        }
+        inFlight.resize(keep);
+        dv.camera = cellsPathCamera(i, o.frames);
+        dv.camera.aspect = 16.0 / 9.0;
+        const auto t0 = BenchClock::now();
+        end = t0 + std::chrono::nanoseconds(static_cast<int64_t>(o.deadline_ms * 1e6));
+        const lod::CellSelectStats s = selector.select(dv, residency, draw, requests);
+        deadlineMs.push_back(msSince(t0));
+        stoppedFrames += s.stopped ? 1 : 0;
+        deadlineQuality.push_back(static_cast<double>(s.maxVoxel_px));
+        drawn.push_back(static_cast<double>(s.drawnVoxels));
+        if (s.drawnVoxels > o.voxelBudget || s.requestedBytes > o.wBytes || !s.valid) ++exceeded;
+        for (uint32_t k = 0; k < s.requestedCells; ++k) {
+          residency[requests[k]] = lod::Residency::InFlight;
+          arrival[requests[k]] = i + o.latencyFrames;
+          inFlight.push_back(requests[k]);
+        }
+      }
+      if (const int f = framesToFill(drawn, 0); f >= 0) fillSum += f, ++fills;
+      if (const int f = framesToFill(drawn, teleportFrame); f >= 0) fillTeleportSum += f, ++fillsTeleport;
+    }
+    // The mean over the replays (-1: some replay never filled).
+    deadlineFill = fills == repeats ? (fillSum + repeats / 2) / repeats : -1;
+    deadlineFillTeleport = fillsTeleport == repeats ? (fillTeleportSum + repeats / 2) / repeats : -1;
+  }
+  const int fill = framesToFill(voxelsDrawn, 0), fillTeleport = framesToFill(voxelsDrawn, teleportFrame);
+
   // Sweep over voxel budgets, everything resident, over every 4th frame of the path (replayed
   // as the path is, each frame's fastest time).
   std::vector<SweepPoint> sweep;
@@ -277,7 +343,8 @@ int runCellsBench(const CellsBenchOptions& o) {
                 "\"unfetchable_cells\":%u,\"frames_to_settle_after_teleport\":%d,\"seconds_to_settle_after_teleport\":%.3f,"
                 "\"max_voxel_px_p50\":%.3f,\"cut_cells_p50\":%.0f,\"repeats\":%d,\"select_ms_p99_first_replay\":%.4f,"
                 "\"replays_differ_frames\":%d,\"select_threads\":%d,\"select_ms_p50_one_thread\":%.4f,"
-                "\"select_ms_p99_one_thread\":%.4f,\"threads_differ_frames\":%d,\"select_sweep\":[",
+"\"select_ms_p99_one_thread\":%.4f,\"threads_differ_frames\":%d,\"frames_to_fill\":%d,"
+                "\"frames_to_fill_after_teleport\":%d,\"select_sweep\":[",
                 o.frames, o.latencyFrames, o.maxOps, percentile(selectMs, 50), percentile(selectMs, 99),
                 *std::max_element(selectMs.begin(), selectMs.end()), teleportMs, percentile(voxelsDrawn, 50),
                 static_cast<unsigned long long>(o.voxelBudget), exceeded, static_cast<unsigned long long>(bytesMax),
@@ -285,7 +352,7 @@ int runCellsBench(const CellsBenchOptions& o) {
                 fullQualityFrame < 0 ? -1 : fullQualityFrame - teleportFrame, secondsToFull, percentile(quality, 50),
                 percentile(cutCells, 50), repeats, percentile(firstMs, 99), replaysDiffer, twoThreads ? 2 : 1,
                 twoThreads ? percentile(oneThreadMs, 50) : percentile(selectMs, 50),
-                twoThreads ? percentile(oneThreadMs, 99) : percentile(selectMs, 99), threadsDiffer);
+                twoThreads ? percentile(oneThreadMs, 99) : percentile(selectMs, 99), threadsDiffer, fill, fillTeleport);
     for (size_t k = 0; k < sweep.size(); ++k) {
       const SweepPoint& p = sweep[k];
       std::printf("%s{\"voxel_budget\":%llu,\"voxels_drawn_p50\":%llu,\"min_quality_px\":%.3f,\"min_quality_px_max\":%.3f,"
@@ -297,6 +364,13 @@ int runCellsBench(const CellsBenchOptions& o) {
                   twoThreads ? p.oneThreadP99_ms : p.selectP99_ms);
     }
     std::printf("]");
+    if (o.deadline_ms > 0.0)
+      std::printf(",\"deadline\":{\"deadline_ms\":%.3f,\"replays\":%d,\"select_ms_p50\":%.4f,\"select_ms_p99\":%.4f,"
+                  "\"select_ms_max\":%.4f,\"stopped_frames\":%d,\"frames\":%zu,\"frames_to_fill\":%d,"
+                  "\"frames_to_fill_after_teleport\":%d,\"max_voxel_px_p50\":%.3f}",
+                  o.deadline_ms, repeats, percentile(deadlineMs, 50), percentile(deadlineMs, 99),
+                  *std::max_element(deadlineMs.begin(), deadlineMs.end()), stoppedFrames, deadlineMs.size(), deadlineFill,
+                  deadlineFillTeleport, percentile(deadlineQuality, 50));
     if (o.withMesh) {
       std::printf(",%s,\"seconds_to_full_quality\":{", cellsStreamJson(bunny).c_str());
       for (size_t k = 0; k < bunny.runs.size(); ++k)
@@ -322,6 +396,14 @@ int runCellsBench(const CellsBenchOptions& o) {
       std::printf("    on %d select threads; the same frames on one thread: p50 %.3f ms, p99 %.3f ms (frames that chose "
                   "differently: %d)\n",
                   2, percentile(oneThreadMs, 50), percentile(oneThreadMs, 99), threadsDiffer);
+    std::printf("    the voxels drawn reached 95 %% of their most %d frames after the start, %d after the teleport\n", fill, fillTeleport);
+    if (o.deadline_ms > 0.0)
+      std::printf("  path with the refinement stopped %.2f ms after each select() began (%d replays pooled): select "
+                  "p50 %.3f ms, p99 %.3f ms, max %.3f ms; stopped in %d of %zu frames; the voxels drawn reached 95 %% of "
+                  "the most above %d frames after the start, %d after the teleport; largest voxel p50 %.2f px (without: %.2f)\n",
+                  o.deadline_ms, repeats, percentile(deadlineMs, 50), percentile(deadlineMs, 99),
+                  *std::max_element(deadlineMs.begin(), deadlineMs.end()), stoppedFrames, deadlineMs.size(), deadlineFill,
+                  deadlineFillTeleport, percentile(deadlineQuality, 50), percentile(quality, 50));
     std::printf("  sweep (all resident): budget, voxels p50, largest voxel px p50 / max, cut cells p50, select ms p50 / p99"
                 "%s\n", twoThreads ? ", one thread p50 / p99" : "");
     for (const SweepPoint& p : sweep) {

@@ -254,7 +254,9 @@ int main(int argc, char** argv) {
       "if any frame went over a budget. JSON fields: cells, levels, dimension, select_ms_p99\n"
       "(select_ms_p99_first_replay, replays_differ_frames: 0),\n"
       "voxels_drawn_p50, voxel_budget, budget_exceeded_frames, bytes_per_frame_max, w_bytes,\n"
-      "select_sweep, mesh {cells, levels, dimension}, sweep [{voxel_budget, psnr_db, ...}],\n"
+      "select_sweep, frames_to_fill(_after_teleport), deadline {deadline_ms, select_ms_p99,\n"
+      "stopped_frames, frames_to_fill, ...} (--deadline-ms), mesh {cells, levels, dimension},\n"
+      "sweep [{voxel_budget, psnr_db, ...}],\n"
       "streaming [{rate_mbit, seconds_to_full_quality, quality_monotonic, curve, ...}],\n"
       "seconds_to_full_quality {rate: s} (docs/cells.md; plot: scripts/plot_cells.py).");
   cells->add_option("--spheres", cellsOptions.spheres, "Procedural spheres in the 1024 m scene")
@@ -272,6 +274,11 @@ int main(int argc, char** argv) {
       ->capture_default_str()->check(CLI::Range(0, 100000));
   cells->add_option("--max-ops", cellsOptions.maxOps, "Splits + merges per frame on the path (0: no cap)")
       ->capture_default_str();
+  cells->add_option("--deadline-ms", cellsOptions.deadline_ms,
+                    "The path again with the refinement stopped this long after each select() began (igd's cells "
+                    "phase budget): select time, stopped frames, frames until the voxel budget fills (0: skip)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1000.0));
   cells->add_option("--seed", cellsOptions.seed, "Scene seed")->capture_default_str();
   cells->add_option("--repeats", cellsOptions.repeats,
                     "Replays of the path and the sweep (same choices each time); a frame's select time is the "

@@ -30,6 +30,17 @@ assert 1.8 < d["dimension"][-1] < 2.2, d["dimension"]  # sphere surfaces: about 
 assert d["select_threads"] == 2, d["select_threads"]
 assert d["threads_differ_frames"] == 0, d["threads_differ_frames"]
 assert d["select_ms_p50_one_thread"] > 0 and d["select_ms_p99_one_thread"] > 0, d
+# The path again under a deadline (igd's cells phase budget): pooled over the replays, within the
+# budgets (counted in budget_exceeded_frames above). Where the deadline never stopped the
+# refinement (this small scene selects in ~0.02 ms), it chose as the path without one.
+dl = d["deadline"]
+assert dl["deadline_ms"] == 0.5 and dl["frames"] == d["repeats"] * d["frames"], dl
+assert 0 <= dl["stopped_frames"] <= dl["frames"], dl
+assert dl["select_ms_p50"] > 0 and dl["select_ms_p99"] >= dl["select_ms_p50"], dl
+assert d["frames_to_fill"] >= 0 and d["frames_to_fill_after_teleport"] >= 0, d
+if dl["stopped_frames"] == 0:
+    assert dl["frames_to_fill"] == d["frames_to_fill"], (dl, d["frames_to_fill"])
+    assert dl["frames_to_fill_after_teleport"] == d["frames_to_fill_after_teleport"], dl
 for s in d["select_sweep"]:
     assert s["voxels_drawn_p50"] <= s["voxel_budget"], s
     assert s["select_ms_one_thread"] > 0, s
