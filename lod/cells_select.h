@@ -205,6 +205,7 @@ class CellSelector {
   struct HeapEntry {
     float e;
     uint32_t cell;
+    uint32_t first = 0;  // split candidates: the cell's first child (prefetched before its turn)
   };
   // Frame constants in float, shared with evaluateCell() so that both give the same bits.
   struct ViewConsts {
@@ -224,6 +225,7 @@ class CellSelector {
     std::vector<uint8_t> flags;           // kLive | kInside | kHasChildren
     std::vector<uint64_t> cert;           // a certificate that mc = V (see makeCertificate), or 0
     std::vector<uint32_t> up;             // the cut: the parent's slot in the mergeable cells, or kNoCell
+    std::vector<uint32_t> first;          // the first child (the split heap's entries carry it)
     uint32_t n = 0;
     void allocate(size_t capacity);
   };
