@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "ig/bench_cells_path.h"
+#include "ig/clock.h"
 #include "ig/cells_tool.h"
 #include "ig/stats.h"
 #include "ig/worker_pair.h"
@@ -135,6 +136,27 @@ int runCellsBench(const CellsBenchOptions& o) {
   std::vector<int> arrival(tree.size(), 0);
   std::vector<uint32_t> inFlight;
   inFlight.reserve(tree.size());
+  // The simulated fetcher: nothing resident at the start of a replay; a frame's requests arrive
+  // latencyFrames later.
+  const auto startReplay = [&] {
+    std::fill(residency.begin(), residency.end(), lod::Residency::Absent);
+    inFlight.clear();
+  };
+  const auto deliver = [&](int frame) {
+    size_t keep = 0;
+    for (uint32_t c : inFlight) {
+      if (arrival[c] <= frame) residency[c] = lod::Residency::Resident;
+      else inFlight[keep++] = c;
+    }
+    inFlight.resize(keep);
+  };
+  const auto fetch = [&](const lod::CellSelectStats& s, int frame) {
+    for (uint32_t k = 0; k < s.requestedCells; ++k) {
+      residency[requests[k]] = lod::Residency::InFlight;
+      arrival[requests[k]] = frame + o.latencyFrames;
+      inFlight.push_back(requests[k]);
+    }
+  };
   lod::CellSelectorConfig selectorConfig;
   if (o.maxOps > 0) selectorConfig.maxOperations = o.maxOps;
   lod::CellSelectorConfig oneThreadConfig = selectorConfig;
@@ -155,16 +177,9 @@ int runCellsBench(const CellsBenchOptions& o) {
   for (int run = 0; run < repeats * (twoThreads ? 2 : 1); ++run) {
     const bool oneThread = twoThreads && run % 2 == 1;
     lod::CellSelector selector(tree, oneThread ? oneThreadConfig : selectorConfig);
-    std::fill(residency.begin(), residency.end(), lod::Residency::Absent);
-    inFlight.clear();
+    startReplay();
     for (int i = 0; i < o.frames; ++i) {
-      // Deliver what has arrived.
-      size_t keep = 0;
-      for (uint32_t c : inFlight) {
-        if (arrival[c] <= i) residency[c] = lod::Residency::Resident;
-        else inFlight[keep++] = c;
-      }
-      inFlight.resize(keep);
+      deliver(i);
       view.camera = cellsPathCamera(i, o.frames);
       view.camera.aspect = 16.0 / 9.0;
       const auto t0 = BenchClock::now();
@@ -187,11 +202,7 @@ int runCellsBench(const CellsBenchOptions& o) {
       } else if (sig != signature[fi]) {
         ++(oneThread ? threadsDiffer : replaysDiffer);
       }
-      for (uint32_t k = 0; k < s.requestedCells; ++k) {
-        residency[requests[k]] = lod::Residency::InFlight;
-        arrival[requests[k]] = i + o.latencyFrames;
-        inFlight.push_back(requests[k]);
-      }
+      fetch(s, i);
       if (run == 0 && i >= teleportFrame && fullQualityFrame < 0 && s.requestedCells == 0 && s.blockedSplits == 0 &&
           inFlight.empty())
         fullQualityFrame = i;
@@ -204,10 +215,6 @@ int runCellsBench(const CellsBenchOptions& o) {
   // frames are pooled. Against the path above: how many more frames the voxel budget takes to
   // fill from the start and after the teleport: 95 % of the most voxels the path above drew in
   // that part (the budget, unless the view holds fewer).
-  struct Deadline {
-    const BenchClock::time_point* end = nullptr;
-    static bool past(void* self) { return BenchClock::now() >= *static_cast<Deadline*>(self)->end; }
-  };
   const auto partMax = [&](int from, int to) {
     return *std::max_element(voxelsDrawn.begin() + from, voxelsDrawn.begin() + to);
   };
@@ -225,36 +232,26 @@ int runCellsBench(const CellsBenchOptions& o) {
     int fillSum = 0, fillTeleportSum = 0, fills = 0, fillsTeleport = 0;
     for (int run = 0; run < repeats; ++run) {
       lod::CellSelector selector(tree, selectorConfig);
-      std::fill(residency.begin(), residency.end(), lod::Residency::Absent);
-      inFlight.clear();
+      startReplay();
       std::vector<double> drawn;
-      BenchClock::time_point end;
-      Deadline deadline{&end};
+      const MonotonicClock clock;
+      ClockDeadline deadline{&clock, 0};
       lod::CellView dv = view;
-      dv.stop = &Deadline::past;
+      dv.stop = &ClockDeadline::past;
       dv.stopContext = &deadline;
       for (int i = 0; i < o.frames; ++i) {
-        size_t keep = 0;
-        for (uint32_t c : inFlight) {
-          if (arrival[c] <= i) residency[c] = lod::Residency::Resident;
-          else inFlight[keep++] = c;
-        }
-        inFlight.resize(keep);
+        deliver(i);
         dv.camera = cellsPathCamera(i, o.frames);
         dv.camera.aspect = 16.0 / 9.0;
         const auto t0 = BenchClock::now();
-        end = t0 + std::chrono::nanoseconds(static_cast<int64_t>(o.deadline_ms * 1e6));
+        deadline.end_ns = clock.now_ns() + static_cast<int64_t>(o.deadline_ms * 1e6);
         const lod::CellSelectStats s = selector.select(dv, residency, draw, requests);
         deadlineMs.push_back(msSince(t0));
         stoppedFrames += s.stopped ? 1 : 0;
         deadlineQuality.push_back(static_cast<double>(s.maxVoxel_px));
         drawn.push_back(static_cast<double>(s.drawnVoxels));
         if (s.drawnVoxels > o.voxelBudget || s.requestedBytes > o.wBytes || !s.valid) ++exceeded;
-        for (uint32_t k = 0; k < s.requestedCells; ++k) {
-          residency[requests[k]] = lod::Residency::InFlight;
-          arrival[requests[k]] = i + o.latencyFrames;
-          inFlight.push_back(requests[k]);
-        }
+        fetch(s, i);
       }
       if (const int f = framesToFill(drawn, 0); f >= 0) fillSum += f, ++fills;
       if (const int f = framesToFill(drawn, teleportFrame); f >= 0) fillTeleportSum += f, ++fillsTeleport;

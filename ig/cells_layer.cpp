@@ -113,28 +113,16 @@ void CellsLayer::setBudgets(uint64_t voxelBudget, uint64_t wBytes, double minVox
   view_.minVoxel_px = minVoxel_px;
 }
 
-namespace {
-// The refinement's deadline on the service's clock (lod/ reads no clock).
-struct SelectDeadline {
-  const Clock* clock = nullptr;
-  int64_t end_ns = 0;
-  static bool past(void* self) {
-    const auto* d = static_cast<const SelectDeadline*>(self);
-    return d->clock->now_ns() >= d->end_ns;
-  }
-};
-}  // namespace
-
 void CellsLayer::select(const lod::Camera& camera, int viewportHeight_px, const Clock* clock, double budget_ms) {
   const int64_t start_ns = clock && budget_ms > 0.0 ? clock->now_ns() : 0;
   ++stats_.frames;
   if (sink_) stream_->receive(*sink_);
   view_.camera = camera;
   view_.viewportHeight_px = std::max(1, viewportHeight_px);
-  SelectDeadline deadline;
+  ClockDeadline deadline;  // the refinement's, on the service's clock
   if (clock && budget_ms > 0.0 && std::isfinite(budget_ms)) {
     deadline = {clock, start_ns + static_cast<int64_t>(budget_ms * 1e6)};
-    view_.stop = &SelectDeadline::past;
+    view_.stop = &ClockDeadline::past;
     view_.stopContext = &deadline;
   }
   stats_.select = selector_->select(view_, stream_->residency(), draws_, requests_);

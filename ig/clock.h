@@ -26,6 +26,17 @@ class MonotonicClock final : public Clock {
 // without the time other processes on a shared machine took the core away. For benchmarks.
 double threadCpuMs();
 
+// A deadline on a Clock for lod/'s stop callbacks (lod/ reads no clock): past(this) is true once
+// `clock` reads end_ns or later. Roam (ig/roam_deadline.h) and the cells layer use it.
+struct ClockDeadline {
+  const Clock* clock = nullptr;
+  int64_t end_ns = 0;
+  static bool past(void* self) {
+    const auto* d = static_cast<const ClockDeadline*>(self);
+    return d->clock->now_ns() >= d->end_ns;
+  }
+};
+
 // Test clock: time moves only when told to. Sleeping jumps to the deadline. Safe to read from
 // other threads (a host link stamping samples) while the test advances it.
 class FakeClock final : public Clock {

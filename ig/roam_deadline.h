@@ -10,19 +10,13 @@
 namespace ig {
 
 struct RoamDeadline {
-  const Clock* clock = nullptr;
-  int64_t end_ns = 0;
-  static bool past(void* self) {
-    const auto* d = static_cast<const RoamDeadline*>(self);
-    return d->clock->now_ns() >= d->end_ns;
-  }
+  ClockDeadline deadline;
   // The update of `v` stops once `clock` reads start_ns + budget_ms or later (polled every
   // lod::kStopPollVisits visits). This object must outlive the update.
   void arm(lod::RoamView& v, const Clock& c, int64_t start_ns, double budget_ms) {
-    clock = &c;
-    end_ns = start_ns + static_cast<int64_t>(budget_ms * 1e6);
-    v.stop = &RoamDeadline::past;
-    v.stopContext = this;
+    deadline = {&c, start_ns + static_cast<int64_t>(budget_ms * 1e6)};
+    v.stop = &ClockDeadline::past;
+    v.stopContext = &deadline;
   }
 };
 

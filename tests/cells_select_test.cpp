@@ -807,14 +807,17 @@ struct StopAfter {
   }
 };
 
-TEST(CellSelect, AStopEndsTheRefinementThereAndTheNextFramesCatchUp) {
-  std::mt19937 rng(61);
+// A random 7-level tree (64 m root) and a view of it that needs many splits.
+CellTree stopTree(uint32_t seed) {
+  std::mt19937 rng(seed);
   TreeSpec spec;
   spec.levels = 7;
   spec.maxChildren = 6;
   spec.leafEarly = 0.05;
   spec.rootEdge_m = 64.0;
-  const CellTree t = randomTree(rng, spec);
+  return randomTree(rng, spec);
+}
+CellView stopView() {
   CellView v;
   v.camera.far_m = 10000.0;
   v.camera.eye_m = {20.0, -30.0, 40.0};
@@ -823,6 +826,12 @@ TEST(CellSelect, AStopEndsTheRefinementThereAndTheNextFramesCatchUp) {
   v.minVoxel_px = 0.5;
   v.voxelBudget = 20000;
   v.byteBudget = 1 << 30;
+  return v;
+}
+
+TEST(CellSelect, AStopEndsTheRefinementThereAndTheNextFramesCatchUp) {
+  const CellTree t = stopTree(61);
+  CellView v = stopView();
   CellSelector plain(t);
   const Frame full = runSelect(plain, t, v);
   ASSERT_TRUE(full.stats.feasible);
@@ -877,21 +886,8 @@ TEST(CellSelect, AStopEndsTheRefinementThereAndTheNextFramesCatchUp) {
 // Streaming with a stop in every frame (a machine too slow for the budget): the budgets hold,
 // quality never drops while the view stands still, and it still reaches full quality.
 TEST(CellSelect, StreamingUnderAStopEveryFrameReachesFullQuality) {
-  std::mt19937 rng(62);
-  TreeSpec spec;
-  spec.levels = 7;
-  spec.maxChildren = 6;
-  spec.leafEarly = 0.05;
-  spec.rootEdge_m = 64.0;
-  const CellTree t = randomTree(rng, spec);
-  CellView v;
-  v.camera.far_m = 10000.0;
-  v.camera.eye_m = {20.0, -30.0, 40.0};
-  v.camera.heading_deg = 20.0;
-  v.camera.pitch_deg = -25.0;
-  v.minVoxel_px = 0.5;
-  v.voxelBudget = 20000;
-  v.byteBudget = 1 << 30;
+  const CellTree t = stopTree(62);
+  CellView v = stopView();
   Streamer s(t.size());
   s.latency = 2;
   CellSelector sel(t);
