@@ -28,9 +28,9 @@ struct CellsBenchOptions {
   int repeats = 3;              // the path and the sweep replayed this often; each frame's time is the fastest
   int selectThreads = 2;        // 2: the selection's passes on two threads (ig/worker_pair.h), each replay also
                                 // run on one thread for comparison; 1: one thread only
-  double deadline_ms = 0.5;     // > 0: the path replayed again with the refinement stopped this long after each
-                                // select() began (as igd's cells phase budget stops it; CellView::stop): its time,
-                                // stopped frames and how much later the budget fills; 0: skip
+  double deadline_ms = 0.5;     // > 0: the path replayed again with each select() held to this time as igd's cells
+                                // phase budget holds it (ig/cells_deadline.h, CellView::stop): its time, stopped
+                                // frames and how much later the voxels drawn fill; 0: skip
   bool json = false;
   // The real mesh, the pictures and nginx (ig/bench_cells_stream.h); off: selection only.
   bool withMesh = true;

@@ -119,15 +119,9 @@ void CellsLayer::select(const lod::Camera& camera, int viewportHeight_px, const 
   if (sink_) stream_->receive(*sink_);
   view_.camera = camera;
   view_.viewportHeight_px = std::max(1, viewportHeight_px);
-  ClockDeadline deadline;  // the refinement's, on the service's clock
-  if (clock && budget_ms > 0.0 && std::isfinite(budget_ms)) {
-    deadline = {clock, start_ns + static_cast<int64_t>(budget_ms * 1e6)};
-    view_.stop = &ClockDeadline::past;
-    view_.stopContext = &deadline;
-  }
+  if (clock) deadline_.arm(view_, *clock, start_ns, budget_ms);
   stats_.select = selector_->select(view_, stream_->residency(), draws_, requests_);
-  view_.stop = nullptr;
-  view_.stopContext = nullptr;
+  deadline_.done(view_, stats_.select);
   if (stats_.select.stopped) ++stats_.stoppedFrames;
   drawCount_ = stats_.select.drawnCells;
   // Without an arena nothing could be drawn: do not fetch either.

@@ -26,6 +26,7 @@
 #include <string>
 #include <vector>
 
+#include "ig/cells_deadline.h"
 #include "ig/clock.h"
 #include "ig/config.h"
 #include "ig/worker_pair.h"
@@ -78,9 +79,10 @@ class CellsLayer {
 
   // The render pass and its GPU arena (a GL context must be current).
   bool initRender(std::string& error);
-  // Per frame (lod phase). With a clock and budget_ms > 0 the refinement stops budget_ms after
-  // this call began (CellView::stop: the cut stays valid, the next frames go on from it); the
-  // passes over the cut are not stopped. Without, it runs to the best cut.
+  // Per frame (lod phase). With a clock and budget_ms > 0 the refinement stops so that this call
+  // ends near budget_ms after it began: at budget_ms less what the calls stopped before spent
+  // after their stop (the draw list). CellView::stop: the cut stays valid and the next frames go
+  // on from it; the passes over the cut are not stopped. Without, it runs to the best cut.
   void select(const lod::Camera& camera, int viewportHeight_px, const Clock* clock = nullptr, double budget_ms = 0.0);
   // Per frame, after select() (submit phase).
   void draw(render::Renderer& renderer);
@@ -115,6 +117,7 @@ class CellsLayer {
   std::vector<uint32_t> requests_;
   uint32_t drawCount_ = 0;
   uint32_t largestCell_bytes_ = 0;
+  CellSelectDeadline deadline_;  // the refinement's time budget
   CellsLayerStats stats_;
 };
 

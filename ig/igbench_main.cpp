@@ -275,8 +275,9 @@ int main(int argc, char** argv) {
   cells->add_option("--max-ops", cellsOptions.maxOps, "Splits + merges per frame on the path (0: no cap)")
       ->capture_default_str();
   cells->add_option("--deadline-ms", cellsOptions.deadline_ms,
-                    "The path again with the refinement stopped this long after each select() began (igd's cells "
-                    "phase budget): select time, stopped frames, frames until the voxel budget fills (0: skip)")
+                    "The path again with each select() held to this time as igd's cells phase budget holds it (the "
+                    "refinement stops early enough for what follows a stop): select time, stopped frames, frames "
+                    "until the voxels drawn fill (0: skip)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1000.0));
   cells->add_option("--seed", cellsOptions.seed, "Scene seed")->capture_default_str();

@@ -24,6 +24,8 @@
 #include <vector>
 
 #include "lod/cells.h"
+#include "ig/cells_deadline.h"
+#include "ig/clock.h"
 #include "lod/cells_select.h"
 #include "cells_random_tree.h"
 
@@ -881,6 +883,49 @@ TEST(CellSelect, AStopEndsTheRefinementThereAndTheNextFramesCatchUp) {
     EXPECT_FALSE(a.stats.stopped);
   }
   EXPECT_GT(never.polls, 0);
+}
+
+// igd's cells phase budget (ig/cells_deadline.h, header-only): a stop at the budget on the
+// caller's clock; what a stopped call spends after its stop is learned and taken off the next
+// deadlines, so that the whole call ends near the budget.
+class CountingClock final : public ig::Clock {
+ public:
+  int64_t now_ns() const override {
+    ++reads;
+    return now += 10'000;  // 10 us a reading: every poll of the deadline moves time on
+  }
+  void sleepUntil_ns(int64_t) override {}
+  mutable int64_t now = 0, reads = 0;
+};
+
+TEST(CellSelectDeadline, LearnsTheTimeAfterAStopAndTakesItOffTheNextDeadlines) {
+  const CellTree t = stopTree(63);
+  CellView v = stopView();
+  CountingClock clock;
+  ig::CellSelectDeadline deadline;
+  int64_t polls[2] = {0, 0};
+  for (int frame = 0; frame < 2; ++frame) {
+    CellSelector sel(t);  // from scratch: a long refinement every time
+    deadline.arm(v, clock, clock.now_ns(), 0.05);
+    ASSERT_NE(v.stop, nullptr);
+    const int64_t before = clock.reads;
+    const Frame f = runSelect(sel, t, v);
+    polls[frame] = clock.reads - before;
+    deadline.done(v, f.stats);
+    EXPECT_EQ(v.stop, nullptr);
+    EXPECT_TRUE(f.stats.stopped) << "frame " << frame;
+    expectValidRealization(t, sel);
+  }
+  // Frame 0: the deadline 50 us on fires at the 5th poll (one more reading marks it), done()
+  // reads once: 10 us after the stop. Frame 1: 40 us of room, one poll fewer.
+  EXPECT_EQ(polls[0], 6);
+  EXPECT_NEAR(deadline.afterStop_ms(), 0.01, 1e-9);
+  EXPECT_EQ(polls[1], 5);
+  // No budget (0, negative, NaN): no stop.
+  for (double b : {0.0, -1.0, std::nan("")}) {
+    deadline.arm(v, clock, clock.now_ns(), b);
+    EXPECT_EQ(v.stop, nullptr) << b;
+  }
 }
 
 // Streaming with a stop in every frame (a machine too slow for the budget): the budgets hold,
