@@ -227,7 +227,7 @@ int runCellsBench(const CellsBenchOptions& o) {
       if (drawn[static_cast<size_t>(i)] >= 0.95 * full) return i - from;
     return -1;
   };
-  std::vector<double> deadlineMs, deadlineQuality;
+  std::vector<double> deadlineMs, deadlineQuality, deadlineDrawn;  // deadlineDrawn: the first replay's, per frame
   int stoppedFrames = 0, deadlineFill = -1, deadlineFillTeleport = -1;
   if (o.deadline_ms > 0.0) {
     int fillSum = 0, fillTeleportSum = 0, fills = 0, fillsTeleport = 0;
@@ -253,6 +253,7 @@ int runCellsBench(const CellsBenchOptions& o) {
         if (s.drawnVoxels > o.voxelBudget || s.requestedBytes > o.wBytes || !s.valid) ++exceeded;
         fetch(s, i);
       }
+      if (run == 0) deadlineDrawn = drawn;
       if (const int f = framesToFill(drawn, 0); f >= 0) fillSum += f, ++fills;
       if (const int f = framesToFill(drawn, teleportFrame); f >= 0) fillTeleportSum += f, ++fillsTeleport;
     }
@@ -368,6 +369,17 @@ int runCellsBench(const CellsBenchOptions& o) {
                   o.deadline_ms, repeats, percentile(deadlineMs, 50), percentile(deadlineMs, 99),
                   *std::max_element(deadlineMs.begin(), deadlineMs.end()), stoppedFrames, deadlineMs.size(), deadlineFill,
                   deadlineFillTeleport, percentile(deadlineQuality, 50));
+    // Per path frame (scripts/plot_cells.py): voxels drawn in the first replay, without and with
+    // the deadline, and the select time (the fastest replay's) without it.
+    const auto printArray = [](const char* name, const std::vector<double>& v, int decimals) {
+      std::printf(",\"%s\":[", name);
+      for (size_t k = 0; k < v.size(); ++k) std::printf("%s%.*f", k ? "," : "", decimals, v[k]);
+      std::printf("]");
+    };
+    printArray("path_voxels_drawn", voxelsDrawn, 0);
+    printArray("path_select_ms", selectMs, 4);
+    if (o.deadline_ms > 0.0) printArray("path_voxels_drawn_deadline", deadlineDrawn, 0);
+    std::printf(",\"teleport_frame\":%d", teleportFrame);
     if (o.withMesh) {
       std::printf(",%s,\"seconds_to_full_quality\":{", cellsStreamJson(bunny).c_str());
       for (size_t k = 0; k < bunny.runs.size(); ++k)

@@ -9,6 +9,12 @@ igbench=$1
 src=$2
 cd "$src"
 out=$("$igbench" cells --spheres 100 --levels 7 --frames 60 --quick --json)
+# The plot of the same JSON (all four panels) is a non-empty PNG.
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+printf '%s' "$out" > "$tmp/cells.json"
+/usr/bin/python3 "$src/scripts/plot_cells.py" "$tmp/cells.json" "$tmp/cells.png"
+[ "$(head -c 8 "$tmp/cells.png" | od -An -tx1 | tr -d ' \n')" = 89504e470d0a1a0a ] || { echo "plot_cells.py wrote no PNG" >&2; exit 1; }
 /usr/bin/python3 - "$out" <<'PY'
 import json, sys
 d = json.loads(sys.argv[1])
@@ -38,6 +44,9 @@ assert dl["deadline_ms"] == 0.5 and dl["frames"] == d["repeats"] * d["frames"], 
 assert 0 <= dl["stopped_frames"] <= dl["frames"], dl
 assert dl["select_ms_p50"] > 0 and dl["select_ms_p99"] >= dl["select_ms_p50"], dl
 assert d["frames_to_fill"] >= 0 and d["frames_to_fill_after_teleport"] >= 0, d
+assert len(d["path_voxels_drawn"]) == d["frames"] and len(d["path_voxels_drawn_deadline"]) == d["frames"], d
+assert len(d["path_select_ms"]) == d["frames"] and 0 < d["teleport_frame"] < d["frames"], d
+assert max(d["path_voxels_drawn"]) <= d["voxel_budget"], d
 if dl["stopped_frames"] == 0:
     assert dl["frames_to_fill"] == d["frames_to_fill"], (dl, d["frames_to_fill"])
     assert dl["frames_to_fill_after_teleport"] == d["frames_to_fill_after_teleport"], dl
