@@ -14,7 +14,8 @@
 //   select(camera, viewport, clock, budget_ms)
 //                              the lod phase: receive arrived cells (uploads into the arena),
 //                              select for the camera within the budgets (the refinement stops
-//                              budget_ms after the call began on `clock`), request missing cells
+//                              so that the call ends near budget_ms on `clock`), request missing
+//                              cells
 //   draw(renderer)             the submit phase (between Renderer::beginFrame and endFrame):
 //                              draw the selection, then pin the drawn cells and evict over the
 //                              memory budget.
