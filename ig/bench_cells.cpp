@@ -211,18 +211,14 @@ int runCellsBench(const CellsBenchOptions& o) {
   }
   const double teleportMs = selectMs[static_cast<size_t>(teleportFrame)];
 
-  // The path under a deadline (igd's cells phase budget): the refinement stops deadline_ms after
-  // select() began. Its choices depend on the clock, so the replays are not compared; their
-  // frames are pooled. Against the path above: how many more frames the voxel budget takes to
-  // fill from the start and after the teleport: 95 % of the most voxels the path above drew in
-  // that part (the budget, unless the view holds fewer).
-  const auto partMax = [&](int from, int to) {
-    return *std::max_element(voxelsDrawn.begin() + from, voxelsDrawn.begin() + to);
-  };
-  const double fullStart = partMax(0, teleportFrame), fullTeleport = partMax(teleportFrame, o.frames);
-  const auto framesToFill = [&](const std::vector<double>& drawn, int from) {
-    const int to = from == 0 ? teleportFrame : o.frames;
-    const double full = from == 0 ? fullStart : fullTeleport;
+  // The path under a deadline (igd's cells phase budget, ig/cells_deadline.h): each select() held
+  // to deadline_ms. Its choices depend on the clock, so the replays are not compared; their frames
+  // are pooled. Against the path above: how many frames the voxels drawn take to fill, from the
+  // start and after the teleport, to 95 % of the most the path above drew in that part (the
+  // budget, unless the view holds fewer).
+  const auto framesToFill = [&](const std::vector<double>& drawn, bool afterTeleport) {
+    const int from = afterTeleport ? teleportFrame : 0, to = afterTeleport ? o.frames : teleportFrame;
+    const double full = *std::max_element(voxelsDrawn.begin() + from, voxelsDrawn.begin() + to);
     for (int i = from; i < to && i < static_cast<int>(drawn.size()); ++i)
       if (drawn[static_cast<size_t>(i)] >= 0.95 * full) return i - from;
     return -1;
@@ -254,14 +250,14 @@ int runCellsBench(const CellsBenchOptions& o) {
         fetch(s, i);
       }
       if (run == 0) deadlineDrawn = drawn;
-      if (const int f = framesToFill(drawn, 0); f >= 0) fillSum += f, ++fills;
-      if (const int f = framesToFill(drawn, teleportFrame); f >= 0) fillTeleportSum += f, ++fillsTeleport;
+      if (const int f = framesToFill(drawn, false); f >= 0) fillSum += f, ++fills;
+      if (const int f = framesToFill(drawn, true); f >= 0) fillTeleportSum += f, ++fillsTeleport;
     }
     // The mean over the replays (-1: some replay never filled).
     deadlineFill = fills == repeats ? (fillSum + repeats / 2) / repeats : -1;
     deadlineFillTeleport = fillsTeleport == repeats ? (fillTeleportSum + repeats / 2) / repeats : -1;
   }
-  const int fill = framesToFill(voxelsDrawn, 0), fillTeleport = framesToFill(voxelsDrawn, teleportFrame);
+  const int fill = framesToFill(voxelsDrawn, false), fillTeleport = framesToFill(voxelsDrawn, true);
 
   // Sweep over voxel budgets, everything resident, over every 4th frame of the path (replayed
   // as the path is, each frame's fastest time).
@@ -341,7 +337,7 @@ int runCellsBench(const CellsBenchOptions& o) {
                 "\"unfetchable_cells\":%u,\"frames_to_settle_after_teleport\":%d,\"seconds_to_settle_after_teleport\":%.3f,"
                 "\"max_voxel_px_p50\":%.3f,\"cut_cells_p50\":%.0f,\"repeats\":%d,\"select_ms_p99_first_replay\":%.4f,"
                 "\"replays_differ_frames\":%d,\"select_threads\":%d,\"select_ms_p50_one_thread\":%.4f,"
-"\"select_ms_p99_one_thread\":%.4f,\"threads_differ_frames\":%d,\"frames_to_fill\":%d,"
+                "\"select_ms_p99_one_thread\":%.4f,\"threads_differ_frames\":%d,\"frames_to_fill\":%d,"
                 "\"frames_to_fill_after_teleport\":%d,\"select_sweep\":[",
                 o.frames, o.latencyFrames, o.maxOps, percentile(selectMs, 50), percentile(selectMs, 99),
                 *std::max_element(selectMs.begin(), selectMs.end()), teleportMs, percentile(voxelsDrawn, 50),
