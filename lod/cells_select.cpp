@@ -323,9 +323,11 @@ void CellSelector::setUp(uint32_t p, uint32_t slot) {
 void CellSelector::remove(CellSet& s, uint32_t c) {
   const uint32_t i = node_[c].slot, last = --s.n;
   if (&s == &mergeable_) setUp(c, kNoCell);
-  // Keep this frame's evaluation of c reachable (covers, realization()).
+  // Keep this frame's evaluation of c reachable (covers, realization()); its cost too once the
+  // set's costs are this frame's (not while step 2 repairs evictions: the set still holds the
+  // last frame's, which the view may have changed: a cell partly outside may be wholly inside).
   node_[c].e = s.e[i];
-  node_[c].flags = static_cast<uint8_t>(s.flags[i] | kCosted);
+  node_[c].flags = static_cast<uint8_t>(s.flags[i] | (costsFresh_ ? kCosted : 0));
   node_[c].mc = s.mc[i];
   node_[c].stamp = frame_;
   if (i != last) {
@@ -634,6 +636,12 @@ uint64_t CellSelector::cost(uint32_t c, std::vector<uint32_t>& unknown) {
   node_[c].flags = static_cast<uint8_t>(node_[c].flags | kCosted);
   node_[c].mc = static_cast<uint32_t>(v);
   return v;
+}
+
+int64_t CellSelector::countedCost(uint32_t c) const {
+  if (c >= node_.size()) return -1;
+  if (node_[c].state == kCut || node_[c].state == kMergeable || costed(c)) return static_cast<int64_t>(costConst(c));
+  return -1;
 }
 
 uint64_t CellSelector::costConst(uint32_t c) const {
@@ -1158,6 +1166,7 @@ CellSelectStats CellSelector::select(const CellView& view, std::span<const Resid
   // 1. Evaluate the cut and the mergeable cells (one pass each over packed arrays); collect the
   // drawn cells that stopped being resident.
   evicted_.clear();
+  costsFresh_ = false;
   runPass(Pass::Eval);
 
   // 2. Drawn cells that stopped being resident: fall back to the nearest drawable ancestor
@@ -1183,6 +1192,7 @@ CellSelectStats CellSelector::select(const CellView& view, std::span<const Resid
   mergeCeil_ = lastT_ / 0.95f;
   std::fill_n(childSum_.begin(), mergeable_.n, uint64_t{0});
   runPass(Pass::Cost);
+  costsFresh_ = true;  // the cut's; the mergeable cells' below, before any of them leaves the set
   cost_ = parts_[0].cost;
   // 4. One pass over the mergeable cells: their cost, the merge candidates of the heap window,
   // and those that became invisible or sub-pixel (merged: minimum quality).

@@ -196,6 +196,10 @@ class CellSelector {
   // Every cell of the last realization (live or not, covers expanded), depth-first. Returns the
   // count (never more than out.size() written). For tests and tools.
   size_t realization(std::span<uint32_t> out) const;
+  // The cheapest cover of cell c (the fewest voxels that draw its live part: V if it is drawn
+  // itself) as the last select() counted it: cut and mergeable cells, and the cells it costed;
+  // -1 for the others. For tests.
+  int64_t countedCost(uint32_t c) const;
   // Back to the root cut (e.g. after a scene change).
   void reset();
 
@@ -343,6 +347,7 @@ class CellSelector {
   float splitFloor_ = 0.0f, mergeCeil_ = 0.0f;  // heap windows: every candidate with e >= floor / <= ceil is queued
   float lastT_ = 0.0f;                          // e of the last split candidate examined (next frame's window)
   uint64_t cost_ = 0;
+  bool costsFresh_ = false;  // the sets' mc are this frame's (remove() may keep them)
   uint32_t forcedMerges_ = 0;
   std::span<uint32_t> reqOut_;
   uint32_t reqCount_ = 0, unfetchable_ = 0;
