@@ -37,11 +37,14 @@ struct Step {
 struct Event {
   double t;
   double weight;
-  int count;
+  int count;  // change in the members present (value > 0)
+  int full;   // change in the members wholly present (value 1)
 };
 
-// f(t) = sum of present weights / total over the leaf step functions (value 1 = present); with
-// `any`, f = 1 while any leaf is present. Exactly 0 when none is and 1 when all are.
+// f(t) = sum of weight x value / total over the members' step functions (leaves: value 1 =
+// present); with `any`, f = 1 while any member is present (value > 0: a group over merged
+// clusters, whose values are fractions, counts each while any of its leaves is present).
+// Exactly 0 when none is and 1 when all are wholly present.
 void presenceOf(const HdlodTree& tree, std::span<const uint32_t> leaves, std::span<const double> weights, bool any,
                 std::vector<double>& times, std::vector<double>& values, std::vector<Event>& events) {
   events.clear();
@@ -52,7 +55,9 @@ void presenceOf(const HdlodTree& tree, std::span<const uint32_t> leaves, std::sp
     double prev = 0.0;
     for (uint32_t k = 0; k < c.stepCount; ++k) {
       const double v = tree.stepValues[c.stepBegin + k];
-      if (v != prev) events.push_back({tree.stepTimes[c.stepBegin + k], v > prev ? weights[i] : -weights[i], v > prev ? 1 : -1});
+      if (v != prev)
+        events.push_back({tree.stepTimes[c.stepBegin + k], weights[i] * (v - prev), (v > 0.0) - (prev > 0.0),
+                          (v == 1.0) - (prev == 1.0)});
       prev = v;
     }
   }
@@ -61,17 +66,18 @@ void presenceOf(const HdlodTree& tree, std::span<const uint32_t> leaves, std::sp
   values.clear();
   const int n = static_cast<int>(leaves.size());
   double w = 0.0;
-  int count = 0;
+  int count = 0, full = 0;
   size_t e = 0;
   auto value = [&] {
     if (count <= 0) return 0.0;
-    if (any || count >= n) return 1.0;
+    if (any || full >= n) return 1.0;
     return std::clamp(w / total, 0.0, 1.0);
   };
   // Segment starting at 0 includes every event at 0.
   while (e < events.size() && events[e].t <= 0.0) {
     w += events[e].weight;
     count += events[e].count;
+    full += events[e].full;
     ++e;
   }
   times.push_back(0.0);
@@ -81,6 +87,7 @@ void presenceOf(const HdlodTree& tree, std::span<const uint32_t> leaves, std::sp
     while (e < events.size() && events[e].t == t) {
       w += events[e].weight;
       count += events[e].count;
+      full += events[e].full;
       ++e;
     }
     const double v = value();

@@ -20,7 +20,7 @@ constexpr char kMagic[8] = {'I', 'G', 'H', 'D', 'L', 'O', 'D', '\0'};
 constexpr size_t kHeaderBytes = 64;
 // Bump when the builder changes what it makes from the same scene and config (the key then
 // changes, and old caches read as stale).
-constexpr uint64_t kBuildRevision = 5;
+constexpr uint64_t kBuildRevision = 6;  // 6: a group over merged clusters is present while any of them is
 
 struct Header {
   char magic[8];

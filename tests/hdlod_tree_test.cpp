@@ -720,3 +720,41 @@ TEST(HdlodSelect, UnpreparedOrBrokenTreesSelectNothing) {
   EXPECT_TRUE(prepareSelection(tree));
   EXPECT_EQ(selectHdlod(tree, s, v, out), 2u);
 }
+
+// Presence at the ends of time and at every breakpoint, for leaves with short and long step
+// functions (inline steps, a scan, the bucket table): selectAll() draws exactly the objects that
+// isPresent() says are present, at t = 0, T, every interval end, one ulp either side, and
+// outside [0, T]. The virtual root over the pseudo-dynamic tree's top (a merged cluster whose f
+// takes fractional values) must be present while any object is: counting the top's rises and
+// falls instead of its presence made the root absent (nothing drawn) while objects were present.
+TEST(HdlodSelect, PresenceAtEveryBreakpointMatchesIsPresent) {
+  for (double T : {1.0, 7.3, 3600.0, 1e6}) {
+    Scene s;
+    s.duration_s = T;
+    s.models.push_back(makeBoxModel("b", {1, 1, 1}));
+    std::vector<double> probes{0.0, T, -1e-300, -1.0, std::nextafter(T, 2 * T), 2 * T, std::nextafter(T, 0.0)};
+    for (int k : {1, 2, 5, 9, 20, 40}) {
+      std::vector<Interval> iv;
+      for (int i = 0; i < k; ++i) {
+        const double a = T * (2 * i + 1) / (2 * k + 1), b = T * (2 * i + 2) / (2 * k + 1);
+        iv.push_back({a, i + 1 == k ? T : b});  // the last one reaches T
+        for (double t : {a, b}) probes.insert(probes.end(), {t, std::nextafter(t, 0.0), std::nextafter(t, 2 * T)});
+      }
+      s.objects.push_back(placed("o" + std::to_string(k), 0, {3.0 * k, 0, 0}, iv));
+    }
+    const HdlodTree tree = buildHdlod(s);
+    DrawList out(tree);
+    for (double t : probes) {
+      SelectView v = viewOf({60, 0, 0}, 300, t, 0.0);
+      const size_t n = selectAll(tree, s, v, out);
+      std::vector<uint32_t> want;
+      for (uint32_t i = 0; i < s.objects.size(); ++i)
+        if (isPresent(s.objects[i], t, T)) want.push_back(tree.objectCluster[i]);
+      std::sort(want.begin(), want.end());
+      EXPECT_EQ(sortedClusters(out.selected()), want) << "T " << T << " t " << t << " n " << n;
+      for (uint32_t i = 0; i < s.objects.size(); ++i)
+        EXPECT_EQ(clusterPresence(tree, tree.clusters[tree.objectCluster[i]], t) == 1.0, isPresent(s.objects[i], t, T))
+            << "T " << T << " t " << t << " object " << i;
+    }
+  }
+}
