@@ -279,6 +279,8 @@ void Governor::configure(const GovernorConfig& c, bool keepState) {
     spikeFrames_ = 0;
     phaseScale_.fill(0.0);
     other_ms_ = 0.0;
+    otherScale_ = 0.0;
+    otherSamples_ = 0;
     havePrediction_ = false;
     framesSinceRaise_ = 0;
     hold_ = 0;
@@ -457,8 +459,17 @@ const GovDecision& Governor::update(const GovSample& sample) {
   }
   const bool frameGood = !std::isnan(frame_ms);
   if (frameGood && allPhasesGood) {
+    // The unmodelled rest, clipped like a phase residual once settled: one stall outside the
+    // phases (present blocked, the process suspended) must not stay in the prediction for the
+    // frames after it (it would cut detail to the knobs' bounds; its own frame is an overrun,
+    // which the emergency step answers).
     const double other = std::max(0.0, frame_ms - phaseSum);
-    other_ms_ = stats_.frames == 1 ? other : 0.8 * other_ms_ + 0.2 * other;
+    const double residual = std::abs(other - other_ms_);
+    const bool settled = otherSamples_ >= 10 && !loadJump;
+    const double clip = settled ? 4.0 * otherScale_ + 0.005 * budget_ms_ : std::numeric_limits<double>::infinity();
+    otherScale_ = otherSamples_ == 0 ? 0.0 : 0.9 * otherScale_ + 0.1 * std::min(residual, clip);
+    other_ms_ = otherSamples_ == 0 ? other : 0.8 * other_ms_ + 0.2 * std::clamp(other, other_ms_ - clip, other_ms_ + clip);
+    ++otherSamples_;
   }
   if (frameGood && havePrediction_) {
     const double err = std::min(std::abs(frame_ms - lastDecision_.predicted_ms), 4.0 * errorScale_ + 0.01 * budget_ms_);

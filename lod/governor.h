@@ -23,7 +23,8 @@
 // residuals are clipped at 4 times their smoothed size (an outlier frame moves it little),
 // except in a frame whose load jumped by more than 1.5x (that residual is news, not noise).
 // Slopes below 0 count as 0.
-// Frame work = sum of phases + "other" (frame_ms minus the phases: present, report), smoothed.
+// Frame work = sum of phases + "other" (frame_ms minus the phases: present, report), smoothed, its
+// change clipped as a phase residual is once 10 frames measured it (one stall is not a trend).
 //
 // Load prediction, per layer, at a knob value v' for the next frame:
 //     load'_l = load_l * growth_l * (v' / v)^loadExponent_l
@@ -345,6 +346,8 @@ class Governor {
   std::array<bool, kGovLayers> quantumPending_{};
   std::array<double, kGovLayers> quantumRaise_ms_{}, quantumFrom_ms_{};
   double other_ms_ = 0.0;       // frame work outside the modelled phases, smoothed
+  double otherScale_ = 0.0;     // smoothed |residual| of other_ms_ (clips an outlier, as phaseScale_)
+  int64_t otherSamples_ = 0;    // frames that measured it
   double errorScale_ = 0.0;     // 1.25 * smoothed |prediction error| (a robust sigma)
   std::array<double, 10> spikeBlocks_{};  // largest excess over the prediction per block of the window
   int64_t spikeFrames_ = 0;                // frames into the window's newest block

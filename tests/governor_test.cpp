@@ -788,3 +788,34 @@ TEST(Governor, ForestLayerCountIsAGpuKnobThatFollowsTheFill) {
   for (int k = 0; k < 3; ++k) EXPECT_LE(heavyRaises[k], 3) << "heavy phase " << k;
   EXPECT_LE(g.stats().directionChanges[static_cast<size_t>(GovLayer::ForestLayers)], 24);
 }
+
+// One frame stalled outside the measured phases (present blocked by the compositor, the process
+// suspended): its excess lands in the unmodelled "other" time. Like an outlier phase, it must
+// not keep the prediction high for the frames after it (driving the knob to its bound).
+TEST(Governor, AStallOutsideThePhasesDoesNotKeepCuttingDetail) {
+  Governor g(terrainConfig());
+  FakeWorld w;
+  for (int i = 0; i < 300; ++i) g.update(w.frame(g, 200e3));
+  const double before = g.knob(GovLayer::Terrain);
+  GovSample s = w.frame(g, 200e3);
+  s.frame_ms += 1000.0;  // one 1 s stall; every phase measured normally
+  EXPECT_EQ(g.update(s).action, GovAction::Emergency);
+  const double afterEmergency = g.knob(GovLayer::Terrain);
+  int decreases = 0;
+  for (int i = 0; i < 30; ++i) {
+    const GovDecision& d = g.update(w.frame(g, 200e3));
+    EXPECT_FALSE(d.overrun) << i;
+    decreases += d.action == GovAction::Decrease ? 1 : 0;
+  }
+  // Normal frames after the stall: no further cuts beyond the emergency step (before the fix:
+  // 10 decreases, the knob at its bound 64 within 30 frames, back after 525).
+  EXPECT_EQ(decreases, 0);
+  EXPECT_LE(g.knob(GovLayer::Terrain), afterEmergency * 1.001);
+  int back = -1;
+  for (int i = 0; i < 600 && back < 0; ++i) {
+    g.update(w.frame(g, 200e3));
+    if (g.knob(GovLayer::Terrain) <= 1.1 * before) back = i;
+  }
+  EXPECT_GE(back, 0);
+  EXPECT_LE(back, 300);  // as after a stall inside a phase (RecoversAfterASpike): within 10 s
+}
