@@ -22,6 +22,8 @@ constexpr size_t kFieldCount = std::size(kFieldNames);
 constexpr size_t kFieldCountV1 = 12;
 // Timestamps are written to 0.1 ms: a sample within that of the replay time is due.
 constexpr double kTimeTolerance_s = 1e-4;
+// host_frame is read as a double: integers are exact up to 2^53.
+constexpr double kMaxExactFrame = 9007199254740992.0;
 
 std::string_view trim(std::string_view s) {
   while (!s.empty() && (s.front() == ' ' || s.front() == '\t' || s.front() == '\r')) s.remove_prefix(1);
@@ -83,6 +85,8 @@ bool parseRecording(std::string_view text, const std::string& name, Recording& o
     s.t_s = v[0];
     if (v[1] < 0 || v[1] != std::floor(v[1]))
       return fail("host_frame = '" + std::string(tokens[1]) + "': not a non-negative integer");
+    if (v[1] > kMaxExactFrame)  // read as a double: exact (and convertible) only up to 2^53
+      return fail("host_frame = '" + std::string(tokens[1]) + "': not a non-negative integer up to 2^53");
     s.state.hostFrame = static_cast<uint64_t>(v[1]);
     s.state.simTime_s = v[2];
     s.state.eyeEnu_m = {v[3], v[4], v[5]};
@@ -130,14 +134,31 @@ std::string recordingHeader() {
   return s + "\n";
 }
 
+namespace {
+// `v` with `decimals` fixed decimals when that text reads back as exactly `v` (the usual case,
+// and what the committed recordings hold), else with 17 significant digits: a field that must
+// stay positive (fovy, near, far) never rounds to 0 and a live float value replays exactly.
+std::string exactFixed(double v, int decimals) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
+  double back = 0;
+  if (parseDouble(buf, back) && back == v) return buf;
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
+}
+}  // namespace
+
 std::string formatSample(const HostSample& h) {
   // Micrometres and micro-degrees: a recorded live run replays within float precision of what
-  // was rendered live.
+  // was rendered live. The frustum fields are written exactly (a tiny near plane or field of
+  // view would otherwise round to 0, which the parser refuses).
   const HostState& st = h.state;
-  char buf[400];
-  std::snprintf(buf, sizeof buf, "%.6f %llu %.6f %.6f %.6f %.6f %.6f %.6f %.6f %.6f %.6f %.3f %.6f %d\n", h.t_s,
+  const std::string fovy = exactFixed(st.fovY_deg, 6), nearM = exactFixed(st.near_m, 6),
+                    farM = exactFixed(st.far_m, 3);
+  char buf[512];
+  std::snprintf(buf, sizeof buf, "%.6f %llu %.6f %.6f %.6f %.6f %.6f %.6f %.6f %s %s %s %.6f %d\n", h.t_s,
                 static_cast<unsigned long long>(st.hostFrame), st.simTime_s, st.eyeEnu_m.x, st.eyeEnu_m.y,
-                st.eyeEnu_m.z, st.heading_deg, st.pitch_deg, st.roll_deg, st.fovY_deg, st.near_m, st.far_m,
+                st.eyeEnu_m.z, st.heading_deg, st.pitch_deg, st.roll_deg, fovy.c_str(), nearM.c_str(), farM.c_str(),
                 st.timeOfDay_h < 0 ? -1.0 : st.timeOfDay_h, static_cast<int>(st.dateYmd));
   return buf;
 }

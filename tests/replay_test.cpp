@@ -172,3 +172,39 @@ TEST(Replay, SampleLinesRoundTripToAMicrometre) {
   EXPECT_EQ(s.dateYmd, 20261123);
   EXPECT_EQ(s.hostFrame, 42u);
 }
+
+// A live sample the links accept (CIGI near/far (0, 1e8], Modbus near (0, 1e6]) must load back
+// from the recording: a near plane of 1e-7 m was written as "0.000000" and the whole file was
+// then refused ("need 0 < near_m < far_m").
+TEST(Replay, TinyClipPlanesAndFieldOfViewSurviveTheRecording) {
+  HostSample h;
+  h.state.near_m = 1e-7;
+  h.state.far_m = 2e-4;
+  h.state.fovY_deg = 1e-7;
+  Recording r;
+  std::string e;
+  ASSERT_TRUE(parseRecording(recordingHeader() + formatSample(h), "rec.txt", r, e)) << e;
+  const HostState& s = r.samples.at(0).state;
+  EXPECT_DOUBLE_EQ(s.near_m, 1e-7);
+  EXPECT_DOUBLE_EQ(s.far_m, 2e-4);
+  EXPECT_DOUBLE_EQ(s.fovY_deg, 1e-7);
+  // A live CIGI value is a float: it round-trips exactly too.
+  h.state.near_m = static_cast<double>(0.1f);
+  h.state.far_m = static_cast<double>(50000.3f);
+  ASSERT_TRUE(parseRecording(recordingHeader() + formatSample(h), "rec.txt", r, e)) << e;
+  EXPECT_EQ(r.samples.at(0).state.near_m, static_cast<double>(0.1f));
+  EXPECT_EQ(r.samples.at(0).state.far_m, static_cast<double>(50000.3f));
+}
+
+// host_frame is a uint64: a value that does not fit (or that a double cannot hold exactly) is
+// an error naming the value, not an undefined float -> integer conversion.
+TEST(Replay, HostFrameTooLargeIsAnError) {
+  EXPECT_EQ(parseError("igd-recording 1\n0 1e20 0 1 2 3 4 5 6 45 0.1 1000\n"),
+            "rec.txt:2: host_frame = '1e20': not a non-negative integer up to 2^53");
+  EXPECT_EQ(parseError("igd-recording 1\n0 18446744073709551616 0 1 2 3 4 5 6 45 0.1 1000\n"),
+            "rec.txt:2: host_frame = '18446744073709551616': not a non-negative integer up to 2^53");
+  Recording r;
+  std::string e;
+  ASSERT_TRUE(parseRecording("igd-recording 1\n0 9007199254740992 0 1 2 3 4 5 6 45 0.1 1000\n", "rec.txt", r, e)) << e;
+  EXPECT_EQ(r.samples.at(0).state.hostFrame, 9007199254740992ull);
+}
