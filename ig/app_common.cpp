@@ -49,6 +49,9 @@ bool loadConfigs(const std::string& serviceFile, const Overrides& o, ServiceConf
   if (o.replayFile) {
     s.replayFile = *o.replayFile;
     s.host = HostSource::Replay;
+    // Only live links are recorded (host.record_file). Left set, the recorder would truncate
+    // that file, which is often the very recording being replayed.
+    s.recordFile.clear();
   }
   SceneConfig sc;
   if (!loadSceneConfig(s.sceneFile, sc, ce)) {

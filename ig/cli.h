@@ -1,6 +1,6 @@
 // Command-line parsing shared by igd, igbench and igtool: a bad option or value exits 2 (the
-// documented "bad config or option" code, which systemd's Restart=on-failure does not loop
-// on as a crash), --help exits 0.
+// documented "bad config or option" code, which the systemd unit's RestartPreventExitStatus=2
+// keeps from a restart loop), --help exits 0.
 #pragma once
 
 #include <CLI/CLI.hpp>

@@ -459,7 +459,8 @@ bool parseService(const std::string& text, const std::string& name, const std::s
   const Table root = r.parse({"frame", "output", "stats", "host", "scene", "budget", "governor", "service"});
 
   const Table frame = r.table(root, "frame", {"rate_hz", "frames", "free_run"});
-  r.get(frame, "rate_hz", cfg.rate_hz, openClosed(0.0, 1000.0));
+  // At least 0.01 Hz: the period (and every deadline derived from it) must fit int64 nanoseconds.
+  r.get(frame, "rate_hz", cfg.rate_hz, closed(0.01, 1000.0));
   r.get(frame, "frames", cfg.frames, IntRange{0});
   r.get(frame, "free_run", cfg.freeRun);
 
@@ -538,7 +539,7 @@ bool parseService(const std::string& text, const std::string& name, const std::s
   r.require(scene, "file", "path of the scene file ([scene] file = \"scenes/default.toml\")");
 
   const Table budget = r.table(root, "budget", {"frame_ms", "triangles"});
-  r.get(budget, "frame_ms", cfg.budgetFrame_ms, atLeast(0.0));
+  r.get(budget, "frame_ms", cfg.budgetFrame_ms, closed(0.0, 100000.0));
   r.get(budget, "triangles", cfg.budgetTriangles, IntRange{1000});
 
   const Table gov = r.table(root, "governor", {"enabled", "decrease_above", "increase_below", "margin_sigmas",
@@ -558,7 +559,9 @@ bool parseService(const std::string& text, const std::string& name, const std::s
   const Table govTerrain = r.table(gov, "terrain", {"min_px", "max_px", "load_exponent"});
   r.get(govTerrain, "min_px", g.terrainMin_px, closed(0.0, 1000.0));
   r.get(govTerrain, "max_px", g.terrainMax_px, openClosed(0.0, 1000.0));
-  r.get(govTerrain, "load_exponent", g.terrainLoadExponent, closed(-10.0, -0.1));
+  // lod::Governor::validate allows |load_exponent| <= 8: a value it refuses must not pass here
+  // (start-up would fail with no file named, and a reload would apply it unchecked).
+  r.get(govTerrain, "load_exponent", g.terrainLoadExponent, closed(-8.0, -0.1));
   const Table govForest = r.table(gov, "forest", {"min_m", "max_m", "min_layers", "max_layers"});
   r.get(govForest, "min_m", g.forestMin_m, openClosed(0.0, 1e6));
   r.get(govForest, "max_m", g.forestMax_m, closed(0.0, 1e6));
@@ -567,7 +570,7 @@ bool parseService(const std::string& text, const std::string& name, const std::s
   const Table govHdlod = r.table(gov, "hdlod", {"min_px", "max_px", "load_exponent"});
   r.get(govHdlod, "min_px", g.hdlodMin_px, closed(0.0, 1000.0));
   r.get(govHdlod, "max_px", g.hdlodMax_px, openClosed(0.0, 1000.0));
-  r.get(govHdlod, "load_exponent", g.hdlodLoadExponent, closed(-10.0, -0.1));
+  r.get(govHdlod, "load_exponent", g.hdlodLoadExponent, closed(-8.0, -0.1));
   const Table govCells = r.table(gov, "cells", {"min_voxels", "max_voxels"});
   r.get(govCells, "min_voxels", g.cellsMin_voxels, IntRange{1000, 1'000'000'000});
   r.get(govCells, "max_voxels", g.cellsMax_voxels, IntRange{0, 1'000'000'000});
@@ -605,7 +608,7 @@ bool parseService(const std::string& text, const std::string& name, const std::s
 
   const Table service = r.table(root, "service", {"watchdog_interval_s", "realtime_priority", "cpu_affinity",
                                                   "lock_memory", "status_file", "status_interval_s"});
-  r.get(service, "watchdog_interval_s", cfg.watchdogInterval_s, atLeast(0.0));
+  r.get(service, "watchdog_interval_s", cfg.watchdogInterval_s, closed(0.0, 3600.0));
   r.get(service, "realtime_priority", cfg.realtimePriority, IntRange{0, 99});
   r.get(service, "cpu_affinity", cfg.cpuAffinity, IntRange{0, 1023});
   r.get(service, "lock_memory", cfg.lockMemory);

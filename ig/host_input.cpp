@@ -91,13 +91,19 @@ void HostInput::stop() {
 }
 
 void HostInput::publish(const io::HostState& state) {
-  const int64_t now = clock_.load()->now_ns();
-  lastPublish_ns_.store(now);
+  double t_s = 0.0;
+  {
+    std::lock_guard<std::mutex> lock(timeMutex_);
+    const int64_t now = clock_.load()->now_ns();
+    lastPublish_ns_.store(now);
+    // Before the frame loop's time base is set, a sample is due at the loop's first frame: 0.
+    if (timeBaseSet_) t_s = std::max(lastRecorded_s_, std::max(0.0, static_cast<double>(now - t0_ns_.load()) * 1e-9));
+    lastRecorded_s_ = t_s;
+  }
   mailbox_.publish(state);
   if (recorder_) {
     io::HostSample s;
-    s.t_s = std::max(lastRecorded_s_, std::max(0.0, static_cast<double>(now - t0_ns_.load()) * 1e-9));
-    lastRecorded_s_ = s.t_s;
+    s.t_s = t_s;
     s.state = state;
     recorder_->append(s);
   }

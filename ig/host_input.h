@@ -5,8 +5,9 @@
 //                                      \--> recorder queue --> recorder thread --> file
 //
 // The recorder thread exists only when [host] record_file is set; without a link no thread
-// runs at all. Recorded sample times are seconds since start() -- the same clock as the frame
-// slots of the run -- so replaying the recording feeds each frame the sample it had live.
+// runs at all. Recorded sample times are seconds since the frame loop's start (setTimeBase) --
+// the same clock as the frame slots of the run; samples from before it are stamped 0 -- so
+// replaying the recording feeds each frame the sample it had live.
 #pragma once
 
 #include <atomic>
@@ -59,8 +60,8 @@ class HostInput final : public io::HostSink {
   HostInput(io::LatestValueMailbox<io::HostState>& mailbox, Clock& clock) : mailbox_(mailbox), clock_(&clock) {}
   ~HostInput() override { stop(); }
 
-  // Starts recording (if `recordFile` is not empty) and the link (if any). Sample times count
-  // from this call until setTimeBase. Returns false with an error naming the file or the
+  // Starts recording (if `recordFile` is not empty) and the link (if any). Samples published
+  // before setTimeBase are recorded at time 0. Returns false with an error naming the file or the
   // link's address; nothing is left running then.
   bool start(std::unique_ptr<io::HostLink> link, const std::string& recordFile, double linkTimeout_s,
              std::string& error);
@@ -68,8 +69,12 @@ class HostInput final : public io::HostSink {
   // frame loop's start); earlier samples get 0. Call before the link's next sample matters
   // (the frame loop calls it once, before its first frame).
   void setTimeBase(Clock& clock, int64_t t0_ns) {
+    // One lock with publish(): a sample is stamped entirely with the old base (time 0) or
+    // entirely with the new one, never the new clock minus the old t0.
+    std::lock_guard<std::mutex> lock(timeMutex_);
     clock_.store(&clock);
     t0_ns_.store(t0_ns);
+    timeBaseSet_ = true;
     if (lastPublish_ns_.load() >= 0) lastPublish_ns_.store(t0_ns);
   }
   void stop();
@@ -96,7 +101,9 @@ class HostInput final : public io::HostSink {
   std::unique_ptr<io::HostLink> link_;
   std::unique_ptr<HostRecorder> recorder_;
   std::atomic<int64_t> t0_ns_{0};
-  double lastRecorded_s_ = 0.0;              // recorder times stay non-decreasing (link thread only)
+  std::mutex timeMutex_;                     // publish() vs setTimeBase()
+  bool timeBaseSet_ = false;                 // before setTimeBase, recorded times are 0 (timeMutex_)
+  double lastRecorded_s_ = 0.0;              // recorder times stay non-decreasing (timeMutex_)
   int64_t timeout_ns_ = 0;
   std::atomic<int64_t> lastPublish_ns_{-1};  // -1 = nothing yet
   bool lost_ = false;

@@ -34,6 +34,7 @@ int runFrameSuite(const std::string& configFile, ig::Overrides o, bool json) {
     return 2;
   }
   config.snapshotFrames.clear();
+  config.recordFile.clear();  // no files: a live link's recording is not overwritten by a benchmark
   config.replayLoop = true;
   auto service = ig::Service::create(config, scene, error);
   if (!service) {

@@ -49,7 +49,7 @@ int main(int argc, char** argv) {
   app.add_option("--snapshot-dir", o.snapshotDir, "Folder for snapshot PNGs; overrides output.snapshot_dir");
   app.add_option("--snapshot-every", o.snapshotEvery, "Write a snapshot every N frames (0 = never); overrides output.snapshot_every");
   app.add_option("--scene", o.sceneFile, "Scene config (TOML); overrides scene.file");
-  app.add_option("--replay", o.replayFile, "Host recording to replay; sets host.source = replay");
+  app.add_option("--replay", o.replayFile, "Host recording to replay; sets host.source = replay (and records nothing: host.record_file is for live links)");
   app.add_flag("--check-config", checkOnly, "Load and validate the configs, print a summary, exit");
   if (const auto rc = ig::parseCommandLine(app, argc, argv)) return *rc;
 

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <span>
 #include <thread>
+#include <utility>
 
 #include <glm/geometric.hpp>
 #include <glm/vec3.hpp>
@@ -743,7 +744,12 @@ struct Service::Impl {
 };
 
 Service::Service() : impl_(std::make_unique<Impl>()) {}
-Service::~Service() = default;
+Service::~Service() {
+  // The link thread publishes into mailbox_, which (a member declared after impl_) is destroyed
+  // before impl_ and its HostInput: stop the link first. run() stops it too; this covers a
+  // Service destroyed without run(), e.g. create() failing after the link started.
+  if (impl_ && impl_->hostInput) impl_->hostInput->stop();
+}
 
 std::unique_ptr<Service> Service::create(const ServiceConfig& config, const SceneConfig& scene, std::string& error,
                                          std::unique_ptr<io::HostLink> link) {
@@ -751,7 +757,10 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
   Impl& m = *s->impl_;
   m.config = config;
   m.scene = scene;
-  m.summary = SummaryCollector(config.frames > 0 ? static_cast<size_t>(config.frames) : 36000);
+  // At most SummaryCollector::kMaxCapacity frames are kept (frames = 1e11 must not reserve terabytes).
+  m.summary = SummaryCollector(config.frames > 0 && config.frames < static_cast<int64_t>(SummaryCollector::kMaxCapacity)
+                                   ? static_cast<size_t>(config.frames)
+                                   : SummaryCollector::kMaxCapacity);
 
   if (config.host == HostSource::Replay) {
     io::Recording rec;
@@ -944,6 +953,7 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
   }
 
   SystemdNotifier notifier(cfg.watchdogInterval_s);
+  if (!notifier.warning().empty()) std::fprintf(stderr, "igd: %s\n", notifier.warning().c_str());
   io::HostLink* link = m.hostInput ? m.hostInput->link() : nullptr;
   // Synchronous host (CIGI sync mode): the host's messages pace the frames; the configured
   // rate is the fallback when the host is silent (wait at most one period per frame).
@@ -954,13 +964,21 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
   pacer.startAt(loopStart_ns);
   if (m.hostInput) m.hostInput->setTimeBase(clock, loopStart_ns);
   // The health report exists only where someone reads it: systemd or a status file.
+  // A reload that changes the file or the interval keeps the totals (frames, overruns, missed
+  // slots): the running reporter is reconfigured, a new one starts from the pacer's counts.
   std::unique_ptr<StatusReporter> status;
   bool statusErrorLogged = false;
   auto makeStatus = [&] {
-    status.reset();
     if (notifier.underSystemd() || !cfg.statusFile.empty()) {
-      status = std::make_unique<StatusReporter>(cfg.statusFile, cfg.statusInterval_s, cfg.rate_hz);
-      status->start(clock.now_ns());
+      if (status) {
+        status->reconfigure(cfg.statusFile, cfg.statusInterval_s, cfg.rate_hz);
+      } else {
+        status = std::make_unique<StatusReporter>(cfg.statusFile, cfg.statusInterval_s, cfg.rate_hz);
+        status->setTotals(pacer.frames(), pacer.overruns(), pacer.missedSlots());
+        status->start(clock.now_ns());
+      }
+    } else {
+      status.reset();
     }
     statusErrorLogged = false;
   };
@@ -1001,16 +1019,34 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
   };
   std::unique_ptr<PendingReload> pending;
   // Between two frames: takes the reloadable keys of a finished reload.
+  auto applyReloadFailed = [&](const PendingReload& p, int64_t frame) {
+    m.lastReloadError = p.error;
+    std::fprintf(stderr, "igd: reload failed after frame %lld, the running config is unchanged: %s\n",
+                 static_cast<long long>(frame), p.error.c_str());
+  };
   auto applyReload = [&](PendingReload& p, int64_t frame) {
     if (!p.ok) {
-      m.lastReloadError = p.error;
-      std::fprintf(stderr, "igd: reload failed after frame %lld, the running config is unchanged: %s\n",
-                   static_cast<long long>(frame), p.error.c_str());
+      applyReloadFailed(p, frame);
       return;
     }
     ServiceConfig mc;
     SceneConfig ms;
     const ReloadPlan plan = planReload(m.config, m.scene, p.config, p.scene, mc, ms);
+    if (m.governor) {
+      // The governor's config comes from both files and the layers; Governor::reconfigure only
+      // asserts it. One it refuses fails the reload like a bad file (nothing applied).
+      std::swap(m.config, mc);
+      std::swap(m.scene, ms);
+      const std::string why = lod::Governor::validate(m.governorConfig());
+      std::swap(m.config, mc);
+      std::swap(m.scene, ms);
+      if (!why.empty()) {
+        p.ok = false;
+        p.error = p.config.path + ": governor." + why;
+        applyReloadFailed(p, frame);
+        return;
+      }
+    }
     const bool statusChanged = mc.statusFile != cfg.statusFile || mc.statusInterval_s != cfg.statusInterval_s;
     m.config = std::move(mc);  // `cfg` refers to m.config
     m.scene = std::move(ms);

@@ -75,11 +75,12 @@ void StatsWriter::close() {
   }
 }
 
-SummaryCollector::SummaryCollector(size_t capacity) : capacity_(std::max<size_t>(capacity, 1)) {
+SummaryCollector::SummaryCollector(size_t capacity) : capacity_(std::clamp<size_t>(capacity, 1, kMaxCapacity)) {
   records_.reserve(capacity_);
 }
 
 void SummaryCollector::add(const FrameRecord& r) {
+  ++added_;
   if (records_.size() < capacity_) {
     records_.push_back(r);
   } else {
@@ -99,7 +100,7 @@ double percentile(std::vector<double> v, double p) {
 
 RunSummary SummaryCollector::summarize(int64_t overruns, int64_t missedSlots) const {
   RunSummary s;
-  s.frames = static_cast<int64_t>(records_.size());
+  s.frames = added_;
   s.overruns = overruns;
   s.missedSlots = missedSlots;
   if (records_.empty()) return s;

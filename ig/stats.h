@@ -58,7 +58,7 @@ class StatsWriter {
 };
 
 struct RunSummary {
-  int64_t frames = 0;
+  int64_t frames = 0;           // every frame of the run (percentiles: the last kMaxCapacity)
   int64_t overruns = 0;
   int64_t missedSlots = 0;
   double workMs_p50 = 0, workMs_p99 = 0, workMs_max = 0, workMs_mean = 0;
@@ -68,9 +68,12 @@ struct RunSummary {
 };
 
 // Collects frames for percentiles; capacity fixed at construction (older frames beyond it
-// are dropped from the summary, never reallocated).
+// are dropped from the percentiles, never reallocated; RunSummary::frames still counts every
+// frame added).
 class SummaryCollector {
  public:
+  // The most frames kept for the percentiles (10 minutes at 60 Hz, about 8 MB).
+  static constexpr size_t kMaxCapacity = 36000;
   explicit SummaryCollector(size_t capacity);
   void add(const FrameRecord& r);
   RunSummary summarize(int64_t overruns, int64_t missedSlots) const;
@@ -79,6 +82,7 @@ class SummaryCollector {
   std::vector<FrameRecord> records_;
   size_t capacity_;
   size_t next_ = 0;
+  int64_t added_ = 0;
 };
 
 double percentile(std::vector<double> values, double p);

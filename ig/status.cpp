@@ -46,15 +46,20 @@ double percentileInPlace(std::vector<double>& v, size_t n, double p) {
 
 }  // namespace
 
-StatusReporter::StatusReporter(std::string file, double interval_s, double rate_hz)
-    : file_(std::move(file)),
-      tmpFile_(file_.empty() ? std::string() : file_ + ".tmp"),
-      interval_ns_(static_cast<int64_t>(std::max(interval_s, 0.01) * 1e9)) {
+StatusReporter::StatusReporter(std::string file, double interval_s, double rate_hz) {
+  reconfigure(std::move(file), interval_s, rate_hz);
+  json_.reserve(2048);
+  line_.reserve(256);
+}
+
+void StatusReporter::reconfigure(std::string file, double interval_s, double rate_hz) {
+  file_ = std::move(file);
+  tmpFile_ = file_.empty() ? std::string() : file_ + ".tmp";
+  interval_ns_ = static_cast<int64_t>(std::max(interval_s, 0.01) * 1e9);
   const auto perInterval = static_cast<size_t>(std::ceil(std::max(interval_s, 0.01) * std::max(rate_hz, 1.0)));
   work_ms_.reserve(4 * perInterval + 16);
   scratch_.reserve(work_ms_.capacity());
-  json_.reserve(2048);
-  line_.reserve(256);
+  fileError_.clear();
 }
 
 void StatusReporter::addFrame(const FrameTiming& t, uint64_t triangles) {

@@ -48,6 +48,16 @@ class StatusReporter {
 
   // The first interval starts here (the frame loop's start).
   void start(int64_t now_ns) { lastReport_ns_ = now_ns; }
+  // Reload: a new file and interval from the next report on. The totals (frames, overruns,
+  // missed slots) and the frames of the current interval are kept. May allocate (between frames).
+  void reconfigure(std::string file, double interval_s, double rate_hz);
+  // A reporter created after frames have run (a reload that switched the report on): the
+  // totals so far, e.g. from the frame pacer, so that they do not restart at 0.
+  void setTotals(int64_t frames, int64_t overruns, int64_t missedSlots) {
+    totalFrames_ = frames;
+    totalOverruns_ = overruns;
+    totalMissed_ = missedSlots;
+  }
   // Per frame: adds the frame's timing to the current interval.
   void addFrame(const FrameTiming& t, uint64_t triangles);
   // True when `now_ns` (the frame loop's clock) is at least one interval after the last report.
@@ -62,7 +72,7 @@ class StatusReporter {
 
  private:
   std::string file_, tmpFile_;
-  int64_t interval_ns_;
+  int64_t interval_ns_ = 0;
   int64_t lastReport_ns_ = 0;
   // Current interval.
   std::vector<double> work_ms_;     // reserved for the frames of 4 intervals; beyond: dropped

@@ -1,12 +1,15 @@
 // Tests for ig/config: the shipped config files load with the expected values, and every kind of
 // error names the right file, line, key and value without touching the output struct.
 #include "ig/config.h"
+#include "ig/app_common.h"
 
 #include <gtest/gtest.h>
 
 #include <filesystem>
 #include <fstream>
 #include <string>
+
+#include <unistd.h>
 
 namespace ig {
 namespace {
@@ -324,7 +327,7 @@ TEST(ConfigErrors, OutOfRangeNamesTheRange) {
   EXPECT_EQ(e.line, 6);
   EXPECT_EQ(e.key, "frame.rate_hz");
   EXPECT_EQ(e.value, "0");
-  EXPECT_NE(e.message.find("(0, 1000]"), std::string::npos) << e.message;
+  EXPECT_NE(e.message.find("[0.01, 1000]"), std::string::npos) << e.message;
 
   e = serviceError(std::string(kMinimalService) + "[frame]\nrate_hz = 1000.5\n");
   EXPECT_EQ(e.value, "1000.5");
@@ -764,6 +767,53 @@ TEST(ConfigGovernor, KeysAreReadAndCrossChecked) {
   e = serviceError(std::string(kMinimalService) + "[governor]\nspike_window_frames = -1\n");
   EXPECT_EQ(e.key, "governor.spike_window_frames");
   EXPECT_EQ(e.value, "-1");
+}
+
+// The parser's ranges must not let through what lod::Governor::validate refuses (|load_exponent|
+// <= 8): igd --check-config said OK and igd then failed at start-up without naming the file.
+TEST(ConfigGovernor, LoadExponentRangeMatchesTheGovernor) {
+  ConfigError e = serviceError(std::string(kMinimalService) + "[governor.terrain]\nload_exponent = -9\n");
+  EXPECT_EQ(e.key, "governor.terrain.load_exponent");
+  EXPECT_EQ(e.value, "-9");
+  e = serviceError(std::string(kMinimalService) + "[governor.hdlod]\nload_exponent = -9\n");
+  EXPECT_EQ(e.key, "governor.hdlod.load_exponent");
+  EXPECT_EQ(parseServiceOk(std::string(kMinimalService) + "[governor.terrain]\nload_exponent = -8\n").governor.terrainLoadExponent,
+            -8.0);
+}
+
+// Tiny rates and huge budgets overflowed the int64 nanosecond periods and deadlines (rate_hz =
+// 1e-300 ran with a negative period and negative missed slots).
+TEST(ConfigErrors, ExtremeRatesAndBudgetsRejected) {
+  ConfigError e = serviceError(std::string(kMinimalService) + "[frame]\nrate_hz = 1e-300\n");
+  EXPECT_EQ(e.key, "frame.rate_hz");
+  EXPECT_EQ(e.value, "1e-300");
+  e = serviceError(std::string(kMinimalService) + "[budget]\nframe_ms = 1e300\n");
+  EXPECT_EQ(e.key, "budget.frame_ms");
+  e = serviceError(std::string(kMinimalService) + "[service]\nwatchdog_interval_s = 1e300\n");
+  EXPECT_EQ(e.key, "service.watchdog_interval_s");
+  EXPECT_EQ(parseServiceOk(std::string(kMinimalService) + "[frame]\nrate_hz = 0.01\n").rate_hz, 0.01);
+}
+
+// --replay on a config that records a live link: recording stays off (only live links are
+// recorded); the recorder used to truncate the record file, often the very file being replayed.
+TEST(ConfigOverrides, ReplayOverrideTurnsRecordingOff) {
+  const fs::path dir = fs::temp_directory_path() / ("igd_cfg_override_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  std::ofstream(dir / "scene.toml") << "name = \"x\"\n";
+  std::ofstream(dir / "igd.toml") << "[host]\nsource = \"cigi\"\nrecord_file = \"run.rec\"\n"
+                                     "[scene]\nfile = \"scene.toml\"\n";
+  Overrides o;
+  ServiceConfig service;
+  SceneConfig scene;
+  std::string error;
+  ASSERT_TRUE(loadConfigs((dir / "igd.toml").string(), o, service, scene, error)) << error;
+  EXPECT_EQ(service.recordFile, normal(dir / "run.rec"));
+  o.replayFile = (dir / "run.rec").string();
+  ASSERT_TRUE(loadConfigs((dir / "igd.toml").string(), o, service, scene, error)) << error;
+  EXPECT_EQ(service.host, HostSource::Replay);
+  EXPECT_EQ(service.replayFile, (dir / "run.rec").string());
+  EXPECT_TRUE(service.recordFile.empty()) << service.recordFile;
+  fs::remove_all(dir);
 }
 
 TEST(ConfigGovernor, ForestNearDistanceBounds) {

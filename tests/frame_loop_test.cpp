@@ -141,13 +141,26 @@ TEST(Stats, SummaryPercentilesAndFixedCapacity) {
     c.add(r);
   }
   const RunSummary s = c.summarize(3, 4);
-  EXPECT_EQ(s.frames, 100);
+  EXPECT_EQ(s.frames, 150);  // every frame counts; the percentiles cover the last 100
   EXPECT_EQ(s.overruns, 3);
   EXPECT_EQ(s.missedSlots, 4);
   EXPECT_DOUBLE_EQ(s.workMs_p50, 100.0);
   EXPECT_DOUBLE_EQ(s.workMs_p99, 149.0);
   EXPECT_DOUBLE_EQ(s.workMs_max, 150.0);
   EXPECT_EQ(s.triangles_p50, 1000u);
+}
+
+// igd sizes the collector from frame.frames: a huge count (frames = 1e11 is a valid config)
+// must neither reserve terabytes (std::bad_alloc at start-up) nor cap the frame count.
+TEST(Stats, SummaryCapacityIsBoundedAndFramesAreCounted) {
+  SummaryCollector c(100'000'000'000);
+  const size_t n = SummaryCollector::kMaxCapacity + 5;
+  for (size_t i = 0; i < n; ++i) {
+    FrameRecord r;
+    r.timing.work_ms = 1.0;
+    c.add(r);
+  }
+  EXPECT_EQ(c.summarize(0, 0).frames, static_cast<int64_t>(n));
 }
 
 TEST(FramePacer, WorkBudgetDefinesOverrunsWithoutChangingPacing) {

@@ -6,13 +6,19 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <cstdlib>
 #include <limits>
 #include <sstream>
+
 #include <unistd.h>
 
+#include "ig/clock.h"
+#include "ig/host_input.h"
 #include "ig/realtime.h"
 #include "ig/reload.h"
 #include "ig/status.h"
+#include "ig/systemd.h"
+#include "io/replay.h"
 
 namespace {
 
@@ -152,6 +158,55 @@ TEST(Status, ReportCoversTheIntervalAndReplacesTheFile) {
   std::filesystem::remove_all(dir);
 }
 
+// A reload that changes service.status_file or status_interval_s reconfigures the reporter: the
+// totals (frames, overruns) must not restart at 0.
+TEST(Status, ReconfigureKeepsTheTotals) {
+  ig::StatusReporter r("", 1.0, 10.0);
+  r.start(0);
+  for (int i = 0; i < 10; ++i) {
+    ig::FrameTiming t;
+    t.frame = i;
+    t.work_ms = 5.0;
+    t.overrun = i == 3;
+    r.addFrame(t, 100);
+  }
+  r.report(1'000'000'000, ig::StatusContext{});
+  r.reconfigure("", 0.5, 10.0);
+  EXPECT_FALSE(r.due(1'400'000'000));
+  EXPECT_TRUE(r.due(1'500'000'000));
+  ig::FrameTiming t;
+  t.frame = 10;
+  r.addFrame(t, 100);
+  r.report(1'500'000'000, ig::StatusContext{});
+  EXPECT_NE(r.json().find("\"frames\":11,\"overruns\":1"), std::string::npos) << r.json();
+  // A reporter created after frames ran (a reload switched it on) starts from the given totals.
+  ig::StatusReporter late("", 1.0, 10.0);
+  late.setTotals(500, 7, 2);
+  late.start(0);
+  late.addFrame(t, 100);
+  late.report(1'000'000'000, ig::StatusContext{});
+  EXPECT_NE(late.json().find("\"frames\":501,\"overruns\":7,\"missed_slots\":2"), std::string::npos) << late.json();
+}
+
+// service.watchdog_interval_s not below systemd's WatchdogSec would let systemd kill igd between
+// two pings: half of WatchdogSec is used instead, and the log says so.
+TEST(Systemd, WatchdogIntervalNotBelowWatchdogSecIsReplaced) {
+  ::setenv("WATCHDOG_USEC", "2000000", 1);
+  ::setenv("WATCHDOG_PID", std::to_string(::getpid()).c_str(), 1);
+  const ig::SystemdNotifier tooLong(5.0);
+  const ig::SystemdNotifier fine(0.5);
+  const ig::SystemdNotifier automatic(0.0);
+  ::unsetenv("WATCHDOG_USEC");
+  ::unsetenv("WATCHDOG_PID");
+  EXPECT_EQ(tooLong.watchdogInterval_ns(), 1'000'000'000);
+  EXPECT_NE(tooLong.warning().find("service.watchdog_interval_s = 5"), std::string::npos) << tooLong.warning();
+  EXPECT_NE(tooLong.warning().find("WatchdogSec (2 s)"), std::string::npos) << tooLong.warning();
+  EXPECT_EQ(fine.watchdogInterval_ns(), 500'000'000);
+  EXPECT_TRUE(fine.warning().empty()) << fine.warning();
+  EXPECT_EQ(automatic.watchdogInterval_ns(), 1'000'000'000);
+  EXPECT_TRUE(automatic.warning().empty());
+}
+
 TEST(Status, UnwritableFileIsReportedNotFatal) {
   ig::StatusReporter r("/nonexistent-dir/status.json", 1.0, 10.0);
   r.start(0);
@@ -193,3 +248,43 @@ TEST(Realtime, FifoPriorityAppliesOrSaysWhyNot) {
 }
 
 }  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// HostInput's recorder times (ig/host_input.h): samples published before the frame loop starts
+// (a host already streaming while igd starts up) are stamped 0, and samples published after
+// setTimeBase count from the loop's start, so that replaying the recording feeds each frame
+// the sample it had live.
+TEST(HostInputRecorder, SamplesBeforeTheLoopGetZeroAndLoopTimesAreKept) {
+  const std::string file =
+      (std::filesystem::temp_directory_path() / ("igd_host_input_rec_" + std::to_string(::getpid()) + ".rec")).string();
+  ig::io::LatestValueMailbox<ig::io::HostState> mailbox;
+  ig::FakeClock startClock(1'000'000'000);
+  ig::HostInput input(mailbox, startClock);
+  std::string error;
+  ASSERT_TRUE(input.start(nullptr, file, 1.0, error)) << error;
+  ig::io::HostState s;
+  // The host streams at 10 Hz during a 2 s start-up (warm-up frame, shader compiles ...).
+  for (int i = 0; i < 20; ++i) {
+    s.hostFrame = static_cast<uint64_t>(i);
+    input.publish(s);
+    startClock.advance_ns(100'000'000);
+  }
+  // The frame loop starts; its clock is the same monotonic time base.
+  ig::FakeClock loopClock(startClock.now_ns());
+  input.setTimeBase(loopClock, loopClock.now_ns());
+  for (int i = 20; i < 40; ++i) {
+    s.hostFrame = static_cast<uint64_t>(i);
+    input.publish(s);
+    loopClock.advance_ns(100'000'000);
+  }
+  input.stop();
+  ig::io::Recording rec;
+  ASSERT_TRUE(ig::io::loadRecording(file, rec, error)) << error;
+  std::filesystem::remove(file);
+  ASSERT_EQ(rec.samples.size(), 40u);
+  for (size_t i = 0; i < 20; ++i) EXPECT_EQ(rec.samples[i].t_s, 0.0) << "pre-loop sample " << i;
+  for (size_t i = 20; i < 40; ++i)
+    EXPECT_NEAR(rec.samples[i].t_s, 0.1 * static_cast<double>(i - 20), 1e-6) << "loop sample " << i;
+  // Replay frame 0 (t = 0) renders the newest pre-loop sample, as the live frame 0 did.
+  EXPECT_EQ(ig::io::sampleAt(rec, 0.0).state.hostFrame, 20u);
+}

@@ -42,6 +42,8 @@ grep -Eq '^Type=notify[[:space:]]*$' "$unit_src" || fail "$unit_src: expected Ty
 grep -Eq '^WatchdogSec=[0-9]+[a-z]*[[:space:]]*$' "$unit_src" \
   || fail "$unit_src: expected WatchdogSec=<time> (igd pings WATCHDOG=1 from its frame loop)"
 grep -Eq '^Restart=on-failure[[:space:]]*$' "$unit_src" || fail "$unit_src: expected Restart=on-failure"
+grep -Eq '^RestartPreventExitStatus=2[[:space:]]*$' "$unit_src" \
+  || fail "$unit_src: expected RestartPreventExitStatus=2 (exit code 2 = bad config: a restart cannot fix it)"
 n=$(grep -c "^ExecStart=$installed_bin " "$unit_src")
 [ "$n" -eq 1 ] || fail "$unit_src: expected exactly one ExecStart=$installed_bin ..., found $n"
 
