@@ -15,6 +15,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <memory>
 
 namespace ig::io {
@@ -43,9 +44,15 @@ bool finish(const std::string& file, const DemLoadOptions& o, bool hasNoData, do
             std::string& error) {
   std::vector<uint8_t> isVoid(dem.heights_m.size(), 0);
   uint64_t voids = 0;
+  // The samples are floats: compare with the no-data value rounded to float the same way (as
+  // GDAL does), or a float32 DEM whose no-data is -9999.9 kept its voids as
+  // heights. A no-data value outside the float range matches no finite sample.
+  const bool noDataFits = hasNoData && std::isfinite(noData) &&
+                          std::abs(noData) <= static_cast<double>(std::numeric_limits<float>::max());
+  const float noDataF = noDataFits ? static_cast<float>(noData) : 0.0f;
   for (size_t i = 0; i < dem.heights_m.size(); ++i) {
     const float h = dem.heights_m[i];
-    if (!std::isfinite(h) || (hasNoData && static_cast<double>(h) == noData)) {
+    if (!std::isfinite(h) || (noDataFits && h == noDataF)) {
       isVoid[i] = 1;
       ++voids;
     }
@@ -81,18 +88,33 @@ bool loadPng16(const std::string& file, const DemLoadOptions& o, Dem& dem, std::
     png_image_free(&png);
     return false;
   }
-  if (!(png.format & PNG_FORMAT_FLAG_LINEAR) && (png.format & PNG_FORMAT_FLAG_COLOR)) {
-    // 8-bit colour PNGs are almost always a mistake for a DEM; accept only greyscale.
-    error = file + ": colour PNG; a DEM must be a 16-bit (or 8-bit) greyscale PNG";
+  if (png.format & (PNG_FORMAT_FLAG_COLOR | PNG_FORMAT_FLAG_ALPHA)) {
+    // Colour is turned into luminance and alpha composited away by libpng: neither gives
+    // heights. (The old test let 16-bit colour through.)
+    error = file + ": " + ((png.format & PNG_FORMAT_FLAG_COLOR) ? "colour" : "grey + alpha") +
+            " PNG; a DEM must be a 16-bit (or 8-bit) greyscale PNG without alpha";
     png_image_free(&png);
     return false;
   }
-  png.format = PNG_FORMAT_LINEAR_Y;  // 16-bit grey, linear (no gamma change for 16-bit input)
   std::vector<uint16_t> raw(static_cast<size_t>(png.width) * png.height);
-  if (!png_image_finish_read(&png, nullptr, raw.data(), 0, nullptr)) {
-    error = file + ": PNG decode failed: " + png.message;
-    png_image_free(&png);
-    return false;
+  if (png.format & PNG_FORMAT_FLAG_LINEAR) {
+    png.format = PNG_FORMAT_LINEAR_Y;  // 16-bit grey, linear (no gamma change for 16-bit input)
+    if (!png_image_finish_read(&png, nullptr, raw.data(), 0, nullptr)) {
+      error = file + ": PNG decode failed: " + png.message;
+      png_image_free(&png);
+      return false;
+    }
+  } else {
+    // 8-bit grey: the stored values as they are. Asking for linear 16-bit output here made
+    // libpng decode them as sRGB (128 -> 14146 instead of 128).
+    png.format = PNG_FORMAT_GRAY;
+    std::vector<uint8_t> raw8(raw.size());
+    if (!png_image_finish_read(&png, nullptr, raw8.data(), 0, nullptr)) {
+      error = file + ": PNG decode failed: " + png.message;
+      png_image_free(&png);
+      return false;
+    }
+    std::copy(raw8.begin(), raw8.end(), raw.begin());
   }
   dem.width = static_cast<int>(png.width);
   dem.height = static_cast<int>(png.height);
@@ -142,13 +164,16 @@ struct TiffCloser {
 // GeoTIFF / GDAL tags libtiff does not know: registered through a tag extender so that
 // TIFFGetField reads them with a known signature.
 constexpr ttag_t kModelPixelScaleTag = 33550;  // double[3]: sample spacing x, y, z
+constexpr ttag_t kGeoKeyDirectoryTag = 34735;  // SHORT[4 + 4 n]: header, then (key, location, count, value)
 constexpr ttag_t kGdalNoDataTag = 42113;       // ASCII: the no-data value
+constexpr uint16_t kGTModelTypeGeoKey = 1024;  // 1 projected, 2 geographic (degrees), 3 geocentric
 TIFFExtendProc gParentExtender = nullptr;
 void extendTags(TIFF* tif) {
   static const TIFFFieldInfo info[] = {
       {kModelPixelScaleTag, -1, -1, TIFF_DOUBLE, FIELD_CUSTOM, 1, 1, const_cast<char*>("ModelPixelScaleTag")},
+      {kGeoKeyDirectoryTag, -1, -1, TIFF_SHORT, FIELD_CUSTOM, 1, 1, const_cast<char*>("GeoKeyDirectoryTag")},
       {kGdalNoDataTag, -1, -1, TIFF_ASCII, FIELD_CUSTOM, 1, 0, const_cast<char*>("GDALNoDataValue")}};
-  TIFFMergeFieldInfo(tif, info, 2);
+  TIFFMergeFieldInfo(tif, info, 3);
   if (gParentExtender) gParentExtender(tif);
 }
 
@@ -252,8 +277,22 @@ bool loadGeoTiff(const std::string& file, const DemLoadOptions& o, Dem& dem, std
   // DEMs, degrees for geographic ones: converted at the equator scale).
   uint16_t count = 0;
   double* scale = nullptr;
-  if (TIFFGetField(tif.get(), kModelPixelScaleTag, &count, &scale) == 1 && scale && count >= 2 && scale[1] > 0) {
-    dem.spacing_m = scale[1] < 1.0 ? scale[1] * 111320.0 : scale[1];
+  if (TIFFGetField(tif.get(), kModelPixelScaleTag, &count, &scale) == 1 && scale && count >= 2 && scale[1] > 0 &&
+      std::isfinite(scale[1])) {
+    // Degrees or metres: from GTModelTypeGeoKey when the file has a GeoKey directory (a 0.5 m
+    // lidar DEM is projected, not 0.5 degrees); the old guess (below 1 = degrees) only without.
+    int modelType = 0;
+    uint16_t keyCount = 0;
+    uint16_t* keys = nullptr;
+    if (TIFFGetField(tif.get(), kGeoKeyDirectoryTag, &keyCount, &keys) == 1 && keys && keyCount >= 4) {
+      const size_t entries = std::min<size_t>(keys[3], (keyCount - 4u) / 4u);
+      for (size_t k = 0; k < entries; ++k) {
+        const uint16_t* e = keys + 4 + 4 * k;
+        if (e[0] == kGTModelTypeGeoKey && e[1] == 0 && e[2] == 1) modelType = e[3];
+      }
+    }
+    const bool degrees = modelType == 2 || (modelType == 0 && scale[1] < 1.0);
+    dem.spacing_m = degrees ? scale[1] * 111320.0 : scale[1];
   }
   bool hasNoData = o.hasNoData;
   double noData = o.noData;

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 #include <glm/gtc/quaternion.hpp>
@@ -170,15 +171,28 @@ bool accessorData(const tinygltf::Model& g, int index, int wantComponents, const
   const size_t element = static_cast<size_t>(componentBytes) * static_cast<size_t>(components);
   stride = v.byteStride ? v.byteStride : element;
   count = a.count;
-  const size_t begin = v.byteOffset + a.byteOffset;
-  if (count > 0 && (begin + (count - 1) * stride + element > b.data.size() || begin + (count - 1) * stride + element > v.byteOffset + v.byteLength)) {
-    why = "accessor " + std::to_string(index) + ": data past the end of its buffer";
+  // Every offset, length and count is a 64-bit number from the file: compare without sums or
+  // products that can wrap (a count of 2^62 + 1 with stride 4 made (count - 1) * stride zero).
+  const size_t size = b.data.size();
+  if (v.byteOffset > size || v.byteLength > size - v.byteOffset || a.byteOffset > v.byteLength ||
+      (count > 0 && (element > v.byteLength - a.byteOffset || count - 1 > (v.byteLength - a.byteOffset - element) / stride))) {
+    why = "accessor " + std::to_string(index) + ": data past the end of its buffer (byteOffset " + std::to_string(a.byteOffset) +
+          ", count " + std::to_string(count) + ", buffer view " + std::to_string(a.bufferView) + " of " +
+          std::to_string(v.byteLength) + " bytes at " + std::to_string(v.byteOffset) + ")";
     return false;
   }
-  data = b.data.data() + begin;
+  data = b.data.data() + v.byteOffset + a.byteOffset;
   componentType = a.componentType;
   return true;
 }
+
+// Totals of one loaded glTF (a mesh counts once per node that instances it): 1.2 GB of
+// vertices, 1.2 GB of indices.
+constexpr size_t kMaxGltfVertices = 100000000;
+constexpr size_t kMaxGltfIndices = 300000000;
+
+// A double that stays finite when stored as the model's float (1e39 does not).
+bool finiteAsFloat(double v) { return std::isfinite(v) && std::abs(v) <= static_cast<double>(std::numeric_limits<float>::max()); }
 
 bool skipImages(tinygltf::Image*, const int, std::string*, std::string*, int, int, const unsigned char*, int, void*) { return true; }
 
@@ -312,7 +326,13 @@ std::optional<Model> loadPly(const std::string& path, std::string& error) {
         }
         for (size_t j = 2; j < face.size(); ++j) m.indices.insert(m.indices.end(), {face[0], face[j - 1], face[j]});
       }
-      if (isVertex) m.positions.emplace_back(static_cast<float>(xyz[0]), static_cast<float>(xyz[1]), static_cast<float>(xyz[2]));
+      if (isVertex) {
+        if (!finiteAsFloat(xyz[0]) || !finiteAsFloat(xyz[1]) || !finiteAsFloat(xyz[2])) {
+          error = path + ": vertex " + std::to_string(i) + ": coordinate out of the float range";
+          return std::nullopt;
+        }
+        m.positions.emplace_back(static_cast<float>(xyz[0]), static_cast<float>(xyz[1]), static_cast<float>(xyz[2]));
+      }
     }
   }
   return finish(std::move(m));
@@ -340,15 +360,32 @@ std::optional<Model> loadGltf(const std::string& path, std::string& error) {
     const size_t s = g.defaultScene >= 0 && static_cast<size_t>(g.defaultScene) < g.scenes.size() ? static_cast<size_t>(g.defaultScene) : 0;
     roots = g.scenes[s].nodes;
   } else {
-    for (size_t i = 0; i < g.nodes.size(); ++i) roots.push_back(static_cast<int>(i));
+    // No scene: the roots are the nodes no other node names as a child (taking every node as a
+    // root drew each child twice, once without its parents' transforms).
+    std::vector<uint8_t> isChild(g.nodes.size(), 0);
+    for (const tinygltf::Node& n : g.nodes)
+      for (int c : n.children)
+        if (c >= 0 && static_cast<size_t>(c) < g.nodes.size()) isChild[static_cast<size_t>(c)] = 1;
+    for (size_t i = 0; i < g.nodes.size(); ++i)
+      if (!isChild[i]) roots.push_back(static_cast<int>(i));
+    if (roots.empty() && !g.nodes.empty()) {
+      error = path + ": every node is a child of another (a cycle)";
+      return std::nullopt;
+    }
   }
   for (int r : roots) stack.emplace_back(r, yUpToZUp);
-  size_t visited = 0;
+  // glTF node hierarchies are strict trees (each node has at most one parent): a node reached
+  // twice is a cycle or a shared child, which could multiply the geometry exponentially.
+  std::vector<uint8_t> seen(g.nodes.size(), 0);
   while (!stack.empty()) {
     const auto [index, parent] = stack.back();
     stack.pop_back();
-    if (index < 0 || static_cast<size_t>(index) >= g.nodes.size() || ++visited > 1000000) {
-      error = path + ": bad node index " + std::to_string(index) + " (or a cycle)";
+    if (index < 0 || static_cast<size_t>(index) >= g.nodes.size()) {
+      error = path + ": bad node index " + std::to_string(index) + " (" + std::to_string(g.nodes.size()) + " nodes)";
+      return std::nullopt;
+    }
+    if (seen[static_cast<size_t>(index)]++) {
+      error = path + ": node " + std::to_string(index) + " is reached twice (a cycle, or a node with two parents)";
       return std::nullopt;
     }
     const tinygltf::Node& node = g.nodes[static_cast<size_t>(index)];
@@ -371,12 +408,19 @@ std::optional<Model> loadGltf(const std::string& path, std::string& error) {
         error = path + ": " + (why.empty() ? "POSITION is not float" : why);
         return std::nullopt;
       }
+      // Meshes may be instanced by many nodes: bound the total before allocating (and keep
+      // every vertex addressable by a 32-bit index).
+      if (pcount > kMaxGltfVertices - m.positions.size()) {
+        error = path + ": node " + std::to_string(index) + ": more than " + std::to_string(kMaxGltfVertices) +
+                " vertices in all (POSITION count " + std::to_string(pcount) + ")";
+        return std::nullopt;
+      }
       const uint32_t base = static_cast<uint32_t>(m.positions.size());
       for (size_t i = 0; i < pcount; ++i) {
         float p[3];
         std::memcpy(p, pdata + i * pstride, sizeof p);
         const glm::dvec4 w = world * glm::dvec4(p[0], p[1], p[2], 1.0);
-        if (!std::isfinite(w.x) || !std::isfinite(w.y) || !std::isfinite(w.z)) {
+        if (!finiteAsFloat(w.x) || !finiteAsFloat(w.y) || !finiteAsFloat(w.z)) {
           error = path + ": vertex " + std::to_string(i) + " not finite";
           return std::nullopt;
         }
@@ -413,6 +457,10 @@ std::optional<Model> loadGltf(const std::string& path, std::string& error) {
         }
       } else {
         for (size_t i = 0; i < pcount; ++i) idx.push_back(static_cast<uint32_t>(i));
+      }
+      if (idx.size() * 3 > kMaxGltfIndices - m.indices.size()) {
+        error = path + ": node " + std::to_string(index) + ": more than " + std::to_string(kMaxGltfIndices) + " indices in all";
+        return std::nullopt;
       }
       if (mode == TINYGLTF_MODE_TRIANGLES) {
         for (size_t i = 0; i + 2 < idx.size(); i += 3) m.indices.insert(m.indices.end(), {base + idx[i], base + idx[i + 1], base + idx[i + 2]});

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <unordered_map>
 
@@ -237,6 +238,12 @@ std::optional<Model> loadObj(const std::string& path, std::string& error) {
       double x, y, z;
       if (w.size() < 4 || !parseDouble(w[1], x) || !parseDouble(w[2], y) || !parseDouble(w[3], z)) {
         error = where + "bad vertex: " + line;
+        return std::nullopt;
+      }
+      // Stored as float: 1e39 would become infinity.
+      constexpr double kFloatMax = static_cast<double>(std::numeric_limits<float>::max());
+      if (std::abs(x) > kFloatMax || std::abs(y) > kFloatMax || std::abs(z) > kFloatMax) {
+        error = where + "vertex coordinate out of the float range: " + line;
         return std::nullopt;
       }
       m.positions.emplace_back(static_cast<float>(x), static_cast<float>(y), static_cast<float>(z));

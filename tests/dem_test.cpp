@@ -293,3 +293,119 @@ TEST(Dem, MappedCacheRoundTripAndInvalidation) {
   EXPECT_FALSE(loadDemCached(file, file + "/sub", {}, e, ie, error));
   EXPECT_NE(error.find("cache"), std::string::npos) << error;
 }
+
+// Float32 GeoTIFF whose GDAL no-data is not exactly a float (-9999.9): the voids are
+// samples equal to float(-9999.9) and must be found (they were compared as doubles and kept
+// as 10 km pits). Same for a PNG whose scaled no-data is not a float (offset -500, scale 0.01).
+TEST(Dem, NoDataThatIsNotExactlyAFloatStillMarksVoids) {
+  TempDir tmp;
+  const std::string file = tmp / "nd_float.tif";
+  {
+    TIFF* t = TIFFOpen(file.c_str(), "w");
+    ASSERT_NE(t, nullptr);
+    TIFFSetField(t, TIFFTAG_IMAGEWIDTH, 8);
+    TIFFSetField(t, TIFFTAG_IMAGELENGTH, 8);
+    TIFFSetField(t, TIFFTAG_SAMPLESPERPIXEL, 1);
+    TIFFSetField(t, TIFFTAG_BITSPERSAMPLE, 32);
+    TIFFSetField(t, TIFFTAG_SAMPLEFORMAT, SAMPLEFORMAT_IEEEFP);
+    TIFFSetField(t, TIFFTAG_PHOTOMETRIC, PHOTOMETRIC_MINISBLACK);
+    TIFFSetField(t, TIFFTAG_PLANARCONFIG, PLANARCONFIG_CONTIG);
+    static const TIFFFieldInfo info[] = {{42113, -1, -1, TIFF_ASCII, FIELD_CUSTOM, 1, 0, const_cast<char*>("GDALNoDataValue")}};
+    TIFFMergeFieldInfo(t, info, 1);
+    TIFFSetField(t, 42113, "-9999.9");
+    for (int y = 0; y < 8; ++y) {
+      std::vector<float> row(8, 100.0f);
+      if (y == 3) row[4] = -9999.9f;
+      ASSERT_GE(TIFFWriteScanline(t, row.data(), static_cast<uint32_t>(y), 0), 0);
+    }
+    TIFFClose(t);
+  }
+  Dem d;
+  std::string e;
+  ASSERT_TRUE(loadDem(file, {}, d, e)) << e;
+  EXPECT_EQ(d.voidsFilled, 1u);
+  EXPECT_FLOAT_EQ(d.at(4, 3), 100.0f);
+
+  writePng16(tmp / "nd.png", 6, 6);  // values 100 + 3x + 7y: only (0, 1) is 107
+  DemLoadOptions o;
+  o.pngScale_m = 0.01;
+  o.pngOffset_m = -500.0;
+  o.hasNoData = true;
+  o.noData = 107.0;  // raw value; -500 + 0.01 * 107 = -498.93 in double, not a float
+  ASSERT_TRUE(loadDem(tmp / "nd.png", o, d, e)) << e;
+  EXPECT_EQ(d.voidsFilled, 1u);
+}
+
+// 8-bit greyscale PNGs (accepted, per the error text) must give the stored values, not
+// their sRGB-to-linear decoding; colour and alpha PNGs of any depth are refused.
+TEST(Dem, Png8BitGreyIsReadAsStoredAndColourIsRefused) {
+  TempDir tmp;
+  {
+    std::vector<uint8_t> v = {0, 64, 128, 255, 0, 64, 128, 255};
+    png_image png{};
+    png.version = PNG_IMAGE_VERSION;
+    png.width = 4;
+    png.height = 2;
+    png.format = PNG_FORMAT_GRAY;
+    ASSERT_TRUE(png_image_write_to_file(&png, (tmp / "g8.png").c_str(), 0, v.data(), 0, nullptr)) << png.message;
+  }
+  Dem d;
+  std::string e;
+  ASSERT_TRUE(loadDem(tmp / "g8.png", {}, d, e)) << e;
+  EXPECT_FLOAT_EQ(d.at(1, 0), 64.0f);
+  EXPECT_FLOAT_EQ(d.at(2, 0), 128.0f);
+  EXPECT_FLOAT_EQ(d.at(3, 1), 255.0f);
+  {
+    std::vector<uint16_t> v(2 * 2 * 3, 1000);
+    png_image png{};
+    png.version = PNG_IMAGE_VERSION;
+    png.width = 2;
+    png.height = 2;
+    png.format = PNG_FORMAT_LINEAR_RGB;
+    ASSERT_TRUE(png_image_write_to_file(&png, (tmp / "rgb16.png").c_str(), 0, v.data(), 0, nullptr)) << png.message;
+  }
+  EXPECT_FALSE(loadDem(tmp / "rgb16.png", {}, d, e));
+  EXPECT_NE(e.find("rgb16.png"), std::string::npos) << e;
+  EXPECT_NE(e.find("colour"), std::string::npos) << e;
+}
+
+// A projected GeoTIFF (GTModelTypeGeoKey = 1) with 0.5 m pixels is 0.5 m, not 0.5
+// degrees (55 km); a geographic one (= 2) is converted; infinite scales are ignored.
+TEST(Dem, GeoTiffPixelScaleUnitsFollowTheModelType) {
+  TempDir tmp;
+  auto write = [&](const std::string& file, double scale, int modelType) {
+    TIFF* t = TIFFOpen(file.c_str(), "w");
+    ASSERT_NE(t, nullptr);
+    static const TIFFFieldInfo info[] = {
+        {33550, -1, -1, TIFF_DOUBLE, FIELD_CUSTOM, 1, 1, const_cast<char*>("ModelPixelScaleTag")},
+        {34735, -1, -1, TIFF_SHORT, FIELD_CUSTOM, 1, 1, const_cast<char*>("GeoKeyDirectoryTag")}};
+    TIFFMergeFieldInfo(t, info, 2);
+    TIFFSetField(t, TIFFTAG_IMAGEWIDTH, 4);
+    TIFFSetField(t, TIFFTAG_IMAGELENGTH, 4);
+    TIFFSetField(t, TIFFTAG_SAMPLESPERPIXEL, 1);
+    TIFFSetField(t, TIFFTAG_BITSPERSAMPLE, 16);
+    TIFFSetField(t, TIFFTAG_SAMPLEFORMAT, SAMPLEFORMAT_INT);
+    TIFFSetField(t, TIFFTAG_PHOTOMETRIC, PHOTOMETRIC_MINISBLACK);
+    TIFFSetField(t, TIFFTAG_PLANARCONFIG, PLANARCONFIG_CONTIG);
+    double s[3] = {scale, scale, 0.0};
+    TIFFSetField(t, 33550, 3, s);
+    uint16_t keys[8] = {1, 1, 0, 1, 1024, 0, 1, static_cast<uint16_t>(modelType)};
+    if (modelType) TIFFSetField(t, 34735, 8, keys);
+    for (int y = 0; y < 4; ++y) {
+      int16_t row[4] = {1, 2, 3, 4};
+      ASSERT_GE(TIFFWriteScanline(t, row, static_cast<uint32_t>(y), 0), 0);
+    }
+    TIFFClose(t);
+  };
+  write(tmp / "proj.tif", 0.5, 1);
+  write(tmp / "geo.tif", 0.5, 2);
+  write(tmp / "inf.tif", INFINITY, 1);
+  Dem d;
+  std::string e;
+  ASSERT_TRUE(loadDem(tmp / "proj.tif", {}, d, e)) << e;
+  EXPECT_DOUBLE_EQ(d.spacing_m, 0.5);
+  ASSERT_TRUE(loadDem(tmp / "geo.tif", {}, d, e)) << e;
+  EXPECT_DOUBLE_EQ(d.spacing_m, 0.5 * 111320.0);
+  ASSERT_TRUE(loadDem(tmp / "inf.tif", {}, d, e)) << e;
+  EXPECT_EQ(d.spacing_m, 0.0);
+}

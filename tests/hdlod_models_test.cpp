@@ -142,3 +142,76 @@ TEST(HdlodModels, GltfErrorsNameTheFile) {
   EXPECT_FALSE(loadGltf(tempPath("missing.glb"), error));
   EXPECT_NE(error.find("missing.glb"), std::string::npos) << error;
 }
+
+namespace {
+// kGltf with `from` replaced by `to` (once).
+std::string gltfWith(const std::string& from, const std::string& to) {
+  std::string s = kGltf;
+  const size_t at = s.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  if (at != std::string::npos) s.replace(at, from.size(), to);
+  return s;
+}
+}  // namespace
+
+// Accessor offsets and counts are 64-bit numbers from the file; sums and products that
+// wrap must not let an accessor read outside its buffer. A count of 2^62 + 1 with byteStride 4
+// made (count - 1) * stride zero and the loader read hundreds of vertices past the 44-byte
+// buffer; a byteOffset of 2^64 - 8 made the accessor start 8 bytes before it.
+TEST(HdlodModels, GltfAccessorOffsetAndCountCannotWrapPastTheBuffer) {
+  std::string error;
+  const std::string countWrap =
+      gltfWith("{\"buffer\": 0, \"byteOffset\": 0, \"byteLength\": 36}", "{\"buffer\": 0, \"byteOffset\": 0, \"byteLength\": 36, \"byteStride\": 4}");
+  const std::string countWrap2 = [&] {
+    std::string s = countWrap;
+    const std::string from = "\"componentType\": 5126, \"count\": 3";
+    s.replace(s.find(from), from.size(), "\"componentType\": 5126, \"count\": 4611686018427387905");
+    return s;
+  }();
+  EXPECT_FALSE(loadGltf(writeFile("count_wrap.gltf", countWrap2), error));
+  EXPECT_NE(error.find("past the end"), std::string::npos) << error;
+  EXPECT_NE(error.find("count_wrap.gltf"), std::string::npos) << error;
+  const std::string offsetWrap = gltfWith("{\"bufferView\": 0, \"componentType\": 5126,",
+                                          "{\"bufferView\": 0, \"byteOffset\": 18446744073709551608, \"componentType\": 5126,");
+  EXPECT_FALSE(loadGltf(writeFile("offset_wrap.gltf", offsetWrap), error));
+  EXPECT_NE(error.find("past the end"), std::string::npos) << error;
+  const std::string viewWrap = gltfWith("{\"buffer\": 0, \"byteOffset\": 36, \"byteLength\": 6}",
+                                        "{\"buffer\": 0, \"byteOffset\": 18446744073709551615, \"byteLength\": 6}");
+  EXPECT_FALSE(loadGltf(writeFile("view_wrap.gltf", viewWrap), error));
+  EXPECT_NE(error.find("past the end"), std::string::npos) << error;
+}
+
+// Without a "scenes" array every node was taken as a root, so a child node's mesh was
+// loaded twice (once without its parent's transform). glTF hierarchies are strict trees: a node
+// named as a child twice (which multiplies the geometry exponentially) is refused.
+TEST(HdlodModels, GltfWithoutSceneLoadsEachNodeOnceAndSharedChildrenAreRefused) {
+  std::string error;
+  std::string noScene = gltfWith("\"scene\": 0,\n  \"scenes\": [{\"nodes\": [0]}],\n", "");
+  const auto m = loadGltf(writeFile("noscene.gltf", noScene), error);
+  ASSERT_TRUE(m) << error;
+  EXPECT_EQ(m->triangleCount(), 1u);
+  EXPECT_EQ(m->positions[0], glm::vec3(10, 0, 5));
+  // Node 0 names node 1 twice; a 2-node cycle.
+  const std::string shared = gltfWith("\"children\": [1]", "\"children\": [1, 1]");
+  EXPECT_FALSE(loadGltf(writeFile("shared.gltf", shared), error));
+  EXPECT_NE(error.find("reached twice"), std::string::npos) << error;
+  const std::string cycle = gltfWith("{\"translation\": [0, 5, 0], \"mesh\": 0}", "{\"translation\": [0, 5, 0], \"mesh\": 0, \"children\": [0]}");
+  EXPECT_FALSE(loadGltf(writeFile("cycle.gltf", cycle), error));
+  EXPECT_NE(error.find("cycle.gltf"), std::string::npos) << error;
+}
+
+// Coordinates that are finite doubles but not finite floats (1e39) became infinite
+// vertices in OBJ, PLY and glTF models; they are errors naming the file (and line for OBJ).
+TEST(HdlodModels, CoordinatesBeyondTheFloatRangeAreErrors) {
+  std::string error;
+  const std::string obj = writeFile("huge.obj", "v 0 0 0\nv 1e39 0 0\nv 0 1 0\nf 1 2 3\n");
+  EXPECT_FALSE(loadObj(obj, error));
+  EXPECT_NE(error.find(obj + ":2:"), std::string::npos) << error;
+  const std::string ply = writeFile("huge.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty double x\nproperty double y\n"
+                                                "property double z\nend_header\n0 -1e39 0\n");
+  EXPECT_FALSE(loadPly(ply, error));
+  EXPECT_NE(error.find("huge.ply"), std::string::npos) << error;
+  const std::string gltf = gltfWith("\"translation\": [10, 0, 0]", "\"translation\": [1e39, 0, 0]");
+  EXPECT_FALSE(loadGltf(writeFile("huge.gltf", gltf), error));
+  EXPECT_NE(error.find("not finite"), std::string::npos) << error;
+}
