@@ -33,6 +33,17 @@ bool writePng(const std::string& file, const Image& image, std::string& error) {
     error = file + ": PNG write failed: " + png.message;
     return false;
   }
+  // The last part of the file (all of a small one) is still in stdio's buffer: a write error
+  // there (a full disk, EIO) shows only in fflush / fclose, and must not pass as a written file.
+  errno = 0;
+  const bool flushed = std::fflush(f.get()) == 0 && std::ferror(f.get()) == 0;
+  int writeErrno = flushed ? 0 : errno;
+  const bool closed = std::fclose(f.release()) == 0;
+  if (!closed && flushed) writeErrno = errno;
+  if (!flushed || !closed) {
+    error = file + ": PNG write failed: " + (writeErrno != 0 ? std::strerror(writeErrno) : "write error");
+    return false;
+  }
   return true;
 }
 

@@ -35,3 +35,26 @@ TEST(SnapshotWriter, WritesQueuedImagesAndDropsWhenAllSlotsAreBusy) {
   EXPECT_NE(w.acquire(), nullptr);  // slots are free again after the writes
   std::filesystem::remove_all(dir);
 }
+
+// A write error the C library reports only when the file is flushed or closed (a full disk,
+// an I/O error) is a failed snapshot, not a written one: a small PNG fits in stdio's buffer,
+// so every byte of it reaches the disk in fclose(). /dev/full fails every write with ENOSPC.
+TEST(SnapshotWriter, AWriteErrorAtCloseIsAFailureNotAWrittenSnapshot) {
+  ASSERT_TRUE(std::filesystem::exists("/dev/full"));  // Linux always has it
+  render::Image small;
+  small.width = 16;
+  small.height = 16;
+  small.rgba.assign(16u * 16u * 4u, 128);
+  std::string error;
+  EXPECT_FALSE(render::writePng("/dev/full", small, error));
+  EXPECT_NE(error.find("/dev/full"), std::string::npos) << error;
+
+  SnapshotWriter w(1, 16, 16);
+  render::Image* a = w.acquire();
+  ASSERT_NE(a, nullptr);
+  a->rgba.assign(a->rgba.size(), 90);
+  w.submit(a, "/dev/full");
+  w.flush();
+  EXPECT_EQ(w.written(), 0u);
+  EXPECT_EQ(w.failed(), 1u);
+}
