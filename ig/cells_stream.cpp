@@ -1,6 +1,7 @@
 #include "ig/cells_stream.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cinttypes>
 #include <cstdio>
 
@@ -54,10 +55,24 @@ bool CellStream::open(const CellStreamOptions& options, std::string& error) {
     error = options.source + ": index of " + std::to_string(header_.indexBytes) + " bytes is too large";
     return false;
   }
-  if (!fetcher->fetchSync(header_.indexOffset, static_cast<uint32_t>(header_.indexBytes), bytes, error,
-                          options.openTimeout_s)) {
-    error = options.source + ": cannot read the cell index: " + error;
-    return false;
+  // In pieces of at most maxRange_bytes (the fetcher refuses larger ranges; an index of more than
+  // 2 M cells is larger than the default 64 MiB), all within the open timeout.
+  {
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(options.openTimeout_s);
+    std::vector<uint8_t> piece;
+    std::vector<uint8_t> index;
+    // Not reserved from the header's count: it grows only with bytes that arrived.
+    while (index.size() < header_.indexBytes) {
+      const uint64_t left = header_.indexBytes - index.size();
+      const auto size = static_cast<uint32_t>(std::min<uint64_t>(left, options.fetch.maxRange_bytes));
+      const double timeLeft = std::chrono::duration<double>(deadline - std::chrono::steady_clock::now()).count();
+      if (!fetcher->fetchSync(header_.indexOffset + index.size(), size, piece, error, std::max(timeLeft, 1e-3))) {
+        error = options.source + ": cannot read the cell index: " + error;
+        return false;
+      }
+      index.insert(index.end(), piece.begin(), piece.end());
+    }
+    bytes.swap(index);
   }
   if (!lod::parseCellDbIndex(header_, bytes, tree_, entries_, why)) {
     error = options.source + ": " + why;

@@ -31,6 +31,9 @@ namespace ig::io {
 namespace {
 
 constexpr size_t kMaxHeadBytes = 16 << 10;
+// Largest body of a response other than 206 that is read and dropped on a kept connection (an
+// error page); a longer one (a 200 with the whole file) is not read: the connection is reopened.
+constexpr int64_t kMaxRefusalBody = 64 << 10;
 constexpr size_t kCoalesceWindow = 64;  // pending requests scanned for neighbours
 
 int64_t nowNs() {
@@ -72,6 +75,15 @@ bool parseU64(std::string_view s, uint64_t& v) {
     if (c < '0' || c > '9') return false;
   auto r = std::from_chars(s.data(), s.data() + s.size(), v);
   return r.ec == std::errc() && r.ptr == s.data() + s.size();
+}
+
+// Whether a 206 head answers the range [first, last]: that range exactly, or (RFC 9110 14.1.2,
+// what nginx does) the part of it up to the resource's end, with the total naming that end.
+bool answersRange(const HttpResponseHead& h, uint64_t first, uint64_t last) {
+  if (!h.hasRange || h.rangeFirst != first || h.contentLength < 0 ||
+      static_cast<uint64_t>(h.contentLength) != h.rangeLast - h.rangeFirst + 1)
+    return false;
+  return h.rangeLast == last || (h.rangeLast < last && h.totalKnown && h.rangeLast + 1 == h.total);
 }
 
 std::string trim(std::string_view s) {
@@ -756,8 +768,7 @@ struct RangeFetcher::Impl {
     const std::string range = rangeText(w.first, w.last);
     if (head.totalKnown && head.total > 0) total.store(head.total);
     if (status == 206) {
-      if (!head.hasRange || head.rangeFirst != w.first || head.rangeLast != w.last ||
-          body.size() != w.last - w.first + 1) {
+      if (!answersRange(head, w.first, w.last) || body.size() != head.rangeLast - head.rangeFirst + 1) {
         std::string got = head.hasRange ? rangeText(head.rangeFirst, head.rangeLast) : std::string("no Content-Range");
         inflight.push_front(std::move(w));
         dropConnection("asked for " + range + ", the server answered 206 with " + got + " and " +
@@ -767,6 +778,13 @@ struct RangeFetcher::Impl {
       }
       backoff_ms = 0;
       for (Job& j : w.parts) {
+        if (j.last() > head.rangeLast) {  // the server sent the range up to the resource's end
+          bump([](RangeFetcherStats& s) { ++s.refused; });
+          complete(j, false, {},
+                   rangeName(j) + " is beyond the end of " + source + " (" + std::to_string(head.total) +
+                       " bytes): the server sent " + rangeText(head.rangeFirst, head.rangeLast));
+          continue;
+        }
         const auto* p = reinterpret_cast<const uint8_t*>(body.data()) + (j.offset - w.first);
         deliver(j, std::vector<uint8_t>(p, p + j.size));
       }
@@ -816,6 +834,26 @@ struct RangeFetcher::Impl {
           return false;
         }
         headParsed = true;
+        // Checked before the body is read (and before room is reserved for it): a 206 must carry
+        // the range asked for (or its part up to the resource's end) and a Content-Length to match;
+        // any other status is handled without its body when the body is long (the connection is
+        // then reopened).
+        const Wire& w = inflight.front();
+        if (head.status == 206 && !answersRange(head, w.first, w.last)) {
+          if (head.totalKnown && head.total > 0) total.store(head.total);
+          std::string got = head.hasRange ? rangeText(head.rangeFirst, head.rangeLast) : std::string("no Content-Range");
+          dropConnection("asked for " + rangeText(w.first, w.last) + ", the server answered 206 with " + got +
+                             " and Content-Length " + std::to_string(head.contentLength),
+                         true, true);
+          return false;
+        }
+        if (head.status != 206 && head.contentLength > kMaxRefusalBody) {
+          recvOff = recvBuf.size();
+          headParsed = false;
+          if (!onResponse({})) return false;
+          dropConnection("a response body of " + std::to_string(head.contentLength) + " bytes was not read", false, false);
+          return false;
+        }
       }
       size_t bodyLen = head.contentLength < 0 ? 0 : static_cast<size_t>(head.contentLength);
       if (avail.size() < head.headBytes + bodyLen) break;

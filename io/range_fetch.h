@@ -10,8 +10,12 @@
 //   GET /path HTTP/1.1 | Host: HOST:PORT | Range: bytes=FIRST-LAST | Accept-Encoding: identity |
 //   Connection: keep-alive
 //   -> 206 Partial Content with Content-Range: bytes FIRST-LAST/TOTAL and Content-Length =
-//      LAST - FIRST + 1 (anything else is a protocol error: the connection is dropped and the
-//      requests on it retried). TOTAL gives resourceBytes().
+//      LAST - FIRST + 1 (anything else is a protocol error, found from the head before the body
+//      is read: the connection is dropped and the requests on it retried). TOTAL gives
+//      resourceBytes(). A 206 with FIRST-(TOTAL-1) for a range that runs past the end (what nginx
+//      sends) refuses the requests past the end and delivers the others.
+//   -> a response other than 206 with a body over 64 KiB (a 200 with the whole file) is handled
+//      without reading the body; the connection is reopened.
 //   -> 416 (Content-Range: bytes */TOTAL), 404, other 4xx and a 200 (the server ignored Range):
 //      refused, the result has ok = false and an error naming the status and range; never retried.
 //   -> 5xx, 408, 429: retried after a backoff.

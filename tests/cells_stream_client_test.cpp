@@ -337,3 +337,68 @@ TEST(CellStream, ServerDownTheFrameLoopGoesOnAndFetchesResume) {
   EXPECT_GT(stream.fetchStats().connectFailures + stream.fetchStats().retries, 0u);
   EXPECT_EQ(stream.stats().broken, 0u) << stream.lastError();
 }
+
+// A database truncated below its 128-byte header, served by nginx: nginx answers the header's
+// range with the bytes it has (206, "bytes 0-49/50"), which names the file's end. open() refuses at
+// once naming the size (it took the answer for a protocol error and retried until the open
+// timeout, then reported "no answer"), and a cell range across the end is refused, not retried.
+TEST(CellStream, TruncatedDatabaseOverHttpIsRefusedAtOnce) {
+  ig::test::TempDir dir;
+  Db db;
+  writeDb(db, "truncated");
+  {
+    std::ifstream in(db.path, std::ios::binary);
+    std::string head(50, '\0');
+    in.read(head.data(), 50);
+    std::ofstream(dir.path / "short.ighc", std::ios::binary) << head;
+  }
+  ig::test::Nginx nginx(dir.path);
+  nginx.start(dir.path, 0, 0);
+  ASSERT_TRUE(nginx.running);
+  CellStream stream;
+  CellStreamOptions o;
+  o.source = nginx.url + "short.ighc";
+  o.openTimeout_s = 5.0;
+  o.fetch.retryMin_ms = 20;
+  o.fetch.retryMax_ms = 100;
+  std::string err;
+  const auto t0 = Clock::now();
+  EXPECT_FALSE(stream.open(o, err));
+  EXPECT_LT(std::chrono::duration<double>(Clock::now() - t0).count(), 2.0) << err;
+  EXPECT_NE(err.find(o.source), std::string::npos) << err;
+  EXPECT_NE(err.find("50 bytes"), std::string::npos) << err;
+
+  // The fetcher itself, before it knows the size: the part of a range inside the file is not
+  // what was asked for, so the request is refused (once), naming the size.
+  auto f = io::RangeFetcher::open(o.source, o.fetch, err);
+  ASSERT_TRUE(f) << err;
+  ASSERT_TRUE(f->submit({7, 40, 20, 0, false}, err)) << err;
+  std::vector<io::RangeResult> res;
+  for (int i = 0; i < 2000 && res.empty(); ++i) {
+    f->poll(res);
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  ASSERT_EQ(res.size(), 1u);
+  EXPECT_FALSE(res[0].ok);
+  EXPECT_NE(res[0].error.find("beyond the end"), std::string::npos) << res[0].error;
+  EXPECT_NE(res[0].error.find("50 bytes"), std::string::npos) << res[0].error;
+  EXPECT_EQ(f->resourceBytes(), 50u);
+  EXPECT_EQ(f->stats().retries, 0u);
+}
+
+// An index larger than the fetcher's largest range (maxRange_bytes, 64 MiB by default: a database
+// of more than 2 M cells) is read in pieces; open() refused it ("size must be 1..N").
+TEST(CellStream, IndexLargerThanTheLargestRangeIsReadInPieces) {
+  Db db;
+  writeDb(db, "bigindex");
+  CellStream stream;
+  CellStreamOptions o;
+  o.source = db.path;
+  const uint64_t indexBytes = uint64_t{db.tree.size()} * lod::kCellDbEntryBytes;
+  ASSERT_GT(indexBytes, 3 * 1000u) << "the test needs an index of a few pieces";
+  o.fetch.maxRange_bytes = 1000;
+  std::string err;
+  ASSERT_TRUE(stream.open(o, err)) << err;
+  EXPECT_EQ(stream.tree().size(), db.tree.size());
+  EXPECT_EQ(stream.fetchStats().wireRequests, 1 + (indexBytes + 999) / 1000);
+}

@@ -12,6 +12,7 @@ a free port). Faults (counted over the whole run, per distinct range where it sa
   --delay-ms D           wait D ms before each response
   --close-every N        every N-th range response says "Connection: close" and closes
   --ignore-range         answer 200 with the whole file (a server without range support)
+  --content-length N     206 responses say Content-Length: N (whatever the body), then close
 Stops on SIGTERM or SIGINT.
 """
 import argparse
@@ -39,6 +40,7 @@ def main():
     ap.add_argument("--delay-ms", type=float, default=0.0)
     ap.add_argument("--close-every", type=int, default=0)
     ap.add_argument("--ignore-range", action="store_true")
+    ap.add_argument("--content-length", type=int, default=-1)
     a = ap.parse_args()
 
     with open(a.file, "rb") as f:
@@ -116,7 +118,9 @@ def main():
                     close_mid = True
             self.send_response(206)
             self.send_header("Content-Range", f"bytes {first}-{last}/{len(data)}")
-            self.send_header("Content-Length", str(len(body)))
+            self.send_header("Content-Length", str(len(body) if a.content_length < 0 else a.content_length))
+            if a.content_length >= 0:
+                close_after = True
             if close_after:
                 self.send_header("Connection", "close")
                 self.close_connection = True
@@ -131,6 +135,12 @@ def main():
     class Server(socketserver.ThreadingMixIn, http.server.HTTPServer):
         daemon_threads = True
         allow_reuse_address = True
+
+        def handle_error(self, request, client_address):
+            # A client that closes while a long body is written (it refused the head) is normal.
+            if isinstance(sys.exc_info()[1], (BrokenPipeError, ConnectionResetError)):
+                return
+            super().handle_error(request, client_address)
 
         def shutdown_request(self, request):
             # Lingering close, as nginx does: closing a socket with pipelined requests still

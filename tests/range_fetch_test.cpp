@@ -530,3 +530,47 @@ TEST(RangeFetch, GivesUpAndStopsPromptly) {
     EXPECT_LT(since(t0), 0.5);
   }
 }
+
+// A response head is checked before its body is read: a 206 whose Content-Length is not the size
+// of the range asked for is a protocol error at once (it was trusted, and room for a 1 TiB body
+// reserved: std::bad_alloc ended the process), and the body of a 200 (the server ignored Range)
+// is not read into memory before the range is refused.
+TEST(RangeFetch, ResponseHeadCheckedBeforeItsBody) {
+  TempDir dir;
+  auto file = dir.path / "cells.db";
+  auto data = writeData(file, 4 << 20, 8);
+  std::string err;
+  RangeFetcherOptions o = fastOptions();
+  o.maxAttempts = 2;
+  for (const char* length : {"1099511627776", "3001", "2999"}) {
+    FakeServer srv({"--file", file.string(), "--content-length", length});
+    ASSERT_FALSE(srv.url.empty());
+    auto f = RangeFetcher::open(srv.url, o, err);
+    ASSERT_TRUE(f) << err;
+    std::vector<RangeRequest> one = {{1, 1234, 3000, crcOf(data.data() + 1234, 3000), true}};
+    ASSERT_TRUE(f->submit(one, err)) << err;
+    auto t0 = Clock::now();
+    auto res = waitResults(*f, 1, 5.0);
+    ASSERT_EQ(res.size(), 1u) << length;
+    EXPECT_FALSE(res[0].ok);
+    EXPECT_NE(res[0].error.find("gave up after 2 attempts"), std::string::npos) << res[0].error;
+    EXPECT_NE(res[0].error.find(std::string("Content-Length ") + length), std::string::npos) << res[0].error;
+    EXPECT_LT(since(t0), 2.0) << "waited for the I/O timeout instead of refusing the head";
+  }
+  {
+    FakeServer srv({"--file", file.string(), "--ignore-range"});
+    ASSERT_FALSE(srv.url.empty());
+    auto f = RangeFetcher::open(srv.url, fastOptions(), err);
+    ASSERT_TRUE(f) << err;
+    std::vector<uint8_t> out;
+    EXPECT_FALSE(f->fetchSync(0, 10, out, err, 5.0));
+    EXPECT_NE(err.find("HTTP 200"), std::string::npos) << err;
+    EXPECT_LT(f->stats().wireBytes, data.size() / 2) << "the whole file was read before the range was refused";
+    // The connection is reopened for the next request.
+    std::vector<RangeRequest> two = {{2, 0, 10, 0, false}, {3, 20, 10, 0, false}};
+    ASSERT_TRUE(f->submit(two, err)) << err;
+    auto res = waitResults(*f, 2, 5.0);
+    ASSERT_EQ(res.size(), 2u);
+    for (auto& r : res) EXPECT_NE(r.error.find("ignored the Range"), std::string::npos) << r.error;
+  }
+}
