@@ -2,6 +2,7 @@
 // A small Reader layer does the bookkeeping (dotted key names, source lines, the value as
 // written, known-key checks, range checks) so that each key below is one line.
 #include "ig/config.h"
+#include "ig/host_links.h"
 
 #include <cerrno>
 #include <charconv>
@@ -534,6 +535,27 @@ bool parseService(const std::string& text, const std::string& name, const std::s
     r.require(modbus, "serial_device", "host.source = \"modbus-rtu\" needs the serial line (e.g. \"/dev/ttyUSB0\")");
   }
 
+  // The link's own checks (an address that does not parse or resolve, a baud rate the serial line
+  // cannot take) here too: such a value is a config error (file:line, exit 2, found by
+  // --check-config and refused by a reload), not a start-up failure after "config OK".
+  if (r.ok()) {
+    std::string why;
+    if (!validateHostLinkConfig(cfg, why)) {
+      // why = "host.<link>.<key> = <value>: <reason>"
+      const size_t eq = why.find(" = "), colon = eq == std::string::npos ? eq : why.find(": ", eq);
+      const std::string key = eq == std::string::npos ? std::string("host.source") : why.substr(0, eq);
+      const std::string value = colon == std::string::npos ? std::string() : why.substr(eq + 3, colon - eq - 3);
+      const std::string reason = colon == std::string::npos ? why : why.substr(colon + 2);
+      const Table& t = key.starts_with("host.cigi.")     ? cigi
+                       : key.starts_with("host.can.")    ? can
+                       : key.starts_with("host.modbus.") ? modbus
+                                                         : host;
+      const std::string leaf = key.substr(key.rfind('.') + 1);
+      if (const toml::node* node = r.find(t, leaf)) r.fail(*node, key, reason);
+      else r.fail(t.line_ > 0 ? t.line_ : host.line_, key, value, reason);
+    }
+  }
+
   const Table scene = r.table(root, "scene", {"file"});
   r.get(scene, "file", cfg.sceneFile, false);
   r.require(scene, "file", "path of the scene file ([scene] file = \"scenes/default.toml\")");
@@ -733,6 +755,17 @@ bool parseScene(const std::string& text, const std::string& name, const std::str
         r.fail(forest.line_, forest.keyOf(bands[i].first), formatNumber(bands[i].second), message);
       }
     }
+  }
+
+  // The shell layers and the fins are drawn from the terrain mesh, which lod = "grid" does not
+  // build (checked here so that --check-config finds it; igd would fail at start-up).
+  if (r.ok() && cfg.forest && (!cfg.terrain || cfg.terrain->lod == TerrainLayerConfig::Lod::Grid)) {
+    const std::string message = cfg.terrain ? "[forest] needs [terrain] with lod = \"roam\" or \"block\" (the shell layers are "
+                                              "drawn from the terrain mesh; lod = \"grid\" has none)"
+                                            : "[forest] needs a [terrain] with lod = \"roam\" or \"block\" to stand on";
+    if (const toml::node* node = cfg.terrain ? r.find(terrain, "lod") : nullptr) r.fail(*node, terrain.keyOf("lod"), message);
+    else if (cfg.terrain) r.fail(terrain.line_, terrain.keyOf("lod"), "\"grid\" (the default)", message);
+    else r.fail(forest.line_, "forest", "", message);
   }
 
   const Table hdlod = r.table(root, "hdlod", {"schedule", "site_scale", "site_seed", "site_origin_m", "cache",

@@ -24,6 +24,27 @@ bool isLinkSource(HostSource source) {
   return false;
 }
 
+bool validateHostLinkConfig(const ServiceConfig& config, std::string& error) {
+  switch (config.host) {
+    case HostSource::None:
+    case HostSource::Replay: return true;
+#if IG_LINK_CIGI
+    case HostSource::Cigi: return io::validateCigiLinkConfig(config.cigi, error);
+#endif
+#if IG_LINK_CAN
+    case HostSource::Can: return io::validateCanLinkConfig(config.can, error);
+#endif
+#if IG_LINK_MODBUS
+    case HostSource::ModbusTcp: return io::validateModbusLinkConfig(config.modbus, io::ModbusTransport::Tcp, error);
+    case HostSource::ModbusRtu: return io::validateModbusLinkConfig(config.modbus, io::ModbusTransport::Rtu, error);
+#endif
+    default: break;
+  }
+  error = std::string("host.source = \"") + toString(config.host) +
+          "\": this build has no such host link (configure with -DIG_HOST_LINKS=\"cigi;can;modbus\")";
+  return false;
+}
+
 std::unique_ptr<io::HostLink> makeHostLink(const ServiceConfig& config, const lod::Geodetic& origin,
                                            std::string& error) {
   [[maybe_unused]] const auto& o = origin;

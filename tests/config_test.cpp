@@ -230,7 +230,7 @@ TEST(ConfigPaths, EmptyStatsFileMeansNoStatsFile) {
 
 TEST(ConfigPaths, LayerFilesResolvedButNotRequiredToExist) {
   const SceneConfig cfg = parseSceneOk(
-      "[forest]\nmap = \"trees/a.png\"\n[hdlod]\nschedule = \"/abs/h.sched\"\ncache = \"cache/h.bin\"\n", "/scenes");
+      "[terrain]\nlod = \"roam\"\n[forest]\nmap = \"trees/a.png\"\n[hdlod]\nschedule = \"/abs/h.sched\"\ncache = \"cache/h.bin\"\n", "/scenes");
   ASSERT_TRUE(cfg.forest.has_value());
   ASSERT_TRUE(cfg.hdlod.has_value());
   EXPECT_EQ(cfg.forest->map, "/scenes/trees/a.png");
@@ -245,7 +245,7 @@ TEST(ConfigPaths, LoadResolvesAgainstTheFilesFolder) {
   const fs::path file = dir / "scene.toml";
   {
     std::ofstream out(file);
-    out << "name = \"tmp\"\n[forest]\nmap = \"trees.png\"\n";
+    out << "name = \"tmp\"\n[terrain]\nlod = \"block\"\n[forest]\nmap = \"trees.png\"\n";
   }
   SceneConfig cfg;
   ConfigError error;
@@ -735,6 +735,47 @@ TEST(ConfigHostLinks, BadLinkValuesAreNamed) {
   EXPECT_NE(e.message.find("\"cigi\", \"can\", \"modbus-tcp\", \"modbus-rtu\""), std::string::npos) << e.message;
   e = serviceError("[host]\nsource = \"cigi\"\n[host.cigi]\nprot = 1\n[scene]\nfile = \"s\"\n");
   EXPECT_EQ(e.key, "host.cigi.prot");
+}
+
+// The links' own checks run in the loader too: an address that does not parse or a baud rate the
+// serial line cannot take is a config error naming the line (exit 2, found by --check-config),
+// not a start-up failure (exit 3) after "config OK".
+TEST(ConfigHostLinks, LinkChecksRunWhenTheConfigIsLoaded) {
+  ConfigError e = serviceError("[host]\nsource = \"cigi\"\n[host.cigi]\nbind_address = \"1.2.3\"\n[scene]\nfile = \"s\"\n");
+  EXPECT_EQ(e.key, "host.cigi.bind_address");
+  EXPECT_EQ(e.value, "\"1.2.3\"");
+  EXPECT_EQ(e.line, 4);
+  EXPECT_NE(e.message.find("not an IPv4 address"), std::string::npos) << e.message;
+  e = serviceError("[host]\nsource = \"modbus-tcp\"\n[host.modbus]\ntcp_address = \"x\"\n[scene]\nfile = \"s\"\n");
+  EXPECT_EQ(e.key, "host.modbus.tcp_address");
+  EXPECT_EQ(e.line, 4);
+  e = serviceError("[host]\nsource = \"modbus-rtu\"\n[host.modbus]\nserial_device = \"/dev/ttyS0\"\nbaud = 1201\n"
+                   "[scene]\nfile = \"s\"\n");
+  EXPECT_EQ(e.key, "host.modbus.baud");
+  EXPECT_EQ(e.value, "1201");
+  EXPECT_EQ(e.line, 5);
+  EXPECT_NE(e.message.find("must be one of 1200"), std::string::npos) << e.message;
+  // A link that is not the source is not checked (its table may hold another site's values).
+  parseServiceOk("[host]\nsource = \"none\"\n[host.cigi]\nbind_address = \"1.2.3\"\n[scene]\nfile = \"s\"\n");
+  parseServiceOk("[host]\nsource = \"modbus-rtu\"\n[host.modbus]\nserial_device = \"/dev/ttyS0\"\nbaud = 9600\n"
+                 "[scene]\nfile = \"s\"\n");
+}
+
+// [forest] stands on the terrain mesh that lod = "roam" or "block" builds: with lod = "grid" (the
+// default) or no [terrain], the scene is refused when it is loaded, naming the line.
+TEST(ConfigScene, ForestNeedsATerrainMesh) {
+  ConfigError e = sceneError("name = \"a\"\n[terrain]\nlod = \"grid\"\n[forest]\n");
+  EXPECT_EQ(e.key, "terrain.lod");
+  EXPECT_EQ(e.value, "\"grid\"");
+  EXPECT_EQ(e.line, 3);
+  EXPECT_NE(e.message.find("[forest] needs [terrain] with lod = \"roam\" or \"block\""), std::string::npos) << e.message;
+  e = sceneError("name = \"a\"\n[terrain]\n[forest]\n");
+  EXPECT_EQ(e.key, "terrain.lod");
+  EXPECT_EQ(e.line, 2);
+  e = sceneError("name = \"a\"\n[forest]\n");
+  EXPECT_EQ(e.key, "forest");
+  EXPECT_EQ(e.line, 2);
+  EXPECT_EQ(parseSceneOk("[terrain]\nlod = \"roam\"\n[forest]\n").terrain->lod, TerrainLayerConfig::Lod::Roam);
 }
 }  // namespace
 }  // namespace ig
