@@ -212,13 +212,26 @@ bool DynamicOctree::checkInvariant() const {
   return total == objectCount_;
 }
 
+void DynamicOctree::setQueryPending(uint32_t n, bool pending) {
+  Node& node = nodes_[n];
+  node.queryPending = pending;
+  if (pending) node.queryBounds = node.bounds;
+}
+
 void DynamicOctree::setOcclusionResult(uint32_t n, bool visible, uint64_t issuedFrame) {
   Node& node = nodes_[n];
+  const Aabb tested = node.queryPending ? node.queryBounds : node.bounds;
   node.queryPending = false;
-  if (visible && issuedFrame < visibleValidFrom_) return;  // measured before a new occluder
+  if (visible && issuedFrame < visibleValidFrom_) {
+    // Measured before a new occluder: not a fresh "visible" (the node is tested again), but newer
+    // than an older "hidden", which must not go on skipping a node seen since.
+    if (node.occluded && issuedFrame >= node.resultFrame) node.occluded = false, node.resultFrame = 0;
+    return;
+  }
   if (issuedFrame >= node.resultFrame) {
     node.occluded = !visible;
     node.resultFrame = issuedFrame;
+    if (!visible) node.hiddenBounds = tested;
   }
 }
 
@@ -256,7 +269,11 @@ DynamicOctree::TraversalResult DynamicOctree::traverse(const Frustum& frustum, c
       const glm::dvec3 p((c & 1) ? rel.max.x : rel.min.x, (c & 2) ? rel.max.y : rel.min.y, (c & 4) ? rel.max.z : rel.min.z);
       testable = glm::dot(glm::dvec3(nearPlane), p) + nearPlane.w > 0.0;
     }
-    if (testable && node.occluded && node.resultFrame + config_.occlusionMaxAge >= t.frame) {
+    // A "hidden" result holds for the box it was measured on: an object moved or added into the
+    // subtree since may reach out of it into view (then the node is tested again, not skipped).
+    const bool hiddenHolds = node.occluded && node.resultFrame + config_.occlusionMaxAge >= t.frame &&
+                             inside(node.hiddenBounds, node.bounds);
+    if (testable && hiddenHolds) {
       if (!underHidden) r.hiddenObjects += node.subtreeCount;
       if (t.useOcclusion) {
         if (!node.queryPending && r.candidates < test.size()) test[r.candidates++] = n;  // re-test it

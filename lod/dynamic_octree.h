@@ -54,6 +54,10 @@ class DynamicOctree {
     bool occluded = false;
     bool queryPending = false;
     uint64_t resultFrame = 0;       // frame the result's query was issued in
+    Aabb queryBounds;               // the box of the query in flight (bounds when it was issued)
+    Aabb hiddenBounds;              // the box the "occluded" result was measured on: it holds
+                                    // only while the node's bounds stay inside it (an object
+                                    // moved or added into the node may be in view)
   };
 
   // Reserves storage. Returns false for a bad config (empty or non-finite bounds, maxDepth > 20).
@@ -111,12 +115,17 @@ class DynamicOctree {
   TraversalResult traverse(const Frustum& frustum, const Traversal& t, std::span<uint32_t> draw,
                            std::span<uint32_t> test);
   // Query bookkeeping (strategy 3).
-  void setQueryPending(uint32_t node, bool pending) { nodes_[node].queryPending = pending; }
+  // Marks a query in flight for `node`, on its current bounds (call after refresh()).
+  void setQueryPending(uint32_t node, bool pending);
+  // A query's result. A "hidden" one applies to the box the query was drawn with (the bounds
+  // at setQueryPending; the current bounds if none is pending): once objects moved or added
+  // into the node reach outside that box, traverse() no longer skips the node and tests it again.
   void setOcclusionResult(uint32_t node, bool visible, uint64_t issuedFrame);
   void clearOcclusion();
   // A new object that could hide others: every "visible" result is stale from now on (it was
   // measured without that object), so those nodes become test candidates again at once, and a
-  // "visible" result of a test issued before `frame` is ignored when it arrives. "Hidden" results
+  // "visible" result of a test issued before `frame` is not taken as fresh when it arrives (it
+  // still ends an older "hidden" result: the node is drawn and tested again). "Hidden" results
   // stay: hidden nodes are re-tested every frame anyway.
   void expireVisibleResults(uint64_t frame);
 

@@ -522,8 +522,19 @@ void DynamicPass::issueQueries(Renderer& r, uint64_t frame, uint32_t q, double b
       spent_ns += k.occlusionTest_ns + k.depthFrag_ns * px;
       if (spent_ns > budget_ns && issued > 0) break;
     }
-    const glm::vec3 centre(0.5 * (b.min + b.max) - r.camera().eye_m);
-    const glm::vec3 half(glm::max(0.5 * (b.max - b.min), glm::dvec3(1e-4)));
+    // The box is grown a little: its faces lie on the faces of the node's own objects, drawn
+    // before with the same planes, and with the depth test GL_GREATER a face exactly on them
+    // passes no sample (a node whose objects cover its box's faces came back hidden by itself).
+    // 1 mm plus 1e-5 of the distance keeps the faces in front of them past float rounding. At
+    // most half the box's clearance in front of the near plane: the grown box must not be clipped
+    // by it or reach the eye (its faces, culled from inside, would then pass nothing: "hidden").
+    const glm::dvec3 centreD = 0.5 * (b.min + b.max) - r.camera().eye_m, halfD = 0.5 * (b.max - b.min);
+    const glm::dvec3 forward = glm::transpose(lod::viewRotation(cam)) * glm::dvec3(0.0, 0.0, -1.0);
+    const double nearestDepth = glm::dot(forward, centreD) - glm::dot(glm::abs(forward), halfD);
+    const double margin = std::min(1e-3 + 1e-5 * (glm::length(centreD) + glm::length(halfD)),
+                                   0.5 * std::max(nearestDepth - cam.near_m, 0.0));
+    const glm::vec3 centre(centreD);
+    const glm::vec3 half(halfD + glm::dvec3(margin));
     gl.ProgramUniform3fv(qp, g.qCentre, 1, glm::value_ptr(centre));
     gl.ProgramUniform3fv(qp, g.qHalf, 1, glm::value_ptr(half));
     const GLuint query = freeQueries_.back();

@@ -260,6 +260,77 @@ TEST_F(DynamicGl, OcclusionResultsAreReadOnlyFramesLaterAndNeverWaitedOn) {
   cam_.eye_m = glm::dvec3(0.0);
 }
 
+// An object that moves into a node found hidden, to a place that is in view, is drawn on the frame
+// it arrives: the node's "hidden" result was measured on its old (smaller) box and says nothing
+// about the new one. (It was skipped with the node until the re-test's result came back.)
+TEST_F(DynamicGl, AnObjectMovedIntoAHiddenNodeWhereItIsVisibleIsDrawnAtOnce) {
+  render::DynamicPassConfig c;
+  c.maxObjects = 256;
+  c.bounds = {glm::dvec3(-128.0), glm::dvec3(128.0)};
+  c.octreeDepth = 3;  // leaves of 32 m
+  c.maxQueries = 256;
+  render::DynamicPass p;
+  std::string error;
+  ASSERT_TRUE(p.init(c, error)) << error;
+  // A wall hiding x/y < 0.256 (straddles x = 0: in the root), a cluster behind it in the leaf
+  // [0, 32] x [32, 64] x [0, 32], and a red box in view to the left.
+  p.add({{-2.5, 20.0, 0.0}, {7.5, 0.5, 10.0}, 0.0, 0xff606060u});
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  uint32_t cluster = render::DynamicPass::kNone;
+  for (int i = 0; i < 20; ++i)
+    cluster = p.add({{3.0 + 4.0 * u01(rng), 46.0 + 8.0 * u01(rng), 2.0 + 5.0 * u01(rng)}, glm::dvec3(0.3), 0.0, 0xff00ff00u});
+  DynamicObject red{{-32.0, 50.0, 6.0}, glm::dvec3(2.0), 0.0, 0xff0000ffu};
+  const uint32_t id = p.add(red);
+  ASSERT_NE(id, render::DynamicPass::kNone);
+  p.setStrategy(DynamicStrategy::Occlusion);
+  p.setOcclusionTests(256);
+  const auto redPixels = [](const render::Image& img) {
+    int n = 0;
+    for (size_t i = 0; i + 3 < img.rgba.size(); i += 4) n += img.rgba[i] > 40 && img.rgba[i] > 3 * img.rgba[i + 1] + 10 && img.rgba[i] > 3 * img.rgba[i + 2] + 10;
+    return n;
+  };
+  render::Image img;
+  for (uint64_t f = 1; f <= 4; ++f) img = frame(p, f);
+  const uint32_t leaf = p.octree().nodeOf(cluster);
+  ASSERT_TRUE(p.octree().node(leaf).occluded) << "the wall hides the cluster's node";
+  ASSERT_GT(redPixels(img), 20);
+  // Into the cluster's leaf, still in view (x/y > 0.34).
+  red.center_m = {20.0, 50.0, 6.0};
+  ASSERT_TRUE(p.set(id, red));
+  ASSERT_EQ(p.octree().nodeOf(id), leaf);
+  img = frame(p, 5);
+  EXPECT_EQ(p.stats().objectsDrawn, 22u);  // the wall, the cluster (its node is tested again), the red box
+  EXPECT_GT(redPixels(img), 20) << "the moved box vanished for a frame";
+  img = frame(p, 6);
+  EXPECT_GT(redPixels(img), 20);
+}
+
+// A node whose objects cover its bounding box's visible faces (axis-aligned boxes packed into a
+// block: crates on a pallet, stacked containers) is not hidden by itself: its query box is drawn
+// after its objects, on the same planes, and with the depth test GL_GREATER a box face exactly on
+// an object's face passes no sample. The block vanished for a frame each time its node was tested
+// (frame 2, then every resultMaxAge + 2 frames).
+TEST_F(DynamicGl, ANodeIsNotHiddenByItsOwnObjectsOnItsBoxFaces) {
+  for (const glm::dvec3 shift : {glm::dvec3(0.0), glm::dvec3(0.3, 0.0, 0.0), glm::dvec3(977.0 * 1024.0, -512.0 * 1024.0, 0.0)}) {
+    auto p = makePass(shift.x > 1.0 ? shift : glm::dvec3(0.0));
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 2; ++j)
+        for (int k = 0; k < 3; ++k) p->add({shift + glm::dvec3(0.5 + i, 48.5 + j, 0.5 + k), glm::dvec3(0.5), 0.0, 0xff00ff00u});
+    p->setStrategy(DynamicStrategy::Occlusion);
+    p->setOcclusionTests(256);
+    cam_.eye_m = shift.x > 1.0 ? shift : glm::dvec3(0.0);
+    uint32_t tests = 0;
+    for (uint64_t f = 1; f <= 24; ++f) {
+      frame(*p, f);
+      tests += p->stats().occlusionTests;
+      ASSERT_EQ(p->stats().objectsDrawn, 18u) << "frame " << f << ", shift x " << shift.x;
+    }
+    EXPECT_GE(tests, 3u);  // the node was tested, and more than once
+  }
+  cam_.eye_m = glm::dvec3(0.0);
+}
+
 TEST_F(DynamicGl, AdaptiveStartsWithPerObjectCommandsAndMovesToTheOctreeAsObjectsAreAdded) {
   render::DynamicPass p;
   std::string error;

@@ -641,6 +641,86 @@ TEST(DynamicOctree, ANewOccluderExpiresVisibleResultsButNotHiddenOnes) {
   EXPECT_TRUE(t.node(visible).occluded);
 }
 
+// A "hidden" result holds for the box its query was drawn on: an object moved (or added) into the
+// node that reaches outside that box is not skipped with it; the node is tested again instead.
+TEST(DynamicOctree, AHiddenResultDoesNotHideAnObjectMovedOutsideTheTestedBox) {
+  DynamicOctree t;
+  ASSERT_TRUE(t.init(occlusionTestConfig(8)));
+  for (uint32_t id = 0; id < 20; ++id) ASSERT_TRUE(t.insert(id, cube({33.0 + 0.1 * id, 97.0, 1.0}, 0.05)));
+  ASSERT_TRUE(t.insert(20, cube({-40.0, 60.0, 0.0}, 0.5)));  // elsewhere
+  t.refresh();
+  const uint32_t node = t.nodeOf(0);
+  const Camera cam = wideCamera();
+  const Frustum f = makeFrustum(cam);
+  std::vector<uint32_t> draw(t.nodes().size()), test(t.nodes().size());
+  DynamicOctree::Traversal tr;
+  tr.frame = 10;
+  tr.useOcclusion = true;
+  t.setQueryPending(node, true);
+  t.setOcclusionResult(node, false, 10);
+  const auto drawn = [&](const DynamicOctree::TraversalResult& r, uint32_t n) {
+    return std::find(draw.begin(), draw.begin() + r.drawn, n) != draw.begin() + r.drawn;
+  };
+  tr.frame = 11;
+  auto r = t.traverse(f, tr, draw, test);
+  EXPECT_FALSE(drawn(r, node));  // hidden
+  // Object 20 moves into the node's cell, outside the box that was tested.
+  ASSERT_TRUE(t.move(20, cube({35.5, 98.0, 2.0}, 0.2)));
+  ASSERT_EQ(t.nodeOf(20), node);
+  t.refresh();
+  r = t.traverse(f, tr, draw, test);
+  EXPECT_TRUE(drawn(r, node));
+  EXPECT_EQ(r.hiddenObjects, 0u);
+  EXPECT_NE(std::find(test.begin(), test.begin() + r.candidates, node), test.begin() + r.candidates);  // tested again
+  // A test of the new box that says hidden holds again; one of a box the node has outgrown since
+  // (its query in flight while the object moved in) does not.
+  t.setQueryPending(node, true);
+  t.setOcclusionResult(node, false, 11);
+  tr.frame = 12;
+  r = t.traverse(f, tr, draw, test);
+  EXPECT_FALSE(drawn(r, node));
+  t.setQueryPending(node, true);
+  ASSERT_TRUE(t.move(20, cube({34.0, 99.5, 3.0}, 0.2)));
+  t.refresh();
+  t.setOcclusionResult(node, false, 12);
+  tr.frame = 13;
+  r = t.traverse(f, tr, draw, test);
+  EXPECT_TRUE(drawn(r, node));
+  // Moving out of the node (its box shrinks): the hidden result still holds.
+  t.setQueryPending(node, true);
+  t.setOcclusionResult(node, false, 13);
+  ASSERT_TRUE(t.move(20, cube({-40.0, 60.0, 0.0}, 0.5)));
+  t.refresh();
+  tr.frame = 14;
+  r = t.traverse(f, tr, draw, test);
+  EXPECT_FALSE(drawn(r, node));
+}
+
+// A new occluder makes "visible" results of earlier tests stale, but a "visible" result is still
+// newer than an older "hidden" one: the node is no longer skipped on the old result (it was seen
+// after it), it is tested again.
+TEST(DynamicOctree, AVisibleResultFromBeforeANewOccluderStillEndsAnOlderHiddenOne) {
+  DynamicOctree t;
+  ASSERT_TRUE(t.init(occlusionTestConfig(8)));
+  for (uint32_t id = 0; id < 20; ++id) ASSERT_TRUE(t.insert(id, cube({33.0 + 0.1 * id, 97.0, 1.0}, 0.05)));
+  t.refresh();
+  const uint32_t node = t.nodeOf(0);
+  const Frustum f = makeFrustum(wideCamera());
+  std::vector<uint32_t> draw(t.nodes().size()), test(t.nodes().size());
+  DynamicOctree::Traversal tr;
+  tr.useOcclusion = true;
+  t.setQueryPending(node, true);
+  t.setOcclusionResult(node, false, 5);  // hidden in frame 5
+  t.setQueryPending(node, true);          // re-tested in frame 6 ...
+  t.expireVisibleResults(7);              // ... a large object appears before frame 7 ...
+  t.setOcclusionResult(node, true, 6);    // ... and the frame-6 test says visible
+  tr.frame = 7;
+  const auto r = t.traverse(f, tr, draw, test);
+  EXPECT_NE(std::find(draw.begin(), draw.begin() + r.drawn, node), draw.begin() + r.drawn)
+      << "skipped on the frame-5 result although the frame-6 test saw it";
+  EXPECT_NE(std::find(test.begin(), test.begin() + r.candidates, node), test.begin() + r.candidates);
+}
+
 TEST(DynamicOctree, RejectsBadConfig) {
   DynamicOctree t;
   OctreeConfig c;
