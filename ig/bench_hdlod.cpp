@@ -245,7 +245,7 @@ int runHdlodBench(const HdlodBenchOptions& in) {
   auto measureView = [&](const hd::SelectView& v, Side& h, Side& f, double& psnr) {
     hd::SelectStats hs, fs;
     h.selectMs = hdlodRun.selectMs(v, o.repeats, hs, &h.selectCpuMs);
-    f.selectMs = fullRun.selectMs(v, std::max(1, o.repeats / 4), fs);
+    f.selectMs = fullRun.selectMs(v, std::max(1, o.repeats / 4), fs, &f.selectCpuMs);
     h.triangles = static_cast<double>(hs.triangles);
     h.draws = hs.draws;
     f.triangles = static_cast<double>(fs.triangles);
@@ -302,7 +302,7 @@ int runHdlodBench(const HdlodBenchOptions& in) {
     c.screen = screenNames[si];
     c.psnr = 99.0;
     const lod::Camera cam = cameraFor(root.box, screenLinear[si], o);
-    std::vector<double> hs, hc, fs, hf, ff;
+    std::vector<double> hs, hc, fs, fc, hf, ff;
     const int n = o.animationFrames;
     for (int i = 0; i < n; ++i) {
       hd::SelectView v;
@@ -313,7 +313,8 @@ int runHdlodBench(const HdlodBenchOptions& in) {
       double cpu = 0.0;
       hs.push_back(hdlodRun.selectMs(v, 1, a, &cpu));
       hc.push_back(cpu);
-      fs.push_back(fullRun.selectMs(v, 1, b));
+      fs.push_back(fullRun.selectMs(v, 1, b, &cpu));
+      fc.push_back(cpu);
       c.hdlod.triangles += static_cast<double>(a.triangles) / n;
       c.hdlod.draws += static_cast<double>(a.draws) / n;
       c.full.triangles += static_cast<double>(b.triangles) / n;
@@ -331,6 +332,7 @@ int runHdlodBench(const HdlodBenchOptions& in) {
     c.hdlod.selectMs = median(hs);
     c.hdlod.selectCpuMs = median(hc);
     c.full.selectMs = median(fs);
+    c.full.selectCpuMs = median(fc);
     c.hdlod.frameMs = median(hf);
     c.full.frameMs = median(ff);
     cases.push_back(c);

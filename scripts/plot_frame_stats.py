@@ -9,6 +9,7 @@ frame governor the knobs it steered, each relative to its first frame (1 = the s
 """
 import csv
 import json
+import math
 import sys
 
 import matplotlib
@@ -37,6 +38,12 @@ def load(path):
     return rows, run
 
 
+def nearest_rank(sorted_values, p):
+    """The nearest-rank percentile of sorted values, as igd's summary (ig/stats.cpp) computes it."""
+    k = math.ceil(p / 100.0 * len(sorted_values))
+    return sorted_values[min(max(k, 1), len(sorted_values)) - 1]
+
+
 def main():
     if len(sys.argv) != 3:
         sys.exit("usage: plot_frame_stats.py STATS(.csv|.jsonl) OUT.png")
@@ -61,7 +68,7 @@ def main():
         ax.scatter([r["frame"] for r in over], [r["work_ms"] for r in over], color="red", s=12, zorder=5,
                    label=f"overrun ({len(over)})")
     work = sorted(r["work_ms"] for r in rows)
-    p50, p99 = work[len(work) // 2], work[min(len(work) - 1, int(len(work) * 0.99))]
+    p50, p99 = nearest_rank(work, 50), nearest_rank(work, 99)
     ax.set_title(f"igd frame work: {len(rows)} frames, p50 {p50:.1f} ms, p99 {p99:.1f} ms, "
                  f"overruns {len(over)}")
     ax.set_ylabel("ms per frame")
