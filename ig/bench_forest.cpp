@@ -1,4 +1,5 @@
 #include "ig/bench_forest.h"
+#include "ig/json.h"
 
 #include <algorithm>
 #include <chrono>
@@ -554,7 +555,7 @@ int runForestBench(const ForestBenchOptions& in) {
                 "\"transition_max_hard_switch\":%.4f,\"transition_popped_max\":%.6f,\"transition_popped_max_hard_switch\":%.6f,"
                 "\"reference_views\":%d,"
                 "\"reference_ms\":%.0f,\"reference_trees_per_view\":%.0f,\"cull_sweep\":[",
-                treeCount, area, extent_m, ground.source.c_str(), modelSource.c_str(), modelTriangles,
+                treeCount, area, extent_m, jsonEscape(ground.source).c_str(), jsonEscape(modelSource).c_str(), modelTriangles,
                 static_cast<double>(glades) / static_cast<double>(forest->map().gr.size()), buildMs, texturesMs,
                 kd.leaves().size(), nonEmpty, kd.depth(), o.frames, o.nearFadeStart_m, o.nearFadeEnd_m, main.p50, main.p99,
                 main.max, main.cpuP99, main.testedP50, main.drawnP50, main.droppedMax,

@@ -1,4 +1,5 @@
 #include "ig/bench_governor.h"
+#include "ig/json.h"
 
 #include <algorithm>
 #include <chrono>
@@ -458,10 +459,10 @@ int runGovernorBench(const GovernorBenchOptions& o0) {
     char buf[512];
     std::snprintf(buf, sizeof buf,
                   "{\"suite\":\"governor\",\"renderer\":\"%s\",\"rate_hz\":%.3f,\"budget_ms\":%.3f,\"width\":%d,"
-                  "\"height\":%d,\"samples\":%d,\"seconds\":%.2f,\"quick\":%s,\"time\":\"%s\",\"load_avg_start\":%.2f,"
-                  "\"load_avg_end\":%.2f,\"cpus\":%u,",
-                  context->description().c_str(), o.rate_hz, budget_ms, o.width_px, o.height_px, o.samples, o.seconds,
-                  o.quick ? "true" : "false", o.cpuTime ? "cpu" : "wall", loadAvgStart, loadAvgEnd, std::thread::hardware_concurrency());
+                  "\"height\":%d,\"samples\":%d,\"seconds\":%.2f,\"quick\":%s,\"time\":\"%s\",\"load_avg_start\":%s,"
+                  "\"load_avg_end\":%s,\"cpus\":%u,",
+                  jsonEscape(context->description()).c_str(), o.rate_hz, budget_ms, o.width_px, o.height_px, o.samples, o.seconds,
+                  o.quick ? "true" : "false", o.cpuTime ? "cpu" : "wall", jsonNumber(loadAvgStart, 2).c_str(), jsonNumber(loadAvgEnd, 2).c_str(), std::thread::hardware_concurrency());
     json += buf;
     std::snprintf(buf, sizeof buf,
                   "\"frames\":%zu,\"overruns\":%lld,\"overrun_pct\":%.3f,\"frame_ms_p50\":%.3f,\"frame_ms_p99\":%.3f,"

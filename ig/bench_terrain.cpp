@@ -1,4 +1,5 @@
 #include "ig/bench_terrain.h"
+#include "ig/json.h"
 
 #include <algorithm>
 #include <chrono>
@@ -345,15 +346,6 @@ struct RasterResult {
   double dirtySlotsP50 = 0, drawnSlotsP50 = 0, drawnLiveP50 = 0, rangesP50 = 0;
   uint64_t triangles = 0;
 };
-
-std::string jsonEscape(const std::string& s) {
-  std::string o;
-  for (char c : s) {
-    if (c == '"' || c == '\\') o += '\\';
-    o += c;
-  }
-  return o;
-}
 
 std::string num(double v, int decimals = 4) {
   if (!std::isfinite(v)) return "null";

@@ -1,4 +1,5 @@
 #include "ig/cells_tool.h"
+#include "ig/json.h"
 
 #include <algorithm>
 #include <chrono>
@@ -105,21 +106,6 @@ void bakeShading(lod::VoxelMesh& m) {
     }
     m.colors[i] = col;
   }
-}
-
-std::string jsonString(const std::string& s) {
-  std::string o = "\"";
-  for (char c : s) {
-    if (c == '"' || c == '\\') o += '\\';
-    if (static_cast<unsigned char>(c) < 0x20) {
-      char buf[8];
-      std::snprintf(buf, sizeof buf, "\\u%04x", c);
-      o += buf;
-    } else {
-      o += c;
-    }
-  }
-  return o + "\"";
 }
 
 std::string formatted(const char* format, ...) __attribute__((format(printf, 1, 2)));

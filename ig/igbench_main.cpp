@@ -1,6 +1,7 @@
 // igbench: benchmarks. Each suite prints one JSON object on stdout with --json (for scripts
 // and side-by-side comparisons), or a human summary without it.
 #include "ig/cli.h"
+#include "ig/json.h"
 
 #include <atomic>
 #include <cstdio>
@@ -53,7 +54,7 @@ int runFrameSuite(const std::string& configFile, ig::Overrides o, bool json) {
         "\"frame_ms_mean\":%.3f,\"frame_ms_max\":%.3f,\"overruns\":%lld,\"triangles_p50\":%llu,"
         "\"draw_calls_p50\":%u,\"phase_ms_p50\":{\"input\":%.3f,\"lod\":%.3f,\"submit\":%.3f,\"gpu_finish\":%.3f,"
         "\"present\":%.3f},\"layers\":%zu,\"passes\":%u}\n",
-        scene.name.c_str(), service->info().context.c_str(), config.width_px, config.height_px,
+        ig::jsonEscape(scene.name).c_str(), ig::jsonEscape(service->info().context).c_str(), config.width_px, config.height_px,
         static_cast<long long>(s.frames), config.rate_hz, period_ms, s.workMs_p50, s.workMs_p99, s.workMs_mean,
         s.workMs_max, static_cast<long long>(s.overruns), static_cast<unsigned long long>(s.triangles_p50),
         s.drawCalls_p50, s.phaseMs_p50[0], s.phaseMs_p50[1], s.phaseMs_p50[2], s.phaseMs_p50[3], s.phaseMs_p50[4],

@@ -1,9 +1,13 @@
 // Frame pacing with a fake clock: absolute deadlines, phase times, overrun and missed-slot
-// accounting, free-run. No real time passes in these tests.
+// accounting, free-run. No real time passes in these tests. Also the summary and the JSON helpers.
 #include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
 
 #include "ig/clock.h"
 #include "ig/frame_loop.h"
+#include "ig/json.h"
 #include "ig/stats.h"
 
 using namespace ig;
@@ -175,4 +179,15 @@ TEST(FramePacer, WorkBudgetDefinesOverrunsWithoutChangingPacing) {
   clock.advance_ns(7 * kMs);
   EXPECT_FALSE(pacer.endFrame().overrun);
   EXPECT_EQ(pacer.overruns(), 1);
+}
+
+// The JSON that igbench and igtool print by hand: names and paths from outside are escaped, and a
+// number that is not finite prints null (JSON has no NaN or Infinity).
+TEST(Json, StringsAreEscapedAndNonFiniteNumbersAreNull) {
+  EXPECT_EQ(ig::jsonString("scene \"a\\b\"\n\t"), "\"scene \\\"a\\\\b\\\"\\u000a\\u0009\"");
+  EXPECT_EQ(ig::jsonEscape("llvmpipe (LLVM 15.0.6, 256 bits)"), "llvmpipe (LLVM 15.0.6, 256 bits)");
+  EXPECT_EQ(ig::jsonNumber(std::nan(""), 2), "null");
+  EXPECT_EQ(ig::jsonNumber(-std::numeric_limits<double>::infinity(), 2), "null");
+  EXPECT_EQ(ig::jsonNumber(1.005, 1), "1.0");
+  EXPECT_EQ(ig::jsonNumber(2.5, 2), "2.50");
 }
