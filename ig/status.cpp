@@ -53,6 +53,8 @@ StatusReporter::StatusReporter(std::string file, double interval_s, double rate_
 }
 
 void StatusReporter::reconfigure(std::string file, double interval_s, double rate_hz) {
+  // A reload that moves the report: the old file goes (left, it would say "running" forever).
+  if (!file_.empty() && file != file_) std::remove(file_.c_str());
   file_ = std::move(file);
   tmpFile_ = file_.empty() ? std::string() : file_ + ".tmp";
   interval_ns_ = static_cast<int64_t>(std::max(interval_s, 0.01) * 1e9);

@@ -48,8 +48,9 @@ class StatusReporter {
 
   // The first interval starts here (the frame loop's start).
   void start(int64_t now_ns) { lastReport_ns_ = now_ns; }
-  // Reload: a new file and interval from the next report on. The totals (frames, overruns,
-  // missed slots) and the frames of the current interval are kept. May allocate (between frames).
+  // Reload: a new file and interval from the next report on (a file no longer used is removed).
+  // The totals (frames, overruns, missed slots) and the frames of the current interval are kept.
+  // May allocate (between frames).
   void reconfigure(std::string file, double interval_s, double rate_hz);
   // A reporter created after frames have run (a reload that switched the report on): the
   // totals so far, e.g. from the frame pacer, so that they do not restart at 0.

@@ -188,6 +188,28 @@ TEST(Status, ReconfigureKeepsTheTotals) {
   EXPECT_NE(late.json().find("\"frames\":501,\"overruns\":7,\"missed_slots\":2"), std::string::npos) << late.json();
 }
 
+// A reload that moves the status file removes the old one (it would say "running" forever).
+TEST(Status, ReconfigureToAnotherFileRemovesTheOldOne) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("igd_status_move_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const std::string a = (dir / "a.json").string(), b = (dir / "b.json").string();
+  ig::StatusReporter r(a, 1.0, 10.0);
+  r.start(0);
+  ig::FrameTiming t;
+  r.addFrame(t, 100);
+  r.report(1'000'000'000, ig::StatusContext{});
+  EXPECT_TRUE(std::filesystem::exists(a));
+  r.reconfigure(b, 1.0, 10.0);
+  EXPECT_FALSE(std::filesystem::exists(a));
+  r.addFrame(t, 100);
+  r.report(2'000'000'000, ig::StatusContext{});
+  EXPECT_TRUE(std::filesystem::exists(b));
+  r.reconfigure(b, 0.5, 10.0);  // the same file: kept
+  EXPECT_TRUE(std::filesystem::exists(b));
+  std::filesystem::remove_all(dir);
+}
+
 // service.watchdog_interval_s not below systemd's WatchdogSec would let systemd kill igd between
 // two pings: half of WatchdogSec is used instead, and the log says so.
 TEST(Systemd, WatchdogIntervalNotBelowWatchdogSecIsReplaced) {
