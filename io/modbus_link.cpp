@@ -12,8 +12,10 @@
 #include <array>
 #include <atomic>
 #include <cerrno>
+#include <chrono>
 #include <cstring>
 #include <ctime>
+#include <fcntl.h>
 #include <optional>
 #include <thread>
 
@@ -21,7 +23,14 @@ namespace ig::io {
 namespace {
 
 constexpr int kPollTimeout_ms = 100;       // how often the receive thread checks for stop()
-constexpr uint32_t kByteTimeout_us = 250000;  // a master silent this long mid-frame: frame dropped
+constexpr uint32_t kByteTimeout_us = 250000;  // RTU: a master silent this long mid-frame: frame dropped
+// TCP: a request not complete this long after its first byte closes the connection. The TCP
+// side frames requests itself (MBAP length) from non-blocking sockets, so a master that stalls
+// or trickles a frame byte by byte never holds the receive thread (libmodbus' modbus_receive
+// would wait up to the byte timeout for every single byte).
+constexpr int64_t kTcpFrameTimeout_ns = int64_t{kByteTimeout_us} * 1000;
+constexpr int kMbapHeader = 7;          // transaction id, protocol id, length, unit id
+constexpr int kMaxFramesPerWake = 16;   // per master, then the others get their turn
 constexpr uint32_t kResponseTimeout_us = 100000;  // libmodbus waits this for a reply it must skip (RTU)
 constexpr int kBauds[] = {1200,   2400,   4800,   9600,   19200,  38400,  57600,
                           115200, 230400, 460800, 500000, 576000, 921600, 1000000};
@@ -30,6 +39,11 @@ std::string quoted(std::string_view s) {
   std::string r(1, '"');
   r.append(s).push_back('"');
   return r;
+}
+
+int64_t monotonicNow_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
 }
 
 void pauseBriefly() {
@@ -85,7 +99,6 @@ bool validateModbusLinkConfig(const ModbusLinkConfig& c, ModbusTransport transpo
 struct ModbusLink::Impl {
   Impl(const ModbusLinkConfig& c, ModbusTransport t, const lod::Geodetic& origin, LinkCounters& k)
       : config(c), transport(t), enu(origin), counters(k), map(c.wordOrder) {
-    clients.fill(-1);
   }
 
   ModbusLinkConfig config;
@@ -97,7 +110,14 @@ struct ModbusLink::Impl {
   modbus_t* ctx = nullptr;
   modbus_mapping_t* mapping = nullptr;
   int listenFd = -1;
-  std::array<int, kMaxTcpClients> clients{};
+  // A connected TCP master: its non-blocking socket and the request being received.
+  struct Client {
+    int fd = -1;
+    int have = 0;            // bytes of the current request in buf
+    int64_t started_ns = 0;  // when its first byte arrived
+    uint8_t buf[MODBUS_TCP_MAX_ADU_LENGTH] = {};
+  };
+  std::array<Client, kMaxTcpClients> clients{};
   HostSink* sink = nullptr;
   std::thread thread;
   std::atomic<bool> stopping{false};
@@ -118,7 +138,9 @@ struct ModbusLink::Impl {
   void close();
   void runTcp();
   void runRtu();
-  bool serveOne();  // false: close this TCP connection
+  bool serveOne();  // RTU: reads one request with libmodbus and answers it
+  bool readClient(Client& c);  // TCP: false: close this connection
+  bool handleRequest(const uint8_t* req, int length);  // false: close this TCP connection
   void refreshStatus();
 };
 
@@ -143,6 +165,9 @@ bool ModbusLink::Impl::open(std::string& error) {
       error = "cannot listen on " + where + ": " + std::strerror(errno);
       return false;
     }
+    // Non-blocking: a connection the master aborted between poll() and accept() must not
+    // block the receive thread in accept().
+    fcntl(listenFd, F_SETFL, fcntl(listenFd, F_GETFL) | O_NONBLOCK);
     sockaddr_in bound{};
     socklen_t len = sizeof bound;
     if (getsockname(listenFd, reinterpret_cast<sockaddr*>(&bound), &len) == 0) port = ntohs(bound.sin_port);
@@ -166,9 +191,10 @@ bool ModbusLink::Impl::open(std::string& error) {
 }
 
 void ModbusLink::Impl::close() {
-  for (int& fd : clients) {
-    if (fd >= 0) ::close(fd);
-    fd = -1;
+  for (Client& c : clients) {
+    if (c.fd >= 0) ::close(c.fd);
+    c.fd = -1;
+    c.have = 0;
   }
   if (listenFd >= 0) ::close(listenFd);
   listenFd = -1;
@@ -198,33 +224,71 @@ void ModbusLink::Impl::refreshStatus() {
 }
 
 bool ModbusLink::Impl::serveOne() {
-  const bool rtu = transport == ModbusTransport::Rtu;
   const int length = modbus_receive(ctx, query);
   if (length == 0) return true;  // RTU: a request for another slave (or its reply), ignored
   if (length < 0) {
-    if (!rtu && errno == ECONNRESET) return false;  // the master closed the connection
     counters.malformed.fetch_add(1, std::memory_order_relaxed);
-    if (rtu) modbus_flush(ctx);  // resynchronise on the next frame
-    return rtu;                  // TCP: the stream is out of step, close it
+    modbus_flush(ctx);  // resynchronise on the next frame
+    return true;
   }
+  return handleRequest(query, length);
+}
+
+bool ModbusLink::Impl::readClient(Client& c) {
+  for (int frames = 0; frames < kMaxFramesPerWake;) {
+    // The MBAP header first, then the rest its length field announces.
+    int need = kMbapHeader;
+    if (c.have >= kMbapHeader) need = 6 + ((c.buf[4] << 8) | c.buf[5]);
+    const ssize_t n = ::recv(c.fd, c.buf + c.have, static_cast<size_t>(need - c.have), MSG_DONTWAIT);
+    if (n == 0) return false;  // the master closed the connection
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      if (errno == EAGAIN || errno == EWOULDBLOCK) return true;
+      if (errno != ECONNRESET) counters.malformed.fetch_add(1, std::memory_order_relaxed);
+      return false;
+    }
+    if (c.have == 0) c.started_ns = monotonicNow_ns();
+    c.have += static_cast<int>(n);
+    if (c.have == kMbapHeader) {
+      const int protocol = (c.buf[2] << 8) | c.buf[3], length = (c.buf[4] << 8) | c.buf[5];
+      if (protocol != 0 || length < 2 || 6 + length > MODBUS_TCP_MAX_ADU_LENGTH) {
+        counters.malformed.fetch_add(1, std::memory_order_relaxed);  // not Modbus TCP framing
+        return false;
+      }
+    }
+    if (c.have < kMbapHeader || c.have < 6 + ((c.buf[4] << 8) | c.buf[5])) continue;
+    const int length = c.have;
+    c.have = 0;
+    ++frames;
+    modbus_set_socket(ctx, c.fd);
+    const bool keep = handleRequest(c.buf, length);
+    modbus_set_socket(ctx, -1);
+    if (!keep) return false;
+  }
+  return true;
+}
+
+bool ModbusLink::Impl::handleRequest(const uint8_t* req, int length) {
+  const bool rtu = transport == ModbusTransport::Rtu;
   counters.received.fetch_add(1, std::memory_order_relaxed);
   const int header = modbus_get_header_length(ctx);
   const int pduLength = length - header - (rtu ? 2 : 0);
-  const std::span<const uint8_t> pdu(query + header, pduLength > 0 ? static_cast<size_t>(pduLength) : 0u);
+  const std::span<const uint8_t> pdu(req + header, pduLength > 0 ? static_cast<size_t>(pduLength) : 0u);
   const modbus::RequestCheck check = modbus::checkRequest(pdu);
-  const bool broadcast = rtu && query[0] == MODBUS_BROADCAST_ADDRESS;
+  const bool broadcast = rtu && req[0] == MODBUS_BROADCAST_ADDRESS;
 
   if (check.exception != modbus::Exception::None) {
     counters.malformed.fetch_add(1, std::memory_order_relaxed);
     // Discard the rest of a frame whose length libmodbus could not know before answering:
     // the master sends its next request only after the answer.
-    if (check.flush) modbus_flush(ctx);
+    // (TCP frames by the MBAP length: the whole request was read, nothing to discard.)
+    if (check.flush && rtu) modbus_flush(ctx);
     int sent = 0;
-    if (!broadcast) sent = modbus_reply_exception(ctx, query, static_cast<unsigned>(check.exception));
+    if (!broadcast) sent = modbus_reply_exception(ctx, req, static_cast<unsigned>(check.exception));
     return rtu || sent >= 0;
   }
   if (check.readsStatus) refreshStatus();
-  const int sent = modbus_reply(ctx, query, length, mapping);
+  const int sent = modbus_reply(ctx, req, length, mapping);
   if (check.writeCount > 0) {
     const modbus::WriteOutcome out = map.afterWrite(holding(), check.writeStart, check.writeCount);
     if (out.rejects.count > 0) counters.outOfRange.fetch_add(out.rejects.count, std::memory_order_relaxed);
@@ -245,32 +309,45 @@ bool ModbusLink::Impl::serveOne() {
 void ModbusLink::Impl::runTcp() {
   std::array<pollfd, kMaxTcpClients + 1> fds{};
   std::array<int, kMaxTcpClients + 1> slotOf{};  // fds[i] is clients[slotOf[i]] (i >= 1)
+  auto drop = [](Client& c) {
+    ::close(c.fd);
+    c.fd = -1;
+    c.have = 0;
+  };
   while (!stopping.load(std::memory_order_relaxed)) {
     nfds_t n = 0;
     fds[n++] = pollfd{listenFd, POLLIN, 0};
     for (int i = 0; i < kMaxTcpClients; ++i) {
-      if (clients[i] < 0) continue;
+      if (clients[i].fd < 0) continue;
       slotOf[n] = i;
-      fds[n++] = pollfd{clients[i], POLLIN, 0};
+      fds[n++] = pollfd{clients[i].fd, POLLIN, 0};
     }
-    if (poll(fds.data(), n, kPollTimeout_ms) <= 0) continue;
-    for (nfds_t k = 1; k < n; ++k) {
-      if ((fds[k].revents & (POLLIN | POLLHUP | POLLERR | POLLNVAL)) == 0) continue;
-      int& fd = clients[slotOf[k]];
-      modbus_set_socket(ctx, fd);
-      if ((fds[k].revents & POLLNVAL) != 0 || !serveOne()) {
-        ::close(fd);
-        fd = -1;
+    const int ready = poll(fds.data(), n, kPollTimeout_ms);
+    if (ready > 0) {
+      for (nfds_t k = 1; k < n; ++k) {
+        if ((fds[k].revents & (POLLIN | POLLHUP | POLLERR | POLLNVAL)) == 0) continue;
+        Client& c = clients[slotOf[k]];
+        if ((fds[k].revents & POLLNVAL) != 0 || !readClient(c)) drop(c);
       }
-      modbus_set_socket(ctx, -1);
     }
-    if ((fds[0].revents & POLLIN) != 0) {
-      const int s = accept4(listenFd, nullptr, nullptr, SOCK_CLOEXEC);
-      if (s < 0) continue;
-      int* slot = nullptr;
-      for (int& fd : clients) {
-        if (fd < 0) {
-          slot = &fd;
+    // A request left incomplete too long: the stream is out of step (or the master is gone).
+    const int64_t now = monotonicNow_ns();
+    for (Client& c : clients) {
+      if (c.fd >= 0 && c.have > 0 && now - c.started_ns > kTcpFrameTimeout_ns) {
+        counters.malformed.fetch_add(1, std::memory_order_relaxed);
+        drop(c);
+      }
+    }
+    if (ready > 0 && (fds[0].revents & POLLIN) != 0) {
+      const int s = accept4(listenFd, nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK);
+      if (s < 0) {
+        if (errno == EMFILE || errno == ENFILE || errno == ENOBUFS || errno == ENOMEM) pauseBriefly();  // don't spin
+        continue;
+      }
+      Client* slot = nullptr;
+      for (Client& c : clients) {
+        if (c.fd < 0) {
+          slot = &c;
           break;
         }
       }
@@ -280,7 +357,8 @@ void ModbusLink::Impl::runTcp() {
       }
       const int one = 1;
       setsockopt(s, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
-      *slot = s;
+      slot->fd = s;
+      slot->have = 0;
     }
   }
 }

@@ -5,7 +5,11 @@
 // One receive thread, started in start() and joined in stop(). It waits on the listening
 // socket and the connected masters (TCP, up to kMaxTcpClients at once; more are refused) or on
 // the serial device (RTU) with a 100 ms poll timeout, so stop() returns within about 0.1 s
-// (0.35 s if a master stalls in the middle of a frame). Each request is checked against the
+// (RTU: 0.35 s if the master stalls in the middle of a frame). TCP masters are read from
+// non-blocking sockets and their requests framed by the MBAP length, so a master that stalls
+// or trickles a request, or that does not read its answers, never holds the thread: a request
+// not complete 0.25 s after its first byte, or an answer the socket cannot take at once,
+// closes that master's connection. Each request is checked against the
 // map (modbus::checkRequest), answered (libmodbus builds the reply or the exception), and a
 // write that commits a set publishes one HostState to the sink, with the geodetic eyepoint
 // computed from the ENU eyepoint and the scene origin.

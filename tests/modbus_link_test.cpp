@@ -17,6 +17,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <atomic>
 #include <condition_variable>
 #include <cstdlib>
 #include <filesystem>
@@ -491,6 +492,125 @@ TEST(ModbusTcp, StopIsPromptWithMastersConnected) {
   ASSERT_TRUE(f.link->start(f.sink, error)) << error;
   Master again(f.link->boundPort());
   EXPECT_TRUE(again.connected);
+}
+
+// A raw TCP connection to the link (for masters that misbehave).
+int rawConnect(uint16_t port, int rcvbuf = 0) {
+  const int s = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  if (rcvbuf > 0) setsockopt(s, SOL_SOCKET, SO_RCVBUF, &rcvbuf, sizeof rcvbuf);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(port);
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  EXPECT_EQ(connect(s, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0);
+  return s;
+}
+
+TEST(ModbusTcp, TricklingMasterBlocksNeitherOthersNorStop) {
+  TcpFixture f;
+  ASSERT_TRUE(f.started);
+  // FC16 with 120 registers (253 bytes), sent one byte every 100 ms: each byte within
+  // libmodbus' byte timeout, the whole frame 25 s.
+  std::vector<uint8_t> frame = {0x00, 0x01, 0x00, 0x00, 0x00, 247, 0x01, 0x10, 0x00, 0x00, 0x00, 120, 240};
+  frame.resize(frame.size() + 240, 0);
+  const int s = rawConnect(f.port);
+  std::atomic<bool> done{false};
+  std::thread trickle([&] {
+    for (uint8_t b : frame) {
+      if (done || send(s, &b, 1, MSG_NOSIGNAL) != 1) return;
+      std::this_thread::sleep_for(100ms);
+    }
+  });
+  std::this_thread::sleep_for(350ms);
+  Master m(f.port);
+  ASSERT_TRUE(m.connected);
+  modbus_set_response_timeout(m.ctx, 1, 0);
+  const auto t0 = Clock::now();
+  m.status(modbus::WordOrder::LowFirst);  // answered while the other master trickles
+  EXPECT_LT(std::chrono::duration<double>(Clock::now() - t0).count(), 0.5);
+  // The trickler's request did not complete within 0.25 s: its connection was closed.
+  EXPECT_TRUE(waitUntil([&] { return f.link->counters().malformed.load() == 1; }, 2000ms));
+  const auto t1 = Clock::now();
+  f.link->stop();
+  EXPECT_LT(std::chrono::duration<double>(Clock::now() - t1).count(), 1.0);
+  done = true;
+  trickle.join();
+  close(s);
+}
+
+TEST(ModbusTcp, MasterThatNeverReadsBlocksNeitherOthersNorStop) {
+  TcpFixture f;
+  ASSERT_TRUE(f.started);
+  // Pipelined reads of the whole holding block; the answers are never read. Once the socket
+  // buffers are full a blocking send would hold the receive thread for good.
+  const int s = rawConnect(f.port, 4096);
+  const uint8_t req[] = {0x00, 0x01, 0x00, 0x00, 0x00, 0x06, 0x01, 0x03, 0x00, 0x00, 0x00, modbus::kHoldingCount};
+  std::vector<uint8_t> burst;
+  for (int i = 0; i < 256; ++i) burst.insert(burst.end(), req, req + sizeof req);
+  const int flags = fcntl(s, F_GETFL);
+  fcntl(s, F_SETFL, flags | O_NONBLOCK);
+  const auto end = Clock::now() + 2s;
+  size_t sent = 0;
+  while (Clock::now() < end) {
+    const ssize_t n = send(s, burst.data(), burst.size(), MSG_NOSIGNAL);
+    if (n > 0) {
+      sent += static_cast<size_t>(n);
+    } else if (n < 0 && errno != EAGAIN) {
+      break;  // the link closed this connection
+    } else {
+      std::this_thread::sleep_for(5ms);
+    }
+  }
+  EXPECT_GT(sent, 100000u);
+  Master m(f.port);
+  ASSERT_TRUE(m.connected);
+  modbus_set_response_timeout(m.ctx, 1, 0);
+  const auto t0 = Clock::now();
+  m.status(modbus::WordOrder::LowFirst);
+  EXPECT_LT(std::chrono::duration<double>(Clock::now() - t0).count(), 0.5);
+  const auto t1 = Clock::now();
+  f.link->stop();
+  EXPECT_LT(std::chrono::duration<double>(Clock::now() - t1).count(), 1.0);
+  close(s);
+}
+
+TEST(ModbusTcp, PipelinedRequestsAreAllAnswered) {
+  TcpFixture f;
+  ASSERT_TRUE(f.started);
+  // Three reads in one segment, then a write split across two segments: each is answered.
+  const int s = rawConnect(f.port);
+  std::vector<uint8_t> out;
+  for (uint8_t tid = 1; tid <= 3; ++tid) {
+    const uint8_t r[] = {0x00, tid, 0x00, 0x00, 0x00, 0x06, 0x01, 0x04, 0x00, 0x00, 0x00, 0x02};
+    out.insert(out.end(), r, r + sizeof r);
+  }
+  ASSERT_EQ(send(s, out.data(), out.size(), MSG_NOSIGNAL), static_cast<ssize_t>(out.size()));
+  const uint8_t w1[] = {0x00, 0x04, 0x00, 0x00, 0x00, 0x06, 0x01};
+  const uint8_t w2[] = {0x06, 0x00, 0x00, 0x00, 0x07};  // FC6 register 0 = 7
+  ASSERT_EQ(send(s, w1, sizeof w1, MSG_NOSIGNAL), static_cast<ssize_t>(sizeof w1));
+  std::this_thread::sleep_for(50ms);
+  ASSERT_EQ(send(s, w2, sizeof w2, MSG_NOSIGNAL), static_cast<ssize_t>(sizeof w2));
+  std::vector<uint8_t> in;
+  const size_t want = 3 * (9 + 4) + 12;
+  const auto end = Clock::now() + kWait;
+  while (in.size() < want && Clock::now() < end) {
+    pollfd p{s, POLLIN, 0};
+    if (poll(&p, 1, 100) <= 0) continue;
+    uint8_t buf[256];
+    const ssize_t n = recv(s, buf, sizeof buf, 0);
+    if (n <= 0) break;
+    in.insert(in.end(), buf, buf + n);
+  }
+  ASSERT_EQ(in.size(), want);
+  for (uint8_t tid = 1; tid <= 3; ++tid) {
+    EXPECT_EQ(in[(tid - 1) * 13 + 1], tid);
+    EXPECT_EQ(in[(tid - 1) * 13 + 7], 0x04);
+  }
+  EXPECT_EQ(in[39 + 1], 0x04);
+  EXPECT_EQ(in[39 + 7], 0x06);
+  EXPECT_EQ(f.link->counters().received.load(), 4u);
+  EXPECT_EQ(f.link->counters().malformed.load(), 0u);
+  close(s);
 }
 
 // --- mbpoll as the master ----------------------------------------------------------------------
