@@ -69,9 +69,12 @@ bool HdlodLayer::initRender(std::string& error) {
 void HdlodLayer::select(const lod::Camera& camera, double simulationTime_s, int viewportHeight_px) {
   hd::SelectView v;
   v.camera = camera;
-  v.time_s = config_.timeOffset_s + config_.timeScale * simulationTime_s;
+  // Clamped here, not only in the selection: a finite host time far beyond the schedule can
+  // overflow time_offset_s + time_scale * t to +-inf, which the selection rejects as bad input
+  // (nothing drawn) instead of holding the schedule at T (or 0).
+  v.time_s = hd::clampTime(config_.timeOffset_s + config_.timeScale * simulationTime_s, scene_.duration_s);
   v.tolerance_rad = hd::toleranceFromPixels(tolerance_px_, camera.fovY_deg, std::max(1, viewportHeight_px));
-  stats_.scheduleTime_s = hd::clampTime(v.time_s, scene_.duration_s);
+  stats_.scheduleTime_s = v.time_s;
   drawCount_ = hd::selectHdlod(tree_, scene_, v, draws_->draws, draws_->moving, &stats_.select);
 }
 

@@ -570,7 +570,9 @@ struct Service::Impl {
       k.present = true;
       k.initial = scene.forest->nearFadeEnd_m;
       k.max = g.forestMax_m > 0.0 ? std::min(g.forestMax_m, scene.forest->fadeOut_m) : scene.forest->nearFadeEnd_m;
-      k.min = std::min(g.forestMin_m, 0.5 * k.max);
+      // [governor.forest] min_m, unless the most is not above it (the scene's near_fade_end_m
+      // below min_m): then half the most, so that the knob still has a range.
+      k.min = g.forestMin_m < k.max ? g.forestMin_m : 0.5 * k.max;
       k.loadExponent = 2.0;
       k.loadUnit = 1e4;
       // The shell layers drawn (their fill ~ the count): the most is the start value; a count
@@ -594,7 +596,9 @@ struct Service::Impl {
       k.present = true;
       k.initial = static_cast<double>(scene.cells->voxelBudget);
       k.max = static_cast<double>(g.cellsMax_voxels > 0 ? g.cellsMax_voxels : scene.cells->voxelBudget);
-      k.min = std::min(static_cast<double>(g.cellsMin_voxels), 0.5 * k.max);
+      // [governor.cells] min_voxels, unless the most is not above it (then half the most).
+      const auto least = static_cast<double>(g.cellsMin_voxels);
+      k.min = least < k.max ? least : 0.5 * k.max;
       k.loadExponent = 1.0;
       k.loadBudget = true;
       k.quantum = 0.0;
@@ -646,8 +650,9 @@ struct Service::Impl {
       const int64_t t0 = clock ? clock->now_ns() : 0;
       if (governor) {
         terrainMesh->tolerance_px = governor->knob(lod::GovLayer::Terrain);
-        // Deferrable refinement yields at the terrain phase's budget (or the scene's, if smaller).
-        const double phase_ms = governor->phaseBudget_ms(lod::GovPhase::Terrain);
+        // Deferrable refinement yields at the terrain phase's budget (or the scene's, if smaller),
+        // shrunk for a while after an overrun (Governor::deferrableBudget_ms).
+        const double phase_ms = governor->deferrableBudget_ms(lod::GovPhase::Terrain);
         const double own_ms = scene.terrain ? scene.terrain->lodBudget_ms : 0.0;
         terrainMesh->budget_ms = own_ms > 0.0 ? std::min(own_ms, phase_ms) : phase_ms;
         terrainMesh->visibleCap = governor->loadCap(lod::GovLayer::Terrain);
@@ -682,7 +687,7 @@ struct Service::Impl {
       // The refinement yields at the cells phase's budget (or the scene's, if smaller); the
       // passes over the cut are not deferrable.
       const double own_ms = scene.cells ? scene.cells->selectBudget_ms : 0.0;
-      const double phase_ms = governor ? governor->phaseBudget_ms(lod::GovPhase::Cells) : 0.0;
+      const double phase_ms = governor ? governor->deferrableBudget_ms(lod::GovPhase::Cells) : 0.0;
       const double budget_ms = own_ms > 0.0 && phase_ms > 0.0 ? std::min(own_ms, phase_ms) : std::max(own_ms, phase_ms);
       cells->select(cam, config.height_px, clock, budget_ms);
       cellsSelect_ms = clock ? static_cast<double>(clock->now_ns() - t0) * 1e-6 : 0.0;

@@ -293,8 +293,12 @@ void Governor::configure(const GovernorConfig& c, bool keepState) {
     if (!(keepState && wasPresent[l] && layerPresent_[l])) lastDecision_.loadCap[l] = layerPresent_[l] ? kInfinity : kGovNaN;
 }
 
+double Governor::deferrableBudget_ms(GovPhase p) const {
+  return phaseBudget_ms_[idx(p)] * (emergencyLeft_ > 0 ? config_.emergencyDeferScale : 1.0);
+}
+
 WorkBudget Governor::workBudget(GovPhase p, int64_t phaseStart_ns, TimeSource source) const {
-  const double ms = phaseBudget_ms_[idx(p)] * (emergencyLeft_ > 0 ? config_.emergencyDeferScale : 1.0);
+  const double ms = deferrableBudget_ms(p);
   if (!(ms > 0.0)) return {};
   return WorkBudget(phaseStart_ns + static_cast<int64_t>(ms * 1e6), source);
 }

@@ -292,6 +292,10 @@ class Governor {
   double frameBudget_ms() const { return budget_ms_; }
   double phaseBudget_ms(GovPhase p) const { return phaseBudget_ms_[static_cast<size_t>(p)]; }
   bool phasePresent(GovPhase p) const { return phasePresent_[static_cast<size_t>(p)]; }
+  // Phase p's budget for deferrable work this frame: its phase budget, times
+  // emergencyDeferScale for emergencyFrames frames after an overrun (what workBudget() counts
+  // from; callers with their own clock, like igd's layers, take this). 0 for a phase without one.
+  double deferrableBudget_ms(GovPhase p) const;
   // Deadline for phase p's deferrable work starting at phaseStart_ns: its phase budget (shrunk
   // after an overrun). Unlimited for a phase without a budget.
   WorkBudget workBudget(GovPhase p, int64_t phaseStart_ns, TimeSource source = {}) const;

@@ -461,9 +461,16 @@ TEST(Governor, EmergencyCutsDetailAndDeferrableWork) {
   EXPECT_GE(g.knob(GovLayer::Terrain), tol * std::pow(c.emergencyScale, -0.5) * 0.999);
   EXPECT_NEAR(static_cast<double>(g.workBudget(GovPhase::Terrain, 0).deadline_ns()),
               static_cast<double>(fullBudget) * c.emergencyDeferScale, 2.0);
+  // The same shrunk budget for callers that keep their own deadline (igd's terrain and cells
+  // layers): phaseBudget_ms stays the configured share, deferrableBudget_ms is what applies.
+  EXPECT_DOUBLE_EQ(g.deferrableBudget_ms(GovPhase::Terrain), g.phaseBudget_ms(GovPhase::Terrain) * c.emergencyDeferScale);
+  EXPECT_NEAR(g.deferrableBudget_ms(GovPhase::Terrain) * 1e6, static_cast<double>(g.workBudget(GovPhase::Terrain, 0).deadline_ns()), 2.0);
   // No raise during the hold.
   for (int i = 0; i < c.holdAfterDecrease_frames - 1; ++i)
     EXPECT_NE(g.update(w.frame(g, 100e3)).action, GovAction::Increase) << i;
+  // emergency_frames after the overrun the deferrable budget is whole again.
+  ASSERT_LE(c.emergencyFrames, c.holdAfterDecrease_frames - 1);
+  EXPECT_DOUBLE_EQ(g.deferrableBudget_ms(GovPhase::Terrain), g.phaseBudget_ms(GovPhase::Terrain));
 }
 
 TEST(Governor, RespectsTheKnobBounds) {

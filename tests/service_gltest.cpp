@@ -121,6 +121,42 @@ TEST(ServiceGL, NaNHostInputIsRejectedAndTheLastGoodEyepointKept) {
   EXPECT_EQ(why.rfind("far_m", 0), 0u) << why;
 }
 
+// Simulation time drives the [hdlod] schedule: time_offset_s + time_scale * t, clamped to
+// [0, T]. A host time far beyond the schedule (finite, so accepted) holds it at T, one far
+// before it at 0, even where the mapping overflows a double (it selected nothing: the site
+// vanished).
+TEST(ServiceGL, HdlodScheduleHoldsItsEndsForHostTimesFarOutside) {
+  ServiceConfig cfg;
+  SceneConfig scene;
+  test::defaultConfigs(cfg, scene);
+  scene.terrain.reset();
+  scene.hdlod.emplace();
+  scene.hdlod->siteScale = 0.02;
+  scene.hdlod->timeOffset_s = -39729052800.0;  // config/scenes/construction_site.toml
+  scene.hdlod->timeScale = 1103760.0;
+  std::string error;
+  auto service = Service::create(cfg, scene, error);
+  ASSERT_TRUE(service) << error;
+  io::HostState h = test::defaultHostAt(0.0);
+  h.eyeEnu_m = {0.0, -400.0, 250.0};  // south of the site, looking north and down at it
+  h.heading_deg = 0.0;
+  h.pitch_deg = -30.0;
+  h.roll_deg = 0.0;
+  auto trianglesAt = [&](double simTime_s) {
+    h.simTime_s = simTime_s;
+    EXPECT_TRUE(hostStateValid(h)) << simTime_s;
+    return service->renderOnce(h, nullptr).triangles;
+  };
+  const uint64_t atEnd = trianglesAt(1e6);      // schedule time > T: T
+  const uint64_t atStart = trianglesAt(-1e6);   // schedule time < 0: 0
+  ASSERT_GT(atEnd, 0u);
+  ASSERT_NE(atEnd, atStart);                    // the site is built over the year
+  EXPECT_EQ(trianglesAt(1e303), atEnd);         // time_scale * t overflows to +inf
+  EXPECT_EQ(trianglesAt(-1e303), atStart);      // ... to -inf
+  EXPECT_EQ(trianglesAt(std::numeric_limits<double>::max()), atEnd);
+  EXPECT_EQ(trianglesAt(1e6), atEnd);           // and back
+}
+
 TEST(ServiceGL, EyepointInsideTerrainAndAtExtremeClipPlanesRendersWithoutGlErrors) {
   ServiceConfig cfg;
   SceneConfig scene;
