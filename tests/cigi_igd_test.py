@@ -19,12 +19,11 @@ import subprocess
 import sys
 import tempfile
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from igd_link_config import write_link_config  # noqa: E402
 import time
 
 sys.dont_write_bytecode = True  # no __pycache__ in the source tree
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from igd_link_config import write_link_config  # noqa: E402
 import cigi_sender as cs  # noqa: E402
 
 FAILURES = []

@@ -29,6 +29,7 @@ import cigi_sender as cs  # noqa: E402
 
 ORIGIN = (57.7, 11.97, 100.0)
 FAILURES = []
+CHILDREN = []  # dumpcap and cigi_probe: killed on the way out, even when main() raises
 
 
 def check(cond, what):
@@ -76,8 +77,10 @@ def main():
     cap = os.path.join(tmp, "cigi.pcap")
 
     # Capture UDP on loopback from before the link starts until after it stops.
-    dumpcap = subprocess.Popen(["dumpcap", "-q", "-i", "lo", "-P", "-f", "udp", "-w", cap],
+    # -a duration: a backstop should this process be killed before it stops dumpcap itself.
+    dumpcap = subprocess.Popen(["dumpcap", "-q", "-i", "lo", "-P", "-f", "udp", "-a", "duration:300", "-w", cap],
                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    CHILDREN.append(dumpcap)
     started = ""
     end = time.monotonic() + 30
     while time.monotonic() < end:
@@ -115,6 +118,7 @@ def main():
     host_port = rx.getsockname()[1]
     link = subprocess.Popen([probe, "link", str(host_port), "%r,%r,%r" % ORIGIN], stdin=subprocess.PIPE,
                             stdout=subprocess.PIPE, text=True)
+    CHILDREN.append(link)
     port = int(readline(link).split()[1])
     sofs = []
 
@@ -371,4 +375,11 @@ def field_matches(text, want):
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    try:
+        rc = main()
+    finally:
+        for child in CHILDREN:
+            if child.poll() is None:
+                child.kill()
+                child.wait()
+    sys.exit(rc)

@@ -852,6 +852,7 @@ class Tools(Tmp):
     def test_igtool_convert_pcap_and_candump(self):
         # A classic pcap (raw IPv4, link type 101) of three CIGI host messages to port 8004,
         # written here byte by byte with the independent encoder of tests/cigi_sender.py.
+        sys.dont_write_bytecode = True  # no __pycache__ in the source tree
         sys.path.insert(0, os.path.join(SRC, "tests"))
         import cigi_sender as cs
         import struct

@@ -117,9 +117,10 @@ TEST(HdlodModels, GltfNodesTransformedToZUp) {
   // Through a schedule, and loadModelFile by extension.
   const std::string sched = writeFile("gltf.sched",
                                       "hdlod-schedule 1\nduration_s 10\nmodel tri gltf hdlod_models_test_tri.gltf\n"
-                                      "model quad ply hdlod_models_test_quad.ply\nobject a tri\nat a 0 0 0 0 0\n");
-  writeFile("quad.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-                        "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+                                      "model quad ply hdlod_models_test_gltf_quad.ply\nobject a tri\nat a 0 0 0 0 0\n");
+  // Not quad.ply: PlyAsciiQuadIsFanned writes that one, and ctest -j runs the two at once.
+  writeFile("gltf_quad.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                             "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
   const auto scene = loadSchedule(sched, error);
   ASSERT_TRUE(scene) << error;
   EXPECT_EQ(scene->models[0].triangleCount(), 1u);
