@@ -285,6 +285,11 @@ int runCellsBuild(const CellsBuildOptions& o) {
       std::snprintf(buf, sizeof buf, "%s%.4f", l ? "," : "", pyramid.dimension(l));
       s += buf;
     }
+    s += "],\"box_counting_dimension\":[";  // per level 0..levels(), the paper's Table 1
+    for (int l = 0; l <= pyramid.levels(); ++l) {
+      std::snprintf(buf, sizeof buf, "%s%.4f", l ? "," : "", pyramid.boxCountingDimension(l));
+      s += buf;
+    }
     s += "],\"cells_per_level\":[";
     for (int q = 0; q < tree.levels(); ++q) {
       if (q) s += ',';
@@ -308,12 +313,13 @@ int runCellsBuild(const CellsBuildOptions& o) {
   }
   std::printf("%s: %s: %zu triangles -> %d voxel levels (finest voxel %.4g m, root cube %.4g m)\n", tool,
               source.c_str(), triangles, levels, std::ldexp(pyramid.boxEdge_m, -levels), pyramid.boxEdge_m);
-  std::printf("  level  voxels      dimension D(l) = log2(N(l+1) / N(l))\n");
+  std::printf("  level  voxels      D(l) = log2(N(l+1) / N(l))  H(l) = log2(N(l)) / l (Table 1)\n");
   for (int l = 0; l <= pyramid.levels(); ++l) {
     if (l < pyramid.levels()) {
-      std::printf("  %5d  %-10zu  %.3f\n", l, pyramid.count(l), pyramid.dimension(l));
+      std::printf("  %5d  %-10zu  %-26.3f  %.3f\n", l, pyramid.count(l), pyramid.dimension(l),
+                  pyramid.boxCountingDimension(l));
     } else {
-      std::printf("  %5d  %-10zu\n", l, pyramid.count(l));
+      std::printf("  %5d  %-10zu  %-26s  %.3f\n", l, pyramid.count(l), "", pyramid.boxCountingDimension(l));
     }
   }
   std::printf("  cell level  cells       bytes        (depth d = %d: %d^3-voxel cells at most)\n", o.voxelDepth,

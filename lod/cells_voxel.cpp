@@ -33,7 +33,9 @@ uint32_t compact1by2(uint64_t x) {
   return static_cast<uint32_t>(x);
 }
 
-// RGBA8 (0xAABBGGRR) <-> RGB565, the colour carried in the low 16 bits of a packed voxel.
+// The colour carried in the low bits of a packed voxel (Morton code << colourBits | colour): RGB888
+// when the code leaves room (3 levels + 24 <= 64, i.e. up to 13 levels), else RGB565 (14..16
+// levels). RGBA8 (0xAABBGGRR) <-> RGB565:
 uint32_t toRgb565(uint32_t rgba) {
   const uint32_t r = rgba & 0xFF, g = (rgba >> 8) & 0xFF, b = (rgba >> 16) & 0xFF;
   return (r >> 3) << 11 | (g >> 2) << 5 | (b >> 3);
@@ -43,6 +45,10 @@ void addRgb565(uint32_t c, std::array<uint64_t, 3>& sum) {
   sum[0] += (r << 3) | (r >> 2);
   sum[1] += (g << 2) | (g >> 4);
   sum[2] += (b << 3) | (b >> 2);
+}
+void addPacked(uint32_t c, int colourBits, std::array<uint64_t, 3>& sum) {
+  if (colourBits == 16) return addRgb565(c, sum);
+  for (int ch = 0; ch < 3; ++ch) sum[static_cast<size_t>(ch)] += (c >> (8 * ch)) & 0xFF;
 }
 uint32_t rgbaFromSum(const std::array<uint64_t, 3>& sum, uint64_t n) {
   const auto ch = [&](int i) { return static_cast<uint32_t>((sum[static_cast<size_t>(i)] + n / 2) / n); };
@@ -84,8 +90,8 @@ int clampi(double v, int lo, int hi) {
 }
 
 // Emits every voxel (finest level, voxel units) the triangle touches.
-void voxelizeTriangle(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c, int res, uint32_t color565,
-                      std::vector<uint64_t>& out) {
+void voxelizeTriangle(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c, int res, uint32_t colour,
+                      int colourBits, std::vector<uint64_t>& out) {
   const glm::dvec3 lo = glm::min(a, glm::min(b, c)), hi = glm::max(a, glm::max(b, c));
   int ilo[3], ihi[3];
   for (int i = 0; i < 3; ++i) {
@@ -122,7 +128,7 @@ void voxelizeTriangle(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3
         const glm::dvec3 ctr(idx[0] + 0.5, idx[1] + 0.5, idx[2] + 0.5);
         if (!triCubeOverlap(a - ctr, b - ctr, c - ctr, 0.5)) continue;
         out.push_back(mortonEncode(static_cast<uint32_t>(idx[0]), static_cast<uint32_t>(idx[1]),
-                                   static_cast<uint32_t>(idx[2])) << 16 | color565);
+                                   static_cast<uint32_t>(idx[2])) << colourBits | colour);
       }
     }
   }
@@ -131,13 +137,13 @@ void voxelizeTriangle(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3
 struct Crossing {
   uint64_t column;
   double z;
-  uint32_t color565;
+  uint32_t colour;
 };
 
 // Fills the inside of a closed mesh: rays along +z through each column's centre (nudged off the
 // grid so that they miss edges and vertices placed on it), inside between crossings 2i and 2i+1.
 void fillSolid(const std::vector<glm::dvec3>& p, const std::vector<uint32_t>& idx,
-               const std::vector<uint32_t>& color565, int res, std::vector<uint64_t>& out) {
+               const std::vector<uint32_t>& colour, int colourBits, int res, std::vector<uint64_t>& out) {
   constexpr double kDx = 0.5 + 1.234567e-6, kDy = 0.5 + 2.345678e-6;
   std::vector<Crossing> cross;
   for (size_t t = 0; t + 2 < idx.size(); t += 3) {
@@ -156,7 +162,7 @@ void fillSolid(const std::vector<glm::dvec3>& p, const std::vector<uint32_t>& id
         const double w2 = 1.0 - w0 - w1;
         if (w0 < 0.0 || w1 < 0.0 || w2 < 0.0) continue;
         cross.push_back({static_cast<uint64_t>(x) << 32 | static_cast<uint32_t>(y), w0 * a.z + w1 * b.z + w2 * c.z,
-                         color565[t / 3]});
+                         colour[t / 3]});
       }
     }
   }
@@ -169,7 +175,7 @@ void fillSolid(const std::vector<glm::dvec3>& p, const std::vector<uint32_t>& id
     for (size_t m = i; m + 1 < j; m += 2) {
       const int z0 = clampi(std::ceil(cross[m].z - 0.5), 0, res);
       const int z1 = clampi(std::floor(cross[m + 1].z - 0.5), -1, res - 1);
-      for (int z = z0; z <= z1; ++z) out.push_back(mortonEncode(x, y, static_cast<uint32_t>(z)) << 16 | cross[m].color565);
+      for (int z = z0; z <= z1; ++z) out.push_back(mortonEncode(x, y, static_cast<uint32_t>(z)) << colourBits | cross[m].colour);
     }
     i = j;
   }
@@ -183,6 +189,11 @@ glm::uvec3 mortonDecode(uint64_t code) { return {compact1by2(code), compact1by2(
 double VoxelPyramid::dimension(int level) const {
   const double n0 = static_cast<double>(count(level)), n1 = static_cast<double>(count(level + 1));
   return n0 > 0.0 && n1 > 0.0 ? std::log2(n1 / n0) : 0.0;
+}
+
+double VoxelPyramid::boxCountingDimension(int level) const {
+  const double n = static_cast<double>(count(level));
+  return level > 0 && n > 0.0 ? std::log2(n) / level : 0.0;
 }
 
 void appendSphere(VoxelMesh& mesh, const glm::dvec3& center_m, double radius_m, int segments, uint32_t color) {
@@ -292,20 +303,28 @@ bool voxelize(const VoxelMesh& mesh, const VoxelizeConfig& config, VoxelPyramid&
     out.boxMin_m = 0.5 * (lo + hi) - glm::dvec3(0.5 * out.boxEdge_m);
   }
   const int L = config.levels, res = 1 << L;
+  const int colourBits = 3 * L + 24 <= 64 ? 24 : 16;
+  const uint64_t colourMask = (uint64_t{1} << colourBits) - 1;
   const double toVoxel = res / out.boxEdge_m;
 
+  // Clamped to [0, res]: the mesh lies in the box (checked above, or the fitted box holds it),
+  // so anything outside is rounding, e.g. a vertex on the box's max face (boxMin + edge) mapping
+  // to res + 1e-13, which the exact overlap test would then reject for every voxel (and a small
+  // mesh far from the origin whose padding is under one ulp). Unclamped, such triangles vanish.
   std::vector<glm::dvec3> p(mesh.positions_m.size());
-  for (size_t i = 0; i < p.size(); ++i) p[i] = (mesh.positions_m[i] - out.boxMin_m) * toVoxel;
+  for (size_t i = 0; i < p.size(); ++i)
+    p[i] = glm::clamp((mesh.positions_m[i] - out.boxMin_m) * toVoxel, glm::dvec3(0.0), glm::dvec3(res));
   std::vector<uint32_t> triColor(mesh.indices.size() / 3);
   for (size_t t = 0; t < triColor.size(); ++t) {
     const auto col = [&](size_t k) { return mesh.colors.empty() ? 0xFFFFFFFFu : mesh.colors[mesh.indices[3 * t + k]]; };
-    triColor[t] = toRgb565(meanColor(col(0), col(1), col(2)));
+    const uint32_t mean = meanColor(col(0), col(1), col(2));
+    triColor[t] = colourBits == 24 ? mean & 0xFFFFFFu : toRgb565(mean);
   }
-  std::vector<uint64_t> packed;  // Morton code << 16 | RGB565
+  std::vector<uint64_t> packed;  // Morton code << colourBits | colour
   for (size_t t = 0; t < triColor.size(); ++t)
     voxelizeTriangle(p[mesh.indices[3 * t]], p[mesh.indices[3 * t + 1]], p[mesh.indices[3 * t + 2]], res, triColor[t],
-                     packed);
-  if (config.solid) fillSolid(p, mesh.indices, triColor, res, packed);
+                     colourBits, packed);
+  if (config.solid) fillSolid(p, mesh.indices, triColor, colourBits, res, packed);
   std::sort(packed.begin(), packed.end());
 
   out.codes.assign(static_cast<size_t>(L) + 1, {});
@@ -313,10 +332,11 @@ bool voxelize(const VoxelMesh& mesh, const VoxelizeConfig& config, VoxelPyramid&
   auto& fineCodes = out.codes[static_cast<size_t>(L)];
   auto& fineColors = out.colors[static_cast<size_t>(L)];
   for (size_t i = 0; i < packed.size();) {
-    const uint64_t code = packed[i] >> 16;
+    const uint64_t code = packed[i] >> colourBits;
     std::array<uint64_t, 3> sum{};
     size_t j = i;
-    for (; j < packed.size() && packed[j] >> 16 == code; ++j) addRgb565(static_cast<uint32_t>(packed[j] & 0xFFFF), sum);
+    for (; j < packed.size() && packed[j] >> colourBits == code; ++j)
+      addPacked(static_cast<uint32_t>(packed[j] & colourMask), colourBits, sum);
     fineCodes.push_back(code);
     fineColors.push_back(rgbaFromSum(sum, j - i));
     i = j;

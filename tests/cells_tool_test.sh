@@ -16,6 +16,8 @@ assert j["cells"] == sum(j["cells_per_level"]), j
 assert j["file_bytes"] == os.path.getsize(sys.argv[2]), j
 assert j["payload_bytes"] == sum(j["bytes_per_level"]), j
 assert 1.9 < j["dimension"][-1] < 2.1, j["dimension"]
+assert len(j["box_counting_dimension"]) == len(j["voxels"]), j
+assert j["box_counting_dimension"][0] == 0 and 1.5 < j["box_counting_dimension"][-1] < 3.0, j
 PY
 if [ -n "$src" ]; then
   "$igtool" cells-build "$src/data/cells/src/bunny.obj" --y-up --size 0.155 --voxel-levels 9 --cell-levels 6 \

@@ -71,6 +71,30 @@ TEST(CellsVoxel, SphereDimensionIsAboutTwo) {
   for (const uint32_t c : p.colors[3]) EXPECT_EQ(c, 0xFF0000FFu);
 }
 
+// The paper's Table 1 (the bunny's BVO): level, voxel count, "approximate Hausdorff dimension".
+// Its column is log M(eps) / log(1 / eps) = log2(N(l)) / l; D(l) = log2(N(l + 1) / N(l)) on the same
+// counts gives 2.014, 2.049, 2.036, not the table's values.
+TEST(CellsVoxel, BoxCountingDimensionReproducesTableOne) {
+  VoxelPyramid p;
+  p.codes.assign(11, {});
+  const size_t counts[4] = {15100, 61010, 252388, 1034937};
+  const double table[4] = {1.983, 1.987, 1.993, 1.998};
+  for (int i = 0; i < 4; ++i) p.codes[static_cast<size_t>(7 + i)].resize(counts[i]);
+  for (int i = 0; i < 4; ++i) EXPECT_NEAR(p.boxCountingDimension(7 + i), table[i], 0.0011) << "level " << 7 + i;
+  EXPECT_NEAR(p.dimension(7), 2.014, 0.001);
+  EXPECT_EQ(p.boxCountingDimension(0), 0.0);
+  EXPECT_EQ(p.boxCountingDimension(3), 0.0);  // N = 0
+  // A sphere smaller than the cube: H tends to 2 from below.
+  VoxelMesh m;
+  appendSphere(m, glm::dvec3(0.5), 0.2, 128, 0xFFFFFFFFu);
+  const VoxelPyramid s = mustVoxelize(m, unitBox(9));
+  for (int l = 6; l <= 9; ++l) {
+    EXPECT_LT(s.boxCountingDimension(l), 2.0) << "level " << l;
+    EXPECT_GT(s.boxCountingDimension(l), 1.7) << "level " << l;
+  }
+  EXPECT_GT(s.boxCountingDimension(9), s.boxCountingDimension(6));
+}
+
 TEST(CellsVoxel, PlanesDimensionIsTwo) {
   {
     VoxelMesh m;  // axis-aligned, off the voxel faces
@@ -198,6 +222,31 @@ TEST(CellsVoxel, ColoursAveragePerVoxelAndLevel) {
   EXPECT_NEAR(static_cast<double>((c0 >> 16) & 0xFF), 127.5, 16.0);
 }
 
+// A uniformly coloured mesh keeps its colour at every level (the voxelizer carried colours as
+// RGB565: clay (200, 180, 160) came out (206, 182, 165), grey (7, 7, 7) as (0, 4, 0), green-
+// tinted). Up to 13 levels the packed voxel has room for 24 bits; beyond, RGB565 (within 8).
+TEST(CellsVoxel, UniformColoursAreKeptExactly) {
+  for (const int L : {4, 13, 16}) {
+    for (const uint32_t col : {0xFFA0B4C8u, 0xFF808080u, 0xFF070707u, 0xFF0000FFu}) {
+      VoxelMesh m;
+      const double e = 3.0 / (1 << L);  // a few voxels across at any level
+      appendQuad(m, {0.3, 0.3, 0.5}, {0.3 + e, 0.3, 0.5}, {0.3 + e, 0.3 + e, 0.5}, {0.3, 0.3 + e, 0.5}, col);
+      const VoxelPyramid p = mustVoxelize(m, unitBox(L));
+      for (int l = 0; l <= L; ++l) {
+        for (const uint32_t c : p.colors[static_cast<size_t>(l)]) {
+          if (L <= 13) {
+            ASSERT_EQ(c, col) << "levels " << L << " level " << l;
+          } else {
+            for (int ch = 0; ch < 3; ++ch)
+              ASSERT_NEAR(static_cast<int>((c >> (8 * ch)) & 0xFF), static_cast<int>((col >> (8 * ch)) & 0xFF), 8)
+                  << "levels " << L << " level " << l;
+          }
+        }
+      }
+    }
+  }
+}
+
 TEST(CellsVoxel, CellTreeVoxelsAndBytesMatchThePyramid) {
   VoxelMesh m;
   appendSphere(m, glm::dvec3(0.3, 0.4, 0.5), 0.25, 48, 0xFFFFFFFFu);
@@ -255,6 +304,40 @@ TEST(CellsVoxel, HugeCoordinatesGiveTheSameVoxels) {
   const VoxelPyramid pf = mustVoxelize(b, fit);
   EXPECT_GT(pf.count(6), 1000u);
   EXPECT_NEAR(pf.dimension(5), 2.0, 0.15);
+}
+
+// A mesh lying on the explicit box's max face (boxMin + edge, which voxelize() accepts as inside)
+// is voxelized like the same mesh on the min face. With a box whose min and edge are not dyadic,
+// (boxMin + edge - boxMin) * 2^L / edge rounds to 2^L + 6e-14: unclamped, the exact overlap test
+// rejected the face for every voxel and the whole quad vanished (0 voxels, an empty pyramid).
+TEST(CellsVoxel, MeshOnTheBoxMaxFaceIsVoxelized) {
+  const double bmin = 802.8549152229671, edge = 3.1559393050519984, top = bmin + edge;
+  const int L = 8;
+  for (int axis = 0; axis < 3; ++axis) {
+    VoxelPyramid lo, hi;
+    for (const bool atTop : {false, true}) {
+      VoxelMesh m;
+      const auto P = [&](double s, double t) {
+        glm::dvec3 q;
+        q[axis] = atTop ? top : bmin;
+        q[(axis + 1) % 3] = bmin + s * edge;
+        q[(axis + 2) % 3] = bmin + t * edge;
+        return q;
+      };
+      appendQuad(m, P(0.1, 0.1), P(0.9, 0.1), P(0.9, 0.9), P(0.1, 0.9), 0xFFFFFFFFu);
+      VoxelizeConfig c;
+      c.levels = L;
+      c.boxMin_m = glm::dvec3(bmin);
+      c.boxEdge_m = edge;
+      (atTop ? hi : lo) = mustVoxelize(m, c);
+    }
+    ASSERT_GT(lo.count(L), 200u * 200u) << "axis " << axis;
+    EXPECT_EQ(hi.count(L), lo.count(L)) << "axis " << axis;
+    for (uint64_t code : hi.codes[L]) {
+      ASSERT_EQ(mortonDecode(code)[axis], (1u << L) - 1) << "axis " << axis;
+    }
+    EXPECT_EQ(hi.count(0), 1u) << "axis " << axis;
+  }
 }
 
 TEST(CellsVoxel, DegenerateAndEmptyInput) {
