@@ -113,6 +113,8 @@ int runCellsBench(const CellsBenchOptions& o) {
   if (!o.dumpTree.empty()) return dumpTree(tree, o.dumpTree);
   std::vector<double> dimension;
   for (int l = 0; l < pyramid.levels(); ++l) dimension.push_back(pyramid.dimension(l));
+  std::vector<double> boxCounting;  // the paper's Table 1: log2 N(l) / l, levels 1 .. L
+  for (int l = 1; l <= pyramid.levels(); ++l) boxCounting.push_back(pyramid.boxCountingDimension(l));
   std::vector<size_t> voxelsPerLevel;
   for (int l = 0; l <= pyramid.levels(); ++l) voxelsPerLevel.push_back(pyramid.count(l));
   uint32_t largestCell = 0;
@@ -331,6 +333,8 @@ int runCellsBench(const CellsBenchOptions& o) {
     for (size_t l = 0; l < voxelsPerLevel.size(); ++l) std::printf("%s%zu", l ? "," : "", voxelsPerLevel[l]);
     std::printf("],\"dimension\":[");
     for (size_t l = 0; l < dimension.size(); ++l) std::printf("%s%.4f", l ? "," : "", dimension[l]);
+    std::printf("],\"box_counting_dimension\":[");
+    for (size_t l = 0; l < boxCounting.size(); ++l) std::printf("%s%.4f", l ? "," : "", boxCounting[l]);
     std::printf("],\"frames\":%d,\"latency_frames\":%d,\"max_ops\":%u,\"select_ms_p50\":%.4f,\"select_ms_p99\":%.4f,"
                 "\"select_ms_max\":%.4f,\"teleport_select_ms\":%.4f,\"voxels_drawn_p50\":%.0f,\"voxel_budget\":%llu,"
                 "\"budget_exceeded_frames\":%d,\"bytes_per_frame_max\":%llu,\"w_bytes\":%llu,\"bytes_total\":%llu,"
@@ -389,6 +393,8 @@ int runCellsBench(const CellsBenchOptions& o) {
                 static_cast<double>(tree.totalBytes()) / 1e6);
     std::printf("  dimension per level:");
     for (double d : dimension) std::printf(" %.3f", d);
+    std::printf("\n  box-counting dimension log2 N(l) / l (the paper's Table 1), levels 1 ..:");
+    for (double d : boxCounting) std::printf(" %.3f", d);
     std::printf("\n  path (%d frames, teleport at %d, streaming W = %llu B/frame, latency %d frames):\n", o.frames,
                 teleportFrame, static_cast<unsigned long long>(o.wBytes), o.latencyFrames);
     std::printf("    select p50 %.3f ms, p99 %.3f ms (fastest of %d replays per frame; one replay: p99 %.3f ms, replays "

@@ -1,5 +1,5 @@
 // igbench cells: hierarchical cells (paper 003) on a synthetic scene of many voxelized spheres
-// (~1 M cells by default). Reports the HC (cells, levels, box-counting dimension per voxel
+// (~1 M cells by default). Reports the HC (cells, levels, growth and box-counting dimensions per voxel
 // level), the selection along a camera path with a teleport while cells stream in under a byte
 // budget per frame (select time p50 / p99, drawn voxels, frames over a budget, bytes per frame),
 // and a sweep over voxel budgets with everything resident (the largest on-screen voxel, select

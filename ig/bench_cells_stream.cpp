@@ -151,6 +151,7 @@ bool runCellsStreamBench(const CellsStreamBenchOptions& o, CellsStreamBenchResul
       return false;
     }
     for (int l = 0; l < pyramid.levels(); ++l) out.dimension.push_back(pyramid.dimension(l));
+    for (int l = 1; l <= pyramid.levels(); ++l) out.boxCounting.push_back(pyramid.boxCountingDimension(l));
     lod::CellBuildConfig bc;
     bc.cellLevels = o.cellLevels;
     bc.cellVoxelDepth = o.voxelDepth;
@@ -346,6 +347,11 @@ std::string cellsStreamJson(const CellsStreamBenchResult& r) {
   j += buf;
   for (size_t i = 0; i < r.dimension.size(); ++i) {
     std::snprintf(buf, sizeof buf, "%s%.4f", i ? "," : "", r.dimension[i]);
+    j += buf;
+  }
+  j += "],\"box_counting_dimension\":[";
+  for (size_t i = 0; i < r.boxCounting.size(); ++i) {
+    std::snprintf(buf, sizeof buf, "%s%.4f", i ? "," : "", r.boxCounting[i]);
     j += buf;
   }
   std::snprintf(buf, sizeof buf, "],\"full_voxels\":%" PRIu64 ",\"full_render_ms\":%.3f},\"sweep\":[", r.fullVoxels,

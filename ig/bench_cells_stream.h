@@ -65,7 +65,8 @@ struct CellsSweepRow {
 struct CellsStreamBenchResult {
   uint32_t cells = 0;
   int levels = 0;
-  std::vector<double> dimension;        // per voxel level of the mesh's pyramid
+  std::vector<double> dimension;        // per voxel level of the mesh's pyramid: log2 N(l+1) / N(l)
+  std::vector<double> boxCounting;      // levels 1 .. L: log2 N(l) / l (the paper's Table 1)
   uint64_t fileBytes = 0;
   uint64_t fullVoxels = 0;              // drawn in the full-detail reference
   double fullRenderMs = 0.0;

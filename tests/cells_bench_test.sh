@@ -31,6 +31,11 @@ assert d["repeats"] >= 2, d["repeats"]
 assert d["replays_differ_frames"] == 0, d["replays_differ_frames"]
 assert d["select_ms_p99"] <= d["select_ms_p99_first_replay"] + 1e-9, d
 assert 1.8 < d["dimension"][-1] < 2.2, d["dimension"]  # sphere surfaces: about 2
+# The paper's Table 1 quantity, log2 N(l) / l per level 1 .. L: 3 at the root's children of a
+# filled box, falling towards 2 for surfaces (from above: a coarse voxel holds more than a patch).
+bc = d["box_counting_dimension"]
+assert len(bc) == len(d["dimension"]), (bc, d["dimension"])
+assert all(a >= b - 1e-9 for a, b in zip(bc, bc[1:])) and 1.9 < bc[-1] < 2.2, bc
 # Two select threads by default, every replay also run on one: both choose exactly the same
 # (stats, draw list in order, requests), and both timings are reported.
 assert d["select_threads"] == 2, d["select_threads"]
@@ -55,6 +60,7 @@ for s in d["select_sweep"]:
     assert s["select_ms_one_thread"] > 0, s
 # The bunny: a surface, so about 2 at the fine levels.
 assert 1.9 < d["mesh"]["dimension"][-1] < 2.1, d["mesh"]["dimension"]
+assert 1.9 < d["mesh"]["box_counting_dimension"][-1] < 2.4, d["mesh"]["box_counting_dimension"]
 sw = d["sweep"]
 assert len(sw) >= 3, sw
 for a, b in zip(sw, sw[1:]):
