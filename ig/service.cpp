@@ -528,18 +528,21 @@ struct Service::Impl {
   // The forest's shell layers the governor may draw, {least, most}: [governor.forest] min_layers
   // and max_layers (0: the scene's count), within the scene's count. With least = most the count
   // is fixed there (no knob).
-  std::pair<int, int> forestLayerBounds() const {
+  std::pair<int, int> forestLayerBounds() const { return forestLayerBounds(config); }
+  std::pair<int, int> forestLayerBounds(const ServiceConfig& cf) const {
     const int count = forest ? forest->layerCount() : 0;
-    const int most = config.governor.forestMaxLayers > 0 ? std::min(config.governor.forestMaxLayers, count) : count;
-    return {std::min(config.governor.forestMinLayers, most), most};
+    const int most = cf.governor.forestMaxLayers > 0 ? std::min(cf.governor.forestMaxLayers, count) : count;
+    return {std::min(cf.governor.forestMinLayers, most), most};
   }
 
-  // The governor's config from [governor] and the layers this scene has.
-  lod::GovernorConfig governorConfig() const {
-    const GovernorSettings& g = config.governor;
+  // The governor's config from [governor] and the layers this scene has (or from a reload's
+  // configs, to validate them before anything is applied).
+  lod::GovernorConfig governorConfig() const { return governorConfig(config, scene); }
+  lod::GovernorConfig governorConfig(const ServiceConfig& cf, const SceneConfig& sc) const {
+    const GovernorSettings& g = cf.governor;
     lod::GovernorConfig c;
-    c.rate_hz = config.rate_hz;
-    c.frameBudget_ms = config.budgetFrame_ms;
+    c.rate_hz = cf.rate_hz;
+    c.frameBudget_ms = cf.budgetFrame_ms;
     c.decreaseAbove = g.decreaseAbove;
     c.increaseBelow = g.increaseBelow;
     c.marginSigmas = g.marginSigmas;
@@ -559,17 +562,17 @@ struct Service::Impl {
       k.loadExponent = loadExponent;
       k.loadUnit = 1e5;
     };
-    if (terrainMesh && scene.terrain)
-      tolerance(lod::GovLayer::Terrain, scene.terrain->tolerance_px, g.terrainMin_px, g.terrainMax_px, g.terrainLoadExponent);
-    if (hdlod && scene.hdlod)
-      tolerance(lod::GovLayer::Hdlod, scene.hdlod->tolerance_px, g.hdlodMin_px, g.hdlodMax_px, g.hdlodLoadExponent);
-    if (forest && scene.forest) {
+    if (terrainMesh && sc.terrain)
+      tolerance(lod::GovLayer::Terrain, sc.terrain->tolerance_px, g.terrainMin_px, g.terrainMax_px, g.terrainLoadExponent);
+    if (hdlod && sc.hdlod)
+      tolerance(lod::GovLayer::Hdlod, sc.hdlod->tolerance_px, g.hdlodMin_px, g.hdlodMax_px, g.hdlodLoadExponent);
+    if (forest && sc.forest) {
       // The 3D trees' near distance (trees drawn ~ distance^2): the scene's is the start value
       // and, unless max_m says otherwise, the most the governor gives.
       lod::GovKnob& k = c.knobs[static_cast<size_t>(lod::GovLayer::Forest)];
       k.present = true;
-      k.initial = scene.forest->nearFadeEnd_m;
-      k.max = g.forestMax_m > 0.0 ? std::min(g.forestMax_m, scene.forest->fadeOut_m) : scene.forest->nearFadeEnd_m;
+      k.initial = sc.forest->nearFadeEnd_m;
+      k.max = g.forestMax_m > 0.0 ? std::min(g.forestMax_m, sc.forest->fadeOut_m) : sc.forest->nearFadeEnd_m;
       // [governor.forest] min_m, unless the most is not above it (the scene's near_fade_end_m
       // below min_m): then half the most, so that the knob still has a range.
       k.min = g.forestMin_m < k.max ? g.forestMin_m : 0.5 * k.max;
@@ -577,7 +580,7 @@ struct Service::Impl {
       k.loadUnit = 1e4;
       // The shell layers drawn (their fill ~ the count): the most is the start value; a count
       // that cannot move (1 layer, or min_layers = max_layers) is not a knob.
-      const auto [least, most] = forestLayerBounds();
+      const auto [least, most] = forestLayerBounds(cf);
       if (least < most) {
         lod::GovKnob& n = c.knobs[static_cast<size_t>(lod::GovLayer::ForestLayers)];
         n.present = true;
@@ -589,13 +592,13 @@ struct Service::Impl {
         n.loadUnit = 1.0;
       }
     }
-    if (cells && scene.cells) {
+    if (cells && sc.cells) {
       // The voxel budget: the scene's is the start value and, unless max_voxels says otherwise,
       // the most the governor gives (never more detail than the scene asks for).
       lod::GovKnob& k = c.knobs[static_cast<size_t>(lod::GovLayer::Cells)];
       k.present = true;
-      k.initial = static_cast<double>(scene.cells->voxelBudget);
-      k.max = static_cast<double>(g.cellsMax_voxels > 0 ? g.cellsMax_voxels : scene.cells->voxelBudget);
+      k.initial = static_cast<double>(sc.cells->voxelBudget);
+      k.max = static_cast<double>(g.cellsMax_voxels > 0 ? g.cellsMax_voxels : sc.cells->voxelBudget);
       // [governor.cells] min_voxels, unless the most is not above it (then half the most).
       const auto least = static_cast<double>(g.cellsMin_voxels);
       k.min = least < k.max ? least : 0.5 * k.max;
@@ -1040,11 +1043,7 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
     if (m.governor) {
       // The governor's config comes from both files and the layers; Governor::reconfigure only
       // asserts it. One it refuses fails the reload like a bad file (nothing applied).
-      std::swap(m.config, mc);
-      std::swap(m.scene, ms);
-      const std::string why = lod::Governor::validate(m.governorConfig());
-      std::swap(m.config, mc);
-      std::swap(m.scene, ms);
+      const std::string why = lod::Governor::validate(m.governorConfig(mc, ms));
       if (!why.empty()) {
         p.ok = false;
         p.error = p.config.path + ": governor." + why;
