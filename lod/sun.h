@@ -1,6 +1,7 @@
 // Where the sun is: solar azimuth and elevation for a UTC date and time at a geodetic place
-// (NOAA's general solar position equations; about 0.2 degrees from an ephemeris, plenty for
-// lighting). Used when the host sends the date and time of day (CIGI Celestial Sphere Control).
+// (NOAA's solar calculator equations on the Julian century; about 0.01 degrees from an
+// ephemeris over 1901..2099, plenty for lighting). Used when the host sends the date and time
+// of day (CIGI Celestial Sphere Control).
 #pragma once
 
 #include <cstdint>

@@ -262,3 +262,23 @@ TEST(Sun, ElevationAtNoonMidnightAndEquinoxSunrise) {
   EXPECT_GT(sunlightFraction(0.0), 0.2);
   EXPECT_LT(sunlightFraction(0.0), 0.8);
 }
+
+// At the north pole the sun's elevation is its declination, which is 0 at the equinox
+// instants (USNO: 2024-03-20 03:06, 2026-03-20 14:46, 2026-09-23 00:05 UTC) and +-23.44 at
+// the 2026 solstices (06-21 08:24, 12-21 20:50 UTC). sun.h promises about 0.2 degrees;
+// Spencer's fractional-year series drifts by a day per century of the Julian leap rule and
+// was ~0.4 degrees off in 2026.
+TEST(Sun, DeclinationAtPublishedEquinoxesAndSolstices) {
+  EXPECT_NEAR(sunPosition(20240320, 3.1, 90.0, 0.0).elevation_deg, 0.0, 0.2);
+  EXPECT_NEAR(sunPosition(20260320, 14.0 + 46.0 / 60.0, 90.0, 0.0).elevation_deg, 0.0, 0.2);
+  EXPECT_NEAR(sunPosition(20260923, 5.0 / 60.0, 90.0, 0.0).elevation_deg, 0.0, 0.2);
+  EXPECT_NEAR(sunPosition(20260621, 8.4, 90.0, 0.0).elevation_deg, 23.44, 0.2);
+  EXPECT_NEAR(sunPosition(20261221, 20.0 + 50.0 / 60.0, -90.0, 0.0).elevation_deg, 23.44, 0.2);
+  // Equator, March 2026 equinox instant, at the subsolar longitude (noon there is
+  // 14:46 UTC + equation of time -7.4 min -> lon ~ -39.5): the sun is overhead.
+  EXPECT_GT(sunPosition(20260320, 14.0 + 46.0 / 60.0, 0.0, -39.6).elevation_deg, 89.6);
+  // Across midnight at year end the sun moves continuously.
+  const SunPosition a = sunPosition(20261231, 23.9999, 52.0, 0.0), b = sunPosition(20270101, 0.0, 52.0, 0.0);
+  EXPECT_NEAR(a.elevation_deg, b.elevation_deg, 0.01);
+  EXPECT_NEAR(a.azimuth_deg, b.azimuth_deg, 0.05);
+}
