@@ -291,3 +291,66 @@ TEST(TerrainChunks, ShrinkingChunksArePackedSoDrawnSlotsFollowTheMesh) {
   // two of the smallest blocks.
   EXPECT_LE(chunks.slotsInUse(), 4 * chunks.liveTriangles() + 2 * TerrainChunks::kMinBlock * chunks.chunkCount());
 }
+
+TEST(TerrainChunks, RandomViewsBudgetsAndSmallBuffersMatchTheMesh) {
+  // Random eyes (jumps, climbs, dives), budgets, log sizes and buffers that may be too small
+  // for the mesh: after every apply() the buffer holds only current leaves, each once, exactly
+  // liveTriangles() of them, all of them when nothing was dropped, and checkFrame's checks hold.
+  const int n = 129;
+  const auto hts = fractal(n, n, 21);
+  const double size = 30.0 * (n - 1);
+  size_t droppedFrames = 0, incremental = 0, packed = 0;
+  for (uint32_t seed = 1; seed <= 12; ++seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    RoamConfig rc;
+    rc.maxTriangles = 60000;
+    Roam roam(hts, n, n, 30.0, {0, 0, 0}, rc);
+    TerrainChunksConfig cc;
+    cc.chunkSide = 8 << (rng() % 3);
+    cc.capacityTriangles = seed % 3 == 0 ? 2048 + rng() % 6000 : 0;
+    cc.logCapacity = seed % 4 == 0 ? 200 : (1u << 20);
+    TerrainChunks chunks(roam, cc);
+    Buffer buffer(chunks.capacity());
+    const RoamMode mode = (seed % 2) ? RoamMode::Deferred : RoamMode::EnhMerge;
+    glm::dvec3 eye{u(rng) * size, u(rng) * size, 100 + u(rng) * 1500};
+    double heading = u(rng) * 360;
+    for (int f = 0; f < 40; ++f) {
+      if (rng() % 8 == 0) eye = {u(rng) * size, u(rng) * size, 50 + u(rng) * 2000};
+      else eye += glm::dvec3((u(rng) - 0.5) * 400, (u(rng) - 0.5) * 400, (u(rng) - 0.5) * 200);
+      eye.z = std::max(eye.z, 30.0);
+      heading += (u(rng) - 0.5) * 90;
+      RoamView v = makeView(eye, heading, -10 - u(rng) * 60, 0.5 + u(rng) * 3);
+      if (mode == RoamMode::Deferred && rng() % 2) v.maxVisits = static_cast<uint32_t>(500 + rng() % 5000);
+      roam.update(v, mode);
+      const TerrainChunks::Changes c = chunks.apply();
+      buffer.apply(roam, chunks);
+      const std::string where = "seed " + std::to_string(seed) + " frame " + std::to_string(f);
+      droppedFrames += c.dropped > 0;
+      incremental += !c.reread;
+      packed += c.packedChunks;
+      std::string why;
+      ASSERT_TRUE(chunks.validate(&why)) << where << ": " << why;
+      if (c.dropped == 0) {
+        checkFrame(roam, chunks, buffer, v.camera, where);
+        if (::testing::Test::HasFatalFailure()) return;
+        continue;
+      }
+      const std::multiset<Tri> leaves = allLeaves(roam);
+      std::multiset<Tri> inBuffer;
+      for (const auto& s : buffer.slots)
+        if (s) inBuffer.insert(*s);
+      ASSERT_EQ(inBuffer.size(), chunks.liveTriangles()) << where;
+      for (const Tri& t : inBuffer) {
+        ASSERT_EQ(inBuffer.count(t), 1u) << where << ": a triangle in two slots";
+        ASSERT_TRUE(leaves.count(t)) << where << ": a stale triangle in the buffer";
+      }
+      std::vector<TerrainDrawRange> ranges;
+      chunks.cull(v.camera, ranges);
+      for (const TerrainDrawRange& r : ranges) ASSERT_LE(r.first + r.count, chunks.capacity()) << where;
+    }
+  }
+  std::printf("[ chunks ] random: %zu frames dropped leaves, %zu incremental, %zu packed\n", droppedFrames, incremental, packed);
+  EXPECT_GT(droppedFrames, 0u);
+  EXPECT_GT(incremental, 0u);
+}
