@@ -315,7 +315,7 @@ TEST(TerrainChunks, RandomViewsBudgetsAndSmallBuffersMatchTheMesh) {
     const RoamMode mode = (seed % 2) ? RoamMode::Deferred : RoamMode::EnhMerge;
     glm::dvec3 eye{u(rng) * size, u(rng) * size, 100 + u(rng) * 1500};
     double heading = u(rng) * 360;
-    for (int f = 0; f < 40; ++f) {
+    for (int f = 0; f < 24; ++f) {
       if (rng() % 8 == 0) eye = {u(rng) * size, u(rng) * size, 50 + u(rng) * 2000};
       else eye += glm::dvec3((u(rng) - 0.5) * 400, (u(rng) - 0.5) * 400, (u(rng) - 0.5) * 200);
       eye.z = std::max(eye.z, 30.0);
