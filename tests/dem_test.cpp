@@ -39,10 +39,8 @@ void writePng16(const std::string& file, int w, int h) {
   ASSERT_TRUE(png_image_write_to_file(&png, file.c_str(), 0, v.data(), 0, nullptr)) << png.message;
 }
 
-void writeTiff(const std::string& file, int w, int h, bool floatSamples, bool tiled, const char* noData,
-               const std::vector<std::pair<int, int>>& voids = {}) {
-  TIFF* t = TIFFOpen(file.c_str(), "w");
-  ASSERT_NE(t, nullptr);
+// One band of float32 or int16 samples, w x h, strips unless the caller sets tiles.
+void setGreyTiff(TIFF* t, int w, int h, bool floatSamples) {
   TIFFSetField(t, TIFFTAG_IMAGEWIDTH, w);
   TIFFSetField(t, TIFFTAG_IMAGELENGTH, h);
   TIFFSetField(t, TIFFTAG_SAMPLESPERPIXEL, 1);
@@ -50,6 +48,13 @@ void writeTiff(const std::string& file, int w, int h, bool floatSamples, bool ti
   TIFFSetField(t, TIFFTAG_SAMPLEFORMAT, floatSamples ? SAMPLEFORMAT_IEEEFP : SAMPLEFORMAT_INT);
   TIFFSetField(t, TIFFTAG_PHOTOMETRIC, PHOTOMETRIC_MINISBLACK);
   TIFFSetField(t, TIFFTAG_PLANARCONFIG, PLANARCONFIG_CONTIG);
+}
+
+void writeTiff(const std::string& file, int w, int h, bool floatSamples, bool tiled, const char* noData,
+               const std::vector<std::pair<int, int>>& voids = {}) {
+  TIFF* t = TIFFOpen(file.c_str(), "w");
+  ASSERT_NE(t, nullptr);
+  setGreyTiff(t, w, h, floatSamples);
   std::vector<float> f(static_cast<size_t>(w) * h);
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) f[static_cast<size_t>(y) * w + x] = sampleHeight(x, y);
@@ -303,13 +308,7 @@ TEST(Dem, NoDataThatIsNotExactlyAFloatStillMarksVoids) {
   {
     TIFF* t = TIFFOpen(file.c_str(), "w");
     ASSERT_NE(t, nullptr);
-    TIFFSetField(t, TIFFTAG_IMAGEWIDTH, 8);
-    TIFFSetField(t, TIFFTAG_IMAGELENGTH, 8);
-    TIFFSetField(t, TIFFTAG_SAMPLESPERPIXEL, 1);
-    TIFFSetField(t, TIFFTAG_BITSPERSAMPLE, 32);
-    TIFFSetField(t, TIFFTAG_SAMPLEFORMAT, SAMPLEFORMAT_IEEEFP);
-    TIFFSetField(t, TIFFTAG_PHOTOMETRIC, PHOTOMETRIC_MINISBLACK);
-    TIFFSetField(t, TIFFTAG_PLANARCONFIG, PLANARCONFIG_CONTIG);
+    setGreyTiff(t, 8, 8, true);
     static const TIFFFieldInfo info[] = {{42113, -1, -1, TIFF_ASCII, FIELD_CUSTOM, 1, 0, const_cast<char*>("GDALNoDataValue")}};
     TIFFMergeFieldInfo(t, info, 1);
     TIFFSetField(t, 42113, "-9999.9");
@@ -380,13 +379,7 @@ TEST(Dem, GeoTiffPixelScaleUnitsFollowTheModelType) {
         {33550, -1, -1, TIFF_DOUBLE, FIELD_CUSTOM, 1, 1, const_cast<char*>("ModelPixelScaleTag")},
         {34735, -1, -1, TIFF_SHORT, FIELD_CUSTOM, 1, 1, const_cast<char*>("GeoKeyDirectoryTag")}};
     TIFFMergeFieldInfo(t, info, 2);
-    TIFFSetField(t, TIFFTAG_IMAGEWIDTH, 4);
-    TIFFSetField(t, TIFFTAG_IMAGELENGTH, 4);
-    TIFFSetField(t, TIFFTAG_SAMPLESPERPIXEL, 1);
-    TIFFSetField(t, TIFFTAG_BITSPERSAMPLE, 16);
-    TIFFSetField(t, TIFFTAG_SAMPLEFORMAT, SAMPLEFORMAT_INT);
-    TIFFSetField(t, TIFFTAG_PHOTOMETRIC, PHOTOMETRIC_MINISBLACK);
-    TIFFSetField(t, TIFFTAG_PLANARCONFIG, PLANARCONFIG_CONTIG);
+    setGreyTiff(t, 4, 4, false);
     double s[3] = {scale, scale, 0.0};
     TIFFSetField(t, 33550, 3, s);
     uint16_t keys[8] = {1, 1, 0, 1, 1024, 0, 1, static_cast<uint16_t>(modelType)};
