@@ -539,20 +539,16 @@ bool parseService(const std::string& text, const std::string& name, const std::s
   // cannot take) here too: such a value is a config error (file:line, exit 2, found by
   // --check-config and refused by a reload), not a start-up failure after "config OK".
   if (r.ok()) {
-    std::string why;
+    io::LinkConfigError why;
     if (!validateHostLinkConfig(cfg, why)) {
-      // why = "host.<link>.<key> = <value>: <reason>"
-      const size_t eq = why.find(" = "), colon = eq == std::string::npos ? eq : why.find(": ", eq);
-      const std::string key = eq == std::string::npos ? std::string("host.source") : why.substr(0, eq);
-      const std::string value = colon == std::string::npos ? std::string() : why.substr(eq + 3, colon - eq - 3);
-      const std::string reason = colon == std::string::npos ? why : why.substr(colon + 2);
+      const std::string& key = why.key;
       const Table& t = key.starts_with("host.cigi.")     ? cigi
                        : key.starts_with("host.can.")    ? can
                        : key.starts_with("host.modbus.") ? modbus
                                                          : host;
       const std::string leaf = key.substr(key.rfind('.') + 1);
-      if (const toml::node* node = r.find(t, leaf)) r.fail(*node, key, reason);
-      else r.fail(t.line_ > 0 ? t.line_ : host.line_, key, value, reason);
+      if (const toml::node* node = r.find(t, leaf)) r.fail(*node, key, why.reason);
+      else r.fail(t.line_ > 0 ? t.line_ : host.line_, key, why.value, why.reason);
     }
   }
 

@@ -24,7 +24,7 @@ bool isLinkSource(HostSource source) {
   return false;
 }
 
-bool validateHostLinkConfig(const ServiceConfig& config, std::string& error) {
+bool validateHostLinkConfig(const ServiceConfig& config, io::LinkConfigError& error) {
   switch (config.host) {
     case HostSource::None:
     case HostSource::Replay: return true;
@@ -40,8 +40,8 @@ bool validateHostLinkConfig(const ServiceConfig& config, std::string& error) {
 #endif
     default: break;
   }
-  error = std::string("host.source = \"") + toString(config.host) +
-          "\": this build has no such host link (configure with -DIG_HOST_LINKS=\"cigi;can;modbus\")";
+  error = {"host.source", std::string("\"") + toString(config.host) + "\"",
+           "this build has no such host link (configure with -DIG_HOST_LINKS=\"cigi;can;modbus\")"};
   return false;
 }
 

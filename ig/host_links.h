@@ -16,9 +16,9 @@ bool isLinkSource(HostSource source);
 
 // The link's own checks of its [host.<link>] table (io/*_link.h: addresses that parse or resolve,
 // a baud rate the serial line takes), without opening anything; true for sources that are not
-// links. The error starts "host.<link>.<key> = <value>: " (or "host.source = ..." when this
-// build has no such link). The config loader runs it, so --check-config finds such a value.
-bool validateHostLinkConfig(const ServiceConfig& config, std::string& error);
+// links. The error's key is "host.<link>.<key>" (or "host.source" when this build has no such
+// link). The config loader runs it, so --check-config finds such a value.
+bool validateHostLinkConfig(const ServiceConfig& config, io::LinkConfigError& error);
 
 // The link, not yet started; nullptr and an error naming the key on failure.
 std::unique_ptr<io::HostLink> makeHostLink(const ServiceConfig& config, const lod::Geodetic& origin,

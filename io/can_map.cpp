@@ -47,22 +47,30 @@ bool isNewer(uint8_t a, uint8_t b) { return static_cast<int8_t>(static_cast<uint
 
 }  // namespace
 
-bool validateCanLinkConfig(const CanLinkConfig& config, std::string& error) {
+bool validateCanLinkConfig(const CanLinkConfig& config, LinkConfigError& error) {
   if (config.interface.empty() || config.interface.size() > 15 ||
       config.interface.find_first_of(" /\t\n") != std::string::npos) {
-    error = "host.can.interface = \"" + config.interface + "\": must be a network interface name of 1..15 characters";
+    error = {"host.can.interface", "\"" + config.interface + "\"",
+             "must be a network interface name of 1..15 characters"};
     return false;
   }
   if (config.baseId > 0x7FF - (kCanFrameCount - 1)) {
-    error = "host.can.base_id = " + std::to_string(config.baseId) +
-            ": must be 0..2043 (0x7FB) so that base_id+4 is an 11-bit id";
+    error = {"host.can.base_id", std::to_string(config.baseId),
+             "must be 0..2043 (0x7FB) so that base_id+4 is an 11-bit id"};
     return false;
   }
   if (config.stale_ms < 1 || config.stale_ms > 60000) {
-    error = "host.can.stale_ms = " + std::to_string(config.stale_ms) + ": must be 1..60000";
+    error = {"host.can.stale_ms", std::to_string(config.stale_ms), "must be 1..60000"};
     return false;
   }
   return true;
+}
+
+bool validateCanLinkConfig(const CanLinkConfig& config, std::string& error) {
+  LinkConfigError e;
+  if (validateCanLinkConfig(config, e)) return true;
+  error = e.message();
+  return false;
 }
 
 const char* toString(CanDecodeStatus status) {

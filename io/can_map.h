@@ -56,8 +56,10 @@ struct CanLinkConfig {
   bool operator==(const CanLinkConfig&) const = default;
 };
 
-// Checks the ranges above; on failure sets `error` like "host.can.base_id = 2047: must be
-// 0..2043 (0x7FB) so that base_id+4 is an 11-bit id".
+// Checks the ranges above; on failure sets `error` (its message() is like "host.can.base_id =
+// 2047: must be 0..2043 (0x7FB) so that base_id+4 is an 11-bit id"). The string form sets that
+// message.
+bool validateCanLinkConfig(const CanLinkConfig& config, LinkConfigError& error);
 bool validateCanLinkConfig(const CanLinkConfig& config, std::string& error);
 
 // One CAN frame as read from a socket or a candump log. `id` is without flag bits.

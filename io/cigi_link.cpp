@@ -77,9 +77,9 @@ sockaddr_in unpackAddress(uint64_t v) {
 
 }  // namespace
 
-bool validateCigiLinkConfig(const CigiLinkConfig& c, std::string& error) {
+bool validateCigiLinkConfig(const CigiLinkConfig& c, LinkConfigError& error) {
   auto fail = [&](const char* key, const std::string& value, const char* why) {
-    error = std::string("host.cigi.") + key + " = " + value + ": " + why;
+    error = {std::string("host.cigi.") + key, value, why};
     return false;
   };
   in_addr a{};
@@ -95,6 +95,13 @@ bool validateCigiLinkConfig(const CigiLinkConfig& c, std::string& error) {
   if (c.view_id < 0 || c.view_id > 65535) return fail("view_id", std::to_string(c.view_id), "must be 0..65535");
   if (c.database < -1 || c.database > 127) return fail("database", std::to_string(c.database), "must be -1 (any) or 0..127");
   return true;
+}
+
+bool validateCigiLinkConfig(const CigiLinkConfig& config, std::string& error) {
+  LinkConfigError e;
+  if (validateCigiLinkConfig(config, e)) return true;
+  error = e.message();
+  return false;
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -56,8 +56,9 @@ struct CigiLinkConfig {
   bool operator==(const CigiLinkConfig&) const = default;
 };
 
-// Checks ranges; on error returns false and sets `error` to e.g.
-// "host.cigi.port = 70000: must be 1..65535".
+// Checks ranges; on error returns false and sets `error` (its message() is e.g.
+// "host.cigi.port = 70000: must be 1..65535"). The string form sets that message.
+bool validateCigiLinkConfig(const CigiLinkConfig& config, LinkConfigError& error);
 bool validateCigiLinkConfig(const CigiLinkConfig& config, std::string& error);
 
 struct CigiAssemblerConfig {

@@ -34,6 +34,17 @@ struct LinkCounters {
   std::atomic<uint64_t> dropped{0};     // complete samples overwritten before the frame loop read them, or lost sets
 };
 
+// A [host.<link>] value the link refuses, in parts so that the config loader can point at the
+// key's line without parsing a message: key as the config file names it ("host.cigi.port"),
+// value as written there (strings quoted), and why. message() is the one-line form,
+// "host.cigi.port = 70000: must be 1..65535".
+struct LinkConfigError {
+  std::string key;
+  std::string value;
+  std::string reason;
+  std::string message() const { return key + " = " + value + ": " + reason; }
+};
+
 struct LinkCountersSnapshot {
   uint64_t received = 0, accepted = 0, malformed = 0, outOfRange = 0, late = 0, dropped = 0;
 };

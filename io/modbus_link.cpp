@@ -61,9 +61,9 @@ bool parseModbusParity(std::string_view text, char& out) {
   return false;
 }
 
-bool validateModbusLinkConfig(const ModbusLinkConfig& c, ModbusTransport transport, std::string& error) {
+bool validateModbusLinkConfig(const ModbusLinkConfig& c, ModbusTransport transport, LinkConfigError& error) {
   auto fail = [&](const std::string& key, const std::string& value, const std::string& why) {
-    error = "host.modbus." + key + " = " + value + ": " + why;
+    error = {"host.modbus." + key, value, why};
     return false;
   };
   if (c.unitId < 1 || c.unitId > 247) return fail("unit_id", std::to_string(c.unitId), "must be 1..247");
@@ -94,6 +94,13 @@ bool validateModbusLinkConfig(const ModbusLinkConfig& c, ModbusTransport transpo
   if (c.dataBits != 7 && c.dataBits != 8) return fail("data_bits", std::to_string(c.dataBits), "must be 7 or 8");
   if (c.stopBits != 1 && c.stopBits != 2) return fail("stop_bits", std::to_string(c.stopBits), "must be 1 or 2");
   return true;
+}
+
+bool validateModbusLinkConfig(const ModbusLinkConfig& config, ModbusTransport transport, std::string& error) {
+  LinkConfigError e;
+  if (validateModbusLinkConfig(config, transport, e)) return true;
+  error = e.message();
+  return false;
 }
 
 struct ModbusLink::Impl {

@@ -57,8 +57,10 @@ struct ModbusLinkConfig {
   bool operator==(const ModbusLinkConfig&) const = default;
 };
 
-// Checks the fields the transport uses; on failure sets `error` naming the key and the value,
-// e.g. "host.modbus.tcp_port = 70000: must be 0..65535".
+// Checks the fields the transport uses; on failure sets `error` naming the key and the value
+// (its message() is e.g. "host.modbus.tcp_port = 70000: must be 0..65535"). The string form
+// sets that message.
+bool validateModbusLinkConfig(const ModbusLinkConfig& config, ModbusTransport transport, LinkConfigError& error);
 bool validateModbusLinkConfig(const ModbusLinkConfig& config, ModbusTransport transport, std::string& error);
 // TOML text -> field, for the config parser: "N"/"E"/"O" -> 'N'/'E'/'O'; false otherwise.
 bool parseModbusParity(std::string_view text, char& out);

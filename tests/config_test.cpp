@@ -755,6 +755,17 @@ TEST(ConfigHostLinks, LinkChecksRunWhenTheConfigIsLoaded) {
   EXPECT_EQ(e.value, "1201");
   EXPECT_EQ(e.line, 5);
   EXPECT_NE(e.message.find("must be one of 1200"), std::string::npos) << e.message;
+  // A value holding " = " or ": " does not confuse the key, the value or the reason.
+  e = serviceError("[host]\nsource = \"cigi\"\n[host.cigi]\nhost_address = \"gw = a: b\"\n[scene]\nfile = \"s\"\n");
+  EXPECT_EQ(e.key, "host.cigi.host_address");
+  EXPECT_EQ(e.value, "\"gw = a: b\"");
+  EXPECT_EQ(e.line, 4);
+  EXPECT_EQ(e.message, "not an IPv4 address or known host name");
+  e = serviceError("[host]\nsource = \"can\"\n[host.can]\ninterface = \"can: 0\"\n[scene]\nfile = \"s\"\n");
+  EXPECT_EQ(e.key, "host.can.interface");
+  EXPECT_EQ(e.line, 4);
+  EXPECT_EQ(e.value, "\"can: 0\"");
+  EXPECT_EQ(e.message, "must be a network interface name of 1..15 characters");
   // A link that is not the source is not checked (its table may hold another site's values).
   parseServiceOk("[host]\nsource = \"none\"\n[host.cigi]\nbind_address = \"1.2.3\"\n[scene]\nfile = \"s\"\n");
   parseServiceOk("[host]\nsource = \"modbus-rtu\"\n[host.modbus]\nserial_device = \"/dev/ttyS0\"\nbaud = 9600\n"
