@@ -31,6 +31,11 @@ constexpr uint32_t kByteTimeout_us = 250000;  // RTU: a master silent this long 
 constexpr int64_t kTcpFrameTimeout_ns = int64_t{kByteTimeout_us} * 1000;
 constexpr int kMbapHeader = 7;          // transaction id, protocol id, length, unit id
 constexpr int kMaxFramesPerWake = 16;   // per master, then the others get their turn
+// RTU: a request not complete this long after its first byte plus the time its longest form
+// (MODBUS_RTU_MAX_ADU_LENGTH bytes) takes on the line is dropped. The RTU side frames requests
+// itself too (function code -> length), so a master that sends one byte just inside the byte
+// timeout cannot hold the receive thread (and stop()) for the ~64 s such a frame lasts.
+constexpr int64_t kRtuFrameSlack_ns = int64_t{kByteTimeout_us} * 1000;
 constexpr uint32_t kResponseTimeout_us = 100000;  // libmodbus waits this for a reply it must skip (RTU)
 constexpr int kBauds[] = {1200,   2400,   4800,   9600,   19200,  38400,  57600,
                           115200, 230400, 460800, 500000, 576000, 921600, 1000000};
@@ -132,7 +137,14 @@ struct ModbusLink::Impl {
   // Written by the frame loop (frameStarted), read by the receive thread.
   std::atomic<uint32_t> igFrame{0}, lastHostFrame{0};
   std::atomic<bool> hostLost{false};
-  uint8_t query[MODBUS_TCP_MAX_ADU_LENGTH] = {};
+  // RTU: the request being received from the serial line.
+  struct RtuRequest {
+    int have = 0;            // bytes in buf
+    int64_t started_ns = 0;  // first byte
+    int64_t last_ns = 0;     // latest byte
+    uint8_t buf[MODBUS_RTU_MAX_ADU_LENGTH] = {};
+  } rtuRx;
+  int64_t rtuFrameLimit_ns = 0;  // kRtuFrameSlack_ns + the longest request's time on the line
 
   std::span<uint16_t, modbus::kHoldingCount> holding() {
     return std::span<uint16_t, modbus::kHoldingCount>(mapping->tab_registers, modbus::kHoldingCount);
@@ -145,7 +157,8 @@ struct ModbusLink::Impl {
   void close();
   void runTcp();
   void runRtu();
-  bool serveOne();  // RTU: reads one request with libmodbus and answers it
+  void readRtu(int fd);          // RTU: reads what the line has, answers each complete request
+  void dropRtu(bool flush);      // RTU: a request that cannot complete: counted malformed
   bool readClient(Client& c);  // TCP: false: close this connection
   bool handleRequest(const uint8_t* req, int length);  // false: close this TCP connection
   void refreshStatus();
@@ -190,6 +203,12 @@ bool ModbusLink::Impl::open(std::string& error) {
       return false;
     }
     modbus_set_error_recovery(ctx, MODBUS_ERROR_RECOVERY_PROTOCOL);
+    // Non-blocking: the receive thread reads what the line has (see readRtu), and an answer the
+    // device cannot take at once (a pty whose master does not read) is dropped, not waited for.
+    const int fd = modbus_get_socket(ctx);
+    fcntl(fd, F_SETFL, fcntl(fd, F_GETFL) | O_NONBLOCK);
+    const int64_t bitsPerChar = 1 + config.dataBits + (config.parity == 'N' ? 0 : 1) + config.stopBits;
+    rtuFrameLimit_ns = kRtuFrameSlack_ns + MODBUS_RTU_MAX_ADU_LENGTH * bitsPerChar * 1000000000 / config.baud;
   }
   modbus_set_byte_timeout(ctx, 0, kByteTimeout_us);
   modbus_set_response_timeout(ctx, 0, kResponseTimeout_us);
@@ -230,15 +249,62 @@ void ModbusLink::Impl::refreshStatus() {
   modbus::encodeStatusRegisters(st, config.wordOrder, input());
 }
 
-bool ModbusLink::Impl::serveOne() {
-  const int length = modbus_receive(ctx, query);
-  if (length == 0) return true;  // RTU: a request for another slave (or its reply), ignored
-  if (length < 0) {
-    counters.malformed.fetch_add(1, std::memory_order_relaxed);
-    modbus_flush(ctx);  // resynchronise on the next frame
-    return true;
+namespace {
+// Length of an RTU request (address, function, fields, CRC) from the bytes read so far, as a
+// slave reads it: 0 while the function code or its byte count has not arrived yet. Functions
+// the map does not serve count as address + function + CRC; checkRequest refuses them and the
+// rest of such a frame is flushed.
+int rtuRequestLength(const uint8_t* b, int have) {
+  if (have < 2) return 0;
+  switch (b[1]) {
+    case 0x01: case 0x02: case 0x03: case 0x04: case 0x05: case 0x06: return 2 + 4 + 2;
+    case 0x0F: case 0x10: return have < 7 ? 0 : 2 + 5 + b[6] + 2;     // start, count, byte count, data
+    case 0x16: return 2 + 6 + 2;                                        // mask write register
+    case 0x17: return have < 11 ? 0 : 2 + 9 + b[10] + 2;               // read/write multiple
+    default: return 2 + 2;
   }
-  return handleRequest(query, length);
+}
+
+uint16_t rtuCrc(const uint8_t* p, int n) {
+  uint16_t crc = 0xFFFF;
+  for (int i = 0; i < n; ++i) {
+    crc = static_cast<uint16_t>(crc ^ p[i]);
+    for (int k = 0; k < 8; ++k) crc = (crc & 1) != 0 ? static_cast<uint16_t>((crc >> 1) ^ 0xA001) : static_cast<uint16_t>(crc >> 1);
+  }
+  return crc;
+}
+}  // namespace
+
+void ModbusLink::Impl::dropRtu(bool flush) {
+  counters.malformed.fetch_add(1, std::memory_order_relaxed);
+  rtuRx.have = 0;
+  if (flush) modbus_flush(ctx);  // resynchronise on the next frame
+}
+
+void ModbusLink::Impl::readRtu(int fd) {
+  for (;;) {
+    const int known = rtuRequestLength(rtuRx.buf, rtuRx.have);
+    const int need = known > 0 ? known : (rtuRx.have < 2 ? 2 : rtuRx.buf[1] == 0x17 ? 11 : 7);
+    if (need > MODBUS_RTU_MAX_ADU_LENGTH) return dropRtu(true);  // a byte count no request has
+    const ssize_t n = ::read(fd, rtuRx.buf + rtuRx.have, static_cast<size_t>(need - rtuRx.have));
+    if (n <= 0) {
+      if (n < 0 && errno == EINTR) continue;
+      return;  // EAGAIN: the line has nothing more now
+    }
+    const int64_t now = monotonicNow_ns();
+    if (rtuRx.have == 0) rtuRx.started_ns = now;
+    rtuRx.last_ns = now;
+    rtuRx.have += static_cast<int>(n);
+    if (known == 0 || rtuRx.have < known) continue;
+    const int length = rtuRx.have;
+    rtuRx.have = 0;
+    // As libmodbus: a request for another slave (or that slave's answer) is ignored unread;
+    // then the CRC.
+    if (rtuRx.buf[0] != config.unitId && rtuRx.buf[0] != MODBUS_BROADCAST_ADDRESS) continue;
+    const uint16_t crc = static_cast<uint16_t>(rtuRx.buf[length - 2] | (rtuRx.buf[length - 1] << 8));
+    if (crc != rtuCrc(rtuRx.buf, length - 2)) return dropRtu(true);
+    handleRequest(rtuRx.buf, length);
+  }
 }
 
 bool ModbusLink::Impl::readClient(Client& c) {
@@ -374,12 +440,16 @@ void ModbusLink::Impl::runRtu() {
   const int fd = modbus_get_socket(ctx);
   while (!stopping.load(std::memory_order_relaxed)) {
     pollfd p{fd, POLLIN, 0};
-    if (poll(&p, 1, kPollTimeout_ms) <= 0) continue;
-    if ((p.revents & POLLIN) != 0) {
-      serveOne();
-    } else {
+    const int ready = poll(&p, 1, kPollTimeout_ms);
+    if (ready > 0 && (p.revents & POLLIN) != 0) {
+      readRtu(fd);
+    } else if (ready > 0) {
       pauseBriefly();  // hang-up on the line (a pty whose other side is closed): don't spin
     }
+    // A request stalled mid-frame, or trickled slower than the line carries it: dropped.
+    const int64_t now = monotonicNow_ns();
+    if (rtuRx.have > 0 && (now - rtuRx.last_ns > int64_t{kByteTimeout_us} * 1000 || now - rtuRx.started_ns > rtuFrameLimit_ns))
+      dropRtu(false);
   }
 }
 

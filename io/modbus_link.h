@@ -4,18 +4,21 @@
 //
 // One receive thread, started in start() and joined in stop(). It waits on the listening
 // socket and the connected masters (TCP, up to kMaxTcpClients at once; more are refused) or on
-// the serial device (RTU) with a 100 ms poll timeout, so stop() returns within about 0.1 s
-// (RTU: 0.35 s if the master stalls in the middle of a frame). TCP masters are read from
-// non-blocking sockets and their requests framed by the MBAP length, so a master that stalls
-// or trickles a request, or that does not read its answers, never holds the thread: a request
-// not complete 0.25 s after its first byte, or an answer the socket cannot take at once,
-// closes that master's connection. Each request is checked against the
+// the serial device (RTU) with a 100 ms poll timeout, so stop() returns within about 0.1 s.
+// TCP masters are read from non-blocking sockets and their requests framed by the MBAP length,
+// so a master that stalls or trickles a request, or that does not read its answers, never holds
+// the thread: a request not complete 0.25 s after its first byte, or an answer the socket
+// cannot take at once, closes that master's connection. The serial line is read the same way,
+// its requests framed by their function code: a request with a gap of 0.25 s between two
+// bytes, or not complete 0.25 s plus the time the longest request (256 bytes) takes at the
+// configured baud rate after its first byte, is dropped; an answer the device cannot take at
+// once is dropped. Each request is checked against the
 // map (modbus::checkRequest), answered (libmodbus builds the reply or the exception), and a
 // write that commits a set publishes one HostState to the sink, with the geodetic eyepoint
 // computed from the ENU eyepoint and the scene origin.
 //
 // Counters: received = requests read (of any function, for this unit id), accepted = sets
-// applied, malformed = frames libmodbus could not read (bad CRC, a stall mid-frame) plus
+// applied, malformed = frames that could not be read (bad CRC, a stall or trickle mid-frame) plus
 // requests answered with an exception, outOfRange = fields rejected at commit, late = commits
 // that repeated the applied COMMIT value, dropped = 0.
 // TCP answers every unit id (as gateways and most TCP servers do); RTU answers only unit_id

@@ -795,3 +795,88 @@ TEST(MbpollRtu, WritesFloatsOverAPtyPairAndSurvivesABadCrc) {
   link.stop();
   EXPECT_LT(std::chrono::duration<double>(Clock::now() - t0).count(), 1.0);
 }
+
+// A master on the serial line that sends a long request one byte every 100 ms (inside the 0.25 s
+// byte timeout, the whole frame ~25 s): the link drops the request once it has taken longer than
+// the line needs for any request, and stop() does not wait for the frame to end (systemd's
+// TimeoutStopSec is 10 s).
+TEST(ModbusRtu, TricklingMasterDoesNotHoldStop) {
+  SocatPair pty;
+  ASSERT_TRUE(pty.ready) << "socat did not create " << pty.a << " and " << pty.b;
+  ModbusLinkConfig c;
+  c.serialDevice = pty.a;
+  c.unitId = 7;
+  c.baud = 115200;
+  ModbusLink link(c, ModbusTransport::Rtu, kOrigin);
+  RecordingSink sink;
+  std::string error;
+  ASSERT_TRUE(link.start(sink, error)) << error;
+  const int fd = open(pty.b.c_str(), O_RDWR | O_NOCTTY | O_CLOEXEC);
+  ASSERT_GE(fd, 0);
+  // FC16, 120 registers: address, function, start, count, byte count, 240 data bytes, CRC.
+  std::vector<uint8_t> frame = {0x07, 0x10, 0x00, 0x00, 0x00, 120, 240};
+  frame.resize(frame.size() + 240, 0);
+  const uint16_t crc = crc16(frame.data(), frame.size());
+  frame.push_back(static_cast<uint8_t>(crc & 0xFF));
+  frame.push_back(static_cast<uint8_t>(crc >> 8));
+  std::atomic<bool> done{false};
+  std::atomic<int> sent{0};
+  std::thread trickle([&] {
+    for (uint8_t b : frame) {
+      if (done || write(fd, &b, 1) != 1) return;
+      ++sent;
+      std::this_thread::sleep_for(100ms);
+    }
+  });
+  EXPECT_TRUE(waitUntil([&] { return link.counters().malformed.load() >= 1; }, 3000ms))
+      << "the trickled request was not dropped; " << sent.load() << " bytes sent";
+  const auto t0 = Clock::now();
+  link.stop();
+  EXPECT_LT(std::chrono::duration<double>(Clock::now() - t0).count(), 1.0);
+  EXPECT_LT(sent.load(), static_cast<int>(frame.size()));  // stop() did not wait for the frame
+  done = true;
+  trickle.join();
+  close(fd);
+  EXPECT_EQ(sink.size(), 0u);
+}
+
+// A master that sends read requests and never reads the answers: once the line's buffers are
+// full an answer is dropped instead of waited for, so stop() still returns.
+TEST(ModbusRtu, MasterThatNeverReadsDoesNotHoldStop) {
+  SocatPair pty;
+  ASSERT_TRUE(pty.ready) << "socat did not create " << pty.a << " and " << pty.b;
+  ModbusLinkConfig c;
+  c.serialDevice = pty.a;
+  c.unitId = 7;
+  c.baud = 115200;
+  ModbusLink link(c, ModbusTransport::Rtu, kOrigin);
+  RecordingSink sink;
+  std::string error;
+  ASSERT_TRUE(link.start(sink, error)) << error;
+  const int fd = open(pty.b.c_str(), O_RDWR | O_NOCTTY | O_CLOEXEC);
+  ASSERT_GE(fd, 0);
+  // FC3, read all holding registers: each answer is 5 + 2 * count bytes.
+  uint8_t req[8] = {0x07, 0x03, 0x00, 0x00, 0x00, static_cast<uint8_t>(modbus::kHoldingCount), 0, 0};
+  const uint16_t crc = crc16(req, 6);
+  req[6] = static_cast<uint8_t>(crc & 0xFF);
+  req[7] = static_cast<uint8_t>(crc >> 8);
+  // 64 requests at a time, each batch after the link has read the one before.
+  const size_t answerBytes = 5 + 2 * modbus::kHoldingCount;
+  constexpr uint64_t kBatch = 64;
+  const uint64_t requests = ((1u << 18) / answerBytes / kBatch + 1) * kBatch;  // more than the pty pair and socat buffer
+  std::vector<uint8_t> batch;
+  for (uint64_t i = 0; i < kBatch; ++i) batch.insert(batch.end(), req, req + sizeof req);
+  for (uint64_t i = 0; i < requests; i += kBatch) {
+    ASSERT_EQ(write(fd, batch.data(), batch.size()), static_cast<ssize_t>(batch.size()));
+    if (!waitUntil([&] { return link.counters().received.load() == i + kBatch; }, 2000ms)) break;
+  }
+  EXPECT_EQ(link.counters().received.load(), requests) << "the link stopped reading requests";
+  std::atomic<bool> stopped{false};
+  std::thread stopper([&] {
+    link.stop();
+    stopped = true;
+  });
+  EXPECT_TRUE(waitUntil([&] { return stopped.load(); }, 2000ms)) << "stop() is held by an answer nobody reads";
+  close(fd);  // the link's write (if it was blocked) fails now, so the test ends either way
+  stopper.join();
+}
