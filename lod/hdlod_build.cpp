@@ -608,14 +608,31 @@ class Builder {
   double measuredError(std::span<const glm::vec3> positions, std::span<const uint32_t> indices, SimplifiedMesh& simple,
                        double emptyError) {
     samples_.clear();
-    const size_t nt = indices.size() / 3, total = positions.size() + nt;
+    // The surface is the triangles whose corners are three distinct points: one with coincident
+    // corners draws nothing and the simplifier drops it (welded, it repeats an index), so its
+    // corners are not sampled (nor is a vertex no triangle uses); else a material of only such
+    // triangles, with nothing left, measured half the cluster's diagonal.
+    const size_t nt = indices.size() / 3;
+    surfaceVertex_.assign(positions.size(), 0);
+    surfaceTriangles_.clear();
+    for (size_t t = 0; t < nt; ++t) {
+      const glm::vec3 &a = positions[indices[3 * t]], &b = positions[indices[3 * t + 1]], &c = positions[indices[3 * t + 2]];
+      if (a == b || b == c || c == a) continue;
+      surfaceTriangles_.push_back(static_cast<uint32_t>(t));
+      for (int k = 0; k < 3; ++k) surfaceVertex_[indices[3 * t + static_cast<size_t>(k)]] = 1;
+    }
+    surfaceVertices_.clear();
+    for (uint32_t v = 0; v < positions.size(); ++v) {
+      if (surfaceVertex_[v]) surfaceVertices_.push_back(v);
+    }
+    const size_t total = surfaceVertices_.size() + surfaceTriangles_.size();
     const size_t cap = static_cast<size_t>(std::max(1, config_.maxHausdorffSamples));
     const size_t stride = std::max<size_t>(1, (total + cap - 1) / cap);
     for (size_t i = 0; i < total; i += stride) {
-      if (i < positions.size()) {
-        samples_.push_back(positions[i]);
+      if (i < surfaceVertices_.size()) {
+        samples_.push_back(positions[surfaceVertices_[i]]);
       } else {
-        const size_t t = i - positions.size();
+        const size_t t = surfaceTriangles_[i - surfaceVertices_.size()];
         samples_.push_back((positions[indices[3 * t]] + positions[indices[3 * t + 1]] + positions[indices[3 * t + 2]]) / 3.0f);
       }
     }
@@ -926,6 +943,8 @@ class Builder {
   std::vector<uint16_t> childMaterials_;
   std::vector<glm::vec3> partPositions_;
   std::vector<uint32_t> partIndices_, materialOrder_;
+  std::vector<uint8_t> surfaceVertex_;                   // measuredError(): per input vertex
+  std::vector<uint32_t> surfaceVertices_, surfaceTriangles_;
   const char* stage_ = "";
   double stageBase_ = 0.0, stageSpan_ = 0.0;
   int levelsEstimate_ = 1;

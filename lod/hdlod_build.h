@@ -16,7 +16,8 @@
 //   box centre, double), so huge world coordinates keep their precision.
 // - eps_c = D(children -> g_c) + max over children eps_child, where D is the largest over the
 //   materials of a sampled one-sided Hausdorff distance between that material's triangles: the largest distance from a sample of the children's surfaces (every
-//   vertex and every triangle's centroid; at most `maxHausdorffSamples`, evenly strided) to the
+//   vertex and centroid of the triangles with three distinct corners: one with coincident corners
+//   draws nothing; at most `maxHausdorffSamples`, evenly strided) to the
 //   nearest point of the simplified complex (exact point-triangle distance through a BVH), and
 //   with `twoSidedHausdorff` (default, the paper's D_H) also from a sample of the simplified
 //   triangles back to the children's, whatever the simplifier (their own error estimates are

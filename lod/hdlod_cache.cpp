@@ -20,7 +20,7 @@ constexpr char kMagic[8] = {'I', 'G', 'H', 'D', 'L', 'O', 'D', '\0'};
 constexpr size_t kHeaderBytes = 64;
 // Bump when the builder changes what it makes from the same scene and config (the key then
 // changes, and old caches read as stale).
-constexpr uint64_t kBuildRevision = 6;  // 6: a group over merged clusters is present while any of them is
+constexpr uint64_t kBuildRevision = 7;  // 7: eps ignores unused vertices and coincident-corner triangles
 
 struct Header {
   char magic[8];
@@ -411,7 +411,8 @@ HdlodTree loadOrBuildHdlod(const Scene& scene, const BuildConfig& config, const 
     if (config.progress) config.progress(1.0, "loaded");
     return tree;
   }
-  const bool existed = error.find("missing") == std::string::npos;
+  // The exact "missing" error (a path may contain the word itself).
+  const bool existed = error != path + ": HDLOD cache missing";
   if (existed) note = error + "; rebuilding";
   outcome = existed ? CacheOutcome::Rebuilt : CacheOutcome::Built;
   tree = buildHdlod(scene, config);

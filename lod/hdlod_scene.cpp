@@ -8,6 +8,7 @@
 #include <limits>
 #include <sstream>
 #include <unordered_map>
+#include <unordered_set>
 
 #include <glm/geometric.hpp>
 
@@ -451,7 +452,28 @@ bool saveSchedule(const Scene& scene, const std::string& path, const std::string
   }
   const std::string base = dirOf(path);
   const std::string dirPrefix = modelDir.empty() ? std::string() : modelDir + "/";
+  // loadSchedule() refuses duplicate names: refuse them here, before writing anything.
+  std::unordered_set<std::string> modelNames, objectNames;
+  for (const Model& m : scene.models) {
+    if (!modelNames.insert(m.name).second) {
+      error = path + ": model name '" + m.name + "': used twice";
+      return false;
+    }
+  }
+  for (const Object& o : scene.objects) {
+    if (!objectNames.insert(o.name).second) {
+      error = path + ": object name '" + o.name + "': used twice";
+      return false;
+    }
+  }
   char buf[256];
+  // Numbers only (at most 25 characters each): a name goes into the line as a string, so that a
+  // long one is never cut with the rest of its line.
+  auto g17 = [](double v) {
+    char b[40];
+    std::snprintf(b, sizeof b, "%.17g", v);
+    return std::string(b);
+  };
   for (const Model& m : scene.models) {
     if (!plainName(m.name)) {
       error = path + ": model name '" + m.name + "': must be non-empty without blanks, '#' or '/'";
@@ -490,15 +512,11 @@ bool saveSchedule(const Scene& scene, const std::string& path, const std::string
     }
     out << "object " << o.name << ' ' << scene.models[o.model].name << '\n';
     for (const Keyframe& k : o.path) {
-      std::snprintf(buf, sizeof buf, "at %s %.17g %.17g %.17g %.17g %.17g\n", o.name.c_str(), k.t_s, k.position_m.x, k.position_m.y,
-                    k.position_m.z, k.heading_deg);
-      out << buf;
+      out << "at " << o.name << ' ' << g17(k.t_s) << ' ' << g17(k.position_m.x) << ' ' << g17(k.position_m.y) << ' '
+          << g17(k.position_m.z) << ' ' << g17(k.heading_deg) << '\n';
     }
     if (o.visible.empty()) out << "visible " << o.name << " never\n";
-    for (const Interval& iv : o.visible) {
-      std::snprintf(buf, sizeof buf, "visible %s %.17g %.17g\n", o.name.c_str(), iv.appear_s, iv.disappear_s);
-      out << buf;
-    }
+    for (const Interval& iv : o.visible) out << "visible " << o.name << ' ' << g17(iv.appear_s) << ' ' << g17(iv.disappear_s) << '\n';
   }
   out.flush();
   if (!out) {

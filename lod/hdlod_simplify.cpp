@@ -381,6 +381,13 @@ void simplifyMesh(std::span<const glm::vec3> positions, std::span<const uint32_t
     compact(out);
     return;
   }
+  // Vertices no triangle uses are not surface: they would be sampled below, lie far from every
+  // simplified triangle and fail every measurement (the input came back unsimplified).
+  {
+    std::vector<uint8_t> used(out.positions.size(), 0);
+    for (uint32_t i : out.indices) used[i] = 1;
+    if (std::find(used.begin(), used.end(), uint8_t{0}) != used.end()) compact(out);
+  }
   if (params.simplifier == Simplifier::Clustering) {
     simplifyClustering(eps_m, params.gridOffset_m, out);
     compact(out);

@@ -298,3 +298,55 @@ TEST(HdlodSelect, LeavesUseACoarserVersionOnlyWithinTolerance) {
     }
   }
 }
+
+// A corrupt cache whose path happens to contain the word "missing" is still reported as a cache
+// that existed and was rebuilt (the reason in the note), not as a first build.
+TEST(HdlodCache, CorruptCacheUnderAFolderNamedMissingIsReportedAsRebuilt) {
+  const Scene s = smallSite();
+  const BuildConfig config;
+  const std::string dir = tempPath("missing_parts");
+  std::filesystem::create_directories(dir);
+  const std::string path = dir + "/site.cache";
+  writeAll(path, std::vector<uint8_t>(5000, 0x41));
+  CacheOutcome outcome;
+  std::string note;
+  (void)loadOrBuildHdlod(s, config, path, outcome, note);
+  EXPECT_EQ(outcome, CacheOutcome::Rebuilt);
+  EXPECT_NE(note.find("bad magic"), std::string::npos) << note;
+  std::filesystem::remove_all(dir);
+}
+
+// saveSchedule() either writes a file loadSchedule() reads back into the same scene or fails:
+// a long object name (its `at` line was cut at 256 bytes, the next line glued to it) loads back;
+// duplicate names (which loadSchedule() refuses) are refused when writing.
+TEST(HdlodCache, ScheduleWithLongOrDuplicateNames) {
+  Scene s;
+  s.duration_s = 86400.0 * 365.0;
+  s.models.push_back(makeBoxModel("box", {1, 2, 3}));
+  Object o;
+  o.name = std::string(200, 'n');
+  o.model = 0;
+  o.path.push_back({0.1234567890123, {1234567.123456789, -7654321.987654321, 123.456789012345}, 123.456789012345});
+  o.path.push_back({1e5 + 0.123456789, {1234568.123456789, -7654322.987654321, 124.456789012345}, -98.7654321098765});
+  o.visible.push_back({1000.123456789, 2e6 + 0.987654321});
+  s.objects.push_back(o);
+  ASSERT_EQ(validateScene(s), "");
+  const std::string dir = tempPath("longnames");
+  std::filesystem::create_directories(dir + "/models");
+  std::string error;
+  ASSERT_TRUE(saveSchedule(s, dir + "/a.sched", "models", error)) << error;
+  const auto loaded = loadSchedule(dir + "/a.sched", error);
+  ASSERT_TRUE(loaded) << error;
+  EXPECT_EQ(hdlodCacheKey(*loaded, BuildConfig{}), hdlodCacheKey(s, BuildConfig{}));
+  Scene twice = s;
+  twice.objects.push_back(o);
+  twice.objects.back().name = "x";
+  twice.objects[0].name = "x";
+  EXPECT_FALSE(saveSchedule(twice, dir + "/b.sched", "models", error));
+  EXPECT_NE(error.find("'x'"), std::string::npos) << error;
+  Scene models = s;
+  models.models.push_back(makeBoxModel("box", {2, 2, 2}));
+  EXPECT_FALSE(saveSchedule(models, dir + "/c.sched", "models", error));
+  EXPECT_NE(error.find("'box'"), std::string::npos) << error;
+  std::filesystem::remove_all(dir);
+}

@@ -160,3 +160,22 @@ TEST(HdlodSimplify, VanishedColumnCountsAsItsThickness) {
 }
 
 }  // namespace
+
+// A vertex no triangle uses (an OBJ's `v` of a line or point element, a glTF primitive's unused
+// POSITION entries) is not part of the surface: it must neither be sampled as surface nor stop
+// the simplification. It was sampled, lay far from every simplified triangle, every retry failed
+// the measurement and the welded input came back unsimplified.
+TEST(HdlodSimplify, UnreferencedVerticesDoNotBlockSimplification) {
+  for (Simplifier s : {Simplifier::Meshoptimizer, Simplifier::OpenMesh}) {
+    SCOPED_TRACE(simplifierName(s));
+    std::vector<glm::vec3> positions;
+    std::vector<uint32_t> indices;
+    grid(16, 16.0, flat, positions, indices);
+    positions.emplace_back(8.0f, 8.0f, 50.0f);  // stray, 50 m above the tile
+    SimplifiedMesh m;
+    simplifyMesh(positions, indices, 0.5, paramsFor(s), m);
+    EXPECT_LE(m.indices.size() / 3, 32u);
+    positions.pop_back();
+    EXPECT_LE(measured(positions, indices, m), 0.5 + 1e-4);
+  }
+}

@@ -758,3 +758,68 @@ TEST(HdlodSelect, PresenceAtEveryBreakpointMatchesIsPresent) {
     }
   }
 }
+
+// A model with a vertex no triangle uses still gets coarser versions (hdlod_build.h: up to
+// modelLodLevels versions, then the box), with a measured eps that ignores the stray vertex.
+TEST(HdlodBuild, ModelVersionsIgnoreUnreferencedVertices) {
+  Scene s;
+  s.duration_s = 10;
+  Model tile;
+  tile.name = "tile";
+  const int n = 16;
+  for (int j = 0; j <= n; ++j) {
+    for (int i = 0; i <= n; ++i) tile.positions.emplace_back(static_cast<float>(i), static_cast<float>(j), 0.0f);
+  }
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      const uint32_t a = static_cast<uint32_t>(j * (n + 1) + i), b = a + 1, c = a + static_cast<uint32_t>(n + 1), d = c + 1;
+      tile.indices.insert(tile.indices.end(), {a, b, d, a, d, c});
+    }
+  }
+  Model stray = tile;
+  stray.name = "stray";
+  stray.positions.emplace_back(8.0f, 8.0f, 20.0f);  // used by no triangle
+  s.models = {tile, stray};
+  computeModelBoxes(s);
+  s.objects.push_back(placed("a", 0, {0, 0, 0}, {{0, 10}}));
+  s.objects.push_back(placed("b", 1, {100, 0, 0}, {{0, 10}}));
+  ASSERT_EQ(validateScene(s), "");
+  const HdlodTree tree = buildHdlod(s);
+  const auto plain = tree.lodsOf(0), withStray = tree.lodsOf(1);
+  ASSERT_GE(plain.size(), 1u);
+  EXPECT_LE(plain[0].triangles, 8u);  // a flat tile: a few triangles
+  ASSERT_EQ(withStray.size(), plain.size());
+  for (size_t k = 0; k < plain.size(); ++k) {
+    EXPECT_EQ(withStray[k].triangles, plain[k].triangles) << k;
+    EXPECT_NEAR(withStray[k].eps_m, plain[k].eps_m, 1e-6) << k;
+  }
+}
+
+// Triangles with coincident corners (zero area: nothing is drawn) are no surface the merged
+// geometry must stay close to. The simplifier drops them (welded, they repeat an index); the
+// measurement sampled their corners anyway, found nothing left of that material and set
+// D = half the cluster's diagonal, so every cluster above such an object claimed an error of
+// half its size (and was refined far deeper than needed).
+TEST(HdlodBuild, PointLikeObjectsDoNotInflateTheError) {
+  for (Simplifier sim : {Simplifier::Meshoptimizer, Simplifier::OpenMesh, Simplifier::Clustering}) {
+    SCOPED_TRACE(simplifierName(sim));
+    Scene s;
+    s.duration_s = 10;
+    s.models.push_back(makeBoxModel("box", {1, 1, 1}));
+    s.models.push_back(Model{"point", {{0.2f, 0.3f, 0.4f}, {0.2f, 0.3f, 0.4f}, {0.2f, 0.3f, 0.4f}}, {0, 1, 2, 2, 1, 0}, {}});
+    computeModelBoxes(s);
+    s.objects.push_back(placed("a", 0, {0, 0, 0}, {{0, 10}}));
+    s.objects.push_back(placed("b", 0, {1.5, 0, 0}, {{0, 10}}));
+    s.objects.push_back(placed("p", 1, {0.75, 0, 0}, {{0, 10}}));
+    ASSERT_EQ(validateScene(s), "");
+    BuildConfig config;
+    config.simplifier = sim;
+    const HdlodTree tree = buildHdlod(s, config);
+    ASSERT_GT(tree.stats.mergedClusters, 0u);
+    for (const Cluster& c : tree.clusters) {
+      if (c.kind == ClusterKind::Merged) {
+        EXPECT_LE(c.eps_m, 0.1 * c.size_m) << c.size_m;
+      }
+    }
+  }
+}
