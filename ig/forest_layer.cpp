@@ -86,7 +86,16 @@ std::unique_ptr<ForestLayer> ForestLayer::create(const ForestLayerConfig& c, con
     return nullptr;
   }
 
-  // Map.
+  // Map. Gr is one GL texture: at most kMaxMapSide cells a side (GL 4.5's least
+  // GL_MAX_TEXTURE_SIZE), checked before a generated map is allocated.
+  constexpr int kMaxMapSide = 16384;
+  const double cellsX = std::floor((a[2] - a[0]) / c.cell_m), cellsY = std::floor((a[3] - a[1]) / c.cell_m);
+  if (c.map.empty() && !(cellsX <= kMaxMapSide && cellsY <= kMaxMapSide)) {
+    error = "forest.cell_m = " + std::to_string(c.cell_m) + ": the forest map would be " + std::to_string(cellsX) +
+            " x " + std::to_string(cellsY) + " cells, more than " + std::to_string(kMaxMapSide) +
+            " a side (raise forest.cell_m or set forest.area_m)";
+    return nullptr;
+  }
   if (c.map.empty()) {
     lod::ForestMapDesc md;
     md.seed = c.seed;
@@ -99,6 +108,10 @@ std::unique_ptr<ForestLayer> ForestLayer::create(const ForestLayerConfig& c, con
     f.map_ = lod::generateForestMap(md);
     if (!lod::validateForestMap(f.map_, error)) return nullptr;
   } else if (!loadMapPng(c.map, c.cell_m, {a[0], a[1]}, f.map_, error)) {
+    return nullptr;
+  } else if (f.map_.width > kMaxMapSide || f.map_.height > kMaxMapSide) {
+    error = "forest.map '" + c.map + "': " + std::to_string(f.map_.width) + " x " + std::to_string(f.map_.height) +
+            " pixels, more than " + std::to_string(kMaxMapSide) + " a side";
     return nullptr;
   }
 

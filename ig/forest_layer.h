@@ -56,7 +56,9 @@ struct ForestLayerStats {
 class ForestLayer {
  public:
   // Builds everything (GL context current). `models`/`textures` override the config's
-  // (benchmarks); pass empty / null to use the config. Null and `error` on bad input.
+  // (benchmarks); pass empty / null to use the config. Null and `error` on bad input, among it
+  // a map of more than 16384 cells a side (Gr is one texture; checked before a generated map is
+  // allocated).
   static std::unique_ptr<ForestLayer> create(const ForestLayerConfig& config, const ForestGround& ground,
                                              std::string& error, const std::vector<lod::TreeMesh>* models = nullptr,
                                              const render::ForestTextures* textures = nullptr);

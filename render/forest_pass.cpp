@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <utility>
 
 #include <glm/gtc/type_ptr.hpp>
@@ -165,6 +166,8 @@ layout(binding = 0) uniform sampler2DArray uT;
 layout(binding = 1) uniform sampler2D uGr;
 out vec4 fragColor;
 void main() {
+  // Outside the map is a glade (no forest): Gr's border cells are not repeated over the terrain.
+  if (any(lessThan(vMapUv, vec2(0.0))) || any(greaterThan(vMapUv, vec2(1.0)))) discard;
   float dist = length(vRel);
   vec4 t = texture(uT, vTileUv);
   vec4 gr = texture(uGr, vMapUv);
@@ -208,6 +211,7 @@ layout(binding = 0) uniform sampler2DArray uS;
 layout(binding = 1) uniform sampler2D uGr;
 out vec4 fragColor;
 void main() {
+  if (any(lessThan(vMapUv, vec2(0.0))) || any(greaterThan(vMapUv, vec2(1.0)))) discard;  // outside the map
   float dist = length(vRel);
   float viewA = 1.0 - abs(dot(normalize(vTangent), vRel / max(dist, 1e-6)));
   vec4 s = texture(uS, vUv);
@@ -426,18 +430,34 @@ bool validateForestTextures(const ForestTextures& t, std::string& error) {
 bool renderForestTextures(std::span<const lod::TreeMesh> models, const ForestTextureDesc& d, ForestTextures& out,
                           std::string& error) {
   if (d.layers < 1 || d.layers > 32 || d.size_px < 8 || d.size_px > 2048 || d.finSlices < 1 || d.finSlices > 16 ||
-      d.supersample < 1 || d.supersample > 8 || d.treesPerTile < 1 || !(d.tile_m > 0.0) || !(d.finSliceDepth_m > 0.0)) {
+      d.supersample < 1 || d.supersample > 8 || d.treesPerTile < 1 || !(d.tile_m > 0.0) || !std::isfinite(d.tile_m) ||
+      !(d.finSliceDepth_m > 0.0) || !std::isfinite(d.finSliceDepth_m)) {
     error = "forest textures: layers = " + std::to_string(d.layers) + ", size_px = " + std::to_string(d.size_px) +
             ", fin slices = " + std::to_string(d.finSlices) + ", supersample = " + std::to_string(d.supersample) +
             ", trees per tile = " + std::to_string(d.treesPerTile) + ", tile_m = " + std::to_string(d.tile_m) +
-            ": need layers 1..32, size 8..2048, slices 1..16, supersample 1..8, trees >= 1, tile > 0";
+            ", fin slice depth = " + std::to_string(d.finSliceDepth_m) +
+            ": need layers 1..32, size 8..2048, slices 1..16, supersample 1..8, trees >= 1, tile and slice depth "
+            "finite and > 0";
     return false;
+  }
+  // The models are checked before the tile is planted (a model index is a hash modulo their
+  // count) and must stand above the ground (H, the height of the layer stack and the fins).
+  if (models.empty() || models.size() > 256) {
+    error = "forest textures: " + std::to_string(models.size()) + " tree models: need 1..256";
+    return false;
+  }
+  for (const lod::TreeMesh& m : models) {
+    if (!lod::validateTreeMesh(m, error)) return false;
   }
   // Plant the tile: a jittered grid, nine copies (wrap-around) so both textures tile.
   const int g = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(d.treesPerTile))));
   std::vector<lod::ForestInstance> base;
   float top = 0.0f;
   for (const lod::TreeMesh& m : models) top = std::max(top, m.height_m);
+  if (!(top > 0.0f) || !std::isfinite(top)) {
+    error = "forest textures: the tallest tree model is " + std::to_string(top) + " m high: must be finite and > 0";
+    return false;
+  }
   for (int i = 0; i < d.treesPerTile; ++i) {
     const auto ui = static_cast<uint32_t>(i);
     const uint32_t h0 = lod::forestHash(d.seed, ui, 1), h1 = lod::forestHash(d.seed, ui, 2), h2 = lod::forestHash(d.seed, ui, 3);
@@ -632,6 +652,7 @@ struct ForestPass::Impl {
   std::vector<lod::FinGroup> groups;
   std::vector<GLint> firsts;
   std::vector<GLsizei> counts;
+  std::vector<uint8_t> groupMarked;  // drawFins: a group named twice is drawn once (all 0 between calls)
   ForestDrawStats stats;
 
   const GlTexture& groupTexture(int m);  // m in [1, layerCount)
@@ -800,6 +821,7 @@ bool ForestPass::init(const ForestPassDesc& desc, const lod::ForestMap& map, con
     m->groups = fins->groups;
     m->firsts.resize(m->groups.size());
     m->counts.resize(m->groups.size());
+    m->groupMarked.assign(m->groups.size(), 0);
   }
   m->setTextures(textures);
   const std::string e = glErrors();
@@ -813,6 +835,7 @@ bool ForestPass::init(const ForestPassDesc& desc, const lod::ForestMap& map, con
 
 void ForestPass::drawTrees(Renderer& r, std::span<const lod::ForestInstance> instances,
                            std::span<const lod::ForestModelRange> models) {
+  if (!impl_) return;
   Impl& m = *impl_;
   if (instances.empty()) return;
   m.trees.loc.set(m.trees.program.id(), viewProjection(r.camera()), r.lighting(), m.desc.farFade);
@@ -830,18 +853,32 @@ void ForestPass::drawTrees(Renderer& r, std::span<const lod::ForestInstance> ins
 }
 
 void ForestPass::drawLayers(Renderer& r, const glm::dvec3& origin, size_t vertexCount, int layers) {
-  const lod::TerrainDrawRange all{0, static_cast<uint32_t>(vertexCount / 3)};
-  drawLayers(r, origin, std::span(&all, vertexCount >= 3 ? 1 : 0), layers);
+  const size_t slots = std::min<size_t>(vertexCount / 3, std::numeric_limits<uint32_t>::max());
+  const lod::TerrainDrawRange all{0, static_cast<uint32_t>(slots)};
+  drawLayers(r, origin, std::span(&all, slots > 0 ? 1 : 0), layers);
 }
 
 void ForestPass::drawLayers(Renderer& r, const glm::dvec3& origin, std::span<const lod::TerrainDrawRange> ranges,
                             int layers) {
+  if (!impl_) return;
   Impl& m = *impl_;
   const GLuint buffer = r.terrainMeshVertexBuffer();
   const int n = std::min(layers, m.layerCount);
+  // The ranges clamped to the terrain mesh buffer (as the terrain pass clamps them): slots past
+  // its end are never drawn, and no count overflows GLsizei.
+  const size_t limit = r.terrainMeshVertices().size() / 3;
+  if (buffer == 0 || n <= 0 || limit == 0) return;
+  m.layerFirsts.clear();
+  m.layerCounts.clear();
   size_t count = 0;  // vertices
-  for (const lod::TerrainDrawRange& rg : ranges) count += 3 * static_cast<size_t>(rg.count);
-  if (buffer == 0 || n <= 0 || count == 0) return;
+  for (const lod::TerrainDrawRange& rg : ranges) {
+    if (rg.count == 0 || rg.first >= limit) continue;
+    const size_t c = std::min<size_t>(rg.count, limit - rg.first);
+    m.layerFirsts.push_back(static_cast<GLint>(3 * static_cast<size_t>(rg.first)));
+    m.layerCounts.push_back(static_cast<GLsizei>(3 * c));
+    count += 3 * c;
+  }
+  if (count == 0) return;
   if (buffer != m.layerVaoBuffer) {
     gl.VertexArrayVertexBuffer(m.layerVao.id(), 0, buffer, 0, sizeof(lod::TerrainVertex));
     m.layerVaoBuffer = buffer;
@@ -870,19 +907,12 @@ void ForestPass::drawLayers(Renderer& r, const glm::dvec3& origin, std::span<con
   gl.BlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
   gl.DepthMask(GL_FALSE);
   gl.Disable(GL_CULL_FACE);  // seen from below inside valleys too
-  if (ranges.size() == 1) {
+  if (m.layerFirsts.size() == 1) {
     gl.ProgramUniform1i(p, m.lLayerBase, 0);
-    gl.DrawArraysInstanced(GL_TRIANGLES, static_cast<GLint>(3 * static_cast<size_t>(ranges[0].first)),
-                           static_cast<GLsizei>(3 * static_cast<size_t>(ranges[0].count)), n);
+    gl.DrawArraysInstanced(GL_TRIANGLES, m.layerFirsts[0], m.layerCounts[0], n);
   } else {
     // Several ranges (the terrain's chunks in view): one multi-draw a layer, bottom up as the
     // instanced draw orders them.
-    m.layerFirsts.clear();
-    m.layerCounts.clear();
-    for (const lod::TerrainDrawRange& rg : ranges) {
-      m.layerFirsts.push_back(static_cast<GLint>(3 * static_cast<size_t>(rg.first)));
-      m.layerCounts.push_back(static_cast<GLsizei>(3 * static_cast<size_t>(rg.count)));
-    }
     for (int layer = 0; layer < n; ++layer) {
       gl.ProgramUniform1i(p, m.lLayerBase, layer);
       gl.MultiDrawArrays(GL_TRIANGLES, m.layerFirsts.data(), m.layerCounts.data(), static_cast<GLsizei>(m.layerFirsts.size()));
@@ -900,16 +930,22 @@ void ForestPass::drawLayers(Renderer& r, const glm::dvec3& origin, std::span<con
 }
 
 void ForestPass::drawFins(Renderer& r, std::span<const uint32_t> groups) {
+  if (!impl_) return;
   Impl& m = *impl_;
   if (!m.finVao || groups.empty()) return;
   GLsizei k = 0;
   uint64_t fins = 0;
+  // Each group at most once: firsts / counts hold one entry per group.
   for (uint32_t g : groups) {
-    if (g >= m.groups.size() || m.groups[g].count == 0) continue;
+    if (g >= m.groups.size() || m.groups[g].count == 0 || m.groupMarked[g]) continue;
+    m.groupMarked[g] = 1;
     m.firsts[static_cast<size_t>(k)] = static_cast<GLint>(m.groups[g].first * 6);
     m.counts[static_cast<size_t>(k)] = static_cast<GLsizei>(m.groups[g].count * 6);
     fins += m.groups[g].count;
     ++k;
+  }
+  for (uint32_t g : groups) {
+    if (g < m.groupMarked.size()) m.groupMarked[g] = 0;
   }
   if (k == 0) return;
   const lod::Camera& cam = r.camera();

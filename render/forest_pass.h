@@ -10,7 +10,8 @@
 // angle acos(cos) to the terrain normal, cos clamped to >= 0.05, crosses 1 / cos as much of the
 // slab: Beer-Lambert. Without it distant forest seen at grazing angles is far too thin.)
 // T_i is layer i of the layer texture (a horizontal slice of a forest tile, tiled over the
-// ground), Gr the distribution map (rgb tint, a = density, 0 in glades) over the map's extent.
+// ground), Gr the distribution map (rgb tint, a = density, 0 in glades) over the map's extent;
+// outside it there is no forest (layers and fins are discarded there, as in a glade).
 // Far, fins: two-sided vertical quads of height H on the fin edges (lod/forest_fins.h), only
 // the groups selectFinGroups keeps;
 //   colour rgb = 2 * S.rgb * Gr.rgb, a = S.a * Gr.a * farAlpha(d) * (1 - |dot(T, V)|)
@@ -64,7 +65,9 @@ struct ForestTextures {
 };
 
 // Renders T and S from `models` with the current GL context (its own FBO; state restored).
-// Lower layers are darker (the model shader's height darkening, as on the 3D trees).
+// Lower layers are darker (the model shader's height darkening, as on the 3D trees). False with
+// `error` for a bad description, no model or more than 256, an invalid model, or models of no
+// height (H = 0): it never returns textures that validateForestTextures rejects.
 bool renderForestTextures(std::span<const lod::TreeMesh> models, const ForestTextureDesc& desc, ForestTextures& out,
                           std::string& error);
 
@@ -98,7 +101,8 @@ class ForestPass {
   bool init(const ForestPassDesc& desc, const lod::ForestMap& map, const ForestTextures& textures,
             std::span<const lod::TreeMesh> models, const lod::FinSet* fins, std::string& error);
 
-  // Per frame, between beginFrame and endFrame, in this order.
+  // Per frame, between beginFrame and endFrame, in this order (a pass without a successful
+  // init draws nothing).
   // Near trees: instances grouped per model (ForestKdTree::select output).
   void drawTrees(Renderer& r, std::span<const lod::ForestInstance> instances,
                  std::span<const lod::ForestModelRange> models);
@@ -110,9 +114,12 @@ class ForestPass {
   // every slab as itself. The frame governor's knob for the layers' fill (ForestLayer).
   void drawLayers(Renderer& r, const glm::dvec3& terrainOrigin_m, size_t vertexCount, int layers);
   // The same over ranges of triangle slots (the terrain chunks in view, lod/terrain_chunks.h).
+  // Both forms clamp to the terrain mesh buffer (Renderer::terrainMeshVertices()): slots past
+  // its end are not drawn.
   void drawLayers(Renderer& r, const glm::dvec3& terrainOrigin_m, std::span<const lod::TerrainDrawRange> ranges,
                   int layers);
-  // Fins of the given groups (selectFinGroups output: indices into fins->groups).
+  // Fins of the given groups (selectFinGroups output: indices into fins->groups); an index out
+  // of range is skipped, a group named more than once is drawn once.
   void drawFins(Renderer& r, std::span<const uint32_t> groups);
 
   // Makes the composited textures drawLayers needs for `layers` < layerCount() now (else on the

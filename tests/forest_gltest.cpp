@@ -397,3 +397,197 @@ TEST(ForestGL, AssetsRoundTrip) {
   EXPECT_EQ(t2.fins.rgba, t.fins.rgba);
   EXPECT_NEAR(t2.tile_m, t.tile_m, 1e-9);
 }
+
+// ForestPass::drawLayers draws ranges of triangle slots of the terrain mesh buffer that the
+// caller hands in: ranges past the buffer's end (or whose vertex count overflows GLsizei) are
+// clamped to the buffer, as the terrain pass clamps them, never drawn beyond it.
+TEST(ForestGL, DrawLayersClampsRangesToTheTerrainBuffer) {
+  World w;
+  ASSERT_NO_FATAL_FAILURE(w.setUp());
+  std::string error;
+  auto forest = ForestLayer::create(w.config(), w.ground(), error);
+  ASSERT_TRUE(forest) << error;
+  render::ForestPass& pass = forest->pass();
+  ASSERT_EQ(pass.layerCount(), 4);
+  const auto slots = static_cast<uint32_t>(w.renderer.terrainMeshVertices().size() / 3);
+  ASSERT_GT(slots, 100u);
+  const lod::Camera cam = downCamera(2500.0);
+  pass.takeStats();
+  const auto layerTriangles = [&](std::span<const lod::TerrainDrawRange> ranges) {
+    w.renderer.beginFrame(cam, w.lighting);
+    pass.drawLayers(w.renderer, glm::dvec3(0.0), ranges, 4);
+    w.renderer.endFrame();
+    w.renderer.finish();
+    return pass.takeStats().triangles;
+  };
+  const lod::TerrainDrawRange all{0, slots};
+  EXPECT_EQ(layerTriangles(std::span(&all, 1)), uint64_t{slots} * 4);
+  const lod::TerrainDrawRange huge{0, 0xFFFFFFFFu};  // 3 * count overflows GLsizei
+  EXPECT_EQ(layerTriangles(std::span(&huge, 1)), uint64_t{slots} * 4);
+  EXPECT_EQ(w.renderer.errors(), "");
+  const lod::TerrainDrawRange past{slots, 10};
+  EXPECT_EQ(layerTriangles(std::span(&past, 1)), 0u);
+  const lod::TerrainDrawRange tail{slots - 4, 100};
+  EXPECT_EQ(layerTriangles(std::span(&tail, 1)), 4u * 4);
+  // Several ranges (the multi-draw path): inside, partly outside, wholly outside, overflowing.
+  const lod::TerrainDrawRange mixed[] = {{0, 10}, {slots - 4, 100}, {slots + 100, 5}, {0xFFFFFFF0u, 0xFFFFFFFFu}};
+  EXPECT_EQ(layerTriangles(mixed), uint64_t{10 + 4} * 4);
+  // The vertex-count form: more vertices than the buffer holds.
+  w.renderer.beginFrame(cam, w.lighting);
+  pass.drawLayers(w.renderer, glm::dvec3(0.0), size_t{slots} * 3 * 1000, 4);
+  w.renderer.endFrame();
+  w.renderer.finish();
+  EXPECT_EQ(pass.takeStats().triangles, uint64_t{slots} * 4);
+  EXPECT_EQ(w.renderer.errors(), "");
+}
+
+// ForestPass::drawFins draws the fins of the groups it is given; a group named twice (or more
+// entries than there are groups) draws that group once and stays inside the pass's arrays.
+TEST(ForestGL, DrawFinsDrawsEachGivenGroupOnce) {
+  World w;
+  ASSERT_NO_FATAL_FAILURE(w.setUp());
+  std::string error;
+  auto forest = ForestLayer::create(w.config(), w.ground(), error);
+  ASSERT_TRUE(forest) << error;
+  const std::vector<lod::FinGroup>& groups = forest->fins().groups;
+  ASSERT_FALSE(groups.empty());
+  render::ForestPass& pass = forest->pass();
+  const lod::Camera cam = downCamera(2500.0);
+  pass.takeStats();
+  const auto finsDrawn = [&](std::span<const uint32_t> g) {
+    w.renderer.beginFrame(cam, w.lighting);
+    pass.drawFins(w.renderer, g);
+    w.renderer.endFrame();
+    w.renderer.finish();
+    return pass.takeStats().fins;
+  };
+  std::vector<uint32_t> once(groups.size());
+  for (size_t i = 0; i < once.size(); ++i) once[i] = static_cast<uint32_t>(i);
+  std::vector<uint32_t> repeated;
+  for (int k = 0; k < 3; ++k) repeated.insert(repeated.end(), once.begin(), once.end());
+  repeated.push_back(static_cast<uint32_t>(groups.size()));  // out of range: skipped
+  repeated.push_back(0xFFFFFFFFu);
+  const uint64_t all = finsDrawn(once);
+  EXPECT_EQ(all, forest->fins().fins.size());
+  EXPECT_EQ(finsDrawn(repeated), all);
+  const std::vector<uint32_t> first(groups.size() + 8, 0u);
+  EXPECT_EQ(finsDrawn(first), groups[0].count);
+  EXPECT_EQ(finsDrawn(once), all);  // nothing left marked from the calls before
+  EXPECT_EQ(w.renderer.errors(), "");
+}
+
+// A pass whose init failed (or never ran) draws nothing instead of dereferencing its state.
+TEST(ForestGL, UninitialisedPassDrawsNothing) {
+  World w;
+  ASSERT_NO_FATAL_FAILURE(w.setUp());
+  render::ForestPass pass;
+  w.renderer.beginFrame(downCamera(250.0), w.lighting);
+  lod::ForestInstance inst{};
+  const lod::ForestModelRange range{0, 1};
+  pass.drawTrees(w.renderer, std::span(&inst, 1), std::span(&range, 1));
+  pass.drawLayers(w.renderer, glm::dvec3(0.0), w.vertexCount, 4);
+  const uint32_t group = 0;
+  pass.drawFins(w.renderer, std::span(&group, 1));
+  const render::RenderStats st = w.renderer.endFrame();
+  EXPECT_EQ(st.triangles, 0u);
+  EXPECT_EQ(st.drawCalls, 0u);
+  EXPECT_EQ(pass.layerCount(), 0);
+  EXPECT_EQ(w.renderer.errors(), "");
+}
+
+// renderForestTextures never reports success with textures validateForestTextures rejects: a
+// tree model of no height (a valid mesh lying on the ground) or an infinite tile is refused
+// with an error naming the value.
+TEST(ForestGL, TexturesFromFlatModelsOrAnInfiniteTileFail) {
+  World w;
+  ASSERT_NO_FATAL_FAILURE(w.setUp());
+  render::ForestTextureDesc d;
+  d.layers = 2;
+  d.size_px = 16;
+  d.treesPerTile = 4;
+  d.supersample = 1;
+  std::string error;
+  lod::TreeMesh flat;
+  flat.name = "flat";
+  const float pos[3][3] = {{0.0f, 0.0f, 0.0f}, {1.0f, 0.0f, 0.0f}, {0.0f, 1.0f, 0.0f}};
+  for (const auto& p : pos) {
+    lod::TreeVertex v{};
+    for (int k = 0; k < 3; ++k) v.position[k] = p[k];
+    v.normal[2] = 1.0f;
+    v.rgba[1] = v.rgba[3] = 255;
+    flat.vertices.push_back(v);
+  }
+  flat.indices = {0, 1, 2};
+  lod::measureTree(flat);
+  ASSERT_TRUE(lod::validateTreeMesh(flat, error)) << error;
+  render::ForestTextures t;
+  EXPECT_FALSE(render::renderForestTextures(std::span(&flat, 1), d, t, error))
+      << "height_m = " << t.height_m << ", valid: " << render::validateForestTextures(t, error);
+  EXPECT_NE(error.find("high"), std::string::npos) << error;
+  const std::vector<lod::TreeMesh> models = proceduralTrees();
+  d.tile_m = std::numeric_limits<double>::infinity();
+  render::ForestTextures t2;
+  EXPECT_FALSE(render::renderForestTextures(models, d, t2, error)) << "tile_m = " << t2.tile_m;
+  EXPECT_NE(error.find("tile_m"), std::string::npos) << error;
+  d.tile_m = 24.0;
+  d.finSliceDepth_m = std::numeric_limits<double>::infinity();
+  EXPECT_FALSE(render::renderForestTextures(models, d, t2, error));
+  EXPECT_EQ(w.renderer.errors(), "");
+}
+
+// No tree models at all: an error, not a division by zero while planting the tile.
+TEST(ForestGL, TexturesWithoutModelsFail) {
+  World w;
+  ASSERT_NO_FATAL_FAILURE(w.setUp());
+  render::ForestTextureDesc d;
+  d.layers = 2;
+  d.size_px = 16;
+  render::ForestTextures t;
+  std::string error;
+  EXPECT_FALSE(render::renderForestTextures(std::span<const lod::TreeMesh>(), d, t, error));
+  EXPECT_NE(error.find("tree models"), std::string::npos) << error;
+  EXPECT_EQ(w.renderer.errors(), "");
+}
+
+// A generated map finer than one GL texture holds (more than 16384 cells a side) is refused with
+// an error naming forest.cell_m before it is allocated: here 1e6 x 1e6 cells (4 TB of density
+// alone) over a 1000 km terrain, with a placement spacing inside the slot limit.
+TEST(ForestGL, MapTooLargeForOneTextureIsNamed) {
+  const std::vector<float> heights(4, 0.0f);
+  const ForestGround ground{heights, 2, 2, 1.0e6, glm::dvec3(0.0)};
+  ForestLayerConfig c;
+  c.cell_m = 1.0;
+  c.spacing_m = 100.0;  // 1e8 slots
+  std::string error;
+  EXPECT_FALSE(ForestLayer::create(c, ground, error));
+  EXPECT_NE(error.find("forest.cell_m"), std::string::npos) << error;
+  EXPECT_NE(error.find("16384"), std::string::npos) << error;
+}
+
+// The forest stops at its map: with forest.area_m the eastern half of the terrain, the shell
+// layers (drawn over the whole terrain mesh) leave the western half, outside the map, untouched
+// (outside the map counts as a glade, lod/forest.h) instead of repeating the map's border cells.
+TEST(ForestGL, LayersStopAtTheEdgeOfTheMap) {
+  World w;
+  ASSERT_NO_FATAL_FAILURE(w.setUp());
+  ForestLayerConfig c = w.config();
+  c.map = "";  // generated: forest up to the map's western border
+  c.gladeFraction = 0.0;
+  c.area_m = {512.0, 0.0, 1024.0, 1024.0};
+  std::string error;
+  auto forest = ForestLayer::create(c, w.ground(), error);
+  ASSERT_TRUE(forest) << error;
+  EXPECT_EQ(forest->map().origin_m.x, 512.0);
+  const lod::Camera cam = downCamera(2500.0);  // layers only
+  const render::Image without = w.frame(cam, nullptr);
+  const render::Image with = w.frame(cam, forest.get());
+  lod::Camera skyCam = cam;
+  skyCam.pitch_deg = 90.0;
+  const render::Image sky = w.frame(skyCam, nullptr);
+  int outsideMax = 0;
+  double forestChanged = 0.0;
+  compareHalves(without, with, sky, kW / 2 - 2, kW / 2 + 2, outsideMax, forestChanged);
+  EXPECT_EQ(outsideMax, 0) << "layers drawn west of the map";
+  EXPECT_GT(forestChanged, 0.3) << "layers should tint the map's half";
+  EXPECT_EQ(w.renderer.errors(), "");
+}
