@@ -68,8 +68,9 @@ const FrameTiming& FramePacer::endFrame() {
   }
   if (!freeRun_) {
     if (end > nextSlotTime) {
-      // First slot that has not started yet: skip the ones we ran past.
-      const int64_t firstFuture = (end - t0_ns_) / period_ns_ + 1;
+      // First slot that has not started yet (one starting exactly at `end` has not, as for the
+      // next slot above): skip the ones we ran past.
+      const int64_t firstFuture = (end - t0_ns_ - 1) / period_ns_ + 1;
       timing_.missedSlots = firstFuture - next;
       next = firstFuture;
     }

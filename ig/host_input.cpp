@@ -16,9 +16,15 @@ bool HostRecorder::open(const std::string& file, std::string& error) {
   }
   file_ = file;
   const std::string header = io::recordingHeader();
-  std::fputs(header.c_str(), out_);
-  std::fflush(out_);
+  if (std::fputs(header.c_str(), out_) < 0 || std::fflush(out_) != 0) {
+    error = "host.record_file '" + file + "': cannot write: " + std::strerror(errno);
+    std::fclose(out_);
+    out_ = nullptr;
+    return false;
+  }
   stopping_ = false;
+  failed_ = 0;
+  firstError_.clear();
   thread_ = std::thread([this] { run(); });
   return true;
 }
@@ -40,13 +46,29 @@ void HostRecorder::run() {
     batch.swap(pending_);
     const bool last = stopping_;
     lock.unlock();
-    for (const io::HostSample& s : batch) std::fputs(io::formatSample(s).c_str(), out_);
-    if (!batch.empty()) std::fflush(out_);
-    written_ += batch.size();
+    bool ok = true;
+    for (const io::HostSample& s : batch) ok = std::fputs(io::formatSample(s).c_str(), out_) >= 0 && ok;
+    if (!batch.empty()) ok = std::fflush(out_) == 0 && ok;
+    const int err = errno;
+    if (ok) {
+      written_ += batch.size();
+    } else {
+      std::clearerr(out_);  // a later batch may succeed (space freed)
+      const std::string why = "host.record_file '" + file_ + "': write failed: " + std::strerror(err);
+      if (failed_.fetch_add(batch.size()) == 0)
+        std::fprintf(stderr, "igd: %s; host samples are being lost\n", why.c_str());
+      std::lock_guard<std::mutex> errorLock(errorMutex_);
+      if (firstError_.empty()) firstError_ = why;
+    }
     batch.clear();
     lock.lock();
     if (last && pending_.empty()) return;
   }
+}
+
+std::string HostRecorder::firstError() const {
+  std::lock_guard<std::mutex> lock(errorMutex_);
+  return firstError_;
 }
 
 void HostRecorder::close() {

@@ -34,13 +34,19 @@ class HostRecorder {
   HostRecorder(const HostRecorder&) = delete;
   HostRecorder& operator=(const HostRecorder&) = delete;
 
-  // Creates (truncates) the file, writes the header and starts the writer thread.
+  // Creates (truncates) the file, writes the header and starts the writer thread. False with
+  // an error naming the file when it cannot be created or the header cannot be written (a full
+  // disk): a recording that would stay empty fails at start-up.
   bool open(const std::string& file, std::string& error);
   // Queues one sample (any thread; never blocks on the file).
   void append(const io::HostSample& sample);
   // Writes what is queued, stops the thread, closes the file. Idempotent.
   void close();
+  // Samples that reached the file, and samples lost to write errors (a full disk, an I/O error:
+  // the batch whose write or flush failed). The first error is logged once when it happens.
   uint64_t written() const { return written_.load(); }
+  uint64_t failed() const { return failed_.load(); }
+  std::string firstError() const;
   const std::string& file() const { return file_; }
 
  private:
@@ -53,6 +59,9 @@ class HostRecorder {
   bool stopping_ = false;
   std::thread thread_;
   std::atomic<uint64_t> written_{0};
+  std::atomic<uint64_t> failed_{0};
+  mutable std::mutex errorMutex_;
+  std::string firstError_;  // errorMutex_
 };
 
 class HostInput final : public io::HostSink {

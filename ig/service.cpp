@@ -986,6 +986,9 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
         status->start(clock.now_ns());
       }
     } else {
+      // A reload that switches the report off: its file goes too, as when it moves (left, it
+      // would say "running" forever).
+      if (status) status->reconfigure(std::string(), cfg.statusInterval_s, cfg.rate_hz);
       status.reset();
     }
     statusErrorLogged = false;
@@ -1074,6 +1077,7 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
   };
   notifier.ready("rendering at " + std::to_string(cfg.rate_hz) + " Hz");
   std::string why;
+  bool statsErrorLogged = false;
   bool hostWasBad = false;
   bool prevOverrun = false;
   char snapshotPath[4096];
@@ -1180,6 +1184,10 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
     }
     r.period_ms = pacer.period_s() * 1e3;
     stats.write(r);
+    if (!stats.error().empty() && !statsErrorLogged) {
+      std::fprintf(stderr, "igd: %s; stats lines are being lost\n", stats.error().c_str());
+      statsErrorLogged = true;
+    }
     m.summary.add(r);
     const int64_t now = clock.now_ns();
     notifier.watchdog(now);
@@ -1213,15 +1221,20 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
     }
   }
   if (pending) pending->thread.join();
+  if (!stats.close() && !statsErrorLogged) std::fprintf(stderr, "igd: %s\n", stats.error().c_str());
   if (status) notifier.status(status->report(clock.now_ns(), statusContext("stopping")));
   notifier.stopping();
   if (m.hostInput) {
     m.hostInput->stop();
     const std::string line = m.hostInput->countersLine();
     if (!line.empty()) std::fprintf(stderr, "%s\n", line.c_str());
-    if (HostRecorder* rec = m.hostInput->recorder())
+    if (HostRecorder* rec = m.hostInput->recorder()) {
       std::fprintf(stderr, "igd: recorded %llu host samples to %s\n", static_cast<unsigned long long>(rec->written()),
                    rec->file().c_str());
+      if (rec->failed() > 0)
+        std::fprintf(stderr, "igd: %llu host samples were not recorded (first: %s)\n",
+                     static_cast<unsigned long long>(rec->failed()), rec->firstError().c_str());
+    }
   }
   if (m.snapshots) {
     m.snapshots->flush();

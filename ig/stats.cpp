@@ -16,6 +16,8 @@ bool StatsWriter::open(const std::string& file, StatsFormat format, const std::s
     error = "stats file '" + file + "': cannot write: " + std::strerror(errno);
     return false;
   }
+  path_ = file;
+  error_.clear();
   format_ = format;
   if (format_ == StatsFormat::Csv) {
     std::fputs("frame,t_ms,period_ms,interval_ms,lateness_ms", file_);
@@ -24,7 +26,17 @@ bool StatsWriter::open(const std::string& file, StatsFormat format, const std::s
   } else {
     std::fprintf(file_, "{\"run\":{%s}}\n", runInfo.c_str());
   }
+  if (std::fflush(file_) != 0) {
+    error = "stats file '" + file + "': cannot write: " + std::strerror(errno);
+    std::fclose(file_);
+    file_ = nullptr;
+    return false;
+  }
   return true;
+}
+
+void StatsWriter::noteError() {
+  if (error_.empty()) error_ = "stats file '" + path_ + "': write failed: " + std::strerror(errno);
 }
 
 void StatsWriter::write(const FrameRecord& r) {
@@ -66,13 +78,15 @@ void StatsWriter::write(const FrameRecord& r) {
                  r.simTime_s, r.eyeEast_m, r.eyeNorth_m, r.eyeHeight_m, r.heading_deg, r.hostLost ? "true" : "false", t.between_ms,
                  gov[0], gov[1], gov[2], gov[3], gov[4], gov[5]);
   }
+  if (std::ferror(file_) && error_.empty()) noteError();  // stdio keeps the error of a failed buffer write
 }
 
-void StatsWriter::close() {
+bool StatsWriter::close() {
   if (file_) {
-    std::fclose(file_);
+    if (std::fclose(file_) != 0) noteError();
     file_ = nullptr;
   }
+  return error_.empty();
 }
 
 SummaryCollector::SummaryCollector(size_t capacity) : capacity_(std::clamp<size_t>(capacity, 1, kMaxCapacity)) {

@@ -47,14 +47,22 @@ class StatsWriter {
   StatsWriter(const StatsWriter&) = delete;
   StatsWriter& operator=(const StatsWriter&) = delete;
   // Opens (truncates) the file and writes the header (CSV) or a first "run" object (JSONL)
-  // with `runInfo` (a JSON object's members, e.g. "\"layers\":[\"terrain\"]").
+  // with `runInfo` (a JSON object's members, e.g. "\"layers\":[\"terrain\"]"). False with an
+  // error naming the file if it cannot be created or the header cannot be written (a full disk).
   bool open(const std::string& file, StatsFormat format, const std::string& runInfo, std::string& error);
   void write(const FrameRecord& r);
-  void close();
+  // Flushes and closes the file; false if that or any earlier write failed (see error()).
+  bool close();
+  // The first write error ("" if none): a full disk or an I/O error loses lines; the stdio
+  // buffer reports it when it is flushed, so it may show a few frames late, or only at close().
+  const std::string& error() const { return error_; }
 
  private:
+  void noteError();
   FILE* file_ = nullptr;
+  std::string path_;
   StatsFormat format_ = StatsFormat::Csv;
+  std::string error_;
 };
 
 struct RunSummary {

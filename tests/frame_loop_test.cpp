@@ -3,7 +3,13 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
+#include <filesystem>
 #include <limits>
+#include <string>
+
+#include <fcntl.h>
+#include <unistd.h>
 
 #include "ig/clock.h"
 #include "ig/frame_loop.h"
@@ -82,6 +88,22 @@ TEST(FramePacer, WorkEndingExactlyOnTheNextSlotIsNotAnOverrun) {
   pacer.beginFrame();
   clock.advance_ns(10 * kMs + 1);
   EXPECT_TRUE(pacer.endFrame().overrun);
+}
+
+// The same rule a few slots on: work that ends exactly on slot 3 ran past slots 1 and 2 only;
+// slot 3 starts then, without sleeping a whole period and counting it as missed.
+TEST(FramePacer, WorkEndingExactlyOnALaterSlotStartsThatSlot) {
+  FakeClock clock;
+  FramePacer pacer(clock, 100.0, false);  // 10 ms
+  const int64_t t0 = clock.now_ns();
+  EXPECT_EQ(pacer.beginFrame(), 0);
+  clock.advance_ns(30 * kMs);
+  const FrameTiming& t = pacer.endFrame();
+  EXPECT_TRUE(t.overrun);
+  EXPECT_EQ(t.missedSlots, 2);
+  EXPECT_EQ(pacer.beginFrame(), 3);
+  EXPECT_EQ(clock.now_ns(), t0 + 30 * kMs);  // no sleep: slot 3 is now
+  EXPECT_EQ(pacer.missedSlots(), 2);
 }
 
 TEST(FramePacer, LateWakeUpIsReportedAsLateness) {
@@ -190,4 +212,44 @@ TEST(Json, StringsAreEscapedAndNonFiniteNumbersAreNull) {
   EXPECT_EQ(ig::jsonNumber(-std::numeric_limits<double>::infinity(), 2), "null");
   EXPECT_EQ(ig::jsonNumber(1.005, 1), "1.0");
   EXPECT_EQ(ig::jsonNumber(2.5, 2), "2.50");
+}
+
+// A stats file the disk refuses (full, I/O error) is not silently empty: opening reports a
+// header that cannot be written, and a write error later in the run (stdio reports it when
+// its buffer is flushed, at the latest in close()) is kept for igd to log. /dev/full fails
+// every write with ENOSPC.
+TEST(Stats, WriteErrorsOfTheStatsFileAreReported) {
+  ASSERT_TRUE(std::filesystem::exists("/dev/full"));  // Linux always has it
+  StatsWriter w;
+  std::string error;
+  EXPECT_FALSE(w.open("/dev/full", StatsFormat::Csv, "", error));
+  EXPECT_NE(error.find("/dev/full"), std::string::npos) << error;
+
+  // A write that fails after a good open: the file's descriptor is pointed at /dev/full.
+  const std::string file =
+      (std::filesystem::temp_directory_path() / ("igd_stats_full_" + std::to_string(::getpid()) + ".csv")).string();
+  StatsWriter late;
+  error.clear();
+  ASSERT_TRUE(late.open(file, StatsFormat::JsonLines, "\"layers\":[]", error)) << error;
+  const int full = ::open("/dev/full", O_WRONLY);
+  ASSERT_GE(full, 0);
+  // Find the writer's descriptor by its path and put /dev/full in its place.
+  bool swapped = false;
+  for (int fd = 3; fd < 1024 && !swapped; ++fd) {
+    char link[64], target[4096];
+    std::snprintf(link, sizeof link, "/proc/self/fd/%d", fd);
+    const ssize_t n = ::readlink(link, target, sizeof target - 1);
+    if (n <= 0) continue;
+    target[n] = '\0';
+    if (std::filesystem::path(target) == std::filesystem::canonical(file)) swapped = ::dup2(full, fd) == fd;
+  }
+  ::close(full);
+  ASSERT_TRUE(swapped);
+  FrameRecord r;
+  late.write(r);  // fits in stdio's buffer: nothing reached the file yet
+  EXPECT_EQ(late.error(), "");
+  for (int i = 0; i < 200; ++i) late.write(r);  // about 100 KiB: stdio writes, the disk refuses
+  EXPECT_NE(late.error().find(file), std::string::npos) << late.error();  // known during the run
+  EXPECT_FALSE(late.close());
+  std::filesystem::remove(file);
 }

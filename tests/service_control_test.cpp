@@ -10,6 +10,8 @@
 #include <limits>
 #include <sstream>
 
+#include <signal.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include "ig/clock.h"
@@ -309,4 +311,58 @@ TEST(HostInputRecorder, SamplesBeforeTheLoopGetZeroAndLoopTimesAreKept) {
     EXPECT_NEAR(rec.samples[i].t_s, 0.1 * static_cast<double>(i - 20), 1e-6) << "loop sample " << i;
   // Replay frame 0 (t = 0) renders the newest pre-loop sample, as the live frame 0 did.
   EXPECT_EQ(ig::io::sampleAt(rec, 0.0).state.hostFrame, 20u);
+}
+
+// A recording that cannot be written fails at start-up with an error naming the file, instead
+// of running for hours into a file that stays empty. /dev/full fails every write with ENOSPC.
+TEST(HostInputRecorder, AFileThatCannotBeWrittenFailsAtOpen) {
+  ASSERT_TRUE(std::filesystem::exists("/dev/full"));  // Linux always has it
+  ig::HostRecorder rec;
+  std::string error;
+  EXPECT_FALSE(rec.open("/dev/full", error));
+  EXPECT_NE(error.find("/dev/full"), std::string::npos) << error;
+  ig::io::LatestValueMailbox<ig::io::HostState> mailbox;
+  ig::FakeClock clock;
+  ig::HostInput input(mailbox, clock);
+  error.clear();
+  EXPECT_FALSE(input.start(nullptr, "/dev/full", 1.0, error));
+  EXPECT_NE(error.find("host.record_file"), std::string::npos) << error;
+}
+
+// Samples whose write fails after a good start (the disk fills up during the run) are counted
+// as lost, not as recorded: igd's "recorded N host samples" must not claim what is not in the
+// file. The file size limit (RLIMIT_FSIZE, SIGXFSZ ignored) makes writes past 2 KiB fail with
+// EFBIG; both are put back afterwards.
+TEST(HostInputRecorder, WriteErrorsDuringTheRunAreLostSamplesNotRecordedOnes) {
+  const std::string file =
+      (std::filesystem::temp_directory_path() / ("igd_host_rec_full_" + std::to_string(::getpid()) + ".rec")).string();
+  rlimit old{};
+  ASSERT_EQ(getrlimit(RLIMIT_FSIZE, &old), 0);
+  struct sigaction ignore {}, oldAction {};
+  ignore.sa_handler = SIG_IGN;
+  sigemptyset(&ignore.sa_mask);
+  ASSERT_EQ(sigaction(SIGXFSZ, &ignore, &oldAction), 0);
+  rlimit small = old;
+  small.rlim_cur = 2048;
+  ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &small), 0);
+  ig::HostRecorder rec;
+  std::string error;
+  const bool opened = rec.open(file, error);
+  constexpr uint64_t kSamples = 200;  // about 20 KiB of lines
+  for (uint64_t i = 0; opened && i < kSamples; ++i) {
+    ig::io::HostSample s;
+    s.t_s = 0.01 * static_cast<double>(i);
+    s.state.hostFrame = i;
+    rec.append(s);
+  }
+  rec.close();
+  setrlimit(RLIMIT_FSIZE, &old);
+  sigaction(SIGXFSZ, &oldAction, nullptr);
+  const auto size = std::filesystem::file_size(file);
+  std::filesystem::remove(file);
+  ASSERT_TRUE(opened) << error;
+  EXPECT_LE(size, 2048u);
+  EXPECT_LT(rec.written(), kSamples) << "the file holds " << size << " bytes";
+  EXPECT_EQ(rec.written() + rec.failed(), kSamples);
+  EXPECT_NE(rec.firstError().find(file), std::string::npos) << rec.firstError();
 }

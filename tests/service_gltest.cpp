@@ -4,10 +4,12 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <thread>
 
 #include "gl_fixture.h"
 #include "ig/clock.h"
@@ -355,5 +357,77 @@ TEST(ServiceGL, RoamWritesOnlyChangedTrianglesToTheGpu) {
   // The first frame writes the mesh; once the camera flies smoothly, a few per cent per frame.
   EXPECT_GT(rows[0].second, rows[0].first / 2);
   for (size_t i = 10; i < rows.size(); ++i) EXPECT_LT(rows[i].second, 0.1 * rows[i].first) << "frame " << i;
+  std::filesystem::remove_all(dir);
+}
+
+namespace {
+// A fake clock that asks for a config reload at its 5th frame deadline and, until the service
+// has applied it, holds each later deadline until the reload thread has read the files.
+class ReloadingClock final : public Clock {
+ public:
+  ReloadingClock(ReloadSource& reload, const Service*& service, std::atomic<bool>& loaded, std::atomic<bool>& stop,
+                 std::filesystem::path statusFile)
+      : reload_(reload), service_(service), loaded_(loaded), stop_(stop), statusFile_(std::move(statusFile)) {}
+  int64_t now_ns() const override { return clock_.now_ns(); }
+  void sleepUntil_ns(int64_t deadline_ns) override {
+    clock_.sleepUntil_ns(deadline_ns);
+    ++sleeps_;
+    // The render thread calls this, so reading the service's generation here is race-free.
+    if (service_->configGeneration() > 1) {
+      stop_ = true;  // this frame is the last
+    } else if (sleeps_ == 5) {
+      statusBeforeReload = std::filesystem::exists(statusFile_);
+      reload_.requested = true;
+    } else if (sleeps_ > 5) {
+      for (int i = 0; i < 5000 && !loaded_; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+  }
+  bool statusBeforeReload = false;
+
+ private:
+  FakeClock clock_;
+  ReloadSource& reload_;
+  const Service*& service_;
+  std::atomic<bool>& loaded_;
+  std::atomic<bool>& stop_;
+  std::filesystem::path statusFile_;
+  int64_t sleeps_ = 0;
+};
+}  // namespace
+
+// A reload that switches the status file off (status_file = "" with no systemd to report to)
+// removes the file, as one that moves it to another path does (ig/status.h): left behind, it
+// would say "running" long after igd stopped.
+TEST(ServiceGL, AReloadThatSwitchesTheStatusFileOffRemovesIt) {
+  const auto dir = std::filesystem::temp_directory_path() / ("igd_service_status_off_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  ServiceConfig cfg;
+  SceneConfig scene;
+  test::defaultConfigs(cfg, scene);
+  cfg.frames = 200;  // a bound; the clock stops the run once the reload is applied
+  cfg.rate_hz = 30;
+  cfg.statusFile = (dir / "status.json").string();
+  cfg.statusInterval_s = 0.05;  // a report every other frame
+  std::string error;
+  auto service = Service::create(cfg, scene, error);
+  ASSERT_TRUE(service) << error;
+  std::atomic<bool> loaded{false}, stop{false};
+  ReloadSource reload;
+  reload.load = [&](ServiceConfig& c, SceneConfig& s, std::string&) {
+    c = cfg;
+    c.statusFile = "";
+    s = scene;
+    loaded = true;
+    return true;
+  };
+  const Service* running = service.get();
+  ReloadingClock clock(reload, running, loaded, stop, cfg.statusFile);
+  ASSERT_EQ(service->run(clock, stop, &reload), 0);
+  EXPECT_EQ(service->configGeneration(), 2);
+  EXPECT_TRUE(clock.statusBeforeReload);  // the report was there before the reload
+  std::string left;
+  if (std::ifstream in(cfg.statusFile); in) std::getline(in, left);
+  EXPECT_FALSE(std::filesystem::exists(cfg.statusFile)) << "left behind: " << left;
   std::filesystem::remove_all(dir);
 }
