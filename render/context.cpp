@@ -7,6 +7,8 @@
 #include <GLFW/glfw3.h>
 
 #include <cstdio>
+#include <map>
+#include <mutex>
 #include <vector>
 
 #include "render/gl.h"
@@ -29,13 +31,53 @@ std::string glDescription() {
          reinterpret_cast<const char*>(gl.GetString(GL_RENDERER));
 }
 
+// EGL displays are per process: every surfaceless context of the process gets the same
+// EGLDisplay, and eglInitialize / eglTerminate do not count. The display is initialised with the
+// first context made on it and terminated with the last one that goes: terminating it with the
+// first released every other context on it (their GL calls then did nothing: black frames, no
+// GL error).
+// (Never destroyed: a context held in a static object may go after this file's statics.)
+struct DisplayUsers {
+  std::mutex mutex;
+  std::map<EGLDisplay, int> count;
+};
+DisplayUsers& displayUsers() {
+  static auto* users = new DisplayUsers;
+  return *users;
+}
+
+bool acquireDisplay(EGLDisplay display) {
+  DisplayUsers& d = displayUsers();
+  std::lock_guard<std::mutex> lock(d.mutex);
+  int& users = d.count[display];
+  if (users == 0) {
+    EGLint major = 0, minor = 0;
+    if (!eglInitialize(display, &major, &minor)) {
+      d.count.erase(display);
+      return false;
+    }
+  }
+  ++users;
+  return true;
+}
+
+void releaseDisplay(EGLDisplay display) {
+  DisplayUsers& d = displayUsers();
+  std::lock_guard<std::mutex> lock(d.mutex);
+  const auto it = d.count.find(display);
+  if (it != d.count.end() && --it->second > 0) return;
+  if (it != d.count.end()) d.count.erase(it);
+  eglTerminate(display);
+}
+
 class EglHeadlessContext final : public GlContext {
  public:
   ~EglHeadlessContext() override {
     if (display_ != EGL_NO_DISPLAY) {
-      eglMakeCurrent(display_, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
+      // Only this context is released: the thread may have a later one current.
+      if (eglGetCurrentContext() == context_) eglMakeCurrent(display_, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
       if (context_ != EGL_NO_CONTEXT) eglDestroyContext(display_, context_);
-      eglTerminate(display_);
+      releaseDisplay(display_);
     }
   }
 
@@ -74,14 +116,13 @@ class EglHeadlessContext final : public GlContext {
       error = eglErrorText("eglGetPlatformDisplay");
       return false;
     }
-    EGLint major = 0, minor = 0;
-    if (!eglInitialize(display, &major, &minor)) {
+    if (!acquireDisplay(display)) {
       error = eglErrorText("eglInitialize");
       return false;
     }
     if (!eglBindAPI(EGL_OPENGL_API)) {
       error = eglErrorText("eglBindAPI(EGL_OPENGL_API)");
-      eglTerminate(display);
+      releaseDisplay(display);
       return false;
     }
     const EGLint attribs[] = {EGL_CONTEXT_MAJOR_VERSION, 4, EGL_CONTEXT_MINOR_VERSION, 5,
@@ -89,19 +130,19 @@ class EglHeadlessContext final : public GlContext {
     EGLContext context = eglCreateContext(display, EGL_NO_CONFIG_KHR, EGL_NO_CONTEXT, attribs);
     if (context == EGL_NO_CONTEXT) {
       error = eglErrorText("eglCreateContext(GL 4.5 core)");
-      eglTerminate(display);
+      releaseDisplay(display);
       return false;
     }
     if (!eglMakeCurrent(display, EGL_NO_SURFACE, EGL_NO_SURFACE, context)) {
       error = eglErrorText("eglMakeCurrent(no surface)");
       eglDestroyContext(display, context);
-      eglTerminate(display);
+      releaseDisplay(display);
       return false;
     }
     if (!loadGl(eglProc, error)) {
       eglMakeCurrent(display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
       eglDestroyContext(display, context);
-      eglTerminate(display);
+      releaseDisplay(display);
       return false;
     }
     display_ = display;

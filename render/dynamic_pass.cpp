@@ -150,7 +150,9 @@ bool DynamicPass::init(const DynamicPassConfig& config, std::string& error) {
     error = "dynamic pass: maxObjects = " + std::to_string(config.maxObjects) + ": out of range (1 .. 16777216)";
     return false;
   }
-  config_ = config;
+  // Everything is built aside and taken over only once it all succeeded: a failed init leaves
+  // the pass as it was (replacing the configuration first kept the old buffers with the new
+  // maxObjects, which places node commands and instance blocks beyond them).
   lod::OctreeConfig oc;
   oc.bounds = config.bounds;
   oc.maxDepth = config.octreeDepth;
@@ -158,7 +160,8 @@ bool DynamicPass::init(const DynamicPassConfig& config, std::string& error) {
   oc.maxNodes = 2 * config.maxObjects + 64;
   oc.expensiveMinObjects = config.testMinObjects;
   oc.occlusionMaxAge = config.resultMaxAge;
-  if (!octree_.init(oc)) {
+  lod::DynamicOctree octree;
+  if (!octree.init(oc)) {
     error = "dynamic pass: bad octree bounds or depth (depth " + std::to_string(config.octreeDepth) + ")";
     return false;
   }
@@ -248,6 +251,8 @@ bool DynamicPass::init(const DynamicPassConfig& config, std::string& error) {
     error = "dynamic pass init: GL errors " + e;
     return false;
   }
+  config_ = config;
+  octree_ = std::move(octree);
   gpu_ = std::move(g);
   objects_.assign(config.maxObjects, DynamicObject{});
   alive_.assign(config.maxObjects, 0);

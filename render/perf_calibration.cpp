@@ -29,8 +29,9 @@ using Clock = std::chrono::steady_clock;
 // frame (command_count, command_large_ns, command_large_count). 5: the rasterizer's cost per draw
 // command (draw_raster_ns), taken out of raster_tri_ns. 6: the overlap (and the edges) with the
 // share of the boxes that reach the rasterizer (lod::PassLoad::rasterShare). 7: edge_ns from
-// whole frames (the application thread's part of larger boxes too).
-constexpr int kCacheVersion = 7;
+// whole frames (the application thread's part of larger boxes too). 8: T_tri by call size with
+// every box of a call in its leaf (addCalibrationGrid; 7 measured mixed, more calls).
+constexpr int kCacheVersion = 8;
 
 struct Field {
   const char* name;
@@ -175,6 +176,21 @@ bool makePass(DynamicPass& pass, uint32_t maxObjects, uint32_t depth, double bou
 }
 
 }  // namespace
+
+void addCalibrationGrid(DynamicPass& pass, uint32_t nodes, int perNode) {
+  constexpr double kTinyHalf_m = 0.005;
+  // The lattice is centred on the leaf (offsets -0.6, -0.2, 0.2, 0.6 from its centre): from the
+  // centre on (0 ... 1.2) its fourth row lay outside the 2 m leaf, in the next one, and the
+  // leaves held mixed counts (64 a leaf: 1,397 leaves instead of 900).
+  const auto at = [](int i) { return -0.6 + 0.4 * i; };
+  uint32_t k = 0;
+  for (int layer = 0; layer < 4 && k < nodes; ++layer)
+    for (int zi = -6; zi < 6 && k < nodes; ++zi)
+      for (int xi = -14; xi < 14 && k < nodes; ++xi, ++k)
+        for (int j = 0; j < perNode; ++j)
+          pass.add({{2.0 * xi + 1.0 + at(j % 4), 41.0 + 2.0 * layer + at(j / 16), 2.0 * zi + 1.0 + at((j / 4) % 4)},
+                    glm::dvec3(kTinyHalf_m), 0.0, 0xffffffffu});
+}
 
 std::string calibrationKey(const CalibrationOptions& o) {
   return glString(GL_VENDOR) + "|" + glString(GL_RENDERER) + "|" + glString(GL_VERSION) +
@@ -370,16 +386,7 @@ bool measure(const CalibrationOptions& o, lod::PerfConstants& c, std::string& er
     edgeMid = edgeSum(midBoxes);
   }
   // One tiny box per octree leaf (2 m cells): one node range, one indirect call per box.
-  // `perNode` (<= 64) boxes in each cell, 0.4 m apart on a 4 x 4 x 4 lattice inside it.
-  const auto grid = [&](DynamicPass& pass, uint32_t n, int perNode) {
-    uint32_t k = 0;
-    for (int layer = 0; layer < 4 && k < n; ++layer)
-      for (int zi = -6; zi < 6 && k < n; ++zi)
-        for (int xi = -14; xi < 14 && k < n; ++xi, ++k)
-          for (int j = 0; j < perNode; ++j)
-            pass.add({{2.0 * xi + 1.0 + 0.4 * (j % 4), 41.0 + 2.0 * layer + 0.4 * (j / 16), 2.0 * zi + 1.0 + 0.4 * ((j / 4) % 4)},
-                      glm::dvec3(kTinyHalf_m), 0.0, 0xffffffffu});
-  };
+  const auto grid = [](DynamicPass& pass, uint32_t n, int perNode) { addCalibrationGrid(pass, n, perNode); };
   grid(nodesHigh, kNodesHigh, 1);
   grid(nodesDouble, kNodesHigh, 2);
   // T_tri by the size of a call: the same 900 leaves holding 1, 2, 4 ... 64 boxes each (one

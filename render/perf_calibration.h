@@ -43,6 +43,8 @@
 
 namespace ig::render {
 
+class DynamicPass;
+
 struct CalibrationOptions {
   int width_px = 640;          // viewport of the measurements (the fragment costs scale with it)
   int height_px = 360;
@@ -66,6 +68,12 @@ struct CalibrationResult {
 // that cannot be written is not an error (the message goes to `warning`).
 bool calibrate(const std::string& cachePath, const CalibrationOptions& options, CalibrationResult& out,
                std::string& error, std::string* warning = nullptr);
+
+// The loads of T_tri by the size of a call (also for tests): `perNode` (1 ... 64) tiny boxes in
+// each of the first `nodes` (<= 1344) 2 m leaves of an octree over +-64 m of depth 6 (the
+// calibration's), 0.4 m apart on a 4 x 4 x 4 lattice inside the leaf: one instanced call of
+// `perNode` boxes per leaf.
+void addCalibrationGrid(DynamicPass& pass, uint32_t nodes, int perNode);
 
 // The cache key of the current context for these options.
 std::string calibrationKey(const CalibrationOptions& options);

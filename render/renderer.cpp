@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <vector>
 
 #include <glm/gtc/type_ptr.hpp>
@@ -113,8 +114,13 @@ namespace {
 bool completeFramebuffer(GLuint fbo, int width_px, int height_px, std::string& error) {
   const GLenum status = gl.CheckNamedFramebufferStatus(fbo, GL_FRAMEBUFFER);
   if (status == GL_FRAMEBUFFER_COMPLETE) return true;
-  error = "framebuffer " + std::to_string(width_px) + "x" + std::to_string(height_px) + " incomplete (status 0x" +
-          std::to_string(status) + ")";
+  char code[16];
+  std::snprintf(code, sizeof code, "0x%04x", status);
+  error = "framebuffer " + std::to_string(width_px) + "x" + std::to_string(height_px) + " incomplete (status " + code + ")";
+  // The GL errors of the failed set-up (a size beyond GL_MAX_RENDERBUFFER_SIZE: GL_INVALID_VALUE)
+  // belong to this failure. Left queued, they failed the next init (or pass set-up) that checks
+  // for errors, with a message about something else.
+  if (const std::string e = glErrors(); !e.empty()) error += ", GL errors " + e;
   return false;
 }
 

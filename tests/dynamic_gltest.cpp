@@ -197,6 +197,29 @@ TEST_F(DynamicGl, SameImageOneThousandKilometresFromTheOrigin) {
   EXPECT_LT(render::fractionDifferent(images[0], images[1], 2), 0.002);
 }
 
+// A failed init (here: bounds that are not finite) leaves the pass as it was. It replaced the
+// configuration first: the pass kept its buffers for 64 objects but placed the node commands
+// and instance blocks after 4,096, beyond them (GL_INVALID_OPERATION, nothing drawn; writes
+// past the mapped buffers once a node changes).
+TEST_F(DynamicGl, AFailedInitLeavesThePassAsItWas) {
+  auto p = makePass(glm::dvec3(0.0), 1024);
+  for (const DynamicObject& o : scene(false)) ASSERT_NE(p->add(o), render::DynamicPass::kNone);
+  p->setStrategy(DynamicStrategy::Octree);
+  const render::Image before = frame(*p, 1);
+  const uint32_t drawn = p->stats().objectsDrawn;
+  ASSERT_GT(drawn, 500u);
+  render::DynamicPassConfig bad = p->config();
+  bad.maxObjects = 4096;
+  bad.bounds.max.x = std::nan("");
+  std::string error;
+  EXPECT_FALSE(p->init(bad, error));
+  EXPECT_NE(error.find("bounds"), std::string::npos) << error;
+  EXPECT_EQ(p->config().maxObjects, 1024u);
+  const render::Image after = frame(*p, 2);  // expects no GL errors
+  EXPECT_EQ(p->stats().objectsDrawn, drawn);
+  EXPECT_LT(render::fractionDifferent(before, after, 0), 1e-9);
+}
+
 TEST_F(DynamicGl, MovingAnObjectRebuildsOnlyItsNodes) {
   auto p = makePass();
   std::vector<DynamicObject> objs = scene(false);
@@ -519,13 +542,14 @@ TEST_F(DynamicGl, CalibrationCacheRoundTripsAndRejectsCorruptFiles) {
   corrupt("tri_ns 33.25", "tri_ns 33.25x");
   corrupt("tri_ns 33.25\n", "");                 // missing
   corrupt("cull_ns", "cull_ms");                 // unknown field
-  corrupt("version 7", "version 8");
-  corrupt("version 7", "version 1");             // an older calibration (heap not settled)
-  corrupt("version 7", "version 2");             // an older model (frag_block_px, no rasterizer terms)
-  corrupt("version 7", "version 3");             // one T_tri for every draw size, no binning term
-  corrupt("version 7", "version 4");             // no per-draw rasterizer cost (in raster_tri_ns)
-  corrupt("version 7", "version 5");             // the overlap fitted with every box rasterized
-  corrupt("version 7", "version 6");             // T_edge from the rasterizer's side only
+  corrupt("version 8", "version 9");
+  corrupt("version 8", "version 1");             // an older calibration (heap not settled)
+  corrupt("version 8", "version 2");             // an older model (frag_block_px, no rasterizer terms)
+  corrupt("version 8", "version 3");             // one T_tri for every draw size, no binning term
+  corrupt("version 8", "version 4");             // no per-draw rasterizer cost (in raster_tri_ns)
+  corrupt("version 8", "version 5");             // the overlap fitted with every box rasterized
+  corrupt("version 8", "version 6");             // T_edge from the rasterizer's side only
+  corrupt("version 8", "version 7");             // T_tri by call size from leaves of mixed counts
   EXPECT_NE(corrupt("draw_raster_ns 210.25\n", "").find("draw_raster_ns"), std::string::npos);  // missing
   corrupt("draw_raster_ns 210.25", "draw_raster_ns -3");
   EXPECT_NE(corrupt("tri_ns_96 62\n", "").find("tri_ns_96 missing"), std::string::npos);
@@ -539,6 +563,29 @@ TEST_F(DynamicGl, CalibrationCacheRoundTripsAndRejectsCorruptFiles) {
   EXPECT_FALSE(render::readCalibrationCache(path, key, r, why));
   std::remove(path.c_str());
   EXPECT_FALSE(render::readCalibrationCache(path, key, r, why));  // absent
+}
+
+// The loads of T_tri by the size of a call: k boxes in each of 900 leaves, one instanced call of
+// k boxes per leaf, which is what the fit divides by (900 calls of 12 k triangles). A lattice
+// that reaches past its 2 m leaf moves a quarter of each row into the next leaf: up to 1,885
+// calls of mixed sizes.
+TEST_F(DynamicGl, CalibrationGridKeepsEveryBoxOfALeafInThatLeaf) {
+  for (int perNode : {1, 2, 4, 16, 64}) {
+    render::DynamicPassConfig c;
+    c.maxObjects = 900u * static_cast<uint32_t>(perNode);
+    c.octreeDepth = 6;
+    c.bounds = {glm::dvec3(-64.0), glm::dvec3(64.0)};
+    render::DynamicPass pass;
+    std::string error;
+    ASSERT_TRUE(pass.init(c, error)) << error;
+    render::addCalibrationGrid(pass, 900, perNode);
+    EXPECT_EQ(pass.objectCount(), 900u * static_cast<uint32_t>(perNode));
+    EXPECT_EQ(pass.octree().nonEmptyNodes(), 900u) << perNode << " boxes a leaf";
+    size_t wrong = 0;
+    for (const auto& n : pass.octree().nodes())
+      if (!n.objects.empty() && (n.objects.size() != static_cast<size_t>(perNode) || n.depth != 6)) ++wrong;
+    EXPECT_EQ(wrong, 0u) << perNode << " boxes a leaf";
+  }
 }
 
 TEST_F(DynamicGl, CalibrateUsesAMatchingCacheAndRewritesACorruptOne) {

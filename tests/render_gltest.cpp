@@ -367,3 +367,51 @@ TEST(RenderGL, TerrainDetailOnlyNearTheGroundAndTheSamePictureFar) {
   EXPECT_GT(render::rmse(halves(low, 1, 0, 0.0), lowFull), 0.0) << "a range marked far is drawn without the detail";
   EXPECT_EQ(halves(high, 0, 1, 0.0).rgba, highFull.rgba);
 }
+
+// A frame size the GL cannot make (beyond GL_MAX_RENDERBUFFER_SIZE) is an error naming the
+// size and the framebuffer status (in hex), and its GL errors go with it: left queued, they
+// made the next, valid init fail with "GL errors 0x0501" (and any pass set-up that checks).
+TEST(RenderGL, AFailedInitLeavesNoGlErrorsBehind) {
+  std::string error;
+  auto ctx = render::createContext(render::ContextKind::Headless, 64, 64, error);
+  ASSERT_TRUE(ctx) << error;
+  GLint maxSize = 0;
+  render::gl.GetIntegerv(GL_MAX_RENDERBUFFER_SIZE, &maxSize);
+  ASSERT_GT(maxSize, 0);
+  render::Renderer renderer;
+  EXPECT_FALSE(renderer.init(maxSize + 1, 64, error));
+  EXPECT_NE(error.find(std::to_string(maxSize + 1) + "x64 incomplete (status 0x8cd6)"), std::string::npos) << error;
+  EXPECT_EQ(renderer.errors(), "");
+  error.clear();
+  EXPECT_TRUE(renderer.init(64, 64, error)) << error;
+  EXPECT_EQ(renderer.width(), 64);
+}
+
+// Every headless context of a process is made on the same EGL display. Destroying one while a
+// later one is current must leave the later one working: it terminated the display and released
+// the thread's current context, and the later context's GL calls then did nothing (a black frame,
+// no GL error).
+TEST(RenderGL, DestroyingOneHeadlessContextKeepsAnotherWorking) {
+  std::string error;
+  auto first = render::createContext(render::ContextKind::Headless, 64, 64, error);
+  ASSERT_TRUE(first) << error;
+  auto second = render::createContext(render::ContextKind::Headless, 64, 64, error);
+  ASSERT_TRUE(second) << error;
+  render::Renderer renderer;
+  ASSERT_TRUE(renderer.init(32, 32, error)) << error;
+  first.reset();
+  render::Lighting sky;
+  sky.fogColor = {1.0, 0.0, 0.0};
+  renderer.beginFrame(lod::Camera{}, sky);
+  renderer.endFrame();
+  renderer.finish();
+  render::Image image;
+  renderer.readPixels(image);
+  ASSERT_EQ(image.rgba.size(), 32u * 32u * 4u);
+  EXPECT_EQ(image.rgba[0], 255);  // the sky colour the frame was cleared to
+  EXPECT_EQ(image.rgba[1], 0);
+  EXPECT_EQ(renderer.errors(), "");
+  // And a context made after that works too (the display is still initialised or made again).
+  auto third = render::createContext(render::ContextKind::Headless, 64, 64, error);
+  ASSERT_TRUE(third) << error;
+}
