@@ -1,6 +1,7 @@
 #include "ig/worker_pair.h"
 
 #include <chrono>
+#include <thread>
 
 #if defined(__x86_64__) || defined(__i386__)
 #include <immintrin.h>
@@ -50,9 +51,15 @@ void WorkerPair::forEach(uint32_t chunks, ChunkFn fn, void* ctx) {
   uint32_t mine = 0, ordinal = 0, n = 0;
   while (take(gen_, ordinal, n)) fn(ctx, mine++, 0);  // the front, in order
   const uint32_t theirs = chunks - mine;
+  // The helper is in a chunk: spin, then yield (it was preempted), then sleep. yield() hands the
+  // CPU only to threads of this thread's priority: a SCHED_FIFO render thread ([service]
+  // realtime_priority) sharing a CPU with the normal helper would get its chunk back only when
+  // the kernel throttles real-time threads (~1 s). A sleep lets any thread run.
   for (uint32_t spins = 0; helperDone_.load(std::memory_order_acquire) != theirs; ++spins) {
     IG_PAUSE();
-    if (spins > 4096) std::this_thread::yield();  // the helper was preempted in a chunk
+    if (spins < 4096) continue;
+    if (spins < 4096 + 256) std::this_thread::yield();
+    else std::this_thread::sleep_for(std::chrono::microseconds(20));
   }
 }
 

@@ -6,6 +6,9 @@
 // is done. A helper that wakes late just takes fewer chunks (none, for a short pass), so a pass
 // never waits for the helper to wake, only for a chunk it is running.
 //
+// A caller waiting for a chunk the helper is running spins, yields, then sleeps 20 us at a time,
+// so that a real-time caller on the helper's CPU lets it finish.
+//
 // Between passes the helper spins for `spin_us` (the passes of one frame follow each other within
 // microseconds), then sleeps in the kernel (futex, std::atomic::wait) until the next pass: an idle
 // selector costs no CPU. The thread exists only while the WorkerPair does: a scene without cells

@@ -4,10 +4,16 @@
 
 #include <gtest/gtest.h>
 
+#include <pthread.h>
+#include <sched.h>
+
 #include <atomic>
+#include <condition_variable>
+#include <mutex>
 #include <bit>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <random>
 #include <string>
 #include <thread>
@@ -98,6 +104,91 @@ class HelperTakesPartRunner final : public lod::ChunkRunner {
   }
   WorkerPair& pair_;
 };
+
+// igd's render thread may run SCHED_FIFO ([service] realtime_priority) pinned to one CPU
+// (cpu_affinity) while the helper, made before that, is a normal thread that can share that CPU.
+// When the render thread preempts the helper in the middle of a chunk and then waits for it, the
+// wait must let the helper run: std::this_thread::yield() gives the CPU only to threads of the
+// caller's own priority, so the helper got none until the kernel's real-time throttling (up to
+// 0.95 s a second). Needs SCHED_FIFO (igd's tests run as root).
+struct Preempted {
+  std::atomic<bool> helperStarted{false};
+  std::atomic<bool> helperDone{false};
+};
+
+void preemptedChunk(void* ctx, uint32_t, uint32_t worker) {
+  Preempted& p = *static_cast<Preempted*>(ctx);
+  if (worker == 0) {
+    // The caller's chunk: sleep until the helper is inside its chunk, then preempt it.
+    for (int i = 0; i < 2000 && !p.helperStarted.load(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    return;
+  }
+  p.helperStarted = true;
+  // 30 ms of CPU time: the caller wakes from its sleep in the middle of it.
+  timespec t0{}, t{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t0);
+  do {
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  } while ((t.tv_sec - t0.tv_sec) * 1000000000LL + (t.tv_nsec - t0.tv_nsec) < 30000000LL);
+  p.helperDone = true;
+}
+
+TEST(WorkerPair, ARealtimeCallerLetsAPreemptedHelperFinish) {
+  // A watchdog above the caller's priority: if the wait never lets the helper run (no real-time
+  // throttling on this kernel), it puts the caller back to normal scheduling after 3 s.
+  const pthread_t caller = pthread_self();
+  std::mutex m;
+  std::condition_variable cv;
+  bool finished = false, fired = false;
+  std::thread watchdog([&] {
+    sched_param hi{};
+    hi.sched_priority = 2;
+    pthread_setschedparam(pthread_self(), SCHED_FIFO, &hi);
+    std::unique_lock<std::mutex> lock(m);
+    if (!cv.wait_for(lock, std::chrono::seconds(3), [&] { return finished; })) {
+      fired = true;
+      sched_param normal{};
+      pthread_setschedparam(caller, SCHED_OTHER, &normal);
+    }
+  });
+  cpu_set_t before;
+  ASSERT_EQ(pthread_getaffinity_np(caller, sizeof before, &before), 0);
+  cpu_set_t one;
+  CPU_ZERO(&one);
+  for (int c = 0; c < CPU_SETSIZE; ++c) {
+    if (CPU_ISSET(c, &before)) {
+      CPU_SET(c, &one);
+      break;
+    }
+  }
+  ASSERT_EQ(pthread_setaffinity_np(caller, sizeof one, &one), 0);
+  double elapsed_s = 0.0;
+  Preempted p;
+  {
+    WorkerPair pair;  // the helper: a normal thread on the caller's one CPU
+    sched_param rt{};
+    rt.sched_priority = 1;
+    const int rc = pthread_setschedparam(caller, SCHED_FIFO, &rt);
+    EXPECT_EQ(rc, 0) << "SCHED_FIFO refused: " << std::strerror(rc);
+    const auto t0 = std::chrono::steady_clock::now();
+    pair.forEach(2, preemptedChunk, &p);
+    elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    sched_param normal{};
+    pthread_setschedparam(caller, SCHED_OTHER, &normal);
+  }
+  pthread_setaffinity_np(caller, sizeof before, &before);
+  {
+    std::lock_guard<std::mutex> lock(m);
+    finished = true;
+  }
+  cv.notify_one();
+  watchdog.join();
+  EXPECT_TRUE(p.helperStarted.load());
+  EXPECT_TRUE(p.helperDone.load());
+  EXPECT_FALSE(fired) << "the caller waited for the helper without ever letting it run";
+  // About 30 ms of helper work; the throttled wait took about 1 s.
+  EXPECT_LT(elapsed_s, 0.5) << "the helper only ran when the kernel throttled the real-time caller";
+}
 
 TEST(WorkerPair, CellSelectionOnTwoThreadsChoosesExactlyAsOnOne) {
   std::mt19937 rng(11);
