@@ -2,11 +2,14 @@
 // perf_calibration.h.
 #include "render/perf_calibration.h"
 
+#include <sched.h>
+
 #include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <ctime>
 #include <fstream>
 #include <functional>
@@ -192,8 +195,31 @@ void addCalibrationGrid(DynamicPass& pass, uint32_t nodes, int perNode) {
                     glm::dvec3(kTinyHalf_m), 0.0, 0xffffffffu});
 }
 
+namespace {
+// The CPU side of the key: the processor model, how many CPUs this process may use and
+// llvmpipe's LP_NUM_THREADS. The command costs (t_c, t_s, T_state) are CPU work on any device,
+// and on llvmpipe every constant is: a cache from before a VM resize, a new cpu_affinity or
+// another LP_NUM_THREADS would predict the wrong frame times.
+std::string cpuKey() {
+  std::string model = "?";
+  std::ifstream info("/proc/cpuinfo");
+  for (std::string line; std::getline(info, line);) {
+    if (line.rfind("model name", 0) == 0) {
+      const size_t start = line.find_first_not_of(" \t", line.find(':') + 1);
+      if (line.find(':') != std::string::npos && start != std::string::npos) model = line.substr(start);
+      break;
+    }
+  }
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  const int cpus = sched_getaffinity(0, sizeof set, &set) == 0 ? CPU_COUNT(&set) : 0;
+  const char* lp = std::getenv("LP_NUM_THREADS");
+  return "cpu=" + model + " x" + std::to_string(cpus) + (lp != nullptr ? std::string("|LP_NUM_THREADS=") + lp : "");
+}
+}  // namespace
+
 std::string calibrationKey(const CalibrationOptions& o) {
-  return glString(GL_VENDOR) + "|" + glString(GL_RENDERER) + "|" + glString(GL_VERSION) +
+  return glString(GL_VENDOR) + "|" + glString(GL_RENDERER) + "|" + glString(GL_VERSION) + "|" + cpuKey() +
          "|work=" + std::to_string(o.fragmentWork) + "|" + std::to_string(o.width_px) + "x" + std::to_string(o.height_px);
 }
 

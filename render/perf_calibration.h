@@ -29,8 +29,9 @@
 // 25 with a budget of 8 s or more), so a slow phase of the machine weighs on all of them alike;
 // the others are the median of three slopes. With `runs` > 1 the whole measurement is repeated
 // and each constant is the median of the runs. Results are
-// cached in a small text file keyed by GL_VENDOR / GL_RENDERER / GL_VERSION, the material and
-// the viewport; a cache for another key, or one that does not parse, is ignored and rewritten.
+// cached in a small text file keyed by GL_VENDOR / GL_RENDERER / GL_VERSION, the CPU (model,
+// the number this process may use, LP_NUM_THREADS when set), the material and the viewport; a
+// cache for another key, or one that does not parse, is ignored and rewritten.
 // The measurements run with a settled C heap (a large block freed first): glibc trims the heap
 // top eagerly until a process frees its first large block, and llvmpipe allocates in every
 // draw, so a fresh process would measure brk and page faults instead of the draws.

@@ -4,12 +4,14 @@
 
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <memory>
 #include <random>
 #include <string>
 #include <vector>
 
+#include <sched.h>
 #include <unistd.h>
 
 #include "render/context.h"
@@ -612,6 +614,31 @@ TEST_F(DynamicGl, CalibrateUsesAMatchingCacheAndRewritesACorruptOne) {
   o.fragmentWork = 4;
   EXPECT_NE(render::calibrationKey(o), r.key);
   EXPECT_FALSE(render::readCalibrationCache(path, render::calibrationKey(o), cached, why));
+  // So is another CPU set or llvmpipe thread count (the same GL strings on a resized VM).
+  o.fragmentWork = 0;
+  EXPECT_EQ(render::calibrationKey(o), r.key);
+  cpu_set_t all, one;
+  ASSERT_EQ(sched_getaffinity(0, sizeof all, &all), 0);
+  CPU_ZERO(&one);
+  for (int c = 0; c < CPU_SETSIZE; ++c) {
+    if (CPU_ISSET(c, &all)) {
+      CPU_SET(c, &one);
+      break;
+    }
+  }
+  ASSERT_EQ(sched_setaffinity(0, sizeof one, &one), 0);
+  const std::string oneCpu = render::calibrationKey(o);
+  ASSERT_EQ(sched_setaffinity(0, sizeof all, &all), 0);
+  if (CPU_COUNT(&all) > 1) {
+    EXPECT_NE(oneCpu, r.key);
+  }
+  const char* lp = std::getenv("LP_NUM_THREADS");
+  const std::string lpBefore = lp != nullptr ? lp : "";
+  setenv("LP_NUM_THREADS", lpBefore == "1" ? "2" : "1", 1);
+  EXPECT_NE(render::calibrationKey(o), r.key);
+  if (lp != nullptr) setenv("LP_NUM_THREADS", lpBefore.c_str(), 1);
+  else unsetenv("LP_NUM_THREADS");
+  EXPECT_NE(r.key.find("|cpu="), std::string::npos) << r.key;
   o.budget_s = std::nan("");
   EXPECT_FALSE(render::calibrate(path, o, again, error));
   EXPECT_NE(error.find("budget"), std::string::npos) << error;
