@@ -1081,6 +1081,7 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
   bool hostWasBad = false;
   bool prevOverrun = false;
   char snapshotPath[4096];
+  int64_t prevSlot = -1;  // the previous frame's slot (snapshots)
 
   while (!stop.load(std::memory_order_relaxed)) {
     if (cfg.frames > 0 && pacer.frames() >= cfg.frames) break;
@@ -1135,15 +1136,18 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
 
     // present
     if (m.context->hasWindow()) m.context->present(m.renderer.framebuffer(), cfg.width_px, cfg.height_px);
-    const int64_t n = pacer.frames();  // frames completed before this one = this frame's index
-    bool snap = cfg.snapshotEvery > 0 && n % cfg.snapshotEvery == 0;
-    for (int64_t f : cfg.snapshotFrames) snap = snap || f == n;
+    // Snapshot numbers are slot numbers (the stats' frame column, which fixes the simulation
+    // time). A number skipped with missed slots goes to the first frame after it, which is named
+    // by its own slot.
+    bool snap = cfg.snapshotEvery > 0 && slot / cfg.snapshotEvery * cfg.snapshotEvery > prevSlot;
+    for (int64_t f : cfg.snapshotFrames) snap = snap || (f > prevSlot && f <= slot);
+    prevSlot = slot;
     if (snap && m.snapshots) {
       // Read back here; encode and write on the snapshot thread.
       if (render::Image* image = m.snapshots->acquire()) {
         m.renderer.readPixels(*image);
         std::snprintf(snapshotPath, sizeof snapshotPath, "%s/frame_%06lld.png", cfg.snapshotDir.c_str(),
-                      static_cast<long long>(n));
+                      static_cast<long long>(slot));
         m.snapshots->submit(image, snapshotPath);
       }
     }

@@ -3,12 +3,17 @@
 // with a fake clock, and GL stays error-free.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <set>
+#include <string>
+#include <vector>
 #include <thread>
 
 #include "gl_fixture.h"
@@ -222,6 +227,69 @@ TEST(ServiceGL, RunWritesStatsAndSnapshotsWithAFakeClock) {
   EXPECT_EQ(frames, 12);
   // Frame 11 at 30 Hz is replay time 0.3667 s: host frame 22 of the 60 Hz recording.
   EXPECT_EQ(lastHostFrame, 22u);
+  std::filesystem::remove_all(dir);
+}
+
+// Snapshots are named by the stats' frame column (the slot number, which fixes the replay and
+// simulation time), so a picture can be matched to its stats row and to the same picture of
+// another run. After missed slots, a snapshot number that was skipped is taken by the first frame
+// after it, under that frame's own number.
+class LateOnceClock final : public Clock {
+ public:
+  explicit LateOnceClock(int lateSleep, int64_t late_ns) : lateSleep_(lateSleep), late_ns_(late_ns) {}
+  int64_t now_ns() const override { return now_; }
+  void sleepUntil_ns(int64_t deadline_ns) override {
+    ++sleeps_;
+    now_ = std::max(now_, deadline_ns) + (sleeps_ == lateSleep_ ? late_ns_ : 0);
+  }
+
+ private:
+  int lateSleep_;
+  int64_t late_ns_;
+  int64_t now_ = 1'000'000'000;
+  int sleeps_ = 0;
+};
+
+TEST(ServiceGL, SnapshotsAreNamedByTheStatsFrameNumber) {
+  const auto dir = std::filesystem::temp_directory_path() / ("igd_service_gltest_snap_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  ServiceConfig cfg;
+  SceneConfig scene;
+  test::defaultConfigs(cfg, scene);
+  cfg.frames = 12;
+  cfg.rate_hz = 30;
+  cfg.statsFile = (dir / "stats.csv").string();
+  cfg.snapshotDir = (dir / "snap").string();
+  cfg.snapshotEvery = 5;
+  cfg.snapshotFrames = {3, 4};
+  std::string error;
+  auto service = Service::create(cfg, scene, error);
+  ASSERT_TRUE(service) << error;
+  LateOnceClock clock(4, 3 * 33'333'334);  // the 4th frame wakes 3 periods late: slots are skipped
+  std::atomic<bool> stop{false};
+  ASSERT_EQ(service->run(clock, stop), 0);
+  service.reset();  // the snapshot thread has written everything
+  std::ifstream in(dir / "stats.csv");
+  std::string line;
+  std::getline(in, line);
+  ASSERT_EQ(line.rfind("frame,", 0), 0u) << line;
+  std::vector<int64_t> slots;
+  while (std::getline(in, line)) slots.push_back(std::stoll(line.substr(0, line.find(','))));
+  ASSERT_EQ(slots.size(), 12u);
+  ASSERT_GT(slots.back(), 11) << "no slot was skipped";
+  std::set<std::string> expected;
+  int64_t prev = -1;
+  for (int64_t slot : slots) {
+    bool snap = false;
+    for (int64_t f = prev + 1; f <= slot; ++f) snap = snap || f % 5 == 0 || f == 3 || f == 4;
+    char name[32];
+    std::snprintf(name, sizeof name, "frame_%06lld.png", static_cast<long long>(slot));
+    if (snap) expected.insert(name);
+    prev = slot;
+  }
+  std::set<std::string> written;
+  for (const auto& e : std::filesystem::directory_iterator(dir / "snap")) written.insert(e.path().filename().string());
+  EXPECT_EQ(written, expected);
   std::filesystem::remove_all(dir);
 }
 
