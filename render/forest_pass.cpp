@@ -923,10 +923,11 @@ void ForestPass::drawLayers(Renderer& r, const glm::dvec3& origin, std::span<con
   gl.Disable(GL_BLEND);
   gl.BindVertexArray(0);
   const uint64_t tris = static_cast<uint64_t>(count / 3) * static_cast<uint64_t>(n);
+  const uint32_t calls = m.layerFirsts.size() == 1 ? 1u : static_cast<uint32_t>(n);  // one multi-draw a layer
   m.stats.layers = static_cast<uint32_t>(n);
   m.stats.triangles += tris;
-  ++m.stats.drawCalls;
-  r.addStats(tris, 1);
+  m.stats.drawCalls += calls;
+  r.addStats(tris, calls);
 }
 
 void ForestPass::drawFins(Renderer& r, std::span<const uint32_t> groups) {

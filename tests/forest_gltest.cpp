@@ -432,6 +432,15 @@ TEST(ForestGL, DrawLayersClampsRangesToTheTerrainBuffer) {
   // Several ranges (the multi-draw path): inside, partly outside, wholly outside, overflowing.
   const lod::TerrainDrawRange mixed[] = {{0, 10}, {slots - 4, 100}, {slots + 100, 5}, {0xFFFFFFF0u, 0xFFFFFFFFu}};
   EXPECT_EQ(layerTriangles(mixed), uint64_t{10 + 4} * 4);
+  // Draw calls as the terrain pass counts them, one per glMultiDrawArrays: one a layer.
+  for (const auto& [ranges, calls] : {std::pair{std::span<const lod::TerrainDrawRange>(mixed), 4u},
+                                      std::pair{std::span<const lod::TerrainDrawRange>(&all, 1), 1u}}) {
+    w.renderer.beginFrame(cam, w.lighting);
+    pass.drawLayers(w.renderer, glm::dvec3(0.0), ranges, 4);
+    w.renderer.endFrame();
+    w.renderer.finish();
+    EXPECT_EQ(pass.takeStats().drawCalls, calls);
+  }
   // The vertex-count form: more vertices than the buffer holds.
   w.renderer.beginFrame(cam, w.lighting);
   pass.drawLayers(w.renderer, glm::dvec3(0.0), size_t{slots} * 3 * 1000, 4);
