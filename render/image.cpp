@@ -19,6 +19,12 @@ using FilePtr = std::unique_ptr<FILE, FileCloser>;
 }  // namespace
 
 bool writePng(const std::string& file, const Image& image, std::string& error) {
+  if (image.width <= 0 || image.height <= 0 ||
+      image.rgba.size() != size_t{4} * static_cast<size_t>(image.width) * static_cast<size_t>(image.height)) {
+    error = file + ": image of " + std::to_string(image.width) + " x " + std::to_string(image.height) + " pixels holds " +
+            std::to_string(image.rgba.size()) + " bytes, not 4 a pixel";
+    return false;
+  }
   FilePtr f(std::fopen(file.c_str(), "wb"));
   if (!f) {
     error = file + ": cannot write: " + std::strerror(errno);

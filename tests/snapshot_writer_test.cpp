@@ -58,3 +58,23 @@ TEST(SnapshotWriter, AWriteErrorAtCloseIsAFailureNotAWrittenSnapshot) {
   EXPECT_EQ(w.written(), 0u);
   EXPECT_EQ(w.failed(), 1u);
 }
+
+// An image whose pixel buffer does not hold width x height RGBA pixels is refused, naming the
+// sizes, before anything is read from it (libpng would read past the buffer) or written.
+TEST(SnapshotWriter, AnImageSmallerThanItsSizeIsRefused) {
+  const std::string file = std::filesystem::temp_directory_path() / ("igd_short_" + std::to_string(::getpid()) + ".png");
+  std::filesystem::remove(file);
+  ig::render::Image image;
+  image.width = 64;
+  image.height = 64;
+  image.rgba.assign(16, 0);
+  std::string error;
+  EXPECT_FALSE(ig::render::writePng(file, image, error));
+  EXPECT_NE(error.find("64 x 64"), std::string::npos) << error;
+  EXPECT_NE(error.find("16 bytes"), std::string::npos) << error;
+  EXPECT_FALSE(std::filesystem::exists(file));
+  image.rgba.clear();
+  image.width = 0;
+  EXPECT_FALSE(ig::render::writePng(file, image, error));
+  EXPECT_FALSE(std::filesystem::exists(file));
+}
