@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <limits>
@@ -318,7 +319,9 @@ std::optional<Model> loadPly(const std::string& path, std::string& error) {
           }
           if (!indices) continue;
           if (v < 0 || v >= static_cast<double>(m.positions.size()) || v != std::floor(v)) {
-            error = path + ": face " + std::to_string(i) + ": bad vertex index " + std::to_string(static_cast<long long>(v)) + " (" +
+            char written[32];  // as written: a float index may be a fraction or beyond any integer type
+            std::snprintf(written, sizeof written, "%.15g", v);
+            error = path + ": face " + std::to_string(i) + ": bad vertex index " + written + " (" +
                     std::to_string(m.positions.size()) + " vertices)";
             return std::nullopt;
           }

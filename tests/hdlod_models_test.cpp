@@ -91,6 +91,14 @@ TEST(HdlodModels, PlyErrorsNameTheFileAndValue) {
   EXPECT_FALSE(loadPly(badIndex, error));
   EXPECT_NE(error.find(badIndex), std::string::npos) << error;
   EXPECT_NE(error.find("bad vertex index 7"), std::string::npos) << error;
+  // Indices stored as floats: a fraction or one beyond every integer type is named as written.
+  const std::string floatHead = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                                "property float z\nelement face 1\nproperty list uchar double vertex_indices\n"
+                                "end_header\n0 0 0\n1 0 0\n0 1 0\n";
+  EXPECT_FALSE(loadPly(writeFile("hugeindex.ply", floatHead + "3 0 1 1e300\n"), error));
+  EXPECT_NE(error.find("bad vertex index 1e+300 "), std::string::npos) << error;
+  EXPECT_FALSE(loadPly(writeFile("halfindex.ply", floatHead + "3 0 1 1.5\n"), error));
+  EXPECT_NE(error.find("bad vertex index 1.5 "), std::string::npos) << error;
   EXPECT_FALSE(loadPly(writeFile("truncated.ply", head + "3 0 1\n"), error));
   EXPECT_NE(error.find("truncated"), std::string::npos) << error;
   EXPECT_FALSE(loadPly(writeFile("notply.ply", "solid x\n"), error));
