@@ -10,7 +10,8 @@
 //   union of many small parts stays large: when the result still has more than
 //   `sloppyAboveTriangles` triangles, meshopt_simplifySloppy (a vertex grid with quadric-placed
 //   representatives, topology not preserved: small parts vanish) is run with the same
-//   target_error and taken when it has at most half as many triangles. meshoptimizer only
+//   target_error and taken when it has fewer triangles and its measured distance (below) is
+//   within the target. meshoptimizer only
 //   estimates its errors (and sloppy's estimate is the grid cell), so the builder measures the
 //   result (sampled Hausdorff): that measured distance, never the estimate, is eps_c.
 // - OpenMesh: the welded mesh less its thin parts (a connected part whose every vertex lies
