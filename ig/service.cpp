@@ -132,12 +132,6 @@ struct TerrainMeshLayer {
 
   static constexpr int32_t kFreeSlot = INT32_MIN;
 
-  float sampleHeight(int x, int y) const {
-    x = std::clamp(x, 0, width - 1);
-    y = std::clamp(y, 0, height - 1);
-    return heights_m[static_cast<size_t>(y) * static_cast<size_t>(width) + static_cast<size_t>(x)];
-  }
-
   void writeTriangle(uint32_t slot, const lod::RoamTriangle& t, double now_s, bool ghost = false) {
     for (size_t k = 0; k < 3; ++k) {
       lod::TerrainVertex v = lod::heightFieldVertex(heights_m, width, height, spacing_m, t.v[k].x, t.v[k].y);
@@ -221,13 +215,7 @@ struct TerrainMeshLayer {
         selectChunks(cam);
         return;
       }
-      if (morph && morphing) {
-        for (const lod::RoamVertex& v : roam->createdVertices()) {
-          lod::RoamVertex a, b;
-          if (roam->splitEnds(v.x, v.y, a, b))
-            morph->start(v.x, v.y, 0.5f * (sampleHeight(a.x, a.y) + sampleHeight(b.x, b.y)), now_s);
-        }
-      }
+      if (morph && morphing) morph->startSplits(*roam, heights_m, width, height, now_s);
       n = roam->emitVisible(cam, std::span(triangles.get(), triangleRoom));
       meshPerVisible = n > 0 ? std::max(1.0, static_cast<double>(roam->triangleCount()) / static_cast<double>(n)) : 1.0;
       if (roamMode == lod::RoamMode::Deferred) {

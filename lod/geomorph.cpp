@@ -28,6 +28,35 @@ void Geomorph::start(int x, int y, float startHeight_m, double now_s) {
   lastEnd_s_ = std::max(lastEnd_s_, now_s + morph_s_);
 }
 
+void Geomorph::startSplits(const Roam& roam, std::span<const float> heights_m, int samplesX, int samplesY, double now_s) {
+  if (morph_s_ <= 0.0) return;
+  auto sample = [&](int x, int y) {
+    x = std::clamp(x, 0, samplesX - 1);
+    y = std::clamp(y, 0, samplesY - 1);
+    return heights_m[static_cast<size_t>(y) * static_cast<size_t>(samplesX) + static_cast<size_t>(x)];
+  };
+  // In creation order: a vertex's split ends are vertices of the triangle it splits, so they
+  // are in the mesh before it (created by an earlier update, or listed before it).
+  for (const RoamVertex& v : roam.createdVertices()) {
+    RoamVertex a, b;
+    if (!roam.splitEnds(v.x, v.y, a, b)) continue;
+    const double ha = static_cast<double>(height(a.x, a.y, sample(a.x, a.y), now_s));
+    const double hb = static_cast<double>(height(b.x, b.y, sample(b.x, b.y), now_s));
+    const float from = static_cast<float>(0.5 * (ha + hb));
+    // A vertex that still has the morph of an earlier life (created, merged away, created
+    // again within morph_s) was not drawn until now: its morph starts again from here. (A
+    // vertex is listed twice for a diamond split, at the same time: the first start holds.)
+    const uint64_t k = key(v.x, v.y);
+    Entry& e = table_[slot(k)];
+    if (e.key == k && e.start_s != now_s) {
+      e = Entry{k, now_s, from, false};
+      lastEnd_s_ = std::max(lastEnd_s_, now_s + morph_s_);
+      continue;
+    }
+    start(v.x, v.y, from, now_s);
+  }
+}
+
 void Geomorph::startOut(int x, int y, float targetHeight_m, double now_s) {
   if (morph_s_ <= 0.0) return;
   const uint64_t k = key(x, y);

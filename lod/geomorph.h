@@ -24,6 +24,15 @@ class Geomorph {
   // Starts morphing vertex (x, y) from startHeight_m at time now_s (ignored if it is already
   // morphing or the table is full).
   void start(int x, int y, float startHeight_m, double now_s);
+  // Starts the morphs of the vertices the last update of `roam` created (Roam::createdVertices,
+  // coarse before fine), each from the height the surface drawn so far had there: the midpoint
+  // of its split ends (Roam::splitEnds) as they are drawn at now_s. An end created earlier in
+  // the same update, or still on its way from an earlier one, is not at its true height yet,
+  // so the midpoint of the true heights would make the new vertex pop (a refinement of several
+  // levels in one update: the first frame, a teleport, a tolerance change). A vertex created
+  // again while the morph of an earlier life still runs starts afresh. heights_m: the
+  // samplesX x samplesY true heights the roam was built on (clamped at the edges).
+  void startSplits(const Roam& roam, std::span<const float> heights_m, int samplesX, int samplesY, double now_s);
   // Morph-out: vertex (x, y) moves from its true height to targetHeight_m over morph_s
   // (replaces a running morph of the vertex).
   void startOut(int x, int y, float targetHeight_m, double now_s);

@@ -198,3 +198,72 @@ TEST(MorphOut, ACoverThatLeavesDropsItsGhosts) {
   EXPECT_FALSE(m.active());
   EXPECT_FALSE(m.hidden(coarse));
 }
+
+// A vertex a split adds starts at the height the surface drawn so far had there (lod/geomorph.h),
+// also when a refinement adds several levels in one update (its split ends are new as well)
+// and when its ends are still on their way from an earlier update: at the moment a morph
+// starts, every vertex of the new mesh lies on the previously drawn surface (no pop).
+TEST(Geomorph, SplitsOfSeveralLevelsInOneUpdateStartOnTheDrawnSurface) {
+  const int n = 65;
+  HeightfieldDesc d;
+  d.seed = 5;
+  d.postsX = n;
+  d.postsY = n;
+  d.postSpacing_m = 30.0;
+  d.heightScale_m = 600.0;
+  std::vector<float> hts(static_cast<size_t>(n) * n);
+  generateHeightfield(d, hts);
+  auto sample = [&](int x, int y) { return hts[static_cast<size_t>(std::clamp(y, 0, n - 1)) * n + std::clamp(x, 0, n - 1)]; };
+  Roam cur(hts, n, n, 30.0, {0, 0, 0});
+  Roam prev(cur, RoamConfig{});  // the mesh drawn before each update
+  Geomorph g(1 << 16, 1.0);
+  auto view = [](const glm::dvec3& eye) {
+    RoamView v;
+    v.camera.eye_m = eye;
+    v.camera.pitch_deg = -60;
+    v.camera.fovY_deg = 60;
+    v.camera.aspect = 1.5;
+    v.tolerance_px = 1.0;
+    v.viewportHeight_px = 1000;
+    return v;
+  };
+  // Height of the previously drawn surface at grid point (x, y): its leaf there, corners at
+  // their drawn (morphing) heights.
+  auto drawnBefore = [&](int x, int y, double now_s) {
+    const RoamTriangle t = prev.leafAt(3 * int64_t{x}, 3 * int64_t{y});
+    const double x0 = t.v[0].x, y0 = t.v[0].y;
+    const double det = (t.v[1].x - x0) * (t.v[2].y - y0) - (t.v[2].x - x0) * (t.v[1].y - y0);
+    const double w1 = ((x - x0) * (t.v[2].y - y0) - (t.v[2].x - x0) * (y - y0)) / det;
+    const double w2 = ((t.v[1].x - x0) * (y - y0) - (x - x0) * (t.v[1].y - y0)) / det;
+    const double w[3] = {1.0 - w1 - w2, w1, w2};
+    double z = 0.0;
+    for (int k = 0; k < 3; ++k) z += w[k] * static_cast<double>(g.height(t.v[k].x, t.v[k].y, sample(t.v[k].x, t.v[k].y), now_s));
+    return z;
+  };
+  // A refinement from the base triangles, a closer look while those morphs run, a climb that
+  // merges most of it away, and back down: vertices created again while their first morph
+  // would still run start on the drawn surface as well.
+  const RoamView views[] = {view({900, 900, 800}), view({1000, 950, 300}), view({1000, 950, 9000}), view({1000, 950, 300})};
+  const double times[] = {0.0, 0.5, 0.6, 0.7};
+  for (int u = 0; u < 4; ++u) {
+    cur.update(views[u], RoamMode::EnhMerge);
+    if (u != 2) {
+      ASSERT_GT(cur.createdVertices().size(), 20u);
+    } else {
+      ASSERT_GT(cur.removedVertices().size(), 20u);
+    }
+    g.startSplits(cur, hts, n, n, times[u]);
+    std::vector<RoamTriangle> tris(cur.triangleCount());
+    tris.resize(cur.emitTriangles(tris));
+    double worst = 0.0;
+    for (const RoamTriangle& t : tris)
+      for (const RoamVertex& p : t.v)
+        worst = std::max(worst, std::abs(static_cast<double>(g.height(p.x, p.y, sample(p.x, p.y), times[u])) -
+                                         drawnBefore(p.x, p.y, times[u])));
+    EXPECT_LT(worst, 0.01) << "update " << u << ": a new vertex pops by " << worst << " m";
+    // After morph_s every vertex is at its true height.
+    for (const RoamTriangle& t : tris)
+      for (const RoamVertex& p : t.v) EXPECT_EQ(g.height(p.x, p.y, sample(p.x, p.y), times[u] + 1.0), sample(p.x, p.y));
+    prev.update(views[u], RoamMode::EnhMerge);
+  }
+}

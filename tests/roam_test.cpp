@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <map>
 #include <string>
 #include <tuple>
 #include <vector>
@@ -769,4 +770,79 @@ TEST(Roam, NearestTriangleBoxIsTheDistanceToTheClosestBox) {
   // Stops once below `enough`; +inf without triangles.
   EXPECT_LT(nearestTriangleBox(tris, h, 4, 4, 10.0, above, 1000.0), 1000.0);
   EXPECT_TRUE(std::isinf(nearestTriangleBox({}, h, 4, 4, 10.0, above, 0.0)));
+}
+
+namespace {
+// The emitted mesh, clamped onto the DEM as it is drawn, tiles [0, w-1] x [0, h-1]: positive
+// area, areas summing to the rectangle, every interior edge used once in each direction (no
+// holes, overlaps or T-junctions), boundary edges once.
+::testing::AssertionResult tilesDem(std::span<const RoamTriangle> tris, int w, int h) {
+  std::map<std::tuple<int, int, int, int>, int> directed;
+  int64_t area2 = 0;
+  for (const auto& t0 : tris) {
+    RoamTriangle t = t0;
+    for (auto& v : t.v) {
+      v.x = std::clamp(v.x, 0, w - 1);
+      v.y = std::clamp(v.y, 0, h - 1);
+    }
+    const int64_t a = static_cast<int64_t>(t.v[1].x - t.v[0].x) * (t.v[2].y - t.v[0].y) -
+                      static_cast<int64_t>(t.v[2].x - t.v[0].x) * (t.v[1].y - t.v[0].y);
+    if (a <= 0) return ::testing::AssertionFailure() << "triangle with area*2 = " << a;
+    area2 += a;
+    for (int i = 0; i < 3; ++i) ++directed[{t.v[i].x, t.v[i].y, t.v[(i + 1) % 3].x, t.v[(i + 1) % 3].y}];
+  }
+  if (area2 != 2LL * (w - 1) * (h - 1)) return ::testing::AssertionFailure() << "area*2 " << area2;
+  for (const auto& [e, n] : directed) {
+    const auto [ax, ay, bx, by] = e;
+    if (n != 1) return ::testing::AssertionFailure() << "edge used " << n << " times in one direction";
+    const bool boundary = (ax == bx && (ax == 0 || ax == w - 1)) || (ay == by && (ay == 0 || ay == h - 1));
+    if (!boundary && directed.count({bx, by, ax, ay}) == 0)
+      return ::testing::AssertionFailure() << "interior edge (" << ax << "," << ay << ")-(" << bx << "," << by
+                                           << ") has no twin: a crack or T-junction";
+  }
+  return ::testing::AssertionSuccess();
+}
+}  // namespace
+
+// validate() checks the bintree; this checks what is drawn: on DEMs whose padded grid reaches
+// beyond them (clamped vertices, zero-area leaves dropped), along a flight in every mode.
+TEST(Roam, EmittedMeshTilesTheDemWithoutCracksInEveryMode) {
+  for (const auto& [w, h] : {std::pair{100, 37}, {6, 6}, {3, 9}}) {
+    const auto hts = fractal(w, h, 3);
+    const auto path = flightPath();
+    for (RoamMode mode : kAllModes) {
+      Roam roam(hts, w, h, 30.0, {0, 0, 0}, smallConfig());
+      for (size_t f = 0; f < path.size(); f += 4) {
+        RoamView v = path[f];
+        v.camera.eye_m *= 0.4;
+        v.tolerance_px = 0.5;
+        roam.update(v, mode);
+        std::vector<RoamTriangle> tris(roam.triangleCount());
+        tris.resize(roam.emitTriangles(tris));
+        ASSERT_TRUE(tilesDem(tris, w, h)) << w << "x" << h << " " << modeName(mode) << " frame " << f;
+      }
+    }
+  }
+}
+
+// A still camera gives the same mesh update after update, with no work, also while the
+// triangle cap binds (the dual-queue swaps must not oscillate).
+TEST(Roam, StillCameraKeepsItsMeshUnderATriangleCap) {
+  const int n = 129;
+  const auto hts = fractal(n, n, 8);
+  for (RoamMode mode : {RoamMode::EnhMerge, RoamMode::MergeQueue, RoamMode::Deferred}) {
+    for (uint64_t cap : {uint64_t{0}, uint64_t{777}, uint64_t{2000}}) {
+      Roam roam(hts, n, n, 30.0, {0, 0, 0}, smallConfig());
+      RoamView v = makeView({1000, 1000, 400}, 45, -20, 0.25);
+      v.maxTriangles = cap;
+      roam.update(v, mode);
+      roam.update(v, mode);
+      const auto ref = sortedTriangles(roam);
+      for (int i = 0; i < 4; ++i) {
+        const RoamStats st = roam.update(v, mode);
+        EXPECT_EQ(st.splits + st.merges + st.enhMerges, 0u) << modeName(mode) << " cap " << cap << " update " << i;
+        EXPECT_EQ(sortedTriangles(roam), ref) << modeName(mode) << " cap " << cap << " update " << i;
+      }
+    }
+  }
 }
