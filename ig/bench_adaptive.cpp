@@ -149,7 +149,9 @@ int runAdaptiveBench(const AdaptiveBenchOptions& o0) {
     auto& repMs = ms[static_cast<size_t>(rep)];
     for (auto& v : repMs) v.reserve(static_cast<size_t>(frames));
     chosen[static_cast<size_t>(rep)].reserve(static_cast<size_t>(frames));
-    const uint32_t fewMoving = 300;
+    // (At most the scene's final count: --objects may be below 300, and the growing phase adds
+    // objects - fewMoving boxes.)
+    const uint32_t fewMoving = std::min<uint32_t>(300, o.objects);
     for (int i = 0; i < 50; ++i) addAll(randomBox());
     for (int f = 0; f < frames; ++f) {
       const int phase = f / o.framesPerPhase;

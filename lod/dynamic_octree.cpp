@@ -17,6 +17,18 @@ bool inside(const Aabb& outer, const Aabb& b) {
          b.max.y <= outer.max.y && b.max.z <= outer.max.z;
 }
 Aabb emptyBox() { return {glm::dvec3(1e300), glm::dvec3(-1e300)}; }
+// True if the box (eye-relative) lies wholly inside the frustum: every node below it is drawn.
+bool insideFrustum(const Frustum& f, const Aabb& b) {
+  for (const auto& p : f.planes) {
+    // The box corner nearest along the plane normal.
+    const glm::dvec3 v{p.x >= 0 ? b.min.x : b.max.x, p.y >= 0 ? b.min.y : b.max.y, p.z >= 0 ? b.min.z : b.max.z};
+    if (p.x * v.x + p.y * v.y + p.z * v.z + p.w < 0.0) return false;
+  }
+  return true;
+}
+// Traversal states (queueHidden_): drawn normally, drawn under a node found hidden (estimate
+// only: its objects are counted), or only counted (under a node skipped as hidden).
+constexpr uint8_t kVisibleWalk = 0, kUnderHidden = 1, kCountOnly = 2;
 bool isEmpty(const Aabb& b) { return b.min.x > b.max.x; }
 void grow(Aabb& a, const Aabb& b) {
   a.min = glm::min(a.min, b.min);
@@ -254,14 +266,32 @@ DynamicOctree::TraversalResult DynamicOctree::traverse(const Frustum& frustum, c
   expensive_.clear();
   if (nodes_.empty() || nodes_[0].subtreeCount == 0) return r;
   queue_.push_back(0);
-  queueHidden_.push_back(0);
+  queueHidden_.push_back(kVisibleWalk);
   for (size_t head = 0; head < queue_.size(); ++head) {
     const uint32_t n = queue_[head];
-    uint8_t underHidden = queueHidden_[head];
+    uint8_t state = queueHidden_[head];
     const Node& node = nodes_[n];
     const Aabb rel{node.bounds.min - t.eye_m, node.bounds.max - t.eye_m};
     ++r.frustumTests;
     if (!frustum.intersects(rel)) continue;
+    // The estimate counts what culling would skip: the objects of the nodes the frustum would
+    // draw, not those of a hidden node's octants outside the view.
+    const auto countSkipped = [&] {
+      if (insideFrustum(frustum, rel)) {
+        r.hiddenObjects += node.subtreeCount;
+        return;
+      }
+      r.hiddenObjects += node.objects.size();
+      for (uint32_t c : node.children)
+        if (c != kNone && nodes_[c].subtreeCount > 0) {
+          queue_.push_back(c);
+          queueHidden_.push_back(kCountOnly);
+        }
+    };
+    if (state == kCountOnly) {
+      countSkipped();
+      continue;
+    }
     // A box test is meaningful only when the whole box is in front of the near plane.
     const glm::dvec4& nearPlane = frustum.planes[4];
     bool testable = true;
@@ -274,13 +304,14 @@ DynamicOctree::TraversalResult DynamicOctree::traverse(const Frustum& frustum, c
     const bool hiddenHolds = node.occluded && node.resultFrame + config_.occlusionMaxAge >= t.frame &&
                              inside(node.hiddenBounds, node.bounds);
     if (testable && hiddenHolds) {
-      if (!underHidden) r.hiddenObjects += node.subtreeCount;
       if (t.useOcclusion) {
         if (!node.queryPending && r.candidates < test.size()) test[r.candidates++] = n;  // re-test it
+        countSkipped();
         continue;
       }
-      underHidden = 1;
+      state = kUnderHidden;
     }
+    if (state == kUnderHidden) r.hiddenObjects += node.objects.size();
     // Top-down: a node with a fresh "visible" result is not tested again until it is stale; its
     // children become the candidates instead.
     const bool freshVisible = node.resultFrame != 0 && !node.occluded && node.resultFrame + config_.occlusionMaxAge >= t.frame;
@@ -298,7 +329,7 @@ DynamicOctree::TraversalResult DynamicOctree::traverse(const Frustum& frustum, c
     for (uint32_t c : node.children)
       if (c != kNone && nodes_[c].subtreeCount > 0) {
         queue_.push_back(c);
-        queueHidden_.push_back(underHidden);
+        queueHidden_.push_back(state);
       }
   }
   // The re-tests of hidden nodes are in `test` already (written during the walk), then the rest.

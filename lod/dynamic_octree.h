@@ -102,7 +102,9 @@ class DynamicOctree {
     uint32_t candidates = 0;     // nodes written to `test`
     uint32_t retests = 0;        // of them, first: nodes known hidden, re-tested to stay culled
     uint64_t objectsDrawn = 0;   // objects in the drawn nodes
-    uint64_t hiddenObjects = 0;  // objects under nodes skipped as occluded (the estimate)
+    uint64_t hiddenObjects = 0;  // objects under nodes found occluded that the frustum would draw
+                                 // (the estimate: what occlusion culling skips; not those of
+                                 // their octants outside the view)
   };
   // Writes the non-empty visible nodes to `draw` and the nodes whose visibility may be tested
   // this frame to `test`: with useOcclusion the nodes known hidden first (their re-tests keep
@@ -148,7 +150,7 @@ class DynamicOctree {
   std::vector<uint32_t> queue_;     // traversal scratch
   std::vector<uint32_t> others_;    // traversal scratch: non-expensive candidates
   std::vector<uint32_t> expensive_; // traversal scratch: expensive candidates (after the re-tests)
-  std::vector<uint8_t> queueHidden_;  // traversal scratch: an ancestor was counted as hidden
+  std::vector<uint8_t> queueHidden_;  // traversal scratch: the node's state (under a hidden node?)
   uint32_t objectCount_ = 0;
   uint32_t nonEmpty_ = 0;
   uint64_t visibleValidFrom_ = 0;  // "visible" results of tests issued earlier are ignored

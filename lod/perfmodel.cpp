@@ -10,7 +10,9 @@
 namespace ig::lod {
 namespace {
 
-double clean(double v) { return std::isfinite(v) && v > 0.0 ? v : 0.0; }
+// Counts and times above kHuge are taken as kHuge: products of two and sums of a few stay finite.
+constexpr double kHuge = 1e150;
+double clean(double v) { return std::isfinite(v) && v > 0.0 ? std::min(v, kHuge) : 0.0; }
 // PassLoad::rasterShare: unknown (not finite) means every triangle reaches the rasterizer.
 double share(const PassLoad& l) { return std::isfinite(l.rasterShare) ? std::clamp(l.rasterShare, 0.0, 1.0) : 1.0; }
 
@@ -77,7 +79,7 @@ double predictFrame_ns(const PerfConstants& c, const PassLoad& s, const PassLoad
   b.stateS = clean(s.stateChanges) * clean(c.state_ns);
   // Triangles per submission; none counted: their size is unknown (tri_ns).
   const auto perCall = [](const PassLoad& l) { return l.submissions > 0.0 ? l.triangles / l.submissions : 0.0; };
-  b.vertS = clean(s.triangles) * triangleCost_ns(c, perCall(s));
+  b.vertS = clean(s.triangles) * clean(triangleCost_ns(c, perCall(s)));
   const double trS = clean(s.triangles), trH = clean(h.triangles);
   b.fragS = clean(s.fragments) * clean(c.frag_ns) + clean(s.depthFragments) * clean(c.depthFrag_ns) +
             share(s) * (trS * clean(c.rasterTri_ns) + clean(s.commands) * clean(c.drawRaster_ns)) +
@@ -86,7 +88,7 @@ double predictFrame_ns(const PerfConstants& c, const PassLoad& s, const PassLoad
   b.bufH = clean(h.commands) * commandCost_ns(c, clean(h.commands)) + clean(h.rerecorded) * tr +
            clean(h.submissions) * ts + clean(h.occlusionTests) * tv;
   b.stateH = clean(h.stateChanges) * clean(c.state_ns);
-  b.vertH = clean(h.triangles) * triangleCost_ns(c, perCall(h));
+  b.vertH = clean(h.triangles) * clean(triangleCost_ns(c, perCall(h)));
   b.fragH = clean(h.fragments) * clean(c.frag_ns) +
             share(h) * (trH * clean(c.rasterTri_ns) + clean(h.commands) * clean(c.drawRaster_ns)) +
             clean(h.edgePx) * clean(c.edge_ns);

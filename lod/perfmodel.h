@@ -8,7 +8,8 @@
 //
 // Input policy: a count or time that is NaN, infinite or negative is clamped to 0 (a count
 // cannot be negative; an unknown statistic contributes nothing) and reported by the functions
-// that return a bool. Fits reject such samples (add() returns false).
+// that return a bool; one above 1e150 counts as 1e150 (so that the predicted times stay finite).
+// Fits reject such samples (add() returns false).
 #pragma once
 
 #include <array>

@@ -15,6 +15,17 @@ perf=$("$igbench" perfmodel --quick --sweeps 2 --json --cache "$dir/calibration.
 # run: its viewport has a calibration of its own, which replaces this one in the cache file.)
 tiny=$("$igbench" perfmodel --sizes 10,20000 --coverage 0.05 --repeats 3 --sweeps 1 --json --cache "$dir/calibration.txt")
 adaptive=$("$igbench" adaptive --quick --json --cache "$dir/calibration.txt" --trace "$dir/trace.json")
+# Fewer boxes than the few-moving phase's 300 (--objects takes 100 ... 1000000): the growing phase
+# must not run away (the box count wrapped around below zero and it added boxes without end).
+small=$(timeout 60 "$igbench" adaptive --objects 200 --frames-per-phase 10 --window 5 --repeats 1 --json \
+        --cache "$dir/calibration.txt")
+/usr/bin/python3 - "$small" <<'PY'
+import json, sys
+s = json.loads(sys.argv[1])
+rows = s["trace"]
+assert max(r["objects"] for r in rows) <= 200 + 4, rows  # 200 boxes and the 4 walls
+assert [r["objects"] for r in rows if r["phase"] == "growing"][-1] == 200, rows
+PY
 /usr/bin/python3 - "$perf" "$adaptive" "$dir/trace.json" "$tiny" <<'PY'
 import json, math, sys
 t = json.loads(sys.argv[4])

@@ -259,6 +259,31 @@ TEST(PerfModel, NanAndNegativeInputsCountAsZero) {
   EXPECT_FALSE(valid(PerfConstants{}));  // T_tri and T_frag must be measured
 }
 
+// The return value is finite and >= 0 for any input: a finite count too large for the product
+// with its cost (here 1e308 triangles at 10 ns) gave inf, and NaN where the stages' max() took
+// inf from inf.
+TEST(PerfModel, HugeFiniteCountsGiveAFiniteFrameTime) {
+  const PerfConstants c = handConstants();
+  PassLoad s;
+  s.triangles = 1e308;
+  TimeBreakdown b;
+  const double t = predictFrame_ns(c, s, {}, &b);
+  EXPECT_TRUE(std::isfinite(t)) << t;
+  PassLoad big;
+  big.triangles = 1e12;
+  EXPECT_GT(t, predictFrame_ns(c, big, {}));  // still more than any real frame
+  PassLoad h;
+  h.depthFragments = 1e308;
+  h.frustumTests = 1e308;
+  const double th = predictFrame_ns(c, s, h, &b);
+  EXPECT_TRUE(std::isfinite(th)) << th;
+  EXPECT_GE(th, 0.0);
+  for (PerfConstants k : {c, [&] { PerfConstants o = c; o.overlap = 0.5; return o; }()}) {
+    const double tk = predictFrame_ns(k, s, h);
+    EXPECT_TRUE(std::isfinite(tk) && tk > 0.0) << tk;
+  }
+}
+
 TEST(PerfModel, ProjectedBoxArea) {
   // 90 degree fov, square 200 px viewport: 10 px per metre at 10 m.
   Camera cam;
@@ -719,6 +744,41 @@ TEST(DynamicOctree, AVisibleResultFromBeforeANewOccluderStillEndsAnOlderHiddenOn
   EXPECT_NE(std::find(draw.begin(), draw.begin() + r.drawn, node), draw.begin() + r.drawn)
       << "skipped on the frame-5 result although the frame-6 test saw it";
   EXPECT_NE(std::find(test.begin(), test.begin() + r.candidates, node), test.begin() + r.candidates);
+}
+
+// The estimate of hidden objects counts what culling would skip: the objects of a hidden node's
+// subtree that the frustum would draw, not those of its octants outside the view (the octree
+// mode does not draw them anyway). Here one depth-1 node holds 20 boxes in view and 40 far to
+// the side, out of the view; 100 more boxes elsewhere in view stay visible.
+TEST(DynamicOctree, TheHiddenEstimateCountsOnlyObjectsTheFrustumWouldDraw) {
+  DynamicOctree t;
+  ASSERT_TRUE(t.init(occlusionTestConfig(8)));
+  uint32_t id = 0;
+  for (; id < 20; ++id) ASSERT_TRUE(t.insert(id, cube({20.0 + 0.1 * id, 60.0, 5.0}, 0.05)));
+  for (; id < 60; ++id) ASSERT_TRUE(t.insert(id, cube({120.0, 5.0 + 0.1 * id, 5.0}, 0.05)));  // ~85 deg right
+  for (; id < 160; ++id) ASSERT_TRUE(t.insert(id, cube({-20.0 - 0.1 * (id - 60), 60.0, -5.0}, 0.05)));
+  t.refresh();
+  uint32_t node = t.nodeOf(0);
+  while (t.node(node).depth > 1) node = t.node(node).parent;
+  ASSERT_EQ(t.node(node).subtreeCount, 60u);  // both groups of the +x+y+z octant
+  const Frustum f = makeFrustum(wideCamera());
+  std::vector<uint32_t> draw(t.nodes().size()), test(t.nodes().size());
+  DynamicOctree::Traversal tr;
+  tr.frame = 10;
+  const auto clear = t.traverse(f, tr, draw, test);
+  ASSERT_EQ(clear.objectsDrawn, 120u);  // the 40 to the side are frustum-culled
+  t.setQueryPending(node, true);
+  t.setOcclusionResult(node, false, 10);
+  // Estimate only (octree mode): 20 of the 120 drawn objects would be skipped.
+  auto r = t.traverse(f, tr, draw, test);
+  EXPECT_EQ(r.objectsDrawn, 120u);
+  EXPECT_EQ(r.hiddenObjects, 20u);
+  // Occlusion culling skips them: drawn + hidden = what the frustum alone draws.
+  tr.useOcclusion = true;
+  r = t.traverse(f, tr, draw, test);
+  EXPECT_EQ(r.objectsDrawn, 100u);
+  EXPECT_EQ(r.hiddenObjects, 20u);
+  EXPECT_EQ(r.objectsDrawn + r.hiddenObjects, clear.objectsDrawn);
 }
 
 TEST(DynamicOctree, RejectsBadConfig) {
