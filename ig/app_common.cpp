@@ -6,6 +6,11 @@ bool loadConfigs(const std::string& serviceFile, const Overrides& o, ServiceConf
                  std::string& error) {
   ConfigError ce;
   ServiceConfig s;
+  // An empty name would fail below as "cannot open: No such file or directory", naming nothing.
+  if (serviceFile.empty()) {
+    error = "service config file name is empty ('')";
+    return false;
+  }
   if (!loadServiceConfig(serviceFile, s, ce)) {
     error = ce.what();
     return false;
@@ -14,6 +19,11 @@ bool loadConfigs(const std::string& serviceFile, const Overrides& o, ServiceConf
     error = "command line: " + option + " = " + value + ": " + why;
     return false;
   };
+  // The config keys these override must not be empty either (scene.file, host.replay_file,
+  // output.snapshot_dir): an empty one would pass --check-config and fail only at start-up (exit 3).
+  if (o.sceneFile && o.sceneFile->empty()) return bad("--scene", "''", "must not be empty");
+  if (o.replayFile && o.replayFile->empty()) return bad("--replay", "''", "must not be empty");
+  if (o.snapshotDir && o.snapshotDir->empty()) return bad("--snapshot-dir", "''", "must not be empty");
   if (o.frames) {
     if (*o.frames < 0) return bad("--frames", std::to_string(*o.frames), "must be >= 0");
     s.frames = *o.frames;

@@ -79,7 +79,7 @@ int dumpTree(const lod::CellTree& tree, const std::string& path) {
 
 int runCellsBench(const CellsBenchOptions& o) {
   if (o.spheres < 1 || o.cellLevels < 1 || o.cellLevels > lod::kMaxCellLevels || o.cellVoxelDepth < 0 ||
-      o.cellLevels - 1 + o.cellVoxelDepth > lod::kMaxVoxelLevels || o.frames < 3 || o.height_px < 1 ||
+      o.cellLevels - 1 + o.cellVoxelDepth > lod::kMaxVoxelLevels || o.frames < 8 || o.height_px < 1 ||
       o.latencyFrames < 0) {
     std::fprintf(stderr,
                  "igbench cells: bad options (spheres = %d, levels = %d, voxel depth = %d, frames = %d, height = %d, "

@@ -233,13 +233,13 @@ int main(int argc, char** argv) {
   forestTex->add_option("--source", ftOptions.source, "Folder with pine.obj and cypress.obj")->capture_default_str();
   forestTex->add_option("--out", ftOptions.out, "Assets folder to write")->capture_default_str();
   forestTex->add_option("--layers", ftOptions.layers, "Shell layers in T")->capture_default_str()->check(CLI::Range(1, 32));
-  forestTex->add_option("--size", ftOptions.size_px, "Texture size per layer in pixels")->capture_default_str()->check(CLI::Range(8, 4096));
+  forestTex->add_option("--size", ftOptions.size_px, "Texture size per layer in pixels")->capture_default_str()->check(CLI::Range(8, 2048));
   forestTex->add_option("--tile", ftOptions.tile_m, "Forest tile side in metres")->capture_default_str()->check(CLI::PositiveNumber);
   forestTex->add_option("--spacing", ftOptions.spacing_m, "Placement slot; the tile gets tile^2 / spacing^2 trees")
       ->capture_default_str()->check(CLI::PositiveNumber);
-  forestTex->add_option("--triangles", ftOptions.triangles, "Near LOD triangles per model")->capture_default_str()->check(CLI::Range(4, 10000000));
-  forestTex->add_option("--bake-triangles", ftOptions.bakeTriangles, "LOD the textures are rendered from")
-      ->capture_default_str()->check(CLI::Range(4, 100000000));
+  forestTex->add_option("--triangles", ftOptions.triangles, "Near LOD triangles per model")->capture_default_str()->check(CLI::Range(8, 10000000));
+  forestTex->add_option("--bake-triangles", ftOptions.bakeTriangles, "LOD the textures are rendered from (>= --triangles)")
+      ->capture_default_str()->check(CLI::Range(8, 100000000));
   forestTex->add_flag("--procedural", ftOptions.procedural, "Use the procedural models (no download)");
   ig::CellsBuildOptions cbOptions;
   CLI::App* cellsBuild = app.add_subcommand(

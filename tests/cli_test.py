@@ -234,6 +234,83 @@ class ConfigErrors(Tmp):
                     self.assertRegex(p.stdout, r"(^|[\s,])" + re.escape(w) + r"\b",
                                      f"--help does not mention {w}" + describe(p))
 
+    def test_non_finite_and_out_of_range_numbers_exit_2(self):
+        # NaN passes every CLI11 2.1 range check (all comparisons with NaN are false), and an
+        # integer beyond int64 was clamped, "-1" for an unsigned option read as 2^64 - 1. Each must
+        # be a bad option (exit 2) naming the option and the value, with nothing written or run.
+        rec = os.path.join(self.tmp, "r.rec")
+        png = os.path.join(self.tmp, "f.png")
+        cases = [
+            ([IGTOOL, "make-recording", "--rate", "nan", "--out", rec], "--rate", "nan"),
+            ([IGTOOL, "make-recording", "--duration", "nan", "--out", rec], "--duration", "nan"),
+            ([IGTOOL, "render", "--config", CONFIG, "--time", "nan", "--out", png], "--time", "nan"),
+            ([IGTOOL, "render", "--config", CONFIG, "--time", "inf", "--out", png], "--time", "inf"),
+            ([IGTOOL, "compare", png, png, "--max-rmse", "nan"], "--max-rmse", "nan"),
+            ([IGTOOL, "dem-info", png, "--max-void-fraction", "nan"], "--max-void-fraction", "nan"),
+            ([IGTOOL, "site", "--out", os.path.join(self.tmp, "site"), "--origin", "0", "nan", "0"], "--origin", "nan"),
+            ([IGD, "--config", CONFIG, "--check-config", "--frames", "99999999999999999999"], "--frames",
+             "99999999999999999999"),
+            ([IGBENCH, "cells", "--voxel-budget", "-1", "--frames", "8", "--spheres", "2", "--no-mesh", "--json"],
+             "--voxel-budget", "-1"),
+        ]
+        for args, option, value in cases:
+            with self.subTest(args=[os.path.basename(args[0])] + args[1:]):
+                p = run(args, cwd=self.tmp)
+                self.assertExit(p, 2)
+                self.assertMentions(p, option, value)
+                self.assertNotIn("config OK", p.stdout)
+        self.assertEqual(sorted(os.listdir(self.tmp)), [], "a refused command wrote files")
+        # A decimal with a leading zero is decimal, not octal (010 was read as 8).
+        p = run([IGD, "--config", CONFIG, "--check-config", "--width", "010"], cwd=self.tmp)
+        self.assertExit(p, 2)
+        self.assertMentions(p, "--width = 10:")
+
+    def test_empty_file_options_exit_2(self):
+        # The config keys these options override refuse "" (scene.file, host.replay_file,
+        # output.snapshot_dir); so must the options, in --check-config too, not fail only at
+        # start-up (exit 3) or with a message that names nothing.
+        common = ["--frames", "2", "--free-run", "--width", "64", "--height", "36", "--stats", ""]
+        for option in ("--scene", "--replay", "--snapshot-dir"):
+            for extra in (["--check-config"], common):
+                with self.subTest(option=option, extra=extra[:1]):
+                    p = run([IGD, "--config", CONFIG, option, ""] + extra, timeout=RUN, cwd=self.tmp)
+                    self.assertExit(p, 2)
+                    self.assertMentions(p, f"{option} = ''", "must not be empty")
+        for args, stream in (([IGD, "--config", "", "--check-config"], "stderr"),
+                             ([IGTOOL, "check-config", ""], "stdout")):
+            with self.subTest(args=args[1:]):
+                p = run(args, cwd=self.tmp)
+                self.assertExit(p, 2)
+                self.assertMentions(p, "file name is empty", "''", stream=stream)
+
+    def test_help_ranges_match_what_the_tools_accept(self):
+        # forest-textures refuses --size above 2048 and --triangles below 8; --help must not
+        # advertise more, and the parser must refuse what the help excludes.
+        p = run([IGTOOL, "forest-textures", "--help"], cwd=self.tmp)
+        self.assertExit(p, 0)
+        self.assertRegex(p.stdout, r"--size INT:INT in \[8 - 2048\]", describe(p))
+        self.assertRegex(p.stdout, r"--triangles INT:INT in \[8 - ", describe(p))
+        for args in (["--size", "4096"], ["--triangles", "4"]):
+            with self.subTest(args=args):
+                p = run([IGTOOL, "forest-textures", "--procedural", "--out", os.path.join(self.tmp, "ft")] + args,
+                        cwd=self.tmp)
+                self.assertExit(p, 2)
+                self.assertMentions(p, args[0])
+        self.assertFalse(os.path.exists(os.path.join(self.tmp, "ft")))
+
+    def test_igbench_cells_short_path(self):
+        # With 3 ... 7 frames the cells bench's budget sweep timed no frame and dereferenced an
+        # empty vector (SIGSEGV). The smallest path --help allows must run.
+        p = run([IGBENCH, "cells", "--help"], cwd=self.tmp)
+        self.assertExit(p, 0)
+        low = int(re.search(r"--frames INT:INT in \[(\d+) - ", p.stdout).group(1))
+        for frames, code in ((low - 1, 2), (low, 0)):
+            with self.subTest(frames=frames):
+                p = run([IGBENCH, "cells", "--frames", str(frames), "--spheres", "2", "--no-mesh", "--json"],
+                        cwd=self.tmp)
+                self.assertExit(p, code)
+        self.assertEqual(json.loads(p.stdout)["frames"], low)
+
 
 # ------------------------------------------------------------------------------------------------
 # b, c. start-up failures

@@ -2,12 +2,15 @@
 // error names the right file, line, key and value without touching the output struct.
 #include "ig/config.h"
 #include "ig/app_common.h"
+#include "ig/cli.h"
 
 #include <gtest/gtest.h>
 
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <string>
+#include <vector>
 
 #include <unistd.h>
 
@@ -866,6 +869,90 @@ TEST(ConfigOverrides, ReplayOverrideTurnsRecordingOff) {
   EXPECT_EQ(service.replayFile, (dir / "run.rec").string());
   EXPECT_TRUE(service.recordFile.empty()) << service.recordFile;
   fs::remove_all(dir);
+}
+
+// The keys --scene, --replay and --snapshot-dir override refuse "" in the file; the options must
+// too (a config error, exit 2, found by --check-config), not fail at start-up or open "".
+TEST(ConfigOverrides, EmptyFileOverridesAreRefusedNamingTheOption) {
+  const fs::path dir = fs::temp_directory_path() / ("igd_cfg_empty_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  std::ofstream(dir / "scene.toml") << "name = \"x\"\n";
+  std::ofstream(dir / "igd.toml") << "[host]\nsource = \"none\"\n[scene]\nfile = \"scene.toml\"\n";
+  const std::string file = (dir / "igd.toml").string();
+  for (const char* option : {"--scene", "--replay", "--snapshot-dir"}) {
+    Overrides o;
+    if (option == std::string("--scene")) o.sceneFile = "";
+    if (option == std::string("--replay")) o.replayFile = "";
+    if (option == std::string("--snapshot-dir")) o.snapshotDir = "";
+    ServiceConfig service;
+    SceneConfig scene;
+    std::string error;
+    EXPECT_FALSE(loadConfigs(file, o, service, scene, error)) << option;
+    EXPECT_NE(error.find(std::string(option) + " = '': must not be empty"), std::string::npos) << option << ": " << error;
+    EXPECT_TRUE(service == ServiceConfig{}) << option << ": the output was written";
+  }
+  ServiceConfig service;
+  SceneConfig scene;
+  std::string error;
+  EXPECT_FALSE(loadConfigs("", Overrides{}, service, scene, error));
+  EXPECT_NE(error.find("file name is empty"), std::string::npos) << error;
+  fs::remove_all(dir);
+}
+
+// ig::parseCommandLine (igd, igtool, igbench): CLI11 2.1's Range lets NaN through, clamps an
+// integer beyond int64 and reads "-1" as 2^64 - 1 for an unsigned option; each is a bad option
+// (2), in subcommands too, while good values still parse.
+TEST(CommandLine, NonFiniteAndOutOfRangeNumbersAreBadOptions) {
+  struct Case {
+    std::vector<std::string> args;
+    std::optional<int> rc;
+  };
+  const std::vector<Case> cases = {
+      {{"--rate", "nan"}, 2},        {{"--rate", "inf"}, 2},          {{"--rate", "1e999"}, 2},
+      {{"--rate", "2.5"}, {}},       {{"--time", "nan"}, 2},          {{"--time", "-1e300"}, {}},
+      {{"--frames", "99999999999999999999"}, 2},                      {{"--frames", "-5"}, {}},
+      {{"--budget", "-1"}, 2},       {{"--budget", "18446744073709551616"}, 2},
+      {{"--budget", "7"}, {}},       {{"sub", "--xyz", "0", "nan", "0"}, 2},
+      {{"sub", "--xyz", "0", "1", "2"}, {}},                          {{"--rate", "abc"}, 2},
+      // A decimal with leading zeros is decimal (base 0 read it as octal: 0300 = 192), also for
+      // the option's own range check (017 as octal is 15, outside [16, 20]).
+      {{"--frames", "0300"}, {}},    {{"--level", "017"}, {}},        {{"--level", "021"}, 2},
+  };
+  for (const Case& c : cases) {
+    CLI::App app{"test"};
+    double rate = 1.0, time_s = 0.0;
+    int64_t frames = 0;
+    uint64_t budget = 0;
+    std::vector<double> xyz;
+    app.add_option("--rate", rate)->check(CLI::Range(1.0, 100.0));
+    app.add_option("--time", time_s);
+    app.add_option("--frames", frames);
+    app.add_option("--budget", budget);
+    int level = 16;
+    app.add_option("--level", level)->check(CLI::Range(16, 20));
+    CLI::App* sub = app.add_subcommand("sub");
+    sub->add_option("--xyz", xyz)->expected(3);
+    std::vector<std::string> storage = {"prog"};
+    storage.insert(storage.end(), c.args.begin(), c.args.end());
+    std::vector<char*> argv;
+    for (std::string& s : storage) argv.push_back(s.data());
+    const std::optional<int> rc = parseCommandLine(app, static_cast<int>(argv.size()), argv.data());
+    std::string joined;
+    for (const auto& a : c.args) joined += a + " ";
+    EXPECT_EQ(rc, c.rc) << joined;
+    if (!c.rc && c.args[0] == "--rate") {
+      EXPECT_EQ(rate, 2.5);
+    }
+    if (!c.rc && c.args[0] == "--budget") {
+      EXPECT_EQ(budget, 7u);
+    }
+    if (!c.rc && c.args[0] == "--frames" && c.args[1] == "0300") {
+      EXPECT_EQ(frames, 300);
+    }
+    if (!c.rc && c.args[0] == "--level") {
+      EXPECT_EQ(level, 17);
+    }
+  }
 }
 
 TEST(ConfigGovernor, ForestNearDistanceBounds) {
