@@ -102,6 +102,17 @@ bool CellsLayer::initRender(std::string& error) {
     pass_.reset();
     return false;
   }
+  // A cell larger than the arena's largest block could never be uploaded: every arrival would
+  // evict the unpinned cells to make room, fail, and be fetched again next frame.
+  uint64_t largest = 0;
+  for (uint32_t c = 0; c < tree_.size(); ++c) largest = std::max<uint64_t>(largest, tree_.voxels(c));
+  if (largest > pass_->largestCellPoints()) {
+    error = "[cells] gpu_mb = " + std::to_string(config_.gpu_mb) + ": the arena's largest block holds " +
+            std::to_string(pass_->largestCellPoints()) + " points, less than the largest cell of " + config_.source +
+            " (" + std::to_string(largest) + " points), which could never be drawn";
+    pass_.reset();
+    return false;
+  }
   sink_ = std::make_unique<CellsPassSink>(*pass_);
   return true;
 }

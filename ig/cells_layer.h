@@ -78,7 +78,8 @@ class CellsLayer {
   static std::unique_ptr<CellsLayer> create(const CellsLayerConfig& config, std::string& error);
   ~CellsLayer();
 
-  // The render pass and its GPU arena (a GL context must be current).
+  // The render pass and its GPU arena (a GL context must be current). Fails naming gpu_mb when
+  // the arena's largest block cannot hold the database's largest cell (it could never be drawn).
   bool initRender(std::string& error);
   // Per frame (lod phase). With a clock and budget_ms > 0 the refinement stops so that this call
   // ends near budget_ms after it began: at budget_ms less what the calls stopped before spent

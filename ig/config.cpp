@@ -800,7 +800,7 @@ bool parseScene(const std::string& text, const std::string& name, const std::str
     r.get(cells, "voxel_budget", c.voxelBudget, IntRange{1000, 1'000'000'000});
     r.get(cells, "w_bytes", c.wBytes, IntRange{4096, int64_t{1} << 30});
     r.get(cells, "min_voxel_px", c.minVoxel_px, closed(0.0, 100.0));
-    r.get(cells, "gpu_mb", c.gpu_mb, IntRange{1, 65536});
+    r.get(cells, "gpu_mb", c.gpu_mb, IntRange{1, 32768});  // 2^31 points: render/cells_pass.h
     r.get(cells, "memory_mb", c.memory_mb, IntRange{1, 65536});
     r.get(cells, "point_scale", c.pointScale, openClosed(0.0, 16.0));
     r.get(cells, "open_timeout_s", c.openTimeout_s, openClosed(0.0, 600.0));

@@ -26,6 +26,7 @@ uniform vec3 uRootOffset;                 // rootMin - eye, computed in double
 uniform float uRootEdge;                  // m
 uniform float uPxPerM;                    // pointScale * viewport height / (2 tan(fovY / 2))
 uniform vec2 uPointRange;                 // smallest, largest point side (px)
+uniform vec2 uTanHalf;                    // tan of the half field of view across, up
 out vec3 vColor;
 out vec3 vEyeToPoint;
 uniform vec2 uViewport;                   // px
@@ -33,7 +34,13 @@ void main() {
   vec3 rel = aPosition + uRootOffset;
   vec4 clip = uViewProjection * vec4(rel, 1.0);
   float edge = uRootEdge * exp2(-float(aLevel));
-  float size = clamp(edge * uPxPerM / max(clip.w, 1e-6), uPointRange.x, uPointRange.y);
+  // Off the view axis a step of one voxel edge in any direction moves the projected centre by
+  // up to sqrt(1 + t^2) times the face-on footprint along an axis (t: the centre's offset / depth
+  // along it), so neighbouring voxels of a surface seen obliquely towards the frame's sides are
+  // that far apart: the side grows with it (1 at the centre, 1.24 at the side of a 45 deg 16:9 view).
+  vec2 t = clip.w > 0.0 ? clip.xy / clip.w * uTanHalf : vec2(0.0);
+  float offAxis = sqrt(1.0 + max(t.x * t.x, t.y * t.y));
+  float size = clamp(edge * uPxPerM * offAxis / max(clip.w, 1e-6), uPointRange.x, uPointRange.y);
   // A point whose centre is outside the view is discarded even where its square reaches into
   // the viewport, which leaves a border of up to half a point uncovered. Centres less than half
   // a point outside the sides are moved onto the edge (the square then reaches at most half a
@@ -120,6 +127,7 @@ class Buddy {
     push(off, k);
   }
   uint32_t blockUnits(uint32_t off) const { return 1u << order_[off]; }
+  uint32_t largestBlockUnits() const { return units_ ? 1u << maxOrder_ : 0; }
   uint64_t usedUnits() const { return used_; }
 
  private:
@@ -171,7 +179,7 @@ struct CellsPass::Impl {
   std::vector<uint8_t> isResident;
   std::vector<GLint> firsts;     // per draw (sized to the tree)
   std::vector<GLsizei> counts;
-  GLint uViewport = -1, uVp = -1, uRootOffset = -1, uRootEdge = -1, uPxPerM = -1, uPointRange = -1, uFogColor = -1, uFogDensity = -1;
+  GLint uViewport = -1, uVp = -1, uRootOffset = -1, uRootEdge = -1, uPxPerM = -1, uPointRange = -1, uTanHalf = -1, uFogColor = -1, uFogDensity = -1;
 };
 
 CellsPass::CellsPass() = default;
@@ -181,9 +189,10 @@ bool CellsPass::init(const lod::CellTree& tree, const CellsPassConfig& config, s
   impl_.reset();
   stats_ = {};
   constexpr uint64_t kUnitBytes = uint64_t{kUnitPoints} * kPointBytes;
-  if (config.arenaBytes < 4096 || config.arenaBytes > (uint64_t{1} << 40) ||
-      config.arenaBytes / kUnitBytes >= kNone) {
-    error = "cells pass: arenaBytes = " + std::to_string(config.arenaBytes) + ": allowed range 4096 .. 2^40";
+  // At most 2^31 points: glMultiDrawArrays takes each cell's first point as a GLint.
+  if (config.arenaBytes < 4096 || config.arenaBytes > (uint64_t{1} << 31) * kPointBytes) {
+    error = "cells pass: arenaBytes = " + std::to_string(config.arenaBytes) +
+            ": allowed range 4096 .. 2^35 (2^31 points, GL's largest first vertex)";
     return false;
   }
   if (!(config.pointScale > 0.0f) || !std::isfinite(config.pointScale)) {
@@ -210,6 +219,7 @@ bool CellsPass::init(const lod::CellTree& tree, const CellsPassConfig& config, s
   g->uRootEdge = gl.GetUniformLocation(p, "uRootEdge");
   g->uPxPerM = gl.GetUniformLocation(p, "uPxPerM");
   g->uPointRange = gl.GetUniformLocation(p, "uPointRange");
+  g->uTanHalf = gl.GetUniformLocation(p, "uTanHalf");
   g->uFogColor = gl.GetUniformLocation(p, "uFogColor");
   g->uFogDensity = gl.GetUniformLocation(p, "uFogDensity");
   GLint range[2] = {1, 64};
@@ -310,6 +320,9 @@ bool CellsPass::resident(uint32_t cell) const {
 uint64_t CellsPass::bytesUsed() const {
   return impl_ ? impl_->buddy.usedUnits() * kUnitPoints * kPointBytes : 0;
 }
+uint64_t CellsPass::largestCellPoints() const {
+  return impl_ ? uint64_t{impl_->buddy.largestBlockUnits()} * kUnitPoints : 0;
+}
 uint64_t CellsPass::capacityBytes() const { return impl_ ? impl_->arenaBytes : 0; }
 uint64_t CellsPass::bufferBytes() const { return impl_ ? impl_->arenaBytes : 0; }
 
@@ -337,7 +350,8 @@ void CellsPass::draw(Renderer& renderer, std::span<const lod::CellDraw> cells) {
   const glm::mat4 vp(lod::reverseZProjection(cam.fovY_deg, cam.aspect, cam.near_m, cam.far_m) *
                      glm::dmat4(lod::viewRotation(cam)));
   const glm::vec3 rootOffset(g.tree->info().rootMin_m - cam.eye_m);
-  const double pxPerM = renderer.height() / (2.0 * std::tan(0.5 * cam.fovY_deg * 3.14159265358979323846 / 180.0));
+  const double tanHalf = std::tan(0.5 * cam.fovY_deg * 3.14159265358979323846 / 180.0);
+  const double pxPerM = renderer.height() / (2.0 * tanHalf);
   const Lighting& l = renderer.lighting();
   const glm::vec3 fogColor(l.fogColor);
   const GLuint p = g.program.id();
@@ -347,6 +361,8 @@ void CellsPass::draw(Renderer& renderer, std::span<const lod::CellDraw> cells) {
   gl.ProgramUniform1f(p, g.uPxPerM, static_cast<float>(pxPerM) * g.config.pointScale);
   const float range[2] = {g.config.minPoint_px, std::max(g.maxPoint_px, g.config.minPoint_px)};
   gl.ProgramUniform2fv(p, g.uPointRange, 1, range);
+  const float tanHalfXY[2] = {static_cast<float>(tanHalf * cam.aspect), static_cast<float>(tanHalf)};
+  gl.ProgramUniform2fv(p, g.uTanHalf, 1, tanHalfXY);
   const float viewport[2] = {static_cast<float>(renderer.width()), static_cast<float>(renderer.height())};
   gl.ProgramUniform2fv(p, g.uViewport, 1, viewport);
   gl.ProgramUniform3fv(p, g.uFogColor, 1, glm::value_ptr(fogColor));

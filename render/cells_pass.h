@@ -9,10 +9,12 @@
 // is free: the caller evicts (LRU or whatever it keeps) and tries again.
 //
 // Drawing: one glMultiDrawArrays(GL_POINTS) over the drawn cells' ranges. A point is a square of
-// side  max(minPoint_px, pointScale * voxelEdge * pixelsPerMetre / viewDepth)  (the voxel's
-// screen footprint face-on; voxelEdge from the level stored with the point, pixelsPerMetre =
-// viewport height / (2 tan(fovY / 2))), capped at the driver's largest point size
-// (GL_POINT_SIZE_RANGE). GL discards a point whose centre is outside the view even where its
+// side  max(minPoint_px, pointScale * voxelEdge * pixelsPerMetre * sqrt(1 + t^2) / viewDepth)
+// (the voxel's screen footprint face-on, widened off the view axis; voxelEdge from the level
+// stored with the point, pixelsPerMetre = viewport height / (2 tan(fovY / 2)), t = the larger of
+// the centre's |x| / depth and |y| / depth in view space: there neighbouring voxels of a surface
+// seen obliquely project up to sqrt(1 + t^2) footprints apart), capped at the driver's largest
+// point size (GL_POINT_SIZE_RANGE). GL discards a point whose centre is outside the view even where its
 // square reaches into it; the vertex shader moves centres less than half a point outside a side
 // onto the edge, so a surface close to the camera is covered to the frame's border.
 // Unlit: the colour is the voxel's (igtool cells-build bakes sun shading into it), with the
@@ -40,7 +42,7 @@ namespace ig::render {
 class Renderer;
 
 struct CellsPassConfig {
-  uint64_t arenaBytes = uint64_t{64} << 20;  // GPU point memory (16 B a point); >= 4 KiB; rounded down to 256 B
+  uint64_t arenaBytes = uint64_t{64} << 20;  // GPU point memory (16 B a point); 4 KiB .. 32 GiB (2^31 points); rounded down to 256 B
   float pointScale = 1.0f;                   // point side / voxel footprint, > 0 (1: face-on size)
   float minPoint_px = 1.0f;                  // smallest point side, >= 1
 };
@@ -76,6 +78,9 @@ class CellsPass {
   bool resident(uint32_t cell) const;
   uint64_t bytesUsed() const;       // arena bytes held by resident cells (whole blocks)
   uint64_t capacityBytes() const;   // the arena (0 before init)
+  // The most points one cell can have and still be uploaded (into an empty arena: its largest
+  // buddy block, the arena rounded down to a power of two granules); 0 before init.
+  uint64_t largestCellPoints() const;
   uint64_t bufferBytes() const;     // GPU buffer bytes (0 before init)
 
   // Between Renderer::beginFrame and endFrame: draws the listed cells that are resident (others

@@ -298,3 +298,81 @@ TEST(CellsLayerGL, BadSourceFailsNamingIt) {
   EXPECT_FALSE(CellsLayer::create(c, error));
   EXPECT_NE(error.find("w_bytes = 8"), std::string::npos) << error;
 }
+
+// One cell of 131,072 points (two 256 x 256 voxel planes in a root-only database; 2 MiB in the
+// arena): a 1 MB arena can never hold it. Before, initRender accepted it and every arrival of the
+// cell evicted the unpinned cells to make room, failed, and fetched the cell again the next frame;
+// now initRender refuses naming gpu_mb. A 4 MB arena draws it.
+TEST(CellsLayerGL, AnArenaSmallerThanTheLargestCellIsRefusedNamingGpuMb) {
+  lod::VoxelMesh m;
+  for (double y : {100.5, 150.5})
+    lod::appendQuad(m, {0.25, y, 0.25}, {255.75, y, 0.25}, {255.75, y, 255.75}, {0.25, y, 255.75}, 0xFF2040E0u);
+  lod::VoxelizeConfig vc;
+  vc.levels = 8;
+  vc.boxMin_m = glm::dvec3(0.0);
+  vc.boxEdge_m = 256.0;
+  lod::VoxelPyramid pyramid;
+  std::string error;
+  ASSERT_TRUE(lod::voxelize(m, vc, pyramid, error)) << error;
+  const std::string path = testing::TempDir() + "/cells_layer_big_" + std::to_string(::getpid()) + ".ighc";
+  lod::CellTree tree;
+  ASSERT_TRUE(lod::writeCellDb(path, pyramid, lod::CellBuildConfig{1, 8}, &tree, error)) << error;
+  ASSERT_EQ(tree.size(), 1u);
+  ASSERT_EQ(tree.voxels(0), 131072u);
+
+  Gl gl;
+  CellsLayerConfig c = config(glm::dvec3(0.0));
+  c.source = path;
+  c.voxelBudget = 1'000'000;
+  c.wBytes = 1 << 24;
+  c.memory_mb = 64;
+  c.gpu_mb = 1;
+  auto small = CellsLayer::create(c, error);
+  ASSERT_TRUE(small) << error;
+  EXPECT_FALSE(small->initRender(error));
+  EXPECT_NE(error.find("gpu_mb = 1"), std::string::npos) << error;
+  EXPECT_NE(error.find("131072 points"), std::string::npos) << error;
+  EXPECT_EQ(small->gpuBytes(), 0u);
+
+  c.gpu_mb = 4;
+  auto layer = makeLayer(c);
+  ASSERT_TRUE(layer);
+  lod::Camera cam;
+  cam.eye_m = {128.0, -200.0, 128.0};
+  cam.fovY_deg = 60.0;
+  cam.aspect = static_cast<double>(kW) / kH;
+  cam.near_m = 0.5;
+  cam.far_m = 5000.0;
+  for (int frame = 0; frame < 200 && layer->stats().drawnCells == 0; ++frame) {
+    gl.frame(cam, layer.get());
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  EXPECT_EQ(layer->stats().drawnPoints, 131072u);
+  EXPECT_EQ(layer->stats().uploadFailures, 0u);
+  std::remove(path.c_str());
+}
+
+// Reload (igd applies SIGHUP's voxel_budget, w_bytes, min_voxel_px through setBudgets): a lower
+// voxel budget takes effect at the next frame and drops no resident cell; back at the old budget
+// the same cells are drawn again without fetching anything.
+TEST(CellsLayerGL, SetBudgetsTakesEffectAndKeepsTheResidentCells) {
+  Gl gl;
+  const glm::dvec3 origin(0.0);
+  const CellsLayerConfig c = config(origin);
+  auto layer = makeLayer(c);
+  ASSERT_TRUE(layer);
+  const lod::Camera cam = camera(origin);
+  converge(gl, *layer, cam, c);
+  const CellsLayerStats before = layer->stats();
+  ASSERT_GT(before.drawnPoints, 2000u);
+  layer->setBudgets(2000, c.wBytes, c.minVoxel_px);
+  EXPECT_EQ(layer->voxelBudget(), 2000u);
+  gl.frame(cam, layer.get());
+  EXPECT_LE(layer->stats().drawnPoints, 2000u);
+  EXPECT_EQ(layer->stats().residentCells, before.residentCells);
+  EXPECT_EQ(layer->stats().residentBytes, before.residentBytes);
+  layer->setBudgets(c.voxelBudget, c.wBytes, c.minVoxel_px);
+  gl.frame(cam, layer.get());
+  EXPECT_EQ(layer->stats().drawnPoints, before.drawnPoints);
+  EXPECT_EQ(layer->stats().arrivedCells, before.arrivedCells);
+}

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include <glm/mat4x4.hpp>
+#include <glm/matrix.hpp>
 #include <glm/vec4.hpp>
 
 #include "lod/cells_db.h"
@@ -182,6 +183,13 @@ TEST(CellsPassGl, NothingBeforeInitAndEmptyDrawIsBackground) {
   bc.arenaBytes = 100;
   EXPECT_FALSE(bad.init(q.tree(), bc, err));
   EXPECT_NE(err.find("arenaBytes = 100"), std::string::npos) << err;
+  // Above 2^31 points a cell's first point does not fit glMultiDrawArrays' GLint: refused before
+  // any GL allocation.
+  bc.arenaBytes = (uint64_t{1} << 35) + 256;
+  err.clear();
+  EXPECT_FALSE(bad.init(q.tree(), bc, err));
+  EXPECT_NE(err.find("arenaBytes = 34359738624"), std::string::npos) << err;
+  EXPECT_FALSE(bad.initialized());
   bc = {};
   bc.pointScale = std::nanf("");
   EXPECT_FALSE(bad.init(q.tree(), bc, err));
@@ -314,6 +322,46 @@ TEST(CellsPassGl, CameraInsideTheRootCube) {
   cam.heading_deg = 180.0;
   const render::Image back = renderCells(gl, &pass, cam, finest);
   EXPECT_EQ(back.rgba, renderCells(gl, nullptr, cam, {}).rgba);
+}
+
+// The quad seen obliquely near the right side of the frame (heading -36 deg, so that the
+// quad's rows of voxels run both across and into the view there): off the view axis, neighbouring
+// voxel centres project up to sqrt(1 + tan^2) of the face-on footprint apart (tan: the centre's
+// X / depth, 0.74 at this frame's side), so points of the face-on size leave gaps between them.
+// Holes: background pixels whose ray meets the quad at least 1 m inside its edges.
+TEST(CellsPassGl, ObliqueQuadNearTheFrameSideHasNoHoles) {
+  Gl gl;
+  QuadDb q(glm::dvec3(0.0));
+  render::CellsPass pass;
+  std::string err;
+  ASSERT_TRUE(pass.init(q.tree(), render::CellsPassConfig{}, err)) << err;
+  const auto finest = q.level(pass, 4);
+  for (const double side : {1.0, -1.0}) {  // right side, then mirrored: left side
+    lod::Camera cam = facing(60.0);
+    cam.heading_deg = -36.0 * side;
+    cam.eye_m = glm::dvec3(32.0 + 3.7 * side, -39.0, 32.0);
+    const render::Image img = renderCells(gl, &pass, cam, finest);
+    const glm::dmat4 inv = glm::inverse(lod::reverseZProjection(cam.fovY_deg, cam.aspect, cam.near_m, cam.far_m) *
+                                        glm::dmat4(lod::viewRotation(cam)));
+    int inside = 0, holes = 0, holesOuter = 0;
+    for (int y = 0; y < kH; ++y) {
+      for (int x = 0; x < kW; ++x) {
+        const glm::dvec4 p = inv * glm::dvec4(2.0 * (x + 0.5) / kW - 1.0, 1.0 - 2.0 * (y + 0.5) / kH, 0.5, 1.0);
+        const glm::dvec3 dir = glm::dvec3(p) / p.w;
+        if (!(dir.y > 0.0)) continue;
+        const glm::dvec3 hit = cam.eye_m + dir * ((kPlaneY - cam.eye_m.y) / dir.y);
+        if (hit.x < kQuadLo + 1.0 || hit.x > kQuadHi - 1.0 || hit.z < kQuadLo + 1.0 || hit.z > kQuadHi - 1.0) continue;
+        ++inside;
+        if (isBackground(img, x, y)) {
+          ++holes;
+          if (side > 0 ? x > kW * 3 / 4 : x < kW / 4) ++holesOuter;
+        }
+      }
+    }
+    EXPECT_GT(inside, 3000) << "side " << side;
+    EXPECT_EQ(holes, 0) << "side " << side << ": " << holes << " of " << inside << " pixels uncovered (" << holesOuter
+                        << " in the outer quarter of the frame)";
+  }
 }
 
 TEST(CellsPassGl, HugeCoordinatesRenderTheSame) {

@@ -1064,6 +1064,7 @@ TEST(ConfigCells, BadValuesAreRefusedNamingTheKey) {
       {src + "w_bytes = 100\n", "cells.w_bytes", "100"},
       {src + "min_voxel_px = -1\n", "cells.min_voxel_px", "-1"},
       {src + "gpu_mb = 0\n", "cells.gpu_mb", "0"},
+      {src + "gpu_mb = 32769\n", "cells.gpu_mb", "32769"},  // over 2^31 points
       {src + "memory_mb = -5\n", "cells.memory_mb", "-5"},
       {src + "point_scale = 0\n", "cells.point_scale", "0"},
       {src + "open_timeout_s = 0\n", "cells.open_timeout_s", "0"},
