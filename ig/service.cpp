@@ -944,7 +944,7 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
                   static_cast<unsigned long long>(info_.gpuBufferBytes), info_.threads, info_.terrainBuild_ms);
     if (!stats.open(cfg.statsFile, cfg.statsFormat, runInfo, error)) {
       std::fprintf(stderr, "igd: %s\n", error.c_str());
-      return 1;
+      return 3;  // a start-up failure, before the first frame (README: exit codes)
     }
   }
 

@@ -71,7 +71,8 @@ class Service {
   ~Service();
 
   // Runs the fixed-rate loop until `config.frames` frames, a window close, or `stop`.
-  // Returns 0 on a clean exit. `reload` (optional) is polled once per frame.
+  // Returns 0 on a clean exit, 3 when the stats file cannot be created (before the first frame),
+  // 1 on a failure while running. `reload` (optional) is polled once per frame.
   int run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* reload = nullptr);
   // 1 at start, +1 for every reload that was applied.
   int configGeneration() const;

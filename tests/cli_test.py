@@ -331,6 +331,16 @@ class StartupFailures(Tmp):
         self.assertExit(p, 3)
         self.assertMentions(p, missing, "host.replay_file")
 
+    def test_stats_file_that_cannot_be_opened_exit_3(self):
+        # An output file igd cannot create (here a directory) fails the start like a missing data
+        # file (3), naming the file; exit 1 is for failures while running.
+        stats_dir = os.path.join(self.tmp, "stats-is-a-dir")
+        os.makedirs(stats_dir)
+        p = run([IGD, "--config", CONFIG, "--frames", "3", "--free-run", "--width", "64", "--height", "36",
+                 "--stats", stats_dir, "--snapshot-dir", os.path.join(self.tmp, "snap")], timeout=RUN, cwd=self.tmp)
+        self.assertExit(p, 3)
+        self.assertMentions(p, stats_dir)
+
     def test_nan_in_recording(self):
         with open(RECORDING, encoding="utf-8") as f:
             lines = f.readlines()[:6]
