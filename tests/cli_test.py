@@ -821,6 +821,30 @@ class Control(Tmp):
         self.assertExit(p, 0)
         self.assertRegex(p.stdout, r"layers: terrain cells\)", describe(p))
 
+    def test_reload_refuses_w_bytes_below_the_largest_cell(self):
+        # A reloaded [cells] w_bytes smaller than the database's largest cell (which start-up
+        # refuses: that cell could never be fetched) fails the reload naming it; the running config
+        # stays (it was kept silently while the log said "applied").
+        config, scene = self.configs()
+        db = os.path.join(self.tmp, "big.ighc")
+        p = run([IGTOOL, "cells-build", "--scene", "spheres:2", "--cell-levels", "3", "--depth", "6", "-o", db])
+        self.assertExit(p, 0)
+        largest = int(re.search(r"largest cell (\d+) bytes", p.stdout + p.stderr).group(1))
+        self.assertGreater(largest, 4096)
+        with_cells = write(os.path.join(self.tmp, "cells.toml"), open(scene, encoding="utf-8").read() +
+                           f"\n[cells]\nsource = {toml_str(db)}\norigin_m = [0, -3500, 0]\nvoxel_budget = 20000\n")
+        write(config, open(config, encoding="utf-8").read().replace(toml_str(scene), toml_str(with_cells)))
+        stats = os.path.join(self.tmp, "frames.csv")
+        proc, err_path = self.start(config, stats)
+        wait_for(lambda: len(complete_lines(stats)) > 5, "5 frames", proc=proc, err_path=err_path)
+        write(with_cells, open(with_cells, encoding="utf-8").read() + "w_bytes = 4096\n")
+        proc.send_signal(signal.SIGHUP)
+        wait_for(lambda: "reload" in open(err_path).read(), "the reload log line", proc=proc, err_path=err_path)
+        stderr = self.stop(proc, err_path)
+        self.assertRegex(stderr, r"reload failed after frame \d+, the running config is unchanged: .*w_bytes = 4096.*"
+                         + str(largest) + " bytes")
+        self.assertNotIn("config reloaded", stderr)
+
     def test_cpu_affinity_and_realtime(self):
         config, _ = self.configs(cpu_affinity="[0]", realtime_priority="10")
         p = run([IGD, "--config", config, "--frames", "3", "--free-run", "--width", "64", "--height", "36"],
