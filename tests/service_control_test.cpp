@@ -55,6 +55,7 @@ TEST(Reload, ReloadableKeysAreTakenOthersKept) {
   next.s.terrain->tolerance_px = 2.5;
   next.c.width_px = 640;          // needs a restart
   next.c.rate_hz = 50.0;          // needs a restart
+  next.c.msaa = 4;                // needs a restart (named, not "other keys")
   next.s.terrain->seed = 99;      // terrain data: needs a restart
   ig::ServiceConfig mc;
   ig::SceneConfig ms;
@@ -66,6 +67,8 @@ TEST(Reload, ReloadableKeysAreTakenOthersKept) {
   EXPECT_TRUE(has(p.applied, "scene.terrain.tolerance_px"));
   EXPECT_TRUE(has(p.needRestart, "output.width_px"));
   EXPECT_TRUE(has(p.needRestart, "frame.rate_hz"));
+  EXPECT_TRUE(has(p.needRestart, "output.msaa"));
+  EXPECT_EQ(mc.msaa, run.c.msaa);
   EXPECT_TRUE(has(p.needRestart, "scene.terrain (data, lod, size or placement)"));
   EXPECT_EQ(mc.snapshotEvery, 10);
   EXPECT_EQ(mc.budgetFrame_ms, 20.0);
