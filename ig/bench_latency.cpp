@@ -104,7 +104,8 @@ struct Run {
   SceneConfig scene;
 };
 
-bool startService(const LatencyBenchOptions& opt, double seconds, const std::string& statsFile, Run& run) {
+// 0, or the exit code of the failure: 2 a bad config (as igd), 3 a start-up failure.
+int startService(const LatencyBenchOptions& opt, double seconds, const std::string& statsFile, Run& run) {
   Overrides o;
   if (opt.width_px > 0) o.width_px = opt.width_px;
   if (opt.height_px > 0) o.height_px = opt.height_px;
@@ -113,7 +114,7 @@ bool startService(const LatencyBenchOptions& opt, double seconds, const std::str
   std::string error;
   if (!loadConfigs(opt.configFile, o, run.config, run.scene, error)) {
     std::fprintf(stderr, "igbench: %s\n", error.c_str());
-    return false;
+    return 2;
   }
   run.config.snapshotFrames.clear();
   run.config.freeRun = false;
@@ -130,10 +131,10 @@ bool startService(const LatencyBenchOptions& opt, double seconds, const std::str
   run.service = Service::create(run.config, run.scene, error, std::move(link));
   if (!run.service) {
     std::fprintf(stderr, "igbench: start-up failed: %s\n", error.c_str());
-    return false;
+    return 3;
   }
   run.port = raw->localPort();
-  return true;
+  return 0;
 }
 
 }  // namespace
@@ -146,7 +147,7 @@ int runLatencyBench(const LatencyBenchOptions& opt) {
   // 1. Latency: the host sends at its own rate; each host frame's send time against the end
   //    of the first IG frame that rendered it.
   Run run;
-  if (!startService(opt, opt.seconds, statsFile, run)) return 3;
+  if (const int rc = startService(opt, opt.seconds, statsFile, run); rc != 0) return rc;
   const lod::Geodetic origin{run.scene.originGeodetic[0], run.scene.originGeodetic[1], run.scene.originGeodetic[2]};
   const Ownship ship(origin);
   MonotonicClock clock;
@@ -217,7 +218,7 @@ int runLatencyBench(const LatencyBenchOptions& opt) {
 
   // 3. Flood: a loopback sender pushes valid messages at floodRate_pps while the IG renders.
   Run flood;
-  if (!startService(opt, opt.floodSeconds, "", flood)) return 3;
+  if (const int floodRc = startService(opt, opt.floodSeconds, "", flood); floodRc != 0) return floodRc;
   std::atomic<uint64_t> floodSent{0};
   stopSender = false;
   std::thread flooder([&] {

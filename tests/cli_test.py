@@ -176,6 +176,16 @@ class ConfigErrors(Tmp):
         c = os.path.join(self.tmp, "no-such-igd.toml")
         self.expect_config_error(c, c, "cannot open")
 
+    def test_benchmarks_with_a_bad_config_exit_2(self):
+        # igbench's service benchmarks load the config as igd does: a bad one is exit 2 too
+        # (latency returned 3, a start-up failure).
+        c = self.service("[frame]\nrate_hz = 5000\n")
+        for suite in ("frame", "latency"):
+            with self.subTest(suite=suite):
+                p = run([IGBENCH, suite, "--config", c, "--json"], cwd=self.tmp)
+                self.assertExit(p, 2)
+                self.assertMentions(p, f"{c}:2", "frame.rate_hz", "5000")
+
     def test_missing_scene_file(self):
         scene = os.path.join(self.tmp, "no-such-scene.toml")
         c = self.service("[host]\nsource = \"none\"\n", scene=scene)
