@@ -345,6 +345,17 @@ int runForestTextures(const ForestTexturesOptions& o) {
                  o.layers, o.size_px, o.tile_m, o.spacing_m, o.triangles, o.bakeTriangles);
     return 2;
   }
+  // The trees planted in one tile: each is drawn into every layer, and more trees than a layer
+  // has pixels add nothing (the count also has to fit an int).
+  constexpr double kMaxTreesPerTile = 65536.0;
+  const double trees = o.tile_m * o.tile_m / (o.spacing_m * o.spacing_m);
+  if (!(trees <= kMaxTreesPerTile)) {
+    std::fprintf(stderr,
+                 "igtool forest-textures: --tile %g m with --spacing %g m plants %.3g trees in a tile: at most %.0f "
+                 "(raise --spacing or lower --tile)\n",
+                 o.tile_m, o.spacing_m, trees, kMaxTreesPerTile);
+    return 2;
+  }
   std::string error;
   std::vector<lod::TreeMesh> bake, nearLod;
   if (o.procedural) {

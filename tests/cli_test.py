@@ -308,6 +308,14 @@ class ConfigErrors(Tmp):
                 self.assertMentions(p, args[0])
         self.assertFalse(os.path.exists(os.path.join(self.tmp, "ft")))
 
+    def test_forest_textures_refuses_more_trees_than_a_tile_holds(self):
+        # tile^2 / spacing^2 trees went through an int: 1e12 wrapped (to a tile of one tree).
+        p = run([IGTOOL, "forest-textures", "--procedural", "--out", os.path.join(self.tmp, "ft"),
+                 "--tile", "1000", "--spacing", "0.001"], cwd=self.tmp)
+        self.assertExit(p, 2)
+        self.assertMentions(p, "--spacing 0.001", "1e+12 trees")
+        self.assertFalse(os.path.exists(os.path.join(self.tmp, "ft")))
+
     def test_igbench_cells_short_path(self):
         # With 3 ... 7 frames the cells bench's budget sweep timed no frame and dereferenced an
         # empty vector (SIGSEGV). The smallest path --help allows must run.
