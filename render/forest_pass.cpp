@@ -647,6 +647,7 @@ struct ForestPass::Impl {
   std::vector<GlTexture> groupTex;  // [m], empty texture until used
   uint64_t bytes = 0, finBytes = 0;
   int layerCount = 0;
+  int finSlices = 1;  // the fin vertices carry a slice index and the height: baked at init
   double tile_m = 24.0, height_m = 20.0;
   glm::dvec2 mapOrigin{0.0}, mapExtent{1.0};
   std::vector<lod::FinGroup> groups;
@@ -664,6 +665,7 @@ struct ForestPass::Impl {
     groupTex.resize(static_cast<size_t>(t.layerCount) + 1);
     finTex = makeArrayTexture(t.fins, t.fins.width / t.finSlices, t.finSlices, GL_CLAMP_TO_EDGE);
     layerCount = t.layerCount;
+    finSlices = t.finSlices;
     tile_m = t.tile_m;
     height_m = t.height_m;
     bytes = trees.bytes + finBytes + static_cast<uint64_t>(t.layers.rgba.size() + t.fins.rgba.size()) * 4 / 3;
@@ -982,6 +984,15 @@ bool ForestPass::setTextures(const ForestTextures& textures, std::string& error)
     return false;
   }
   if (!validateForestTextures(textures, error)) return false;
+  // The fins' vertices were made at init with its H (their height) and fin slice count (each
+  // fin's slice index): other values would draw them at the wrong height or from slices that
+  // are not there.
+  if (textures.height_m != impl_->height_m || textures.finSlices != impl_->finSlices) {
+    error = "forest textures: height_m = " + std::to_string(textures.height_m) + " with " +
+            std::to_string(textures.finSlices) + " fin slices: the pass was made with " + std::to_string(impl_->height_m) +
+            " m and " + std::to_string(impl_->finSlices) + " (only the layer count may change)";
+    return false;
+  }
   impl_->setTextures(textures);
   return true;
 }

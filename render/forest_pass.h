@@ -125,7 +125,8 @@ class ForestPass {
   // Makes the composited textures drawLayers needs for `layers` < layerCount() now (else on the
   // first draw with that count: ~10 ms for 256 px and 8 layers on llvmpipe). GL context current.
   void prepareLayers(int layers);
-  // Replaces T and S (e.g. another layer count); false with `error` for invalid textures.
+  // Replaces T and S (e.g. another layer count); false with `error` for invalid textures or for
+  // another height_m or fin slice count than init's (the fin geometry is made with them).
   bool setTextures(const ForestTextures& textures, std::string& error);
 
   ForestDrawStats takeStats();

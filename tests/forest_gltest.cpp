@@ -600,3 +600,43 @@ TEST(ForestGL, LayersStopAtTheEdgeOfTheMap) {
   EXPECT_GT(forestChanged, 0.3) << "layers should tint the map's half";
   EXPECT_EQ(w.renderer.errors(), "");
 }
+
+// setTextures may change the layer count (igbench forest sweeps it), not the height or the fin
+// slice count the fin geometry was made with at init: those are refused, naming them.
+TEST(ForestGL, SetTexturesKeepsTheFinGeometrysHeightAndSlices) {
+  World w;
+  ASSERT_NO_FATAL_FAILURE(w.setUp());
+  const std::vector<lod::TreeMesh> models = proceduralTrees();
+  render::ForestTextureDesc d;
+  d.layers = 4;
+  d.size_px = 32;
+  d.treesPerTile = 4;
+  d.supersample = 1;
+  std::string error;
+  render::ForestTextures t;
+  ASSERT_TRUE(render::renderForestTextures(models, d, t, error)) << error;
+  auto forest = ForestLayer::create(w.config(), w.ground(), error, &models, &t);
+  ASSERT_TRUE(forest) << error;
+  d.layers = 2;
+  render::ForestTextures fewer;
+  ASSERT_TRUE(render::renderForestTextures(models, d, fewer, error)) << error;
+  EXPECT_TRUE(forest->pass().setTextures(fewer, error)) << error;
+  EXPECT_EQ(forest->pass().layerCount(), 2);
+  d.finSlices = 2;
+  render::ForestTextures slices;
+  ASSERT_TRUE(render::renderForestTextures(models, d, slices, error)) << error;
+  EXPECT_FALSE(forest->pass().setTextures(slices, error));
+  EXPECT_NE(error.find("2 fin slices"), std::string::npos) << error;
+  d.finSlices = 4;
+  std::vector<lod::TreeMesh> taller = models;
+  for (lod::TreeMesh& m : taller) {
+    for (lod::TreeVertex& v : m.vertices) v.position[2] *= 2.0f;
+    lod::measureTree(m);
+  }
+  render::ForestTextures high;
+  ASSERT_TRUE(render::renderForestTextures(taller, d, high, error)) << error;
+  EXPECT_FALSE(forest->pass().setTextures(high, error));
+  EXPECT_NE(error.find("height_m"), std::string::npos) << error;
+  EXPECT_EQ(forest->pass().layerCount(), 2);  // the refused ones changed nothing
+  EXPECT_EQ(w.renderer.errors(), "");
+}
