@@ -84,7 +84,7 @@ struct DynamicFrameStats {
                                   // other modes the estimate of what culling would skip)
   uint64_t triangles = 0;
   uint32_t nonEmptyNodes = 0;     // n0
-  double predicted_ns = 0.0;      // Adaptive: the model's T for the chosen mode
+  double predicted_ns = 0.0;      // Adaptive: the model's T(S), everything in the visible nodes drawn ((6) left)
 };
 
 class DynamicPass {
