@@ -160,7 +160,8 @@ double boxRasterShare(double area_px);
 // Screen area in pixels covered by the box `corners` (8 points, eye-relative world metres)
 // under `viewProjection` (projection * view rotation, camera-relative) on a width x height
 // viewport: the area of the convex hull of the projected corners, clipped to the viewport.
-// Returns -1 if a corner is behind the near plane (the caller decides; e.g. full screen).
+// Returns -1 if a corner is at or behind the eye plane (clip w <= 1e-9: the caller decides; e.g.
+// full screen); a corner between the eye and the near plane projects beyond the screen as usual.
 double projectedBoxArea_px(const glm::dmat4& viewProjection, const std::array<glm::dvec3, 8>& corners,
                            double width_px, double height_px);
 
