@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 
 namespace ig::lod {
 namespace {
@@ -47,6 +48,8 @@ bool DynamicOctree::init(const OctreeConfig& config) {
   objects_.assign(config.maxObjects, ObjectRec{});
   dirtyList_.clear();
   dirtyList_.reserve(nodes_.capacity());
+  refreshList_.clear();
+  refreshList_.reserve(nodes_.capacity());
   queue_.reserve(nodes_.capacity());
   queueHidden_.reserve(nodes_.capacity());
   others_.reserve(nodes_.capacity());
@@ -172,25 +175,26 @@ void DynamicOctree::clearDirty() {
 
 void DynamicOctree::refresh() {
   // Own bounds of dirty nodes, then subtree bounds of them and their ancestors, deepest first.
+  refreshList_.clear();
   for (uint32_t n : dirtyList_) {
     Node& node = nodes_[n];
     if (!node.boundsDirty) continue;
+    node.boundsDirty = false;
     node.ownBounds = emptyBox();
     for (uint32_t id : node.objects) grow(node.ownBounds, objects_[id].box);
-    for (uint32_t a = n; a != kNone; a = nodes_[a].parent) nodes_[a].boundsDirty = true;
-  }
-  // Recompute marked nodes bottom-up: children are created after parents, so reverse index order.
-  bool any = false;
-  for (uint32_t n : dirtyList_) any = any || nodes_[n].boundsDirty;
-  if (any) {
-    for (size_t i = nodes_.size(); i-- > 0;) {
-      Node& node = nodes_[i];
-      if (!node.boundsDirty) continue;
-      node.bounds = node.ownBounds;
-      for (uint32_t c : node.children)
-        if (c != kNone && !isEmpty(nodes_[c].bounds)) grow(node.bounds, nodes_[c].bounds);
-      node.boundsDirty = false;
+    for (uint32_t a = n; a != kNone && !nodes_[a].refreshQueued; a = nodes_[a].parent) {
+      nodes_[a].refreshQueued = true;  // (its ancestors are queued then too)
+      refreshList_.push_back(a);
     }
+  }
+  // Bottom-up: children are created after parents, so in decreasing index order.
+  std::sort(refreshList_.begin(), refreshList_.end(), std::greater<uint32_t>());
+  for (uint32_t n : refreshList_) {
+    Node& node = nodes_[n];
+    node.bounds = node.ownBounds;
+    for (uint32_t c : node.children)
+      if (c != kNone && !isEmpty(nodes_[c].bounds)) grow(node.bounds, nodes_[c].bounds);
+    node.refreshQueued = false;
   }
   if (countsChanged_) {
     // Expensive nodes: own objects far above the average per non-empty node, propagated upwards.

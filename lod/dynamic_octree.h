@@ -48,7 +48,8 @@ class DynamicOctree {
     uint32_t subtreeCount = 0;      // objects in this node and below
     std::vector<uint32_t> objects;  // object ids held by this node (single reference)
     bool dirty = false;             // objects added, removed or moved since the last clearDirty()
-    bool boundsDirty = false;
+    bool boundsDirty = false;       // own objects changed since the last refresh()
+    bool refreshQueued = false;     // refresh() scratch: in refreshList_
     bool expensive = false;
     // Occlusion state (strategy 3), written by the renderer through setOcclusionResult().
     bool occluded = false;
@@ -76,7 +77,8 @@ class DynamicOctree {
   const Aabb& boxOf(uint32_t id) const { return objects_[id].box; }
 
   // Recomputes the bounds of dirty nodes and their ancestors and the expensive flags. Call once
-  // a frame before culling (cost: dirty nodes x depth, plus all nodes when counts changed).
+  // a frame before culling (cost: dirty nodes x depth (log of that to order them), plus all nodes
+  // when counts changed).
   void refresh();
   // Nodes marked dirty since the last clearDirty(), each once.
   std::span<const uint32_t> dirtyNodes() const { return dirtyList_; }
@@ -147,6 +149,7 @@ class DynamicOctree {
   std::vector<Node> nodes_;
   std::vector<ObjectRec> objects_;
   std::vector<uint32_t> dirtyList_;
+  std::vector<uint32_t> refreshList_;  // refresh() scratch: dirty nodes and their ancestors
   std::vector<uint32_t> queue_;     // traversal scratch
   std::vector<uint32_t> others_;    // traversal scratch: non-expensive candidates
   std::vector<uint32_t> expensive_; // traversal scratch: expensive candidates (after the re-tests)

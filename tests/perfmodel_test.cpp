@@ -524,6 +524,22 @@ TEST(DynamicOctree, SingleReferenceUnderInsertMoveRemove) {
     }
     EXPECT_TRUE(containedIn(node.bounds, t.boxOf(id)));  // subtree bounds cover the object
   }
+  // And they are tight: every node's bounds are the box of the objects below it, from scratch.
+  std::vector<Aabb> tight(t.nodes().size(), Aabb{glm::dvec3(std::numeric_limits<double>::infinity()),
+                                                  glm::dvec3(-std::numeric_limits<double>::infinity())});
+  for (uint32_t id = 0; id <= 4001; ++id) {
+    if (!t.contains(id)) continue;
+    for (uint32_t n = t.nodeOf(id); n != DynamicOctree::kNone; n = t.node(n).parent) {
+      tight[n].min = glm::min(tight[n].min, t.boxOf(id).min);
+      tight[n].max = glm::max(tight[n].max, t.boxOf(id).max);
+    }
+  }
+  size_t loose = 0;
+  for (size_t n = 0; n < tight.size(); ++n) {
+    if (t.node(static_cast<uint32_t>(n)).subtreeCount == 0) continue;
+    if (t.node(static_cast<uint32_t>(n)).bounds.min != tight[n].min || t.node(static_cast<uint32_t>(n)).bounds.max != tight[n].max) ++loose;
+  }
+  EXPECT_EQ(loose, 0u) << "nodes whose bounds are not the box of their objects";
 }
 
 // The occlusion tests' octree: 128 m cube, 5 levels, up to 2,000 objects.
