@@ -18,6 +18,7 @@
 #include "terrain_fixtures.h"
 
 using namespace ig::lod;
+using ig::lod::test::tilesDem;
 
 namespace {
 
@@ -772,37 +773,6 @@ TEST(Roam, NearestTriangleBoxIsTheDistanceToTheClosestBox) {
   EXPECT_TRUE(std::isinf(nearestTriangleBox({}, h, 4, 4, 10.0, above, 0.0)));
 }
 
-namespace {
-// The emitted mesh, clamped onto the DEM as it is drawn, tiles [0, w-1] x [0, h-1]: positive
-// area, areas summing to the rectangle, every interior edge used once in each direction (no
-// holes, overlaps or T-junctions), boundary edges once.
-::testing::AssertionResult tilesDem(std::span<const RoamTriangle> tris, int w, int h) {
-  std::map<std::tuple<int, int, int, int>, int> directed;
-  int64_t area2 = 0;
-  for (const auto& t0 : tris) {
-    RoamTriangle t = t0;
-    for (auto& v : t.v) {
-      v.x = std::clamp(v.x, 0, w - 1);
-      v.y = std::clamp(v.y, 0, h - 1);
-    }
-    const int64_t a = static_cast<int64_t>(t.v[1].x - t.v[0].x) * (t.v[2].y - t.v[0].y) -
-                      static_cast<int64_t>(t.v[2].x - t.v[0].x) * (t.v[1].y - t.v[0].y);
-    if (a <= 0) return ::testing::AssertionFailure() << "triangle with area*2 = " << a;
-    area2 += a;
-    for (int i = 0; i < 3; ++i) ++directed[{t.v[i].x, t.v[i].y, t.v[(i + 1) % 3].x, t.v[(i + 1) % 3].y}];
-  }
-  if (area2 != 2LL * (w - 1) * (h - 1)) return ::testing::AssertionFailure() << "area*2 " << area2;
-  for (const auto& [e, n] : directed) {
-    const auto [ax, ay, bx, by] = e;
-    if (n != 1) return ::testing::AssertionFailure() << "edge used " << n << " times in one direction";
-    const bool boundary = (ax == bx && (ax == 0 || ax == w - 1)) || (ay == by && (ay == 0 || ay == h - 1));
-    if (!boundary && directed.count({bx, by, ax, ay}) == 0)
-      return ::testing::AssertionFailure() << "interior edge (" << ax << "," << ay << ")-(" << bx << "," << by
-                                           << ") has no twin: a crack or T-junction";
-  }
-  return ::testing::AssertionSuccess();
-}
-}  // namespace
 
 // validate() checks the bintree; this checks what is drawn: on DEMs whose padded grid reaches
 // beyond them (clamped vertices, zero-area leaves dropped), along a flight in every mode.

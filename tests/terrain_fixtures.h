@@ -1,8 +1,14 @@
-// Shared by the terrain tests (roam_test, terrain_chunks_test): a procedural DEM and a ROAM
+// Shared by the terrain tests (roam_test, block_lod_test, terrain_chunks_test): a procedural DEM and a ROAM
 // view with the usual test camera (60 deg vertical field of view, 16:9, near 1 m, far 100 km).
 #pragma once
 
+#include <gtest/gtest.h>
+
+#include <algorithm>
 #include <cstdint>
+#include <map>
+#include <span>
+#include <tuple>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -38,6 +44,41 @@ inline RoamView terrainView(const glm::dvec3& eye, double heading_deg, double pi
   v.viewportHeight_px = viewportHeight_px;
   v.tolerance_px = tolerance_px;
   return v;
+}
+
+// Checks that the triangles (clamped to the DEM) tile [0, w-1] x [0, h-1]: positive area,
+// areas sum to the rectangle, every edge inside the rectangle used by exactly two triangles
+// with opposite directions (no holes, no overlaps, no T-junctions), boundary edges once.
+inline ::testing::AssertionResult tilesDem(std::span<const RoamTriangle> tris, int w, int h) {
+  std::map<std::tuple<int, int, int, int>, int> directed;
+  int64_t area2 = 0;
+  for (const auto& t0 : tris) {
+    RoamTriangle t = t0;
+    for (auto& v : t.v) {
+      v.x = std::clamp(v.x, 0, w - 1);
+      v.y = std::clamp(v.y, 0, h - 1);
+    }
+    const int64_t a = static_cast<int64_t>(t.v[1].x - t.v[0].x) * (t.v[2].y - t.v[0].y) -
+                      static_cast<int64_t>(t.v[2].x - t.v[0].x) * (t.v[1].y - t.v[0].y);
+    if (a <= 0) return ::testing::AssertionFailure() << "triangle with area*2 = " << a;
+    area2 += a;
+    for (int i = 0; i < 3; ++i) {
+      const auto& p = t.v[i];
+      const auto& q = t.v[(i + 1) % 3];
+      ++directed[{p.x, p.y, q.x, q.y}];
+    }
+  }
+  if (area2 != 2LL * (w - 1) * (h - 1)) return ::testing::AssertionFailure() << "area*2 " << area2;
+  for (const auto& [e, n] : directed) {
+    const auto [ax, ay, bx, by] = e;
+    if (n != 1) return ::testing::AssertionFailure() << "edge used " << n << " times in one direction";
+    const bool boundary = (ax == bx && (ax == 0 || ax == w - 1)) || (ay == by && (ay == 0 || ay == h - 1));
+    const bool twin = directed.count({bx, by, ax, ay}) > 0;
+    if (!boundary && !twin)
+      return ::testing::AssertionFailure() << "interior edge (" << ax << "," << ay << ")-(" << bx << "," << by
+                                           << ") has no twin: a crack or T-junction";
+  }
+  return ::testing::AssertionSuccess();
 }
 
 }  // namespace ig::lod::test
