@@ -23,6 +23,12 @@
 namespace {
 
 int runFrameSuite(const std::string& configFile, ig::Overrides o, bool json) {
+  // For igd, 0 frames means "until SIGTERM"; a benchmark has no signal handling and loops its
+  // replay, so it would render forever and report nothing.
+  if (o.frames && *o.frames == 0) {
+    std::fprintf(stderr, "igbench: command line: --frames = 0: must be >= 1\n");
+    return 2;
+  }
   // Free-run, no files: measure the work per frame, not the pacing sleep.
   o.freeRun = true;
   o.statsFile = "";
@@ -99,7 +105,7 @@ int main(int argc, char** argv) {
       "target_hz, period_ms, frame_ms_p50, frame_ms_p99, frame_ms_mean, frame_ms_max, overruns,\n"
       "triangles_p50, draw_calls_p50, phase_ms_p50{...}, layers, passes.");
   frame->add_option("-c,--config", configFile, "Service config (TOML)")->capture_default_str();
-  frame->add_option("--frames", o.frames, "Frames to render")->capture_default_str();
+  frame->add_option("--frames", o.frames, "Frames to render (>= 1; default 240)");
   frame->add_option("--width", o.width_px, "Frame width in pixels (default: the config's)");
   frame->add_option("--height", o.height_px, "Frame height in pixels (default: the config's)");
   frame->add_option("--output", o.output, "Context: headless | osmesa | window");

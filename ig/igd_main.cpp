@@ -29,8 +29,9 @@ int main(int argc, char** argv) {
       "It runs at a fixed rate with absolute deadlines, writes one stats line per frame, and\n"
       "talks to systemd (READY, WATCHDOG, STATUS) when started as a service. SIGTERM/SIGINT stop it\n"
       "cleanly; SIGHUP (systemctl reload igd) re-reads the configs between two frames: light, fog,\n"
-      "terrain tolerance, budgets, snapshots, status and link timeout change at once, other keys\n"
-      "are named in the log as needing a restart. Exit codes: 0 ok, 1 run-time failure, 2 bad config or option, 3 start-up failure."};
+      "terrain tolerance, the frame budget, the layers' time and voxel budgets, the governor,\n"
+      "snapshots, status and link timeout change at once, other keys (budget.triangles too) are\n"
+      "named in the log as needing a restart. Exit codes: 0 ok, 1 run-time failure, 2 bad config or option, 3 start-up failure."};
   std::string configFile = "config/igd.toml";
   ig::Overrides o;
   bool checkOnly = false;

@@ -8,6 +8,7 @@
 #include <cstdio>
 
 #include "ig/app_common.h"
+#include "ig/json.h"
 #include "ig/service.h"
 #include "io/dem.h"
 #if IG_LINK_CIGI
@@ -293,9 +294,9 @@ int main(int argc, char** argv) {
       lo = std::min(lo, h);
       hi = std::max(hi, h);
     }
-    std::printf("{\"file\":\"%s\",\"format\":\"%s\",\"width\":%d,\"height\":%d,\"spacing_m\":%.4f,"
+    std::printf("{\"file\":%s,\"format\":%s,\"width\":%d,\"height\":%d,\"spacing_m\":%.4f,"
                 "\"min_m\":%.2f,\"max_m\":%.2f,\"voids_filled\":%llu,\"load_ms\":%.1f}\n",
-                demFile.c_str(), dem.format.c_str(), dem.width, dem.height, dem.spacing_m, static_cast<double>(lo),
+                ig::jsonString(demFile).c_str(), ig::jsonString(dem.format).c_str(), dem.width, dem.height, dem.spacing_m, static_cast<double>(lo),
                 static_cast<double>(hi), static_cast<unsigned long long>(dem.voidsFilled), ms);
     return 0;
   }

@@ -960,6 +960,35 @@ class Tools(Tmp):
         self.assertGreater(obj["triangles_p50"], 0)
         self.assertEqual(os.listdir(self.tmp), ["igd.toml"], "igbench must not write stats or snapshots")
 
+    def test_igbench_frame_refuses_zero_frames(self):
+        # igd's "--frames 0" means "until SIGTERM"; the benchmark free-runs a looping replay and
+        # has no signal handling, so 0 frames rendered forever and printed nothing. It is a bad
+        # option (exit 2) naming the option, as negative counts already are.
+        config = service_config_copy(self.tmp)
+        try:
+            p = run([IGBENCH, "frame", "--config", config, "--frames", "0", "--json", "--width", "64", "--height", "36"],
+                    timeout=10, cwd=self.tmp)
+        except subprocess.TimeoutExpired:
+            self.fail("igbench frame --frames 0 was still running after 10 s (it renders forever)")
+        self.assertExit(p, 2)
+        self.assertMentions(p, "--frames = 0")
+        self.assertEqual(p.stdout, "", "no JSON for a refused command")
+
+    def test_igtool_dem_info_is_json_for_any_file_name(self):
+        # dem-info prints one JSON object; the file name is a string that comes from outside and
+        # must be escaped like every other such string (ig/json.h).
+        name = os.path.join(self.tmp, 'we"ird\\name.hgt')
+        with open(name, "wb") as f:
+            f.write(bytes(1201 * 1201 * 2))  # an SRTM 3" tile, all heights 0
+        p = run([IGTOOL, "dem-info", name], cwd=self.tmp)
+        self.assertExit(p, 0)
+        try:
+            obj = json.loads(p.stdout)
+        except json.JSONDecodeError as e:
+            self.fail(f"dem-info output is not JSON ({e})" + describe(p))
+        self.assertEqual(obj["file"], name)
+        self.assertEqual((obj["width"], obj["height"]), (1201, 1201))
+
     def test_igtool_make_recording(self):
         out = os.path.join(self.tmp, "r.rec")
         p = run([IGTOOL, "make-recording", "--rate", "10", "--duration", "1", "--out", out], cwd=self.tmp)
