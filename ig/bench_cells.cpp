@@ -13,6 +13,7 @@
 #include "ig/bench_cells_path.h"
 #include "ig/cells_deadline.h"
 #include "ig/clock.h"
+#include "ig/json.h"
 #include "ig/cells_tool.h"
 #include "ig/stats.h"
 #include "ig/worker_pair.h"
@@ -384,7 +385,7 @@ int runCellsBench(const CellsBenchOptions& o) {
       std::printf(",%s,\"seconds_to_full_quality\":{", cellsStreamJson(bunny).c_str());
       for (size_t k = 0; k < bunny.runs.size(); ++k)
         std::printf("%s\"%g\":%.3f", k ? "," : "", bunny.runs[k].rate_mbit, bunny.runs[k].secondsToFullQuality);
-      std::printf("},\"gl\":\"%s\"", bunny.context.c_str());
+      std::printf("},\"gl\":%s", jsonString(bunny.context).c_str());
     }
     std::printf("}\n");
   } else {

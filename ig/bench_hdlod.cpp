@@ -15,6 +15,7 @@
 
 #include "ig/clock.h"
 #include "ig/hdlod_tool.h"
+#include "ig/json.h"
 #include "lod/hdlod_build.h"
 #include "lod/hdlod_cache.h"
 #include "lod/hdlod_select.h"
@@ -439,7 +440,7 @@ int runHdlodBench(const HdlodBenchOptions& in) {
                 static_cast<unsigned long long>(triangles), sceneS, buildS, hd::cacheOutcomeName(outcome),
                 static_cast<unsigned long long>(cacheBytes), tree.clusters.size(), st.mergedClusters, st.levels,
                 static_cast<unsigned long long>(st.mergedTriangles), st.modelLods, o.epsPerSize, o.strictHausdorff ? "true" : "false", static_cast<unsigned long long>(st.hausdorffSamples),
-                o.width_px, o.height_px, o.msaa, o.tolerance_px, contextName.c_str(), static_cast<unsigned long long>(gpuBytes));
+                o.width_px, o.height_px, o.msaa, o.tolerance_px, jsonEscape(contextName).c_str(), static_cast<unsigned long long>(gpuBytes));
     for (size_t i = 0; i < cases.size(); ++i) {
       const Case& c = cases[i];
       std::printf("%s{\"time\":\"%s\",\"screen\":\"%s\",", i ? "," : "", c.time.c_str(), c.screen.c_str());

@@ -683,19 +683,25 @@ int runTerrainBench(const TerrainBenchOptions& o) {
   }
 
   if (o.json) {
-    std::string j;
+    // The strings from outside (paths, the GL renderer) are appended, not printed into `b`: a
+    // long path cut off at its size left the JSON unterminated.
+    std::string j = "{\"suite\":\"terrain\",\"dem\":" + jsonString(demName);
     char b[512];
     std::snprintf(b, sizeof b,
-                  "{\"suite\":\"terrain\",\"dem\":\"%s\",\"samples\":%llu,\"width\":%d,\"height\":%d,\"spacing_m\":%.3f,"
-                  "\"relief_m\":%.1f,\"load_ms\":%.1f,\"dem_mapped\":%s,\"dem_from_cache\":%s,\"dem_cache\":\"%s\",",
-                  jsonEscape(demName).c_str(), static_cast<unsigned long long>(samples), dem.width, dem.height,
-                  dem.spacing_m, static_cast<double>(dem.hi - dem.lo), loadMs, o.cacheDir.empty() ? "false" : "true",
-                  fromCache ? "true" : "false", jsonEscape(cacheFile).c_str());
+                  ",\"samples\":%llu,\"width\":%d,\"height\":%d,\"spacing_m\":%.3f,"
+                  "\"relief_m\":%.1f,\"load_ms\":%.1f,\"dem_mapped\":%s,\"dem_from_cache\":%s,\"dem_cache\":",
+                  static_cast<unsigned long long>(samples), dem.width, dem.height, dem.spacing_m,
+                  static_cast<double>(dem.hi - dem.lo), loadMs, o.cacheDir.empty() ? "false" : "true",
+                  fromCache ? "true" : "false");
     j += b;
+    j += jsonString(cacheFile) + ",";
     std::snprintf(b, sizeof b, "\"bounds_ms\":%.1f,\"bounds_bytes\":%zu,", boundsMs, bounds.boundsBytes());
     j += b;
-    std::snprintf(b, sizeof b, "\"frames\":%d,\"renderer\":\"%s\",\"tolerance_px\":1.0,\"deferred_visits\":%u,\"deferred_budget_ms\":%.3f,\"deferred_lateness\":%.3f,\"methods\":{",
-                  o.frames, jsonEscape(contextName).c_str(), o.deferredVisits, o.budget_ms, o.lateness);
+    std::snprintf(b, sizeof b, "\"frames\":%d,\"renderer\":", o.frames);
+    j += b;
+    j += jsonString(contextName);
+    std::snprintf(b, sizeof b, ",\"tolerance_px\":1.0,\"deferred_visits\":%u,\"deferred_budget_ms\":%.3f,\"deferred_lateness\":%.3f,\"methods\":{",
+                  o.deferredVisits, o.budget_ms, o.lateness);
     j += b;
     for (size_t i = 0; i < methods.size(); ++i) {
       const MethodResult& m = methods[i];

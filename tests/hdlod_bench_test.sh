@@ -7,7 +7,9 @@ set -euo pipefail
 igbench=$1
 dir=$(mktemp -d)
 trap 'rm -rf "$dir"' EXIT
-out=$("$igbench" hdlod --quick --json --cache "$dir/site.cache")
+# The GL renderer string goes into the JSON escaped: Mesa's force_gl_renderer (driconf, read from
+# the environment) names the renderer with a quote and a backslash (printed raw, they broke the JSON).
+out=$(force_gl_renderer='llvm"pipe\x' "$igbench" hdlod --quick --json --cache "$dir/site.cache")
 again=$("$igbench" hdlod --quick --no-render --json --cache "$dir/site.cache")
 /usr/bin/python3 - "$out" "$again" <<'PY'
 import json, sys
@@ -16,6 +18,7 @@ again = json.loads(sys.argv[2])
 for k in ("objects", "triangles", "build_s", "cache_bytes", "cases", "sweep", "select_ms_max", "select_cpu_ms_max", "psnr_db_min",
           "frame_ratio_end_1_16", "triangle_ratio_1_16_min"):
     assert k in d, k
+assert d["context"].endswith('llvm"pipe\\x'), d["context"]
 assert d["objects"] == d["static"] + d["pseudo_dynamic"] + d["dynamic"] + d["empty"], d
 assert [(c["time"], c["screen"]) for c in d["cases"]] == [
     (t, s) for t in ("start", "1/3", "2/3", "end", "animation") for s in ("1/1", "1/4", "1/16")], d["cases"]

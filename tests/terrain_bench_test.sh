@@ -46,3 +46,19 @@ for s in d["sweep"]:
 assert 0 < d["roam_triangles_at_equal_error"] < d["block_triangles_at_equal_error"], d
 print("terrain_bench_test: 1 passed, 0 failed")
 PY
+# A long cache path (the JSON's dem_cache) still gives one whole JSON object (its header was
+# printed into a 512-byte buffer and cut off), and the plot script draws the JSON of
+# --no-baselines (no sweep: it raised on the log scale of no data).
+long="$cache/$(printf 'd%.0s' $(seq 1 200))/$(printf 'e%.0s' $(seq 1 200))"
+mkdir -p "$long"
+out=$("$igbench" terrain --synthetic 65 --frames 12 --no-render --no-baselines --raster-frames 0 --cache-dir "$long" --json)
+printf '%s' "$out" > "$cache/terrain.json"
+/usr/bin/python3 - "$out" "$long" <<'PY'
+import json, sys
+d = json.loads(sys.argv[1])
+assert d["dem_cache"].startswith(sys.argv[2] + "/"), d["dem_cache"]
+assert d["sweep"] == [] and "roam_deferred" in d["methods"], d
+print("terrain_bench_test (long cache path): 1 passed, 0 failed")
+PY
+/usr/bin/python3 "$src/scripts/plot_terrain_sweep.py" "$cache/terrain.json" "$cache/terrain.png"
+[ "$(head -c 8 "$cache/terrain.png" | od -An -tx1 | tr -d ' \n')" = 89504e470d0a1a0a ] || { echo "plot_terrain_sweep.py wrote no PNG" >&2; exit 1; }
