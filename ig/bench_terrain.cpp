@@ -752,11 +752,17 @@ int runTerrainBench(const TerrainBenchOptions& o) {
     j += b;
     for (size_t i = 0; i < sweep.size(); ++i) {
       const SweepRow& s = sweep[i];
-      std::snprintf(b, sizeof b, "%s{\"tolerance_px\":%.2f,\"triangles\":%llu,\"update_ms\":%.4f,\"render_ms\":%.3f,"
-                    "\"rmse\":%.4f,\"psnr_db\":%.3f}",
-                    i ? "," : "", s.tolerance, static_cast<unsigned long long>(s.triangles), s.updateMs, s.renderMs,
-                    s.rmse, s.psnr);
+      std::snprintf(b, sizeof b, "%s{\"tolerance_px\":%.2f,\"triangles\":%llu,\"update_ms\":%.4f,", i ? "," : "",
+                    s.tolerance, static_cast<unsigned long long>(s.triangles), s.updateMs);
       j += b;
+      // Not rendered (--no-render, or a DEM too large to render the reference): null, not a
+      // perfect-looking 0 RMSE at 0 dB.
+      if (renderSweep) {
+        std::snprintf(b, sizeof b, "\"render_ms\":%.3f,\"rmse\":%.4f,\"psnr_db\":%.3f}", s.renderMs, s.rmse, s.psnr);
+        j += b;
+      } else {
+        j += "\"render_ms\":null,\"rmse\":null,\"psnr_db\":null}";
+      }
     }
     j += "]}";
     std::printf("%s\n", j.c_str());

@@ -38,8 +38,9 @@ def main():
     a2.plot(tol, [s["update_ms"] for s in sweep], "s--", color="tab:blue", label="update ms (p50)")
     a2.set_ylabel("ROAM update ms (p50)")
     a.set_title(f"{d['dem']}: triangles and update time")
-    b.plot([s["render_ms"] for s in sweep], [s["psnr_db"] for s in sweep], "o-", color="tab:red")
-    for s in sweep:
+    rendered = [s for s in sweep if s.get("psnr_db") is not None]  # null: the sweep was not rendered
+    b.plot([s["render_ms"] for s in rendered], [s["psnr_db"] for s in rendered], "o-", color="tab:red")
+    for s in rendered:
         b.annotate(f"{s['tolerance_px']:g} px", (s["render_ms"], s["psnr_db"]), textcoords="offset points", xytext=(4, 4))
     b.set_xlabel("render ms (glFinish)")
     b.set_ylabel("PSNR vs full resolution (dB)")

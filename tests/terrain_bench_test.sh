@@ -62,3 +62,17 @@ print("terrain_bench_test (long cache path): 1 passed, 0 failed")
 PY
 /usr/bin/python3 "$src/scripts/plot_terrain_sweep.py" "$cache/terrain.json" "$cache/terrain.png"
 [ "$(head -c 8 "$cache/terrain.png" | od -An -tx1 | tr -d ' \n')" = 89504e470d0a1a0a ] || { echo "plot_terrain_sweep.py wrote no PNG" >&2; exit 1; }
+# A sweep that is not rendered (--no-render) reports no image error (null), not a perfect-looking
+# 0 RMSE at 0 dB, and the plot script draws it.
+out=$("$igbench" terrain --synthetic 65 --frames 12 --no-render --raster-frames 0 --cache-dir "$cache" --json)
+printf '%s' "$out" > "$cache/terrain_unrendered.json"
+/usr/bin/python3 - "$out" <<'PY'
+import json, sys
+d = json.loads(sys.argv[1])
+assert d["sweep_rendered"] is False and d["sweep"], d
+for s in d["sweep"]:
+    assert s["triangles"] > 0 and s["rmse"] is None and s["psnr_db"] is None and s["render_ms"] is None, s
+print("terrain_bench_test (sweep not rendered): 1 passed, 0 failed")
+PY
+/usr/bin/python3 "$src/scripts/plot_terrain_sweep.py" "$cache/terrain_unrendered.json" "$cache/terrain_unrendered.png"
+[ "$(head -c 8 "$cache/terrain_unrendered.png" | od -An -tx1 | tr -d ' \n')" = 89504e470d0a1a0a ] || { echo "plot_terrain_sweep.py wrote no PNG" >&2; exit 1; }
