@@ -142,3 +142,30 @@ TEST(BlockLod, SmallAndOddDemsAndHardCameras) {
     EXPECT_EQ(b.level(0, 0), 0) << w << "x" << h;
   }
 }
+
+// Huge coordinates (ECEF-like, ~1e7 m, where a float's step is 1 m): the same DEM and the same
+// eye relative to it choose the same level for every block, also with the eye inside a block's
+// box (on the surface) and looking straight down, and the vertices keep their place.
+TEST(BlockLod, HugeCoordinatesChooseTheSameLevels) {
+  const Dem d = fractal(129, 129);
+  const glm::dvec3 far{2441.0 * 4096.0, -1220.0 * 4096.0, 0.0};  // ~(1e7, -5e6): exact in double
+  BlockLod a(d.z, d.w, d.h, 30.0, {0, 0, 0}, {16}), b(d.z, d.w, d.h, 30.0, far, {16});
+  const glm::dvec3 onSurface = a.vertexPosition(40, 70) + glm::dvec3(0.25, 0.5, 1.0);
+  int compared = 0;
+  for (const RoamView& v : {viewAt({-2000, 1900, 1500}, 90, -20, 2.0), viewAt(onSurface, 30, -5, 1.0),
+                            viewAt({1900, 1900, 3000}, 0, -90, 0.5), viewAt({1234.5, 321.25, 900}, 200, -35, 4.0)}) {
+    a.update(v);
+    RoamView w = v;
+    w.camera.eye_m += far;
+    b.update(w);
+    for (int by = 0; by < a.blocksY(); ++by)
+      for (int bx = 0; bx < a.blocksX(); ++bx) {
+        ASSERT_EQ(a.level(bx, by), b.level(bx, by)) << bx << "," << by << " eye " << v.camera.eye_m.x;
+        compared += a.level(bx, by) >= 0;
+      }
+    const auto ta = emit(a), tb = emit(b);
+    ASSERT_EQ(ta.size(), tb.size());
+  }
+  EXPECT_GT(compared, 100);
+  EXPECT_EQ(b.vertexPosition(10, 20) - far, a.vertexPosition(10, 20));
+}

@@ -186,9 +186,9 @@ TEST_F(DynamicGl, AdaptiveWarmsUpNodeDrawsAndTestsOnItsFirstFrameWithoutChanging
 }
 
 TEST_F(DynamicGl, SameImageOneThousandKilometresFromTheOrigin) {
-  const glm::dvec3 far(977.0 * 1024.0, -512.0 * 1024.0, 0.0);
+  const glm::dvec3 far(977.0 * 1024.0, -512.0 * 1024.0, 0.0), ecef(4.1e6, -1.0e7, 4.9e6);  // and ~1e7 m
   std::vector<render::Image> images;
-  for (glm::dvec3 shift : {glm::dvec3(0.0), far}) {
+  for (glm::dvec3 shift : {glm::dvec3(0.0), far, ecef}) {
     auto p = makePass(shift);
     for (const DynamicObject& o : scene(true, shift)) p->add(o);
     p->setStrategy(DynamicStrategy::Octree);
@@ -197,6 +197,7 @@ TEST_F(DynamicGl, SameImageOneThousandKilometresFromTheOrigin) {
   }
   cam_.eye_m = glm::dvec3(0.0);
   EXPECT_LT(render::fractionDifferent(images[0], images[1], 2), 0.002);
+  EXPECT_LT(render::fractionDifferent(images[0], images[2], 2), 0.002);
 }
 
 // A failed init (here: bounds that are not finite) leaves the pass as it was. It replaced the

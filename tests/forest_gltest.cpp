@@ -35,6 +35,7 @@ struct World {
   std::vector<float> heights;
   size_t vertexCount = 0;
   std::string mapFile;
+  glm::dvec3 origin{0.0};  // ENU of the terrain's sample (0, 0) and of the map's SW corner
 
   void setUp() {
     std::string error;
@@ -72,7 +73,7 @@ struct World {
     if (!mapFile.empty()) std::filesystem::remove(mapFile);
   }
 
-  ForestGround ground() const { return {heights, kPosts, kPosts, kSpacing, glm::dvec3(0.0)}; }
+  ForestGround ground() const { return {heights, kPosts, kPosts, kSpacing, origin}; }
 
   ForestLayerConfig config() const {
     ForestLayerConfig c;
@@ -87,8 +88,8 @@ struct World {
   render::Image frame(const lod::Camera& cam, ForestLayer* forest) {
     if (forest) forest->select(cam);
     renderer.beginFrame(cam, lighting);
-    renderer.drawTerrainMesh(glm::dvec3(0.0), vertexCount);
-    if (forest) forest->draw(renderer, glm::dvec3(0.0), vertexCount);
+    renderer.drawTerrainMesh(origin, vertexCount);
+    if (forest) forest->draw(renderer, origin, vertexCount);
     renderer.endFrame();
     renderer.finish();
     render::Image img;
@@ -639,4 +640,48 @@ TEST(ForestGL, SetTexturesKeepsTheFinGeometrysHeightAndSlices) {
   EXPECT_NE(error.find("height_m"), std::string::npos) << error;
   EXPECT_EQ(forest->pass().layerCount(), 2);  // the refused ones changed nothing
   EXPECT_EQ(w.renderer.errors(), "");
+}
+
+// Huge coordinates (ECEF-like, ~1e7 m east and north, where a float's step is 1 m): the same
+// terrain, map and forest placed there and seen from the same eye relative to them draw the same
+// picture as at the origin: 3D trees from above, layers from far above, trees, fins and layers
+// from a low oblique eye, and trees close up.
+TEST(ForestGL, SameForestTenThousandKilometresFromTheOrigin) {
+  // A whole number of ground-detail periods (1024 m) and forest tiles (24 m), which are anchored
+  // to the world; the eyes are not float values there: float world maths would move things.
+  const glm::dvec3 far(3255.0 * 3072.0, -1628.0 * 3072.0, 0.0);
+  lod::Camera down = downCamera(250.0), high = downCamera(2500.0), oblique = downCamera(120.0);
+  down.eye_m += glm::dvec3(0.3125, -0.4375, 0.0);
+  high.eye_m += glm::dvec3(0.3125, -0.4375, 0.0);
+  oblique.eye_m = {700.3125, -300.4375, 120.0};
+  oblique.pitch_deg = -8.0;
+  lod::Camera low = oblique;  // among the trees: a float step (up to 0.5 m) would be pixels here
+  low.eye_m = {600.3125, 500.4375, 75.0};
+  low.heading_deg = 90.0;
+  low.pitch_deg = -25.0;
+  const lod::Camera cams[] = {down, high, oblique, low};
+  std::vector<render::Image> images[2], without;  // without: far away, without the forest
+  size_t treesDrawn[2] = {0, 0};
+  for (int k = 0; k < 2; ++k) {
+    World w;
+    w.origin = k ? far : glm::dvec3(0.0);
+    ASSERT_NO_FATAL_FAILURE(w.setUp());
+    std::string error;
+    auto forest = ForestLayer::create(w.config(), w.ground(), error);
+    ASSERT_TRUE(forest) << error;
+    for (lod::Camera cam : cams) {
+      cam.eye_m += w.origin;
+      images[k].push_back(w.frame(cam, forest.get()));
+      treesDrawn[k] += forest->stats().treesDrawn;
+      if (k == 1) without.push_back(w.frame(cam, nullptr));
+    }
+    EXPECT_EQ(w.renderer.errors(), "");
+  }
+  EXPECT_GT(treesDrawn[0], 500u);
+  EXPECT_EQ(treesDrawn[0], treesDrawn[1]);
+  for (size_t i = 0; i < std::size(cams); ++i) {
+    // The forest shows there at all, and the same as at the origin.
+    EXPECT_GT(render::fractionDifferent(images[1][i], without[i], 8), 0.03) << "camera " << i;
+    EXPECT_LT(render::fractionDifferent(images[0][i], images[1][i], 2), 0.002) << "camera " << i;
+  }
 }

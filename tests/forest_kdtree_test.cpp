@@ -280,7 +280,7 @@ TEST(ForestKdTree, EmptyForestAndBadInput) {
 }
 
 TEST(ForestKdTree, HugeCoordinatesSelectTheSameTrees) {
-  const glm::dvec3 far(1.0e6, -2.0e6, 0.0);  // 1,000 km east, 2,000 km south
+  const glm::dvec3 far(4.1e6, -1.0e7, 3.0e5);  // ECEF-like: 4,100 km east, 10,000 km south
   const auto a = forest(), b = forest(far);
   ForestKdTree ka, kb;
   std::string err;

@@ -1,7 +1,7 @@
 // render/hdlod_pass on a real headless context: the HDLOD image at r = 1 px is within tolerance
 // of the full-detail image (PSNR), r = 0 draws the same picture as full detail; the per-octant
 // arrays are updated incrementally (nothing uploaded for an unchanged selection, a matrix for a
-// move inside an octant, both octants for a move across, removals); a site 1,000 km from the
+// move inside an octant, both octants for a move across, removals); a site 1,000 km and one ~10,000 km from the
 // origin renders the same image as at the origin.
 #include <gtest/gtest.h>
 
@@ -210,25 +210,26 @@ TEST(HdlodPass, OctantArraysAreUpdatedIncrementally) {
 
 TEST(HdlodPass, FarFromTheOriginRendersTheSamePicture) {
   Gl gl;
-  const glm::dvec3 far(1.0e6, -1.0e6, 0.0);
-  const Scene near = site(), away = site(far);
-  const HdlodTree tn = buildHdlod(near), ta = buildHdlod(away);
-  render::HdlodPass pn, pa;
-  std::string error;
-  ASSERT_TRUE(pn.init(tn, near, 3, error)) << error;
-  ASSERT_TRUE(pa.init(ta, away, 3, error)) << error;
-  lod::Camera cam = cameraFor(tn.clusters[tn.root].box, 1.0);
-  DrawList d(tn);
-  SelectView v;
-  v.camera = cam;
-  v.time_s = 0.5 * near.duration_s;
-  v.tolerance_rad = toleranceFromPixels(1.0, cam.fovY_deg, kH);
-  selectHdlod(tn, near, v, d);
-  const render::Image a = renderOnce(gl, pn, cam, d.selected());
-  cam.eye_m += far;
-  v.camera = cam;
-  DrawList e(ta);
-  selectHdlod(ta, away, v, e);
-  EXPECT_EQ(d.count, e.count);
-  EXPECT_GT(render::psnrDb(renderOnce(gl, pa, cam, e.selected()), a), 40.0);
+  for (const glm::dvec3 far : {glm::dvec3(1.0e6, -1.0e6, 0.0), glm::dvec3(4.1e6, -1.0e7, 4.9e6)}) {  // and ECEF-like
+    const Scene near = site(), away = site(far);
+    const HdlodTree tn = buildHdlod(near), ta = buildHdlod(away);
+    render::HdlodPass pn, pa;
+    std::string error;
+    ASSERT_TRUE(pn.init(tn, near, 3, error)) << error;
+    ASSERT_TRUE(pa.init(ta, away, 3, error)) << error;
+    lod::Camera cam = cameraFor(tn.clusters[tn.root].box, 1.0);
+    DrawList d(tn);
+    SelectView v;
+    v.camera = cam;
+    v.time_s = 0.5 * near.duration_s;
+    v.tolerance_rad = toleranceFromPixels(1.0, cam.fovY_deg, kH);
+    selectHdlod(tn, near, v, d);
+    const render::Image a = renderOnce(gl, pn, cam, d.selected());
+    cam.eye_m += far;
+    v.camera = cam;
+    DrawList e(ta);
+    selectHdlod(ta, away, v, e);
+    EXPECT_EQ(d.count, e.count) << far.y;
+    EXPECT_GT(render::psnrDb(renderOnce(gl, pa, cam, e.selected()), a), 40.0) << far.y;
+  }
 }

@@ -488,13 +488,13 @@ TEST(HdlodBuild, HugeCoordinatesKeepPrecision) {
   SiteParams p;
   p.scale = 0.02;
   p.loadsPerFloor = 5;
-  p.origin_m = {1.0e6, -2.0e6, 300.0};
+  p.origin_m = {4.1e6, -1.0e7, 300.0};
   std::string error;
   const Scene far = makeConstructionSite(p, error);
   p.origin_m = glm::dvec3(0.0);
   const Scene near = makeConstructionSite(p, error);
   const HdlodTree a = buildHdlod(far), b = buildHdlod(near);
-  // Ties between equally distant neighbours may break differently at 1e6 m, so the trees are
+  // Ties between equally distant neighbours may break differently at 1e7 m, so the trees are
   // compared in aggregate; the stored geometry must stay relative to each cluster's origin.
   ASSERT_GT(a.meshes.size(), 10u);
   EXPECT_NEAR(static_cast<double>(a.stats.mergedTriangles), static_cast<double>(b.stats.mergedTriangles),
@@ -507,7 +507,7 @@ TEST(HdlodBuild, HugeCoordinatesKeepPrecision) {
     const Cluster& c = a.clusters[i];
     if (c.kind != ClusterKind::Merged) continue;
     const ClusterMesh& m = a.meshes[c.mesh];
-    EXPECT_GT(m.origin_m.x, 0.9e6);
+    EXPECT_GT(m.origin_m.x, 0.9 * 4.1e6);
     EXPECT_EQ(a.leafMatrix[i][3], glm::dvec4(m.origin_m, 1.0));
     for (const glm::vec3& q : m.positions) {
       ASSERT_LE(glm::length(glm::dvec3(q)), 0.5 * c.size_m + c.eps_m + 1e-3) << i;

@@ -820,3 +820,57 @@ TEST(DynamicOctree, RejectsBadConfig) {
 }
 
 }  // namespace
+
+// Huge coordinates (ECEF-like, ~1e7 m: a float's step there is 1 m) and the camera inside a node:
+// the same scene shifted by a whole number of 4,096 m (exact in double) puts every object in the
+// same node and the same relative view draws the same nodes with the same objects, inside and
+// outside the boxes.
+TEST(DynamicOctree, HugeCoordinatesPlaceAndCullAsAtTheOrigin) {
+  const glm::dvec3 shift(2441.0 * 4096.0, -1220.0 * 4096.0, 1196.0 * 4096.0);  // ~(1e7, -5e6, 4.9e6)
+  DynamicOctree a, b;
+  OctreeConfig ca = occlusionTestConfig(4), cb = ca;
+  cb.bounds = {ca.bounds.min + shift, ca.bounds.max + shift};
+  ASSERT_TRUE(a.init(ca));
+  ASSERT_TRUE(b.init(cb));
+  std::mt19937 rng(21);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (uint32_t id = 0; id < 1500; ++id) {
+    // Centres on a 1/64 m grid: exact in double after the shift, so both trees see the same boxes.
+    const glm::dvec3 c = glm::round(glm::dvec3(120 * u(rng), 120 * u(rng), 120 * u(rng)) * 64.0) / 64.0;
+    const double h = std::ldexp(1.0, -static_cast<int>(rng() % 6));
+    ASSERT_TRUE(a.insert(id, cube(c, h)));
+    ASSERT_TRUE(b.insert(id, cube(c + shift, h)));
+  }
+  a.refresh();
+  b.refresh();
+  ASSERT_EQ(a.nodes().size(), b.nodes().size());
+  for (uint32_t id = 0; id < 1500; ++id) ASSERT_EQ(a.nodeOf(id), b.nodeOf(id)) << id;
+  std::vector<uint32_t> drawA(a.nodes().size()), drawB(b.nodes().size()), testA(a.nodes().size()),
+      testB(b.nodes().size());
+  // Eyes outside the root, inside the root, inside a leaf's box (object 0's), looking around.
+  const glm::dvec3 eyes[] = {{0, -200, 0}, {0.3, 0.7, -0.2}, glm::dvec3(a.boxOf(0).min) + glm::dvec3(0.01)};
+  uint64_t totalDrawn = 0;
+  for (const glm::dvec3& eye : eyes) {
+    for (double heading = 0.0; heading < 360.0; heading += 45.0) {
+      Camera cam = wideCamera();
+      cam.eye_m = eye;
+      cam.heading_deg = heading;
+      cam.pitch_deg = 10.0;
+      DynamicOctree::Traversal ta, tb;
+      ta.frame = tb.frame = 3;
+      ta.eye_m = eye;
+      tb.eye_m = eye + shift;
+      // The frustum is eye-relative: the same for both.
+      const Frustum f = makeFrustum(cam);
+      const auto ra = a.traverse(f, ta, drawA, testA);
+      const auto rb = b.traverse(f, tb, drawB, testB);
+      totalDrawn += ra.drawn;
+      EXPECT_EQ(ra.drawn, rb.drawn) << heading;
+      EXPECT_EQ(ra.objectsDrawn, rb.objectsDrawn) << heading;
+      EXPECT_EQ(ra.candidates, rb.candidates) << heading;
+      EXPECT_TRUE(std::equal(drawA.begin(), drawA.begin() + ra.drawn, drawB.begin())) << heading;
+      EXPECT_TRUE(std::equal(testA.begin(), testA.begin() + ra.candidates, testB.begin())) << heading;
+    }
+  }
+  EXPECT_GT(totalDrawn, 100u);
+}

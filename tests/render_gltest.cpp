@@ -24,6 +24,8 @@ namespace {
 
 // ~1,000 km, a whole number of ground-detail periods (1024 m) so the detail pattern lines up.
 constexpr double kFar_m = 977.0 * 1024.0;
+// ~10,000 km (ECEF-like offsets, where a float's step is 1 m), also whole periods.
+constexpr double kEcef_m = 9766.0 * 1024.0;
 
 // The golden frame: frame 150 of the default run (30 Hz), i.e. replay time 5 s.
 constexpr double kGoldenTime_s = 5.0;
@@ -113,6 +115,10 @@ TEST(RenderGL, CloseUpOneThousandKilometresFromOriginMatches) {
   // computed in float (the classic jitter), so this bound separates the two.
   EXPECT_LT(render::rmse(origin, far), 0.1);
   EXPECT_LT(render::fractionDifferent(origin, far, 2), 0.001);
+  // And at ECEF-like offsets (~1e7 m east and north, a float step of 1 m): the same picture.
+  const render::Image ecef = renderView(h, {kEcef_m, -kEcef_m, 0.0});
+  EXPECT_LT(render::rmse(origin, ecef), 0.1);
+  EXPECT_LT(render::fractionDifferent(origin, ecef, 2), 0.001);
 }
 
 // MSAA ([output] msaa): the terrain's silhouette against the sky and the far hills are
