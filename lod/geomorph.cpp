@@ -1,6 +1,7 @@
 #include "lod/geomorph.h"
 
 #include <algorithm>
+#include <cmath>
 
 namespace ig::lod {
 
@@ -19,7 +20,9 @@ size_t Geomorph::slot(uint64_t k) const {
 }
 
 void Geomorph::start(int x, int y, float startHeight_m, double now_s) {
-  if (morph_s_ <= 0.0 || live_ >= capacity_) return;  // off, or full: the vertex pops
+  // Off, full, or a time that is not a number (its morph would never end and hold its slot for
+  // good): the vertex pops.
+  if (morph_s_ <= 0.0 || live_ >= capacity_ || !std::isfinite(now_s)) return;
   const uint64_t k = key(x, y);
   const size_t i = slot(k);
   if (table_[i].key == k) return;
@@ -29,7 +32,7 @@ void Geomorph::start(int x, int y, float startHeight_m, double now_s) {
 }
 
 void Geomorph::startSplits(const Roam& roam, std::span<const float> heights_m, int samplesX, int samplesY, double now_s) {
-  if (morph_s_ <= 0.0) return;
+  if (morph_s_ <= 0.0 || !std::isfinite(now_s)) return;
   auto sample = [&](int x, int y) {
     x = std::clamp(x, 0, samplesX - 1);
     y = std::clamp(y, 0, samplesY - 1);
@@ -58,7 +61,7 @@ void Geomorph::startSplits(const Roam& roam, std::span<const float> heights_m, i
 }
 
 void Geomorph::startOut(int x, int y, float targetHeight_m, double now_s) {
-  if (morph_s_ <= 0.0) return;
+  if (morph_s_ <= 0.0 || !std::isfinite(now_s)) return;
   const uint64_t k = key(x, y);
   const size_t i = slot(k);
   if (table_[i].key != k) {

@@ -22,7 +22,7 @@ class Geomorph {
   Geomorph(size_t capacity, double morph_s);
 
   // Starts morphing vertex (x, y) from startHeight_m at time now_s (ignored if it is already
-  // morphing or the table is full).
+  // morphing, the table is full or now_s is not finite: every start* ignores such a time).
   void start(int x, int y, float startHeight_m, double now_s);
   // Starts the morphs of the vertices the last update of `roam` created (Roam::createdVertices,
   // coarse before fine), each from the height the surface drawn so far had there: the midpoint

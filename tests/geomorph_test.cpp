@@ -54,6 +54,23 @@ TEST(Geomorph, ZeroTimeIsOff) {
   EXPECT_FLOAT_EQ(g.height(1, 1, 9.0f, 0.0), 9.0f);
 }
 
+// A time that is not a number starts no morph (now >= start + morph_s would never hold: the
+// entry would never expire and hold its slot for good); the vertex pops to its height.
+TEST(Geomorph, ANonFiniteTimeStartsNoMorph) {
+  Geomorph g(4, 1.0);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  g.start(1, 2, 10.0f, nan);
+  g.startOut(3, 4, 10.0f, nan);
+  g.start(5, 6, 10.0f, std::numeric_limits<double>::infinity());
+  EXPECT_EQ(g.size(), 0u);
+  EXPECT_FALSE(g.contains(1, 2));
+  EXPECT_EQ(g.height(1, 2, 50.0f, 0.5), 50.0f);
+  g.start(1, 2, 10.0f, 0.0);  // a finite time still starts one
+  EXPECT_EQ(g.size(), 1u);
+  g.expire(2.0);
+  EXPECT_EQ(g.size(), 0u);
+}
+
 TEST(Geomorph, OutMorphMovesFromTheTrueHeightToTheTarget) {
   Geomorph g(16, 1.0);
   g.startOut(3, 4, 10.0f, 5.0);
