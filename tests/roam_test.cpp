@@ -699,8 +699,12 @@ TEST(Roam, StopHookEndsAnUpdateEarlyAndTheMeshStillConverges) {
         ++leftUnscheduled;
         EXPECT_FALSE(st.finished);
       }
-      std::string why;
-      EXPECT_TRUE(roam.validate(&why)) << "update " << updates << ": " << why;
+      // Every 3rd update (and the last): with the stop point cycling every 4, every stop
+      // position is validated (the whole check each update made this the slowest test).
+      if (updates % 3 == 0 || st.finished) {
+        std::string why;
+        EXPECT_TRUE(roam.validate(&why)) << "update " << updates << ": " << why;
+      }
       ++updates;
     } while (!st.finished && updates < limit);
     return st.finished;

@@ -185,8 +185,13 @@ TEST(TerrainChunks, BufferHoldsTheMeshAndCullDrawsEveryVisibleLeafInEveryMode) {
         // the chunks that changed.
         EXPECT_LE(c.dirty, c.added + c.removed + c.packedSlots) << "frame " << f;
       }
-      checkFrame(roam, chunks, buffer, v.camera, "mode " + std::to_string(static_cast<int>(mode)) + " frame " + std::to_string(f));
-      if (::testing::Test::HasFatalFailure()) return;
+      // The whole check (buffer against the mesh, culling against every leaf) on every frame of
+      // the modes igd runs (EnhMerge, Deferred), on every 3rd and the last of the others.
+      const bool everyFrame = mode == RoamMode::EnhMerge || mode == RoamMode::Deferred;
+      if (everyFrame || f % 3 == 0 || f + 1 == path.size()) {
+        checkFrame(roam, chunks, buffer, v.camera, "mode " + std::to_string(static_cast<int>(mode)) + " frame " + std::to_string(f));
+        if (::testing::Test::HasFatalFailure()) return;
+      }
       (void)st;
     }
     if (mode == RoamMode::Rebuild) {
