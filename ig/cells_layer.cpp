@@ -67,11 +67,7 @@ std::unique_ptr<CellsLayer> CellsLayer::create(const CellsLayerConfig& config, s
   }
   const CellStream& s = *layer->stream_;
   for (const lod::CellDbEntry& e : s.entries()) layer->largestCell_bytes_ = std::max(layer->largestCell_bytes_, e.bytes);
-  if (config.wBytes < layer->largestCell_bytes_) {
-    error = "[cells] w_bytes = " + std::to_string(config.wBytes) + ": smaller than the largest cell of " + config.source +
-            " (" + std::to_string(layer->largestCell_bytes_) + " bytes), which could never be fetched";
-    return nullptr;
-  }
+  if (!layer->checkByteBudget(config.wBytes, error)) return nullptr;
   const glm::dvec3 origin(config.origin_m[0], config.origin_m[1], config.origin_m[2]);
   std::string why;
   if (!movedTree(s.tree(), origin, layer->tree_, why)) {
@@ -115,6 +111,13 @@ bool CellsLayer::initRender(std::string& error) {
   }
   sink_ = std::make_unique<CellsPassSink>(*pass_);
   return true;
+}
+
+bool CellsLayer::checkByteBudget(uint64_t wBytes, std::string& error) const {
+  if (wBytes >= largestCell_bytes_) return true;
+  error = "[cells] w_bytes = " + std::to_string(wBytes) + ": smaller than the largest cell of " + config_.source + " (" +
+          std::to_string(largestCell_bytes_) + " bytes), which could never be fetched";
+  return false;
 }
 
 void CellsLayer::setBudgets(uint64_t voxelBudget, uint64_t wBytes, double minVoxel_px) {

@@ -90,9 +90,9 @@ class CellsLayer {
   void draw(render::Renderer& renderer);
   // Reload: the budgets that apply between frames.
   void setBudgets(uint64_t voxelBudget, uint64_t wBytes, double minVoxel_px);
-  // The database's largest cell in bytes: W must be at least this (create() refuses less, and
-  // igd refuses a reload with less).
-  uint32_t largestCellBytes() const { return largestCell_bytes_; }
+  // W must hold the database's largest cell, or that cell could never be fetched: false with an
+  // error naming w_bytes and the cell's size otherwise (create() and igd's reload refuse it).
+  bool checkByteBudget(uint64_t wBytes, std::string& error) const;
   // This frame's voxel budget (the frame governor's), >= 1.
   void setVoxelBudget(uint64_t voxelBudget) { view_.voxelBudget = voxelBudget; }
   uint64_t voxelBudget() const { return view_.voxelBudget; }

@@ -1032,10 +1032,8 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
     SceneConfig ms;
     const ReloadPlan plan = planReload(m.config, m.scene, p.config, p.scene, mc, ms);
     // W below the largest cell: that cell could never be fetched (create() refuses it at start-up).
-    if (m.cells && ms.cells && ms.cells->wBytes < m.cells->largestCellBytes()) {
+    if (m.cells && ms.cells && !m.cells->checkByteBudget(ms.cells->wBytes, p.error)) {
       p.ok = false;
-      p.error = "[cells] w_bytes = " + std::to_string(ms.cells->wBytes) + ": smaller than the largest cell of " +
-                ms.cells->source + " (" + std::to_string(m.cells->largestCellBytes()) + " bytes), which could never be fetched";
       applyReloadFailed(p, frame);
       return;
     }
