@@ -381,7 +381,16 @@ std::optional<Scene> parseSchedule(const std::string& text, const std::string& n
         explicitVis[it->second] = 2;
       } else {
         Interval iv;
-        if (!arity(4) || !number(2, iv.appear_s) || !number(3, iv.disappear_s)) {
+        // An end beyond the schedule may be infinite ("-inf" / "inf": present since always, for
+        // ever), as validateScene allows and saveSchedule writes; NaN is never a time.
+        auto end = [&](size_t i, double& out) {
+          if (w[i] == "inf" || w[i] == "-inf") {
+            out = (w[i][0] == '-' ? -1.0 : 1.0) * std::numeric_limits<double>::infinity();
+            return true;
+          }
+          return number(i, out);
+        };
+        if (!arity(4) || !end(2, iv.appear_s) || !end(3, iv.disappear_s)) {
           return fail("visible: expected 'visible OBJECT APPEAR_S DISAPPEAR_S' or 'visible OBJECT never': " + line);
         }
         if (explicitVis[it->second] == 2) return fail("visible " + o.name + ": intervals after 'never'");

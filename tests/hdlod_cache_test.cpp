@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <fstream>
 #include <string>
 #include <vector>
@@ -348,5 +349,19 @@ TEST(HdlodCache, ScheduleWithLongOrDuplicateNames) {
   models.models.push_back(makeBoxModel("box", {2, 2, 2}));
   EXPECT_FALSE(saveSchedule(models, dir + "/c.sched", "models", error));
   EXPECT_NE(error.find("'box'"), std::string::npos) << error;
+  // Interval ends beyond the schedule may be infinite (validateScene allows them: present since
+  // always / for ever); saveSchedule wrote them as "inf", which loadSchedule refused.
+  Scene open = s;
+  open.objects[0].visible = {{-std::numeric_limits<double>::infinity(), 10.0},
+                             {20.0, std::numeric_limits<double>::infinity()}};
+  ASSERT_EQ(validateScene(open), "");
+  ASSERT_TRUE(saveSchedule(open, dir + "/d.sched", "models", error)) << error;
+  const auto openLoaded = loadSchedule(dir + "/d.sched", error);
+  ASSERT_TRUE(openLoaded) << error;
+  ASSERT_EQ(openLoaded->objects.size(), 1u);
+  EXPECT_EQ(openLoaded->objects[0].visible.size(), 2u);
+  EXPECT_EQ(hdlodCacheKey(*openLoaded, BuildConfig{}), hdlodCacheKey(open, BuildConfig{}));
+  for (double t : {0.0, 9.9, 10.0, 15.0, 20.0, open.duration_s})
+    EXPECT_EQ(isPresent(openLoaded->objects[0], t, open.duration_s), isPresent(open.objects[0], t, open.duration_s)) << t;
   std::filesystem::remove_all(dir);
 }
