@@ -4,6 +4,7 @@
 #include <cerrno>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <sstream>
@@ -155,12 +156,31 @@ std::string formatSample(const HostSample& h) {
   const HostState& st = h.state;
   const std::string fovy = exactFixed(st.fovY_deg, 6), nearM = exactFixed(st.near_m, 6),
                     farM = exactFixed(st.far_m, 3);
+  // tod_h must read back below 24 (the parser refuses 24): a time within 5e-7 h (1.8 ms) of midnight
+  // would round up to "24.000000" in the fixed format.
+  std::string tod = "-1.000000";
+  if (st.timeOfDay_h >= 0) {
+    char t[64];
+    std::snprintf(t, sizeof t, "%.6f", st.timeOfDay_h);
+    double back = 0;
+    if (!parseDouble(t, back) || back >= 24.0) std::snprintf(t, sizeof t, "%.17g", st.timeOfDay_h);
+    tod = t;
+  }
+  // Any finite value the parser accepts is written whole (%f of a huge value is hundreds of
+  // digits): a line cut at a fixed buffer lost its end and its newline.
+  auto print = [&](char* out, size_t size) {
+    return std::snprintf(out, size, "%.6f %llu %.6f %.6f %.6f %.6f %.6f %.6f %.6f %s %s %s %s %d\n", h.t_s,
+                         static_cast<unsigned long long>(st.hostFrame), st.simTime_s, st.eyeEnu_m.x, st.eyeEnu_m.y,
+                         st.eyeEnu_m.z, st.heading_deg, st.pitch_deg, st.roll_deg, fovy.c_str(), nearM.c_str(),
+                         farM.c_str(), tod.c_str(), static_cast<int>(st.dateYmd));
+  };
   char buf[512];
-  std::snprintf(buf, sizeof buf, "%.6f %llu %.6f %.6f %.6f %.6f %.6f %.6f %.6f %s %s %s %.6f %d\n", h.t_s,
-                static_cast<unsigned long long>(st.hostFrame), st.simTime_s, st.eyeEnu_m.x, st.eyeEnu_m.y,
-                st.eyeEnu_m.z, st.heading_deg, st.pitch_deg, st.roll_deg, fovy.c_str(), nearM.c_str(), farM.c_str(),
-                st.timeOfDay_h < 0 ? -1.0 : st.timeOfDay_h, static_cast<int>(st.dateYmd));
-  return buf;
+  const int n = print(buf, sizeof buf);
+  if (n >= 0 && static_cast<size_t>(n) < sizeof buf) return buf;
+  std::string line(static_cast<size_t>(n > 0 ? n : 0) + 1, '\0');
+  print(line.data(), line.size());
+  line.resize(line.size() - 1);
+  return line;
 }
 
 std::string formatRecording(const Recording& recording) {

@@ -208,3 +208,42 @@ TEST(Replay, HostFrameTooLargeIsAnError) {
   ASSERT_TRUE(parseRecording("igd-recording 1\n0 9007199254740992 0 1 2 3 4 5 6 45 0.1 1000\n", "rec.txt", r, e)) << e;
   EXPECT_EQ(r.samples.at(0).state.hostFrame, 9007199254740992ull);
 }
+
+// tod_h must stay below 24: a time of day that the fixed format would round up to 24 (any value
+// within 5e-7 h of midnight, which the parser accepts) must be written so that it reads back.
+TEST(Replay, TimeOfDayJustBeforeMidnightSurvivesTheRecording) {
+  Recording r;
+  std::string e;
+  ASSERT_TRUE(parseRecording("igd-recording 2\n0 0 0 1 2 3 4 5 6 45 0.1 1000 23.9999999 20261231\n", "rec.txt", r, e))
+      << e;
+  Recording back;
+  ASSERT_TRUE(parseRecording(formatRecording(r), "rec.txt", back, e)) << e;
+  EXPECT_DOUBLE_EQ(back.samples.at(0).state.timeOfDay_h, 23.9999999);
+  HostSample h;
+  h.state.timeOfDay_h = std::nextafter(24.0, 0.0);
+  ASSERT_TRUE(parseRecording(recordingHeader() + formatSample(h), "rec.txt", back, e)) << e;
+  EXPECT_LT(back.samples.at(0).state.timeOfDay_h, 24.0);
+  EXPECT_EQ(back.samples.at(0).state.timeOfDay_h, h.state.timeOfDay_h);
+}
+
+// A sample line is written whole whatever its length: the parser accepts any finite position,
+// and a line cut at a fixed buffer size lost its end and its newline (the next sample was glued
+// to it, and the file no longer parsed).
+TEST(Replay, HugeFiniteValuesAreWrittenWhole) {
+  Recording r;
+  HostSample h;
+  h.state.eyeEnu_m = {1e300, -1e300, 1e300};
+  h.state.simTime_s = 1e300;
+  r.samples.push_back(h);
+  h.t_s = 1.0;
+  h.state.hostFrame = 1;
+  r.samples.push_back(h);
+  Recording back;
+  std::string e;
+  ASSERT_TRUE(parseRecording(formatRecording(r), "rec.txt", back, e)) << e;
+  ASSERT_EQ(back.samples.size(), 2u);
+  EXPECT_EQ(back.samples[1].state.eyeEnu_m.x, 1e300);
+  EXPECT_EQ(back.samples[1].state.eyeEnu_m.y, -1e300);
+  EXPECT_EQ(back.samples[1].state.simTime_s, 1e300);
+  EXPECT_EQ(back.samples[1].state.hostFrame, 1u);
+}
