@@ -6,6 +6,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -270,6 +271,45 @@ bool deserialize(const uint8_t* p, size_t n, HdlodTree& t, std::string& why) {
   return true;
 }
 
+// The tree's references into the scene (hdlod_build.h): a leaf's object and its model, a mesh
+// triangle's material (a model index), one objectCluster entry per object. The key says which
+// scene the file was built for, but a forged or damaged file with a valid key and checksum could
+// still name an object or model the scene does not have (selectHdlod() and the HDLOD pass index
+// the scene's arrays with them). "" when they fit, else the first bad reference.
+std::string sceneMismatch(const HdlodTree& t, const Scene& scene) {
+  const size_t objects = scene.objects.size(), models = scene.models.size();
+  if (t.objectCluster.size() != objects) {
+    return "has leaves for " + std::to_string(t.objectCluster.size()) + " objects, the scene has " + std::to_string(objects);
+  }
+  for (size_t i = 0; i < t.clusters.size(); ++i) {
+    const Cluster& c = t.clusters[i];
+    if (c.kind != ClusterKind::Object && c.kind != ClusterKind::Dynamic) continue;
+    const std::string leaf = "cluster " + std::to_string(i) + " (a leaf)";
+    if (c.object >= objects) {
+      return leaf + " names object " + std::to_string(c.object) + ", the scene has " + std::to_string(objects) + " objects";
+    }
+    if (c.mesh >= models) {
+      return leaf + " names model " + std::to_string(c.mesh) + ", the scene has " + std::to_string(models) + " models";
+    }
+    if (scene.objects[c.object].model != c.mesh) {
+      return leaf + " names model " + std::to_string(c.mesh) + " for object " + std::to_string(c.object) +
+             ", whose model in the scene is " + std::to_string(scene.objects[c.object].model);
+    }
+  }
+  // Models past 65535 share material 65535 (hdlod_build.h); the renderer's colour table has
+  // one entry per model (one when there is none).
+  const size_t materials = std::max<size_t>(1, std::min<size_t>(models, 65536));
+  for (size_t i = 0; i < t.meshes.size(); ++i) {
+    for (uint16_t m : t.meshes[i].materials) {
+      if (m >= materials) {
+        return "mesh " + std::to_string(i) + " names material (model) " + std::to_string(m) + ", the scene has " +
+               std::to_string(models) + " models";
+      }
+    }
+  }
+  return "";
+}
+
 }  // namespace
 
 uint64_t hdlodCacheKey(const Scene& scene, const BuildConfig& c) {
@@ -386,6 +426,15 @@ bool loadHdlodCache(const std::string& path, uint64_t key, HdlodTree& tree, std:
   return true;
 }
 
+bool loadHdlodCache(const std::string& path, uint64_t key, const Scene& scene, HdlodTree& tree, std::string& error) {
+  if (!loadHdlodCache(path, key, tree, error)) return false;
+  const std::string why = sceneMismatch(tree, scene);
+  if (why.empty()) return true;
+  tree = HdlodTree{};
+  error = path + ": HDLOD cache does not fit the scene: " + why;
+  return false;
+}
+
 const char* cacheOutcomeName(CacheOutcome o) {
   switch (o) {
     case CacheOutcome::Disabled: return "built";
@@ -406,7 +455,7 @@ HdlodTree loadOrBuildHdlod(const Scene& scene, const BuildConfig& config, const 
   const uint64_t key = hdlodCacheKey(scene, config);
   HdlodTree tree;
   std::string error;
-  if (loadHdlodCache(path, key, tree, error)) {
+  if (loadHdlodCache(path, key, scene, tree, error)) {
     outcome = CacheOutcome::Loaded;
     if (config.progress) config.progress(1.0, "loaded");
     return tree;

@@ -8,7 +8,8 @@
 // Loading maps the file (mmap, read-only), checks the magic, version, key, size and checksum
 // before reading anything else, and copies the arrays into the tree. Every failure is reported
 // with the file name and the reason ("missing", "not an HDLOD cache", "version 3, expected 4",
-// "stale: built for another scene or config", "truncated", "checksum mismatch"), never a crash:
+// "stale: built for another scene or config", "truncated", "checksum mismatch", "does not fit the
+// scene" for references out of the scene's range), never a crash:
 // loadOrBuildHdlod() then rebuilds and rewrites the file.
 #pragma once
 
@@ -32,6 +33,11 @@ bool saveHdlodCache(const std::string& path, const HdlodTree& tree, uint64_t key
 // Reads a cache written for `key`. False + error (naming the file and the reason) otherwise;
 // `tree` is then left empty.
 bool loadHdlodCache(const std::string& path, uint64_t key, HdlodTree& tree, std::string& error);
+// The same, then checks the tree's references into `scene` (each leaf's object and model, the
+// meshes' materials, one objectCluster entry per object): a file that names an object or model
+// the scene does not have is refused ("does not fit the scene: cluster 12 (a leaf) names object
+// 4294967295, the scene has 57 objects"), never traversed. loadOrBuildHdlod() loads with this.
+bool loadHdlodCache(const std::string& path, uint64_t key, const Scene& scene, HdlodTree& tree, std::string& error);
 
 enum class CacheOutcome : uint8_t { Disabled, Loaded, Built, Rebuilt };
 const char* cacheOutcomeName(CacheOutcome o);

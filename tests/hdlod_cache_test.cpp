@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <limits>
 #include <fstream>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -364,4 +365,63 @@ TEST(HdlodCache, ScheduleWithLongOrDuplicateNames) {
   for (double t : {0.0, 9.9, 10.0, 15.0, 20.0, open.duration_s})
     EXPECT_EQ(isPresent(openLoaded->objects[0], t, open.duration_s), isPresent(open.objects[0], t, open.duration_s)) << t;
   std::filesystem::remove_all(dir);
+}
+
+// A cache with the right key and checksum whose references into the scene are out of range (a
+// forged or damaged file: the key only hashes the scene) is refused, naming the file and the bad
+// index, and rebuilt: the loader checked the tree against itself but not against the scene, and
+// selectHdlod() / the HDLOD pass then indexed scene.objects / the model ranges with it.
+TEST(HdlodCache, CacheNamingObjectsOrModelsOutsideTheSceneIsRefusedAndRebuilt) {
+  const Scene s = smallSite();
+  const BuildConfig config;
+  const std::string path = tempPath("outside.bin");
+  std::remove(path.c_str());
+  CacheOutcome outcome;
+  std::string note, error;
+  const HdlodTree built = loadOrBuildHdlod(s, config, path, outcome, note);
+  ASSERT_EQ(outcome, CacheOutcome::Built);
+  const uint64_t key = hdlodCacheKey(s, config);
+  uint32_t dynamicLeaf = ~0u, objectLeaf = ~0u, mergedMesh = ~0u;
+  for (uint32_t i = 0; i < built.clusters.size(); ++i) {
+    const Cluster& c = built.clusters[i];
+    if (c.kind == ClusterKind::Dynamic && dynamicLeaf == ~0u) dynamicLeaf = i;
+    if (c.kind == ClusterKind::Object && objectLeaf == ~0u) objectLeaf = i;
+    if (c.kind == ClusterKind::Merged && mergedMesh == ~0u && !built.meshes[c.mesh].materials.empty()) mergedMesh = c.mesh;
+  }
+  ASSERT_NE(dynamicLeaf, ~0u);
+  ASSERT_NE(objectLeaf, ~0u);
+  ASSERT_NE(mergedMesh, ~0u);
+  const auto objects = static_cast<uint32_t>(s.objects.size());
+  const auto models = static_cast<uint32_t>(s.models.size());
+  struct Forgery {
+    const char* what;
+    std::function<void(HdlodTree&)> apply;
+    std::string index;  // the bad value the error must name
+  };
+  const std::vector<Forgery> forgeries = {
+      {"dynamic leaf's object = the object count", [&](HdlodTree& t) { t.clusters[dynamicLeaf].object = objects; },
+       std::to_string(objects)},
+      {"static leaf's object = -1", [&](HdlodTree& t) { t.clusters[objectLeaf].object = static_cast<uint32_t>(-1); },
+       std::to_string(~0u)},
+      {"leaf's model = the model count", [&](HdlodTree& t) { t.clusters[objectLeaf].mesh = models + 5; },
+       std::to_string(models + 5)},
+      {"a material past the models", [&](HdlodTree& t) { t.meshes[mergedMesh].materials[0] = static_cast<uint16_t>(models); },
+       std::to_string(models)},
+      {"an object leaf entry more than the scene's objects", [&](HdlodTree& t) { t.objectCluster.push_back(~0u); },
+       std::to_string(objects + 1)},
+  };
+  for (const Forgery& f : forgeries) {
+    HdlodTree forged = built;
+    f.apply(forged);
+    ASSERT_TRUE(saveHdlodCache(path, forged, key, error)) << error;
+    const HdlodTree t = loadOrBuildHdlod(s, config, path, outcome, note);
+    EXPECT_EQ(outcome, CacheOutcome::Rebuilt) << f.what;
+    EXPECT_NE(note.find(path + ": HDLOD cache does not fit the scene"), std::string::npos) << f.what << ": " << note;
+    EXPECT_NE(note.find(f.index), std::string::npos) << f.what << ": " << note;
+    expectSameTree(built, t);
+  }
+  // The rewritten file is the scene's own again.
+  (void)loadOrBuildHdlod(s, config, path, outcome, note);
+  EXPECT_EQ(outcome, CacheOutcome::Loaded) << note;
+  std::remove(path.c_str());
 }
