@@ -122,7 +122,7 @@ int compareCommand(const std::string& a, const std::string& b, double maxRmse) {
   if (e < 0) {
     std::fprintf(stderr, "igtool compare: sizes differ: %s is %dx%d, %s is %dx%d\n", a.c_str(), ia.width, ia.height,
                  b.c_str(), ib.width, ib.height);
-    return 1;
+    return 2;  // an input error like an unreadable file, not "the images differ" (1)
   }
   const double frac = ig::render::fractionDifferent(ia, ib, 8);
   std::printf("rmse %.4f (8-bit levels), %.4f %% of pixels differ by more than 8 levels\n", e, 100.0 * frac);
@@ -163,7 +163,8 @@ int main(int argc, char** argv) {
   double maxRmse = 2.0;
   CLI::App* compare = app.add_subcommand(
       "compare", "Compare two PNGs: print the RMSE over RGB in 8-bit levels and the share of pixels that\n"
-                 "differ by more than 8 levels; exit 1 if the RMSE exceeds --max-rmse.");
+                 "differ by more than 8 levels; exit 1 if the RMSE exceeds --max-rmse, 2 if a file is not a\n"
+                 "readable PNG or the two sizes differ.");
   compare->add_option("a", imgA, "First PNG")->required();
   compare->add_option("b", imgB, "Second PNG")->required();
   compare->add_option("--max-rmse", maxRmse, "Largest RMSE that passes")->capture_default_str();

@@ -1088,6 +1088,31 @@ class Tools(Tmp):
         self.assertExit(p, 2)
         self.assertMentions(p, junk)
 
+    def test_igtool_compare_sizes_differ_is_an_input_error(self):
+        # Images of different sizes cannot be compared: an input error (exit 2, like a file that
+        # is not a PNG) naming both files and sizes, not "images differ" (exit 1).
+        import struct
+        import zlib
+
+        def png(name, width, height):
+            def chunk(kind, data):
+                return (struct.pack(">I", len(data)) + kind + data +
+                        struct.pack(">I", zlib.crc32(kind + data) & 0xffffffff))
+            rows = b"".join(b"\0" + b"\x80\x80\x80" * width for _ in range(height))
+            path = os.path.join(self.tmp, name)
+            with open(path, "wb") as f:
+                f.write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)) +
+                        chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b""))
+            return path
+
+        a, b = png("a.png", 4, 3), png("b.png", 3, 4)
+        p = run([IGTOOL, "compare", a, a, "--max-rmse", "0"], cwd=self.tmp)
+        self.assertExit(p, 0)
+        for args in ([a, b], [a, b, "--max-rmse", "1e9"]):
+            p = run([IGTOOL, "compare"] + args, cwd=self.tmp)
+            self.assertExit(p, 2)
+            self.assertMentions(p, a, "4x3", b, "3x4")
+
 
 def main():
     missing = [p for p in (IGD, IGTOOL, IGBENCH) if not os.access(p, os.X_OK)]
