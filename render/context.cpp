@@ -184,15 +184,45 @@ class OSMesaHeadlessContext final : public GlContext {
   std::vector<unsigned char> buffer_ = std::vector<unsigned char>(4 * 4 * 4);
 };
 
+// GLFW is initialised once per process, and glfwTerminate() destroys every window and context
+// it made: like the EGL display above, it is initialised with the first window context and
+// terminated with the last one that goes. Terminating it with the first destroyed the windows
+// and contexts of the others (their GL calls then did nothing: black frames, no GL error).
+// (Never destroyed, as displayUsers().)
+struct GlfwUsers {
+  std::mutex mutex;
+  int count = 0;
+};
+GlfwUsers& glfwUsers() {
+  static auto* users = new GlfwUsers;
+  return *users;
+}
+
+bool acquireGlfw() {
+  GlfwUsers& g = glfwUsers();
+  std::lock_guard<std::mutex> lock(g.mutex);
+  if (g.count == 0) {
+    glfwSetErrorCallback([](int code, const char* text) { std::fprintf(stderr, "glfw: error %d: %s\n", code, text); });
+    if (!glfwInit()) return false;
+  }
+  ++g.count;
+  return true;
+}
+
+void releaseGlfw() {
+  GlfwUsers& g = glfwUsers();
+  std::lock_guard<std::mutex> lock(g.mutex);
+  if (g.count > 0 && --g.count == 0) glfwTerminate();
+}
+
 class GlfwWindowContext final : public GlContext {
  public:
   ~GlfwWindowContext() override {
     if (window_) glfwDestroyWindow(window_);
-    if (initialised_) glfwTerminate();
+    if (initialised_) releaseGlfw();
   }
   bool init(int width_px, int height_px, std::string& error) {
-    glfwSetErrorCallback([](int code, const char* text) { std::fprintf(stderr, "glfw: error %d: %s\n", code, text); });
-    if (!glfwInit()) {
+    if (!acquireGlfw()) {
       error = "window: glfwInit failed (no X display? set DISPLAY or run under Xvfb)";
       return false;
     }

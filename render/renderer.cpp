@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <vector>
 
@@ -173,6 +174,17 @@ class TerrainPass {
   }
 
   bool initDynamic(size_t capacityVertices, double heightScale_m, std::string& error) {
+    // A buffer of no bytes, or more than GLsizeiptr holds, is a GL_INVALID_VALUE (and the map
+    // then fails): refused here, naming the value.
+    const std::string capacity = "terrain mesh: a vertex buffer of " + std::to_string(capacityVertices) + " vertices";
+    if (capacityVertices == 0) {
+      error = capacity + ": the capacity must be at least one vertex";
+      return false;
+    }
+    if (capacityVertices > static_cast<size_t>(PTRDIFF_MAX) / sizeof(lod::TerrainVertex)) {
+      error = capacity + ": more bytes than a GL buffer can have";
+      return false;
+    }
     if (!programs_[0].program && !initProgram(heightScale_m, error)) return false;
     GLuint id = 0;
     gl.CreateBuffers(1, &id);
@@ -184,7 +196,11 @@ class TerrainPass {
     gl.NamedBufferStorage(id, bytes, nullptr, flags);
     void* mapped = gl.MapNamedBufferRange(id, 0, bytes, flags);
     if (!mapped) {
-      error = "terrain mesh: cannot map a " + std::to_string(bytes) + "-byte vertex buffer persistently";
+      error = capacity + " (" + std::to_string(bytes) + " bytes) cannot be allocated and mapped persistently";
+      // The GL errors of the failed storage / map (GL_OUT_OF_MEMORY) belong to this failure: left
+      // queued, the next unrelated check reported them as its own.
+      if (const std::string e = glErrors(); !e.empty()) error += " (GL errors " + e + ")";
+      dynamicBuffer_ = GlBuffer{};
       return false;
     }
     mapped_ = std::span(static_cast<lod::TerrainVertex*>(mapped), capacityVertices);

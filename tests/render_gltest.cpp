@@ -1,10 +1,22 @@
 // GL tests on a real headless context (Mesa llvmpipe through EGL surfaceless): golden image
 // of the default scene, the same view 1,000 km from the origin, reverse-Z against
-// z-fighting at 0.1 m / 100 km, and the OSMesa fallback.
+// z-fighting at 0.1 m / 100 km, the OSMesa fallback, failed set-ups that leave no GL error, and
+// several contexts (headless, and window contexts on an Xvfb the test starts) in one process.
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <string>
 #include <vector>
 
 #include <glm/gtc/type_ptr.hpp>
@@ -420,4 +432,125 @@ TEST(RenderGL, DestroyingOneHeadlessContextKeepsAnotherWorking) {
   // And a context made after that works too (the display is still initialised or made again).
   auto third = render::createContext(render::ContextKind::Headless, 64, 64, error);
   ASSERT_TRUE(third) << error;
+}
+
+// A terrain mesh the GL cannot make is refused with a message naming the capacity, and leaves no
+// GL error queued: glNamedBufferStorage(size 0) and the failed map left GL_INVALID_VALUE (or
+// GL_OUT_OF_MEMORY) behind, which the next unrelated check (a renderer init, a pass set-up)
+// reported as its own failure. A good capacity still works afterwards.
+TEST(RenderGL, AFailedTerrainMeshLeavesNoGlErrorsBehind) {
+  std::string error;
+  auto ctx = render::createContext(render::ContextKind::Headless, 64, 64, error);
+  ASSERT_TRUE(ctx) << error;
+  render::Renderer renderer;
+  ASSERT_TRUE(renderer.init(32, 32, error)) << error;
+  const size_t tooLarge = static_cast<size_t>(PTRDIFF_MAX) / sizeof(lod::TerrainVertex) + 1;  // bytes overflow GLsizeiptr
+  const size_t unmappable = size_t{1} << 45;  // 768 TiB: no GL can allocate it
+  for (size_t capacity : {size_t{0}, tooLarge, unmappable}) {
+    error.clear();
+    EXPECT_FALSE(renderer.addTerrainMesh(capacity, 40.0, error)) << capacity;
+    EXPECT_NE(error.find(std::to_string(capacity)), std::string::npos) << error;
+    EXPECT_EQ(renderer.errors(), "") << "capacity " << capacity << ": " << error;
+    EXPECT_TRUE(renderer.terrainMeshVertices().empty());
+    EXPECT_EQ(renderer.terrainMeshVertexBuffer(), 0u);
+  }
+  error.clear();
+  render::Renderer other;
+  EXPECT_TRUE(other.init(32, 32, error)) << error;
+  EXPECT_TRUE(renderer.addTerrainMesh(300, 40.0, error)) << error;
+  EXPECT_EQ(renderer.terrainMeshVertices().size(), 300u);
+  EXPECT_EQ(renderer.errors(), "");
+}
+
+namespace {
+
+// An X server of the test's own (Xvfb on the first free display, found with -displayfd), for the
+// window-mode context; stopped when it goes. `display` is empty and `error` says why when it
+// could not be started.
+struct OwnXServer {
+  pid_t pid = -1;
+  std::string display, error;
+  OwnXServer() {
+    int fds[2];
+    if (::pipe(fds) != 0) {
+      error = "pipe failed";
+      return;
+    }
+    const std::string fd = std::to_string(fds[1]);
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addclose(&actions, fds[0]);
+    posix_spawn_file_actions_addopen(&actions, 2, "/dev/null", O_WRONLY, 0);
+    const char* argv[] = {"Xvfb", "-displayfd", fd.c_str(), "-screen", "0", "320x240x24", "-nolisten", "tcp", nullptr};
+    const int rc = posix_spawnp(&pid, "Xvfb", &actions, nullptr, const_cast<char* const*>(argv), environ);
+    posix_spawn_file_actions_destroy(&actions);
+    ::close(fds[1]);
+    if (rc != 0) {
+      pid = -1;
+      ::close(fds[0]);
+      error = "cannot run Xvfb (Debian package xvfb; scripts/setup installs it): " + std::string(std::strerror(rc));
+      return;
+    }
+    // Xvfb writes its display number once it accepts connections (a bound, not a timing check).
+    std::string number;
+    pollfd p{fds[0], POLLIN, 0};
+    char c = 0;
+    while (::poll(&p, 1, 20000) == 1 && ::read(fds[0], &c, 1) == 1 && c != '\n') number += c;
+    ::close(fds[0]);
+    if (number.empty()) {
+      error = "Xvfb did not report a display";
+      return;
+    }
+    display = ":" + number;
+  }
+  ~OwnXServer() {
+    if (pid > 0) {
+      ::kill(pid, SIGTERM);
+      ::waitpid(pid, nullptr, 0);
+    }
+  }
+};
+
+}  // namespace
+
+// Window contexts share GLFW, which is initialised once per process. Destroying one while
+// another is current must leave the other working: glfwTerminate() under it destroyed every
+// window and its EGL context, and the later context's GL calls then did nothing (a black
+// frame), its present() and destructor only printed "GLFW library is not initialized".
+TEST(RenderGL, DestroyingOneWindowContextKeepsAnotherWorking) {
+  const OwnXServer x;
+  ASSERT_FALSE(x.display.empty()) << x.error;
+  ::setenv("DISPLAY", x.display.c_str(), 1);
+  ::unsetenv("WAYLAND_DISPLAY");
+  std::string error;
+  auto first = render::createContext(render::ContextKind::Window, 64, 64, error);
+  ASSERT_TRUE(first) << error;
+  auto second = render::createContext(render::ContextKind::Window, 64, 64, error);
+  ASSERT_TRUE(second) << error;
+  EXPECT_TRUE(second->hasWindow());
+  {
+    render::Renderer renderer;
+    ASSERT_TRUE(renderer.init(32, 32, error)) << error;
+    first.reset();
+    render::Lighting sky;
+    sky.fogColor = {1.0, 0.0, 0.0};
+    renderer.beginFrame(lod::Camera{}, sky);
+    renderer.endFrame();
+    renderer.finish();
+    render::Image image;
+    renderer.readPixels(image);
+    ASSERT_EQ(image.rgba.size(), 32u * 32u * 4u);
+    EXPECT_EQ(image.rgba[0], 255);  // the sky colour the frame was cleared to
+    EXPECT_EQ(image.rgba[1], 0);
+    second->present(renderer.framebuffer(), 32, 32);
+    EXPECT_FALSE(second->closeRequested());
+    EXPECT_EQ(renderer.errors(), "");
+  }
+  second.reset();
+  // With every window gone GLFW is terminated; a new window context initialises it again.
+  auto third = render::createContext(render::ContextKind::Window, 64, 64, error);
+  ASSERT_TRUE(third) << error;
+  render::Renderer renderer;
+  ASSERT_TRUE(renderer.init(16, 16, error)) << error;
+  EXPECT_EQ(renderer.errors(), "");
 }
