@@ -66,6 +66,13 @@ bool loadConfigs(const std::string& serviceFile, const Overrides& o, ServiceConf
   SceneConfig sc;
   if (!loadSceneConfig(s.sceneFile, sc, ce)) {
     error = ce.what();
+    // A scene file that cannot be opened or read: also name where its path came from (the
+    // service config's scene.file or --scene), not only the path.
+    if (ce.line == 0 && ce.key.empty()) {
+      error = (o.sceneFile ? "command line: --scene = " + *o.sceneFile
+                           : s.path + ": scene.file = \"" + s.sceneFile + "\"") +
+              ": " + ce.message;
+    }
     return false;
   }
   service = std::move(s);

@@ -189,7 +189,8 @@ class ConfigErrors(Tmp):
     def test_missing_scene_file(self):
         scene = os.path.join(self.tmp, "no-such-scene.toml")
         c = self.service("[host]\nsource = \"none\"\n", scene=scene)
-        self.expect_config_error(c, scene)
+        # The path, and where it came from: the service config's scene.file.
+        self.expect_config_error(c, scene, f"{c}: scene.file = ", "cannot open")
 
     def test_bad_value_in_scene_file(self):
         scene = write(os.path.join(self.tmp, "scene.toml"), "name = \"s\"\n[sun]\nazimuth_deg = 10\nambient = 7\n")

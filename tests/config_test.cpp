@@ -871,6 +871,25 @@ TEST(ConfigOverrides, ReplayOverrideTurnsRecordingOff) {
   fs::remove_all(dir);
 }
 
+// A scene file that does not exist: the error names the path and where it came from (the
+// service config's file and its scene.file key, or --scene), not only a path.
+TEST(ConfigOverrides, MissingSceneFileNamesTheKeyAndTheServiceConfig) {
+  const fs::path dir = fs::temp_directory_path() / ("igd_cfg_noscene_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  std::ofstream(dir / "igd.toml") << "[host]\nsource = \"none\"\n[scene]\nfile = \"gone.toml\"\n";
+  const std::string file = (dir / "igd.toml").string();
+  ServiceConfig service;
+  SceneConfig scene;
+  std::string error;
+  EXPECT_FALSE(loadConfigs(file, Overrides{}, service, scene, error));
+  EXPECT_EQ(error, file + ": scene.file = \"" + normal(dir / "gone.toml") + "\": cannot open: No such file or directory");
+  Overrides o;
+  o.sceneFile = (dir / "other.toml").string();
+  EXPECT_FALSE(loadConfigs(file, o, service, scene, error));
+  EXPECT_EQ(error, "command line: --scene = " + *o.sceneFile + ": cannot open: No such file or directory");
+  fs::remove_all(dir);
+}
+
 // The keys --scene, --replay and --snapshot-dir override refuse "" in the file; the options must
 // too (a config error, exit 2, found by --check-config), not fail at start-up or open "".
 TEST(ConfigOverrides, EmptyFileOverridesAreRefusedNamingTheOption) {
