@@ -21,6 +21,11 @@ void check(const T& run, const T& next, S T::*field, const char* key, std::vecto
 
 ReloadPlan planReload(const ServiceConfig& runC, const SceneConfig& runS, const ServiceConfig& newC,
                       const SceneConfig& newS, ServiceConfig& mergedC, SceneConfig& mergedS) {
+  return planReload(runC, runS, newC, newS, mergedC, mergedS, runC.snapshotEvery > 0 || !runC.snapshotFrames.empty());
+}
+
+ReloadPlan planReload(const ServiceConfig& runC, const SceneConfig& runS, const ServiceConfig& newC,
+                      const SceneConfig& newS, ServiceConfig& mergedC, SceneConfig& mergedS, bool snapshotsAvailable) {
   ReloadPlan plan;
   mergedC = runC;
   mergedS = runS;
@@ -41,10 +46,12 @@ ReloadPlan planReload(const ServiceConfig& runC, const SceneConfig& runS, const 
     r.emplace_back("governor.enabled");
     if (mergedC.governor == runC.governor) std::erase(a, std::string("governor"));
   }
-  // The snapshot thread exists only if the start-up config asked for snapshots.
+  // Snapshots can be switched on only if the start-up config asked for them (the service made
+  // the snapshot folder then); a reload that switches them off releases the snapshot thread, and
+  // a later one may switch them on again.
   const bool hadSnapshots = runC.snapshotEvery > 0 || !runC.snapshotFrames.empty();
   const bool wantsSnapshots = newC.snapshotEvery > 0 || !newC.snapshotFrames.empty();
-  if (!hadSnapshots && wantsSnapshots) {
+  if (!hadSnapshots && !snapshotsAvailable && wantsSnapshots) {
     mergedC.snapshotEvery = runC.snapshotEvery;
     mergedC.snapshotFrames = runC.snapshotFrames;
     std::erase(a, std::string("output.snapshot_every"));

@@ -17,6 +17,11 @@ struct ReloadPlan {
 };
 
 // `merged*` = the running configs with every changed reloadable key taken from the new ones.
+// `snapshotsAvailable`: snapshots were on at start-up (the snapshot folder was made then), so a
+// reload may switch them on again after an earlier reload switched them off. The overload
+// without it takes that from `runC`.
+ReloadPlan planReload(const ServiceConfig& runC, const SceneConfig& runS, const ServiceConfig& newC,
+                      const SceneConfig& newS, ServiceConfig& mergedC, SceneConfig& mergedS, bool snapshotsAvailable);
 ReloadPlan planReload(const ServiceConfig& runC, const SceneConfig& runS, const ServiceConfig& newC,
                       const SceneConfig& newS, ServiceConfig& mergedC, SceneConfig& mergedS);
 

@@ -484,6 +484,8 @@ bool hostStateValid(const io::HostState& s, std::string* why) {
   if (!(s.fovY_deg > 0.0 && s.fovY_deg < 180.0)) return bad("fovy_deg", s.fovY_deg);
   if (!(s.near_m > 0.0)) return bad("near_m", s.near_m);
   if (!(s.far_m > s.near_m)) return bad("far_m", s.far_m);
+  // Time of day: negative = none (the scene's sun), else UTC hours below 24 (io/host_state.h).
+  if (std::isinf(s.timeOfDay_h) || !(s.timeOfDay_h < 24.0)) return bad("tod_h", s.timeOfDay_h);
   return true;
 }
 
@@ -505,7 +507,8 @@ struct Service::Impl {
   SummaryCollector summary{1};
   int64_t overruns = 0, missed = 0;
   int64_t loopStart_ns = 0;
-  std::unique_ptr<SnapshotWriter> snapshots;  // only when the config asks for snapshots
+  std::unique_ptr<SnapshotWriter> snapshots;  // only while the config asks for snapshots
+  bool snapshotsAtStartup = false;            // the start-up config asked for them (folder made)
   int generation = 1;                         // config generation: +1 per applied reload
   std::optional<lod::Governor> governor;      // [governor] enabled and a layer with a knob
   double terrainSelect_ms = 0.0;              // this frame's terrain selection (governor phase)
@@ -841,6 +844,7 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
       return nullptr;
     }
     m.snapshots = std::make_unique<SnapshotWriter>(3, config.width_px, config.height_px);
+    m.snapshotsAtStartup = true;
     ++s->info_.threads;
   }
   const lod::Geodetic origin{scene.originGeodetic[0], scene.originGeodetic[1], scene.originGeodetic[2]};
@@ -1016,6 +1020,17 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
     }
     return c;
   };
+  // Writes what is queued and logs the snapshots that were dropped or failed.
+  auto reportSnapshots = [](SnapshotWriter& w) {
+    w.flush();
+    if (w.failed() > 0 || w.dropped() > 0)
+      std::fprintf(stderr, "igd: snapshots: %llu written, %llu dropped (writer busy), %llu failed (first: %s)\n",
+                   static_cast<unsigned long long>(w.written()), static_cast<unsigned long long>(w.dropped()),
+                   static_cast<unsigned long long>(w.failed()), w.firstError().c_str());
+  };
+  // A snapshot writer a reload switched off finishes its queue here, off the render thread (a
+  // queued full-size PNG takes tens of milliseconds: the reload must not cost a frame).
+  std::thread retiredSnapshots;
   std::unique_ptr<PendingReload> pending;
   // Between two frames: takes the reloadable keys of a finished reload.
   auto applyReloadFailed = [&](const PendingReload& p, int64_t frame) {
@@ -1030,7 +1045,7 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
     }
     ServiceConfig mc;
     SceneConfig ms;
-    const ReloadPlan plan = planReload(m.config, m.scene, p.config, p.scene, mc, ms);
+    const ReloadPlan plan = planReload(m.config, m.scene, p.config, p.scene, mc, ms, m.snapshotsAtStartup);
     // W below the largest cell: that cell could never be fetched (create() refuses it at start-up).
     if (m.cells && ms.cells && !m.cells->checkByteBudget(ms.cells->wBytes, p.error)) {
       p.ok = false;
@@ -1044,6 +1059,19 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
       if (!why.empty()) {
         p.ok = false;
         p.error = p.config.path + ": governor." + why;
+        applyReloadFailed(p, frame);
+        return;
+      }
+    }
+    // Snapshots switched on again after a reload switched them off (planReload allows it only
+    // when they were on at start-up): the folder may have gone since.
+    const bool wantsSnapshots = mc.snapshotEvery > 0 || !mc.snapshotFrames.empty();
+    if (wantsSnapshots && !m.snapshots) {
+      std::error_code ec;
+      std::filesystem::create_directories(mc.snapshotDir, ec);
+      if (ec) {
+        p.ok = false;
+        p.error = p.config.path + ": output.snapshot_dir '" + mc.snapshotDir + "': cannot create: " + ec.message();
         applyReloadFailed(p, frame);
         return;
       }
@@ -1064,6 +1092,33 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
       m.cells->setBudgets(m.scene.cells->voxelBudget, m.scene.cells->wBytes, m.scene.cells->minVoxel_px);
     if (statusChanged) makeStatus();
     if (m.governor) m.governor->reconfigure(m.governorConfig());
+    if (m.governor && m.forest) {
+      // Layer counts the new [governor.forest] bounds allow: made now, between two frames, as
+      // create() does, not in the late frame whose cut first needs one.
+      const uint64_t before = m.forest->bufferBytes();
+      const auto [least, most] = m.forestLayerBounds();
+      m.forest->prepareLayersDrawn(least, most);
+      info_.gpuBufferBytes += m.forest->bufferBytes() - before;
+    }
+    // An unused subsystem costs nothing: snapshots switched off release their thread and image
+    // slots (after writing what is queued); switched on again, they get new ones.
+    if (!wantsSnapshots && m.snapshots) {
+      if (retiredSnapshots.joinable()) retiredSnapshots.join();
+      retiredSnapshots = std::thread([w = std::move(m.snapshots), &reportSnapshots]() mutable {
+        normalScheduling();
+        reportSnapshots(*w);
+        w.reset();  // joins the writer's thread
+      });
+      --info_.threads;
+    } else if (wantsSnapshots && !m.snapshots) {
+      // Made on a helper thread with normal scheduling: the writer thread inherits its creator's
+      // policy and CPUs, and must not run as the real-time render thread does (ig/realtime.h).
+      std::thread([&] {
+        normalScheduling();
+        m.snapshots = std::make_unique<SnapshotWriter>(3, cfg.width_px, cfg.height_px);
+      }).join();
+      ++info_.threads;
+    }
     std::fprintf(stderr,
                  "igd: config reloaded after frame %lld (#%d): applied: %s; needs a restart (running value kept): %s\n",
                  static_cast<long long>(frame), m.generation, joinKeys(plan.applied).c_str(),
@@ -1234,14 +1289,8 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
                      static_cast<unsigned long long>(rec->failed()), rec->firstError().c_str());
     }
   }
-  if (m.snapshots) {
-    m.snapshots->flush();
-    if (m.snapshots->failed() > 0 || m.snapshots->dropped() > 0)
-      std::fprintf(stderr, "igd: snapshots: %llu written, %llu dropped (writer busy), %llu failed (first: %s)\n",
-                   static_cast<unsigned long long>(m.snapshots->written()),
-                   static_cast<unsigned long long>(m.snapshots->dropped()),
-                   static_cast<unsigned long long>(m.snapshots->failed()), m.snapshots->firstError().c_str());
-  }
+  if (retiredSnapshots.joinable()) retiredSnapshots.join();
+  if (m.snapshots) reportSnapshots(*m.snapshots);
   if (m.governor) {
     const lod::GovStats& g = m.governor->stats();
     const std::array<double, lod::kGovLayers> d = m.governorDetail();

@@ -8,8 +8,10 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <chrono>
 #include <filesystem>
 #include <string>
+#include <thread>
 
 #include "gl_fixture.h"
 #include "ig/clock.h"
@@ -78,4 +80,85 @@ TEST(ForestServiceGL, GovernorKeepsTheForestNearDistanceWithinMinM) {
   }
   EXPECT_EQ(std::stod(rows.back().at("forest_near_m")), 100.0);
   std::filesystem::remove_all(dir);
+}
+
+namespace {
+// Textures that exist in the current context (names 1..4096).
+int liveTextures() {
+  using IsTexture = GLboolean (*)(GLuint);
+  static const auto isTexture = reinterpret_cast<IsTexture>(eglGetProcAddress("glIsTexture"));
+  int n = 0;
+  for (GLuint id = 1; id <= 4096; ++id) n += isTexture(id) ? 1 : 0;
+  return n;
+}
+
+// A fake clock (no time passes in a frame) that asks for a reload at its 3rd frame deadline,
+// waits for the reload thread to read the configs, and at the first deadline after the reload was
+// applied counts the textures (the render thread calls it: the context is current) and stops.
+class ReloadOnceClock final : public Clock {
+ public:
+  ReloadOnceClock(ReloadSource& reload, const Service*& service, std::atomic<bool>& loaded, std::atomic<bool>& stop)
+      : reload_(reload), service_(service), loaded_(loaded), stop_(stop) {}
+  int64_t now_ns() const override { return clock_.now_ns(); }
+  void sleepUntil_ns(int64_t deadline_ns) override {
+    clock_.sleepUntil_ns(deadline_ns);
+    ++sleeps_;
+    if (service_->configGeneration() > 1) {
+      if (texturesAfter < 0) texturesAfter = liveTextures();
+      stop_ = true;
+    } else if (sleeps_ == 3) {
+      texturesBefore = liveTextures();
+      reload_.requested = true;
+    } else if (sleeps_ > 3) {
+      for (int i = 0; i < 5000 && !loaded_; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+  }
+  int texturesBefore = -1, texturesAfter = -1;
+
+ private:
+  FakeClock clock_;
+  ReloadSource& reload_;
+  const Service*& service_;
+  std::atomic<bool>& loaded_;
+  std::atomic<bool>& stop_;
+  int64_t sleeps_ = 0;
+};
+}  // namespace
+
+// The governor's forest layer counts are made at start-up, not in the late frame that first
+// needs one (Service::create: prepareLayersDrawn). A reload may widen them ([governor.forest]
+// min_layers is reloadable): the new counts must be made by the reload, between two frames, too.
+// Here the start-up config fixes the count at the scene's 4 (min_layers = 4: no knob, nothing
+// made); the reload allows 1..4, so the composited textures of 1..3 layers must exist after it.
+TEST(ForestServiceGL, AReloadThatWidensTheGovernorsForestLayersPreparesTheNewCounts) {
+  ServiceConfig cfg;
+  SceneConfig scene;
+  test::defaultConfigs(cfg, scene);
+  scene.terrain->lod = TerrainLayerConfig::Lod::Roam;
+  scene.terrain->size_m = 2048.0;  // small and quick: 64 x 64 quads around the origin
+  scene.terrain->offset_m = {-1024.0, -1024.0, 0.0};
+  scene.forest = ForestLayerConfig{};
+  scene.forest->area_m = {-300.0, -300.0, 300.0, 300.0};
+  scene.forest->layers = 4;
+  cfg.governor.enabled = true;
+  cfg.governor.forestMinLayers = 4;
+  cfg.frames = 100;  // a bound; the clock stops the run
+  std::string error;
+  auto service = Service::create(cfg, scene, error);
+  ASSERT_TRUE(service) << error;
+  std::atomic<bool> loaded{false}, stop{false};
+  ReloadSource reload;
+  reload.load = [&](ServiceConfig& c, SceneConfig& s, std::string&) {
+    c = cfg;
+    c.governor.forestMinLayers = 1;
+    s = scene;
+    loaded = true;
+    return true;
+  };
+  const Service* running = service.get();
+  ReloadOnceClock clock(reload, running, loaded, stop);
+  ASSERT_EQ(service->run(clock, stop, &reload), 0);
+  ASSERT_EQ(service->configGeneration(), 2);
+  ASSERT_GE(clock.texturesBefore, 0);
+  EXPECT_EQ(clock.texturesAfter - clock.texturesBefore, 3) << "layer counts 1..3 not made by the reload";
 }

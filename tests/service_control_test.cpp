@@ -90,6 +90,22 @@ TEST(Reload, SnapshotsCannotBeSwitchedOnWithoutARestart) {
   EXPECT_EQ(mc.snapshotEvery, 0);
 }
 
+// Snapshots on at start-up, switched off by one reload: a later reload may switch them on again
+// (igd.toml: snapshot_every reloads "if snapshots were on at start-up"); never on at start-up, not.
+TEST(Reload, SnapshotsOnAtStartUpCanBeSwitchedOnAgain) {
+  Configs run, next;
+  next.c.snapshotEvery = 5;  // the running config has none: an earlier reload switched them off
+  ig::ServiceConfig mc;
+  ig::SceneConfig ms;
+  ig::ReloadPlan p = ig::planReload(run.c, run.s, next.c, next.s, mc, ms, true);
+  EXPECT_TRUE(has(p.applied, "output.snapshot_every"));
+  EXPECT_TRUE(p.needRestart.empty());
+  EXPECT_EQ(mc.snapshotEvery, 5);
+  p = ig::planReload(run.c, run.s, next.c, next.s, mc, ms, false);
+  EXPECT_FALSE(has(p.applied, "output.snapshot_every"));
+  EXPECT_EQ(mc.snapshotEvery, 0);
+}
+
 TEST(Reload, AddingALayerNeedsARestart) {
   Configs run, next;
   run.s.terrain.reset();

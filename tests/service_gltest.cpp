@@ -3,6 +3,9 @@
 // with a fake clock, and GL stays error-free.
 #include <gtest/gtest.h>
 
+#include <EGL/egl.h>
+#include <GL/glcorearb.h>
+
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -17,6 +20,7 @@
 #include <thread>
 
 #include "gl_fixture.h"
+#include "headless_gl.h"
 #include "ig/clock.h"
 
 using namespace ig;
@@ -40,6 +44,32 @@ TEST(ServiceGL, SceneWithoutTerrainBuildsNoPassAndNoBuffer) {
   EXPECT_EQ(r.passes, 0u);
   // Only sky: every pixel has the background colour.
   for (size_t i = 4; i < image.rgba.size(); i += 4) ASSERT_EQ(image.rgba[i], image.rgba[0]);
+}
+
+// The same, asked of GL: a scene without layers compiles no program and creates no buffer, vertex
+// array or texture (only the frame's FBO and its renderbuffers), before and after a frame.
+TEST(ServiceGL, SceneWithoutLayersCreatesNoProgramBufferVertexArrayOrTexture) {
+  ServiceConfig cfg;
+  SceneConfig scene;
+  test::defaultConfigs(cfg, scene);
+  scene.terrain.reset();
+  std::string error;
+  auto service = Service::create(cfg, scene, error);
+  ASSERT_TRUE(service) << error;
+  using IsObject = GLboolean (*)(GLuint);
+  const std::pair<const char*, IsObject> kinds[] = {
+      {"program", reinterpret_cast<IsObject>(eglGetProcAddress("glIsProgram"))},
+      {"shader", reinterpret_cast<IsObject>(eglGetProcAddress("glIsShader"))},
+      {"buffer", reinterpret_cast<IsObject>(eglGetProcAddress("glIsBuffer"))},
+      {"vertex array", reinterpret_cast<IsObject>(eglGetProcAddress("glIsVertexArray"))},
+      {"texture", reinterpret_cast<IsObject>(eglGetProcAddress("glIsTexture"))}};
+  for (int pass = 0; pass < 2; ++pass) {
+    if (pass == 1) service->renderOnce(test::defaultHostAt(5.0), nullptr);
+    for (const auto& [name, isObject] : kinds) {
+      ASSERT_NE(isObject, nullptr) << name;
+      for (GLuint id = 1; id <= 1024; ++id) ASSERT_FALSE(isObject(id)) << name << " " << id << " exists";
+    }
+  }
 }
 
 TEST(ServiceGL, SceneWithTerrainBuildsExactlyOnePass) {
@@ -126,6 +156,44 @@ TEST(ServiceGL, NaNHostInputIsRejectedAndTheLastGoodEyepointKept) {
   std::string why;
   EXPECT_FALSE(hostStateValid(badClip, &why));
   EXPECT_EQ(why.rfind("far_m", 0), 0u) << why;
+}
+
+// The host's time of day drives the sun (negative = none: the scene's fixed sun). NaN, infinity
+// or 24 h and more are bad samples like a NaN eyepoint: rejected, the last good one kept.
+// Accepted, a NaN time made the sun direction, colour, ambient light and fog colour NaN.
+TEST(ServiceGL, NonFiniteOrOutOfRangeTimeOfDayIsRejected) {
+  ServiceConfig cfg;
+  SceneConfig scene;
+  test::defaultConfigs(cfg, scene);
+  scene.terrain.reset();
+  cfg.frames = 1;
+  std::string error;
+  auto service = Service::create(cfg, scene, error);
+  ASSERT_TRUE(service) << error;
+  FakeClock clock;
+  std::atomic<bool> stop{false};
+  io::HostState good = test::defaultHostAt(2.0);
+  good.timeOfDay_h = 10.5;
+  service->mailbox().publish(good);
+  ASSERT_EQ(service->run(clock, stop), 0);
+  ASSERT_EQ(service->currentHost().timeOfDay_h, 10.5);
+  uint64_t rejected = 0;
+  for (const double tod : {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity(),
+                           -std::numeric_limits<double>::infinity(), 24.0, 1e300}) {
+    SCOPED_TRACE(tod);
+    io::HostState bad = good;
+    bad.timeOfDay_h = tod;
+    std::string why;
+    EXPECT_FALSE(hostStateValid(bad, &why));
+    EXPECT_EQ(why.rfind("tod_h", 0), 0u) << why;
+    service->mailbox().publish(bad);
+    ASSERT_EQ(service->run(clock, stop), 0);
+    EXPECT_EQ(service->hostRejected(), ++rejected);
+    EXPECT_EQ(service->currentHost().timeOfDay_h, 10.5);
+  }
+  io::HostState none = good;
+  none.timeOfDay_h = -1.0;  // no time of day: valid
+  EXPECT_TRUE(hostStateValid(none));
 }
 
 // Simulation time drives the [hdlod] schedule: time_offset_s + time_scale * t, clamped to
@@ -498,4 +566,155 @@ TEST(ServiceGL, AReloadThatSwitchesTheStatusFileOffRemovesIt) {
   if (std::ifstream in(cfg.statusFile); in) std::getline(in, left);
   EXPECT_FALSE(std::filesystem::exists(cfg.statusFile)) << "left behind: " << left;
   std::filesystem::remove_all(dir);
+}
+
+namespace {
+// Threads of this process now (/proc/self/task).
+int processThreads() {
+  int n = 0;
+  for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator("/proc/self/task")) ++n;
+  return n;
+}
+
+// A fake clock that asks for a reload at its 3rd frame deadline and for a second one as soon as
+// the first is applied, holding each deadline until the pending reload has read its files, and
+// counts the process's threads between frames (the render thread calls it: no reload thread runs
+// then, the one of an applied reload has been joined).
+class TwoReloadsClock final : public Clock {
+ public:
+  TwoReloadsClock(ReloadSource& reload, const Service*& service, std::atomic<int>& loads, std::atomic<bool>& stop)
+      : reload_(reload), service_(service), loads_(loads), stop_(stop) {}
+  int64_t now_ns() const override { return clock_.now_ns(); }
+  void sleepUntil_ns(int64_t deadline_ns) override {
+    clock_.sleepUntil_ns(deadline_ns);
+    ++sleeps_;
+    const int64_t slot = sleeps_ - 1;  // the frame about to start (no missed slots)
+    const int generation = service_->configGeneration();
+    if (sleeps_ == 3) {
+      threadsBefore = processThreads();
+      reload_.requested = true;
+      requestedAt_ = sleeps_;
+    } else if (generation == 2 && offFrom < 0) {
+      offFrom = slot;
+      // The writer switched off finishes its queue on a thread of its own (the reload must not
+      // cost a frame): wait for both to end, bounded.
+      threadsWhileOff = processThreads();
+      for (int i = 0; i < 5000 && threadsWhileOff != threadsBefore - 1; ++i) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+        threadsWhileOff = processThreads();
+      }
+      reload_.requested = true;
+      requestedAt_ = sleeps_;
+    } else if (generation == 3 && onFrom < 0) {
+      onFrom = slot;
+      threadsWhileOn = processThreads();
+    } else if (onFrom >= 0 && slot >= onFrom + 8) {
+      stop_ = true;
+    }
+    // A reload asked for at an earlier deadline is load number `generation`: wait for its files.
+    if (requestedAt_ > 0 && sleeps_ > requestedAt_ && generation < 3)
+      for (int i = 0; i < 5000 && loads_ < generation; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  int threadsBefore = -1, threadsWhileOff = -1, threadsWhileOn = -1;
+  int64_t offFrom = -1, onFrom = -1;
+
+ private:
+  FakeClock clock_;
+  ReloadSource& reload_;
+  const Service*& service_;
+  std::atomic<int>& loads_;
+  std::atomic<bool>& stop_;
+  int64_t sleeps_ = 0;
+  int64_t requestedAt_ = 0;
+};
+}  // namespace
+
+// "An unused subsystem costs nothing" holds after a reload too: snapshots switched off by a
+// reload release the snapshot thread, and a later reload may switch them on again (igd.toml:
+// snapshot_every reloads "if snapshots were on at start-up"); the frames between write none.
+TEST(ServiceGL, AReloadThatSwitchesSnapshotsOffReleasesTheirThreadAndOnAgainWorks) {
+  const auto dir = std::filesystem::temp_directory_path() / ("igd_service_snap_reload_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  ServiceConfig cfg;
+  SceneConfig scene;
+  test::defaultConfigs(cfg, scene);
+  scene.terrain.reset();  // sky only: fast frames
+  cfg.frames = 200;       // a bound; the clock stops the run
+  cfg.rate_hz = 30;
+  cfg.snapshotDir = (dir / "snap").string();
+  cfg.snapshotEvery = 2;
+  std::string error;
+  auto service = Service::create(cfg, scene, error);
+  ASSERT_TRUE(service) << error;
+  EXPECT_EQ(service->info().threads, 2u);  // render + snapshot writer
+  std::atomic<int> loads{0};
+  std::atomic<bool> stop{false};
+  ReloadSource reload;
+  reload.load = [&](ServiceConfig& c, SceneConfig& s, std::string&) {
+    c = cfg;
+    c.snapshotEvery = loads == 0 ? 0 : 2;  // first reload: off; second: on again
+    s = scene;
+    ++loads;
+    return true;
+  };
+  const Service* running = service.get();
+  TwoReloadsClock clock(reload, running, loads, stop);
+  ASSERT_EQ(service->run(clock, stop, &reload), 0);
+  ASSERT_EQ(service->configGeneration(), 3);
+  ASSERT_GE(clock.offFrom, 0);
+  ASSERT_GE(clock.onFrom, 0);
+  EXPECT_EQ(clock.threadsWhileOff, clock.threadsBefore - 1) << "the snapshot thread outlived snapshot_every = 0";
+  EXPECT_EQ(clock.threadsWhileOn, clock.threadsBefore);
+  int64_t writtenWhileOff = 0, writtenAfterOn = 0;
+  for (int64_t f = clock.offFrom; f < clock.onFrom + 8; ++f) {
+    char name[32];
+    std::snprintf(name, sizeof name, "frame_%06lld.png", static_cast<long long>(f));
+    if (!std::filesystem::exists(dir / "snap" / name)) continue;
+    ++(f < clock.onFrom ? writtenWhileOff : writtenAfterOn);
+  }
+  EXPECT_EQ(writtenWhileOff, 0);
+  EXPECT_GE(writtenAfterOn, 1) << "snapshots were not switched on again by the second reload";
+  std::filesystem::remove_all(dir);
+}
+
+// The threads a service starts, counted by the kernel (not ServiceInfo::threads, which is the
+// service's own account): with no layer, no snapshots, no status report, no host link and no
+// recording, Service::create and a run start none besides what Mesa starts for any GL context
+// (measured on a bare context of the same size), and the snapshot writer is exactly one more.
+TEST(ServiceGL, UnusedSubsystemsStartNoThreads) {
+  { test::HeadlessGl warm(320, 180); }  // Mesa's once-per-process threads, if any
+  auto threadsOfABareContext = [] {
+    const int before = processThreads();
+    test::HeadlessGl gl(320, 180);
+    return processThreads() - before;
+  };
+  const int mesa = threadsOfABareContext();
+  ServiceConfig cfg;
+  SceneConfig scene;
+  test::defaultConfigs(cfg, scene);
+  scene.terrain.reset();
+  cfg.frames = 3;
+  cfg.freeRun = true;
+  ASSERT_TRUE(cfg.statusFile.empty());
+  for (const bool snapshots : {false, true}) {
+    SCOPED_TRACE(snapshots ? "with snapshots" : "without snapshots");
+    const auto dir = std::filesystem::temp_directory_path() / ("igd_service_threads_" + std::to_string(::getpid()));
+    ServiceConfig c = cfg;
+    if (snapshots) {
+      c.snapshotDir = (dir / "snap").string();
+      c.snapshotFrames = {1};
+    }
+    const int before = processThreads();
+    std::string error;
+    auto service = Service::create(c, scene, error);
+    ASSERT_TRUE(service) << error;
+    EXPECT_EQ(processThreads() - before, mesa + (snapshots ? 1 : 0));
+    EXPECT_EQ(service->info().threads, snapshots ? 2u : 1u);
+    FakeClock clock;
+    std::atomic<bool> stop{false};
+    ASSERT_EQ(service->run(clock, stop), 0);
+    EXPECT_EQ(processThreads() - before, mesa + (snapshots ? 1 : 0));
+    service.reset();
+    std::filesystem::remove_all(dir);
+  }
 }
