@@ -104,10 +104,6 @@ struct ServiceConfig {
   bool operator==(const ServiceConfig&) const = default;
 };
 
-// Keys whose new value a reload (SIGHUP) applies between two frames; every other key needs a
-// restart. Names are dotted config paths.
-std::vector<std::string> reloadableKeys();
-
 struct TerrainLayerConfig {
   enum class Source { Procedural, Dem } source = Source::Procedural;
   enum class Lod { Grid, Roam, Block } lod = Lod::Grid;
