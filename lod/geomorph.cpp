@@ -5,11 +5,16 @@
 
 namespace ig::lod {
 
-Geomorph::Geomorph(size_t capacity, double morph_s) : morph_s_(morph_s), capacity_(capacity) {
+Geomorph::Geomorph(size_t capacity, double morph_s, bool splits) : morph_s_(morph_s), capacity_(capacity) {
   size_t n = 16;
   while (n < 2 * capacity) n <<= 1;
   table_.assign(n, Entry{0, 0.0, 0.0f, false});
   scratch_.assign(n, Entry{0, 0.0, 0.0f, false});
+  if (splits) {
+    size_t c = 16;
+    while (c < 2 * std::min(capacity, Roam::kCreatedCapacity)) c <<= 1;
+    created_.assign(c, NewVertex{0, 0});
+  }
 }
 
 size_t Geomorph::slot(uint64_t k) const {
@@ -32,31 +37,108 @@ void Geomorph::start(int x, int y, float startHeight_m, double now_s) {
 }
 
 void Geomorph::startSplits(const Roam& roam, std::span<const float> heights_m, int samplesX, int samplesY, double now_s) {
-  if (morph_s_ <= 0.0 || !std::isfinite(now_s)) return;
-  auto sample = [&](int x, int y) {
-    x = std::clamp(x, 0, samplesX - 1);
-    y = std::clamp(y, 0, samplesY - 1);
-    return heights_m[static_cast<size_t>(y) * static_cast<size_t>(samplesX) + static_cast<size_t>(x)];
+  if (morph_s_ <= 0.0 || !std::isfinite(now_s) || samplesX < 1 || samplesY < 1) return;
+  if (samplesX != demX_ || samplesY != demY_) {
+    // Keys are the DEM samples vertices are drawn at: entries keyed for another DEM are void.
+    if (live_ > 0) {
+      std::fill(table_.begin(), table_.end(), Entry{0, 0.0, 0.0f, false});
+      live_ = 0;
+    }
+    demX_ = samplesX;
+    demY_ = samplesY;
+  }
+  auto clamped = [&](const RoamVertex& v) {
+    return RoamVertex{std::clamp(v.x, 0, samplesX - 1), std::clamp(v.y, 0, samplesY - 1)};
+  };
+  // The height vertex v is drawn with now (its DEM sample's height, or its morph's).
+  auto drawn = [&](const RoamVertex& v) {
+    const RoamVertex c = clamped(v);
+    const float h = heights_m[static_cast<size_t>(c.y) * static_cast<size_t>(samplesX) + static_cast<size_t>(c.x)];
+    return static_cast<double>(height(v.x, v.y, h, now_s));
+  };
+  auto cross = [](const RoamVertex& o, const RoamVertex& p, const RoamVertex& q) {
+    return static_cast<int64_t>(p.x - o.x) * (q.y - o.y) - static_cast<int64_t>(p.y - o.y) * (q.x - o.x);
+  };
+  // The vertices created so far in this update (padded grid), to tell the triangles that were
+  // drawn before it (their apex is older) from those this update made.
+  // Entries of earlier calls (another stamp) are empty.
+  if (++stamp_ == 0) {
+    std::fill(created_.begin(), created_.end(), NewVertex{0, 0});
+    stamp_ = 1;
+  }
+  const size_t newMask = created_.empty() ? 0 : created_.size() - 1;
+  size_t newCount = 0;
+  auto newSlot = [&](const RoamVertex& v) {
+    const uint64_t k = rawKey(v.x, v.y);
+    size_t i = static_cast<size_t>((k * 0x9E3779B97F4A7C15ull) >> 20) & newMask;
+    while (created_[i].stamp == stamp_ && created_[i].key != k) i = (i + 1) & newMask;
+    return i;
+  };
+  auto isNew = [&](const RoamVertex& v) { return !created_.empty() && created_[newSlot(v)].stamp == stamp_; };
+  // The surface drawn before this update at DEM point c, which a new vertex v is drawn at. The
+  // triangle of v's diamond (hypotenuse a-b, apex on either side) holding c once clamped onto
+  // the DEM: if its apex is older than this update, it was drawn (a leaf until v split it);
+  // else it is a child this update made of the diamond split at its apex, whose triangles hold
+  // it (clamped triangles tile the diamond's before and after a split): look there. Inside
+  // the DEM this is the midpoint of a and b as drawn; where diamonds reach beyond the DEM's
+  // east / north edge, c need not be the midpoint of a's and b's clamped points, nor lie in a
+  // triangle drawn before. False if only zero-area (never drawn) triangles hold c.
+  auto drawnBefore = [&](RoamVertex d, const RoamVertex& c, double& z) {
+    for (int guard = 0; guard < 64; ++guard) {
+      RoamVertex a, b;
+      if (!roam.splitEnds(d.x, d.y, a, b)) return false;
+      const RoamVertex ca = clamped(a), cb = clamped(b);
+      const int dx = (b.x - a.x) / 2, dy = (b.y - a.y) / 2;
+      RoamVertex up{-1, -1};  // a new apex whose diamond holds c
+      for (const RoamVertex apex : {RoamVertex{d.x - dy, d.y + dx}, RoamVertex{d.x + dy, d.y - dx}}) {
+        if (apex.x < 0 || apex.y < 0 || apex.x >= roam.gridWidth() || apex.y >= roam.gridHeight()) continue;
+        const RoamVertex cp = clamped(apex);
+        const int64_t area = cross(ca, cb, cp);
+        // Barycentric weights of c (exact in integers; the sign of the area normalised).
+        const int64_t wp = cross(ca, cb, c), wa = cross(cb, cp, c), wb = cross(cp, ca, c);
+        const bool inside = area > 0 ? (wp >= 0 && wa >= 0 && wb >= 0)
+                                     : area < 0 ? (wp <= 0 && wa <= 0 && wb <= 0) : (wp == 0 && wa == 0 && wb == 0);
+        if (!inside) continue;
+        if (isNew(apex)) {
+          if (up.x < 0 || area != 0) up = apex;  // a half that is drawn once clamped first
+          continue;
+        }
+        if (area == 0) continue;  // zero area once clamped: never drawn
+        z = (static_cast<double>(wa) * drawn(a) + static_cast<double>(wb) * drawn(b) + static_cast<double>(wp) * drawn(apex)) /
+            static_cast<double>(area);
+        return true;
+      }
+      if (up.x < 0) return false;
+      d = up;
+    }
+    return false;
   };
   // In creation order: a vertex's split ends are vertices of the triangle it splits, so they
   // are in the mesh before it (created by an earlier update, or listed before it).
   for (const RoamVertex& v : roam.createdVertices()) {
-    RoamVertex a, b;
-    if (!roam.splitEnds(v.x, v.y, a, b)) continue;
-    const double ha = static_cast<double>(height(a.x, a.y, sample(a.x, a.y), now_s));
-    const double hb = static_cast<double>(height(b.x, b.y, sample(b.x, b.y), now_s));
-    const float from = static_cast<float>(0.5 * (ha + hb));
+    double from = 0.0;
+    const bool drawnThere = drawnBefore(v, clamped(v), from);
+    if (newCount + 1 < created_.size() / 2) {
+      const size_t i = newSlot(v);
+      if (created_[i].stamp != stamp_) {
+        created_[i] = NewVertex{rawKey(v.x, v.y), stamp_};
+        ++newCount;
+      }
+    }
+    // Only zero-area triangles hold it: nothing was drawn at its point that it could start
+    // from (a vertex beyond the DEM whose point a vertex drawn so far may share): no morph.
+    if (!drawnThere) continue;
     // A vertex that still has the morph of an earlier life (created, merged away, created
     // again within morph_s) was not drawn until now: its morph starts again from here. (A
     // vertex is listed twice for a diamond split, at the same time: the first start holds.)
     const uint64_t k = key(v.x, v.y);
     Entry& e = table_[slot(k)];
     if (e.key == k && e.start_s != now_s) {
-      e = Entry{k, now_s, from, false};
+      e = Entry{k, now_s, static_cast<float>(from), false};
       lastEnd_s_ = std::max(lastEnd_s_, now_s + morph_s_);
       continue;
     }
-    start(v.x, v.y, from, now_s);
+    start(v.x, v.y, static_cast<float>(from), now_s);
   }
 }
 
@@ -76,7 +158,7 @@ float Geomorph::height(int x, int y, float trueHeight_m, double now_s) const {
   if (live_ == 0) return trueHeight_m;
   const Entry& e = table_[slot(key(x, y))];
   if (e.key == 0) return trueHeight_m;
-  const double t = std::clamp((now_s - e.start_s) / morph_s_, 0.0, 1.0);
+  const double t = morphFraction(now_s, e.start_s);
   if (e.out)
     return static_cast<float>(static_cast<double>(trueHeight_m) +
                               (static_cast<double>(e.startHeight_m) - static_cast<double>(trueHeight_m)) * t);
@@ -88,7 +170,7 @@ double Geomorph::progress(int x, int y, double now_s) const {
   if (live_ == 0) return -1.0;
   const Entry& e = table_[slot(key(x, y))];
   if (e.key == 0) return -1.0;
-  return std::clamp((now_s - e.start_s) / morph_s_, 0.0, 1.0);
+  return morphFraction(now_s, e.start_s);
 }
 
 void Geomorph::expire(double now_s) {
@@ -136,7 +218,7 @@ MorphOut::MorphOut(size_t capacityTriangles, double morph_s)
       released_(capacityTriangles),
       remap_(capacityTriangles),
       area_(capacityTriangles),
-      vertices_(capacityTriangles, morph_s) {}
+      vertices_(capacityTriangles, morph_s, false) {}
 
 size_t MorphOut::findCover(const RoamTriangle& t) const {
   for (size_t i = 0; i < coverCount_; ++i)
@@ -182,7 +264,9 @@ MorphOut::Stats MorphOut::update(std::span<const RoamTriangle> left, std::span<c
     coverCount_ = keepC;
     ghostCount_ = keepG;
   }
-  if (morph_s_ <= 0.0 || removedVertices.empty()) return st;
+  // A time that is not a number: the merges pop (a cover ending at NaN would stay hidden and
+  // its ghosts drawn for good).
+  if (morph_s_ <= 0.0 || removedVertices.empty() || !std::isfinite(now_s)) return st;
   if (left.size() * (coverCount_ + 1) > kMaxPairTests || coverOf.size() < left.size()) {
     st.popped = left.size();
     return st;

@@ -8,6 +8,7 @@
 // allocation per frame. When it is full a new vertex simply pops.
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <span>
@@ -19,7 +20,8 @@ namespace ig::lod {
 
 class Geomorph {
  public:
-  Geomorph(size_t capacity, double morph_s);
+  // splits = false: startSplits is never called (MorphOut), which spares its scratch set.
+  Geomorph(size_t capacity, double morph_s, bool splits = true);
 
   // Starts morphing vertex (x, y) from startHeight_m at time now_s (ignored if it is already
   // morphing, the table is full or now_s is not finite: every start* ignores such a time).
@@ -32,13 +34,18 @@ class Geomorph {
   // levels in one update: the first frame, a teleport, a tolerance change). A vertex created
   // again while the morph of an earlier life still runs starts afresh. heights_m: the
   // samplesX x samplesY true heights the roam was built on (clamped at the edges).
+  // On a DEM that is not 2^k + 1 samples a side, vertices beyond it are drawn clamped onto its
+  // east / north edge (lod/roam.h): the start height is the drawn surface at that clamped
+  // point (not always the midpoint of the ends), and from the first call on, every vertex
+  // is keyed by the DEM sample it is drawn at, so the padded-grid vertices drawn at one point
+  // share one morph (one height: no crack). A call naming another DEM drops every morph.
   void startSplits(const Roam& roam, std::span<const float> heights_m, int samplesX, int samplesY, double now_s);
   // Morph-out: vertex (x, y) moves from its true height to targetHeight_m over morph_s
   // (replaces a running morph of the vertex).
   void startOut(int x, int y, float targetHeight_m, double now_s);
-  // The height to draw vertex (x, y) with at now_s.
+  // The height to draw vertex (x, y) with at now_s (a NaN now_s: the morph's end height).
   float height(int x, int y, float trueHeight_m, double now_s) const;
-  // How far the morph of (x, y) has gone at now_s, in [0, 1]; -1 if it has no entry.
+  // How far the morph of (x, y) has gone at now_s, in [0, 1] (1 for a NaN now_s); -1 if it has no entry.
   double progress(int x, int y, double now_s) const;
   // True if (x, y) has a morph entry (running, or finished but not yet expired).
   bool contains(int x, int y) const { return live_ > 0 && table_[slot(key(x, y))].key != 0; }
@@ -56,16 +63,40 @@ class Geomorph {
     float startHeight_m;  // in: the height it starts from; out: the height it ends at
     bool out;
   };
-  static uint64_t key(int x, int y) {
+  // Vertices drawn at one DEM sample (padded-grid vertices beyond the DEM, clamped onto its
+  // edge) share one entry once startSplits has named the DEM (demX_ > 0).
+  uint64_t key(int x, int y) const {
+    if (demX_ > 0) {
+      x = std::clamp(x, 0, demX_ - 1);
+      y = std::clamp(y, 0, demY_ - 1);
+    }
+    return rawKey(x, y);
+  }
+  static uint64_t rawKey(int x, int y) {
     return ((static_cast<uint64_t>(static_cast<uint32_t>(x)) << 32) | static_cast<uint32_t>(y)) + 1;
   }
   size_t slot(uint64_t k) const;
+  // In [0, 1]; a time that is not a number draws the morph as finished (std::clamp would pass
+  // the NaN on into the height).
+  double morphFraction(double now_s, double start_s) const {
+    const double t = (now_s - start_s) / morph_s_;
+    return !(t < 1.0) ? 1.0 : t > 0.0 ? t : 0.0;
+  }
 
   double morph_s_;
   size_t capacity_;
   std::vector<Entry> table_, scratch_;
+  // startSplits: set of the vertices created so far in this call (rawKey; an entry with another
+  // call's stamp is empty, so it is never cleared).
+  struct NewVertex {
+    uint64_t key;
+    uint32_t stamp;
+  };
+  std::vector<NewVertex> created_;
+  uint32_t stamp_ = 0;
   size_t live_ = 0;
   double lastEnd_s_ = -1e300;
+  int demX_ = 0, demY_ = 0;  // the DEM of startSplits (0: keys are the given vertices)
 };
 
 // Morph-out on merges. A merge replaces fine triangles by coarse ones and removes vertices;
@@ -97,7 +128,8 @@ class MorphOut {
   };
   // left: triangles that left the mesh; coverOf[i]: the new mesh's triangle holding left[i]'s
   // centroid (Roam::leafAt(sum of its x, sum of its y)); removedVertices / targetHeights_m:
-  // Roam::removedVertices() and Roam::meshHeight() there.
+  // Roam::removedVertices() and Roam::meshHeight() there. A now_s that is not finite adds no
+  // ghosts (the merges pop).
   Stats update(std::span<const RoamTriangle> left, std::span<const RoamTriangle> coverOf,
                std::span<const RoamVertex> removedVertices, std::span<const float> targetHeights_m, double now_s);
   // Ghost triangles to draw now (counter-clockwise seen from above, as Roam emits them).

@@ -1277,15 +1277,59 @@ RoamTriangle Roam::leafAt(int64_t x3, int64_t y3) const {
 }
 
 double Roam::meshHeight(int x, int y) const {
-  const Node& nd = nodes_[leafNodeAt(3 * static_cast<int64_t>(x), 3 * static_cast<int64_t>(y))];
-  x = std::clamp(x, 0, px_ - 1);
-  y = std::clamp(y, 0, py_ - 1);
-  const double area = static_cast<double>(cross64(nd.ax, nd.ay, nd.rx, nd.ry, nd.lx, nd.ly));
-  const double wa = static_cast<double>(cross64(nd.rx, nd.ry, nd.lx, nd.ly, x, y)) / area;
-  const double wr = static_cast<double>(cross64(nd.lx, nd.ly, nd.ax, nd.ay, x, y)) / area;
-  const double wl = 1.0 - wa - wr;
-  return wa * static_cast<double>(heightAt(nd.ax, nd.ay)) + wr * static_cast<double>(heightAt(nd.rx, nd.ry)) +
-         wl * static_cast<double>(heightAt(nd.lx, nd.ly));
+  // The mesh as drawn: corners clamped onto the DEM. Where leaves reach beyond the DEM's east /
+  // north edge, a clamped leaf need not hold the point the unclamped one holds, so the walk
+  // keeps to clamped triangles: the clamped children of a diamond tile its clamped halves (the
+  // drawn mesh tiles the DEM after every split), so one of the four holds the point.
+  const int64_t cx = std::clamp(x, 0, width_ - 1), cy = std::clamp(y, 0, height_ - 1);
+  struct Weights {
+    int64_t area, wa, wr, wl;
+  };
+  auto weights = [&](const Node& nd, Weights& w) {
+    const int64_t ax = std::min(nd.ax, width_ - 1), ay = std::min(nd.ay, height_ - 1);
+    const int64_t rx = std::min(nd.rx, width_ - 1), ry = std::min(nd.ry, height_ - 1);
+    const int64_t lx = std::min(nd.lx, width_ - 1), ly = std::min(nd.ly, height_ - 1);
+    w.area = cross64(ax, ay, rx, ry, lx, ly);
+    w.wa = cross64(rx, ry, lx, ly, cx, cy);
+    w.wr = cross64(lx, ly, ax, ay, cx, cy);
+    w.wl = cross64(ax, ay, rx, ry, cx, cy);
+    return w.area > 0 && w.wa >= 0 && w.wr >= 0 && w.wl >= 0;  // counter-clockwise when not zero
+  };
+  uint32_t n = kNone;
+  Weights w{};
+  // The base square holding the point (its clamped halves tile the square's clamped part).
+  const int qi = static_cast<int>(std::min<int64_t>(cx / rootSide_, rootsX_ - 1));
+  const int qj = static_cast<int>(std::min<int64_t>(cy / rootSide_, rootsY_ - 1));
+  const uint32_t root = 2u * static_cast<uint32_t>(qj * rootsX_ + qi);
+  for (uint32_t r = root; r < root + 2 && n == kNone; ++r)
+    if (weights(nodes_[r], w)) n = r;
+  while (n != kNone && nodes_[n].children != kNone) {
+    const uint32_t p = nodes_[n].partner;
+    uint32_t next = kNone;
+    for (const uint32_t z : {n, p}) {
+      if (z == kNone || nodes_[z].children == kNone || next != kNone) continue;
+      for (uint32_t c = nodes_[z].children; c < nodes_[z].children + 2 && next == kNone; ++c)
+        if (weights(nodes_[c], w)) next = c;
+    }
+    n = next;
+  }
+  if (n == kNone) {  // not expected (the clamped mesh tiles the DEM): the leaf over the grid point
+    const Node& nd = nodes_[leafNodeAt(3 * static_cast<int64_t>(x), 3 * static_cast<int64_t>(y))];
+    x = std::clamp(x, 0, px_ - 1);
+    y = std::clamp(y, 0, py_ - 1);
+    const double a = static_cast<double>(cross64(nd.ax, nd.ay, nd.rx, nd.ry, nd.lx, nd.ly));
+    const double wa = static_cast<double>(cross64(nd.rx, nd.ry, nd.lx, nd.ly, x, y)) / a;
+    const double wr = static_cast<double>(cross64(nd.lx, nd.ly, nd.ax, nd.ay, x, y)) / a;
+    return wa * static_cast<double>(heightAt(nd.ax, nd.ay)) + wr * static_cast<double>(heightAt(nd.rx, nd.ry)) +
+           (1.0 - wa - wr) * static_cast<double>(heightAt(nd.lx, nd.ly));
+  }
+  weights(nodes_[n], w);  // n's own weights (the loop may have tested others last)
+  const Node& nd = nodes_[n];
+  const double area = static_cast<double>(w.area);
+  return (static_cast<double>(w.wa) * static_cast<double>(heightAt(nd.ax, nd.ay)) +
+          static_cast<double>(w.wr) * static_cast<double>(heightAt(nd.rx, nd.ry)) +
+          static_cast<double>(w.wl) * static_cast<double>(heightAt(nd.lx, nd.ly))) /
+         area;
 }
 
 double Roam::maxErrorPx(const RoamView& view) const {

@@ -211,9 +211,10 @@ class Roam {
   // pops from its true height onto the coarser surface unless the old triangles are kept
   // while it moves there.
   std::span<const RoamVertex> removedVertices() const { return {removed_.data(), removedCount_}; }
-  // Height of the current mesh (the leaf triangle over grid point (x, y), interpolated
-  // linearly) at grid point (x, y) of the padded grid; O(levels). Where a vertex removed by a
-  // merge now lies on the coarse surface.
+  // Height of the current mesh as drawn (leaf corners clamped onto the DEM, as emitTriangles'
+  // triangles are drawn) at the point grid point (x, y) of the padded grid is drawn at (clamped
+  // onto the DEM): the leaf holding it, interpolated linearly; O(levels). Where a vertex
+  // removed by a merge now lies on the coarse surface.
   double meshHeight(int x, int y) const;
   // The leaf triangle of the current mesh holding point (x3 / 3, y3 / 3) of the padded grid
   // (thirds, so that triangle centroids are exact), as emitTriangles writes it; O(levels).

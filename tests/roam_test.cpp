@@ -751,6 +751,57 @@ TEST(Roam, MeshHeightAndLeafAt) {
   }
 }
 
+// meshHeight on a DEM that is not 2^k + 1 samples a side: the height of the mesh as drawn (leaf
+// corners clamped onto the DEM) at the point a padded-grid vertex is drawn at, which is where a
+// vertex removed by a merge is drawn (MorphOut moves it there). Checked at every DEM sample
+// against every drawn triangle holding it, and beyond the DEM against the clamped point.
+TEST(Roam, MeshHeightIsTheDrawnSurfaceAtTheClampedPoint) {
+  for (const auto& [w, h] : {std::pair{50, 40}, {40, 50}, {100, 37}}) {
+    const auto hts = fractal(w, h, 5, 600.0);
+    Roam roam(hts, w, h, 30.0, {0, 0, 0}, smallConfig());
+    roam.update(makeView({(w - 1) * 30.0 - 200.0, (h - 1) * 30.0 - 300.0, 500.0}, 20.0, -40.0, 1.0), RoamMode::EnhMerge);
+    std::vector<RoamTriangle> tris(roam.triangleCount());
+    tris.resize(roam.emitTriangles(tris));
+    ASSERT_GT(tris.size(), 100u);
+    auto sample = [&](int x, int y) { return static_cast<double>(hts[static_cast<size_t>(y) * static_cast<size_t>(w) + static_cast<size_t>(x)]); };
+    double worst = 0.0;
+    int at[2] = {0, 0};
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        const double m = roam.meshHeight(x, y);
+        bool held = false;
+        for (const RoamTriangle& t : tris) {
+          int cx[3], cy[3];
+          for (int k = 0; k < 3; ++k) {
+            cx[k] = std::clamp(t.v[k].x, 0, w - 1);
+            cy[k] = std::clamp(t.v[k].y, 0, h - 1);
+          }
+          const int64_t area = int64_t{cx[1] - cx[0]} * (cy[2] - cy[0]) - int64_t{cx[2] - cx[0]} * (cy[1] - cy[0]);
+          const int64_t w0 = int64_t{cx[1] - x} * (cy[2] - y) - int64_t{cx[2] - x} * (cy[1] - y);
+          const int64_t w1 = int64_t{cx[2] - x} * (cy[0] - y) - int64_t{cx[0] - x} * (cy[2] - y);
+          const int64_t w2 = area - w0 - w1;
+          if (area <= 0 || w0 < 0 || w1 < 0 || w2 < 0) continue;
+          held = true;
+          const double z = (static_cast<double>(w0) * sample(cx[0], cy[0]) + static_cast<double>(w1) * sample(cx[1], cy[1]) +
+                            static_cast<double>(w2) * sample(cx[2], cy[2])) /
+                           static_cast<double>(area);
+          if (std::abs(z - m) > worst) {
+            worst = std::abs(z - m);
+            at[0] = x;
+            at[1] = y;
+          }
+        }
+        ASSERT_TRUE(held) << x << "," << y;
+      }
+    EXPECT_LT(worst, 1e-3) << w << " x " << h << ": meshHeight(" << at[0] << "," << at[1] << ") is off the drawn surface by " << worst << " m";
+    for (int y = 0; y < roam.gridHeight(); y += 3)
+      for (int x = 0; x < roam.gridWidth(); x += 3)
+        if (x >= w || y >= h) {
+          EXPECT_EQ(roam.meshHeight(x, y), roam.meshHeight(std::min(x, w - 1), std::min(y, h - 1))) << x << "," << y;
+        }
+  }
+}
+
 // nearestTriangleBox: a lower bound on the distance to triangles drawn from height-field samples
 // (the service and igbench governor choose the terrain's detail variant with it).
 TEST(Roam, NearestTriangleBoxIsTheDistanceToTheClosestBox) {
