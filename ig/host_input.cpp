@@ -90,19 +90,22 @@ bool HostInput::start(std::unique_ptr<io::HostLink> link, const std::string& rec
                       std::string& error) {
   t0_ns_.store(clock_.load()->now_ns());
   timeout_ns_ = static_cast<int64_t>(linkTimeout_s * 1e9);
-  if (!recordFile.empty()) {
-    recorder_ = std::make_unique<HostRecorder>();
-    if (!recorder_->open(recordFile, error)) {
+  // The recorder exists before the link starts (publish() may run on the link's thread at
+  // once; its samples queue up), but the file is created only once the link runs: a start that
+  // fails (a port in use) leaves the previous run's recording as it was.
+  if (!recordFile.empty()) recorder_ = std::make_unique<HostRecorder>();
+  if (link) {
+    if (!link->start(*this, error)) {
       recorder_.reset();
       return false;
     }
-  }
-  if (link) {
-    if (!link->start(*this, error)) {
-      stop();
-      return false;
-    }
     link_ = std::move(link);
+  }
+  if (recorder_ && !recorder_->open(recordFile, error)) {
+    if (link_) link_->stop();
+    link_.reset();
+    recorder_.reset();
+    return false;
   }
   return true;
 }

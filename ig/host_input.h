@@ -34,9 +34,10 @@ class HostRecorder {
   HostRecorder(const HostRecorder&) = delete;
   HostRecorder& operator=(const HostRecorder&) = delete;
 
-  // Creates (truncates) the file, writes the header and starts the writer thread. False with
-  // an error naming the file when it cannot be created or the header cannot be written (a full
-  // disk): a recording that would stay empty fails at start-up.
+  // Creates (truncates) the file, writes the header and starts the writer thread; samples
+  // appended before are written first. False with an error naming the file when it cannot be
+  // created or the header cannot be written (a full disk): a recording that would stay empty
+  // fails at start-up.
   bool open(const std::string& file, std::string& error);
   // Queues one sample (any thread; never blocks on the file).
   void append(const io::HostSample& sample);
@@ -69,9 +70,11 @@ class HostInput final : public io::HostSink {
   HostInput(io::LatestValueMailbox<io::HostState>& mailbox, Clock& clock) : mailbox_(mailbox), clock_(&clock) {}
   ~HostInput() override { stop(); }
 
-  // Starts recording (if `recordFile` is not empty) and the link (if any). Samples published
-  // before setTimeBase are recorded at time 0. Returns false with an error naming the file or the
-  // link's address; nothing is left running then.
+  // Starts the link (if any), then recording (if `recordFile` is not empty): the file is
+  // created (truncated) only after the link started, so a failed start leaves an existing
+  // recording untouched; samples published meanwhile are kept. Samples published before
+  // setTimeBase are recorded at time 0. Returns false with an error naming the link's address
+  // or the file; nothing is left running then.
   bool start(std::unique_ptr<io::HostLink> link, const std::string& recordFile, double linkTimeout_s,
              std::string& error);
   // From now on samples are stamped with `clock` and recorded times count from `t0_ns` (the

@@ -243,12 +243,20 @@ void CanSetAssembler::commit(HostState& out) {
   apply(partial_.lat_deg, state_.lat_deg);
   apply(partial_.lon_deg, state_.lon_deg);
   apply(partial_.height_m, state_.height_m);
-  apply(partial_.heading_deg, state_.heading_deg);
-  apply(partial_.pitch_deg, state_.pitch_deg);
-  apply(partial_.roll_deg, state_.roll_deg);
+  // The attitude fields keep their last good values as sent (in the local level frame at the
+  // eye); the conversion to the scene's axes is redone on every commit from those.
+  apply(partial_.heading_deg, attitude_.heading_deg);
+  apply(partial_.pitch_deg, attitude_.pitch_deg);
+  apply(partial_.roll_deg, attitude_.roll_deg);
   apply(partial_.simTime_s, state_.simTime_s);
   state_.hostFrame = partial_.hostFrame;
   state_.eyeEnu_m = enu_.fromGeodetic(lod::Geodetic{state_.lat_deg, state_.lon_deg, state_.height_m});
+  // Heading from true north at the eye, pitch and roll against its local horizontal -> the
+  // scene's ENU axes, the same conversion as CIGI's.
+  const lod::Attitude scene = enu_.attitudeFromGeodetic(state_.lat_deg, state_.lon_deg, attitude_);
+  state_.heading_deg = scene.heading_deg;
+  state_.pitch_deg = scene.pitch_deg;
+  state_.roll_deg = scene.roll_deg;
   if (rejected) counters_.outOfRange.fetch_add(rejected, std::memory_order_relaxed);
   counters_.accepted.fetch_add(1, std::memory_order_relaxed);
   out = state_;

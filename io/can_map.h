@@ -10,7 +10,7 @@
 //   base_id+0   IG_EYE_LAT         1-4 lat       int32  x 1e-7 deg  [-90, 90]        (1.1 cm)
 //   base_id+1   IG_EYE_LON         1-4 lon       int32  x 1e-7 deg  [-180, 180]      (1.1 cm at the equator)
 //   base_id+2   IG_EYE_HEIGHT      1-4 height    int32  x 1e-3 m    [-1000, 1000000] WGS-84 ellipsoid height
-//   base_id+3   IG_EYE_ATTITUDE    1-2 heading   uint16 x 0.01 deg  [0, 360)         clockwise from north
+//   base_id+3   IG_EYE_ATTITUDE    1-2 heading   uint16 x 0.01 deg  [0, 360)         clockwise from true north at the eye
 //                                  3-4 pitch     int16  x 0.01 deg  [-90, 90]        nose up positive
 //                                  5-6 roll      int16  x 0.01 deg  [-180, 180]      right wing down positive
 //   base_id+4   IG_SIM_TIME        1-4 sim_time  uint32 x 1e-3 s    [0, 4294967.294] since scenario start
@@ -23,6 +23,10 @@
 // Set assembly (CanSetAssembler): the five frames with the same counter form a set. The frame
 // that completes the set commits it (in any order); the set's fields are then validated one by
 // one (a rejected field keeps its last good value, ++outOfRange) and one HostState is produced.
+// Its heading/pitch/roll are converted from the local level frame at the eye (heading from true
+// north there) to the scene's ENU axes (grid north of the origin), as the CIGI link does
+// (lod::EnuFrame::attitudeFromGeodetic): they differ by the meridian convergence away from the
+// origin. A rejected attitude field keeps its last good value as sent, converted at the new eye.
 //   - a frame with a newer counter while a set is incomplete: the old set is dropped (++dropped)
 //     and the new one started;
 //   - a frame with an older counter than the incomplete set, or not newer than the last
@@ -147,7 +151,8 @@ class CanSetAssembler {
   int64_t stale_us_;
   lod::EnuFrame enu_;
   LinkCounters& counters_;
-  HostState state_;            // last good value of every field
+  HostState state_;            // last good value of every field (attitude: in the scene's axes)
+  lod::Attitude attitude_;     // last good heading/pitch/roll as sent (local level frame at the eye)
   CanEyeSet partial_;          // fields of the set in progress
   uint8_t seq_ = 0;            // counter of the set in progress
   uint8_t mask_ = 0;           // frames of it received (bit = CanFrameIndex)

@@ -20,34 +20,10 @@
 namespace ig::io {
 namespace {
 
-constexpr double kDeg = 3.14159265358979323846 / 180.0;
 constexpr size_t kRxBytes = 65536;         // one slot holds the largest IPv4 UDP datagram
 constexpr unsigned kRxSlots = 8;           // datagrams per recvmmsg call
 constexpr int kPollTimeout_ms = 50;
 constexpr int kMaxBatchesPerWake = 32;     // then check the stop flag again
-
-glm::dmat3 rotZ(double a) {
-  const double c = std::cos(a), s = std::sin(a);
-  return glm::dmat3(glm::dvec3(c, s, 0), glm::dvec3(-s, c, 0), glm::dvec3(0, 0, 1));
-}
-glm::dmat3 rotY(double a) {
-  const double c = std::cos(a), s = std::sin(a);
-  return glm::dmat3(glm::dvec3(c, 0, -s), glm::dvec3(0, 1, 0), glm::dvec3(s, 0, c));
-}
-glm::dmat3 rotX(double a) {
-  const double c = std::cos(a), s = std::sin(a);
-  return glm::dmat3(glm::dvec3(1, 0, 0), glm::dvec3(0, c, s), glm::dvec3(0, -s, c));
-}
-// Columns: body x (forward), y (right), z (down) in NED, for the 3-2-1 (yaw, pitch, roll) sequence.
-glm::dmat3 bodyToNed(double yaw_deg, double pitch_deg, double roll_deg) {
-  return rotZ(yaw_deg * kDeg) * rotY(pitch_deg * kDeg) * rotX(roll_deg * kDeg);
-}
-// Columns: north, east, down at (lat, lon) in ECEF.
-glm::dmat3 nedToEcef(double lat_deg, double lon_deg) {
-  const double sf = std::sin(lat_deg * kDeg), cf = std::cos(lat_deg * kDeg);
-  const double sl = std::sin(lon_deg * kDeg), cl = std::cos(lon_deg * kDeg);
-  return glm::dmat3(glm::dvec3(-sf * cl, -sf * sl, cf), glm::dvec3(-sl, cl, 0), glm::dvec3(-cf * cl, -cf * sl, -sf));
-}
 
 std::string errnoText(int e) { return std::strerror(e); }
 
@@ -109,11 +85,11 @@ bool validateCigiLinkConfig(const CigiLinkConfig& config, std::string& error) {
 
 EyePose cigiEyePose(const lod::Geodetic& entity, double yaw_deg, double pitch_deg, double roll_deg,
                     const glm::dvec3& offsetBody_m, double viewYaw_deg, double viewPitch_deg, double viewRoll_deg) {
-  const glm::dmat3 ned = nedToEcef(entity.lat_deg, entity.lon_deg);
-  const glm::dmat3 body = ned * bodyToNed(yaw_deg, pitch_deg, roll_deg);
+  const glm::dmat3 ned = lod::nedToEcef(entity.lat_deg, entity.lon_deg);
+  const glm::dmat3 body = ned * lod::bodyToNed(yaw_deg, pitch_deg, roll_deg);
   // The common case, a view looking straight along the entity's nose, skips the second rotation.
   const bool viewRotated = viewYaw_deg != 0.0 || viewPitch_deg != 0.0 || viewRoll_deg != 0.0;
-  const glm::dmat3 view = viewRotated ? body * bodyToNed(viewYaw_deg, viewPitch_deg, viewRoll_deg) : body;
+  const glm::dmat3 view = viewRotated ? body * lod::bodyToNed(viewYaw_deg, viewPitch_deg, viewRoll_deg) : body;
   EyePose p;
   p.ecef_m = lod::geodeticToEcef(entity) + body * offsetBody_m;
   p.forwardEcef = view[0];
@@ -124,9 +100,6 @@ EyePose cigiEyePose(const lod::Geodetic& entity, double yaw_deg, double pitch_de
 
 CigiAssembler::CigiAssembler(const CigiAssemblerConfig& config, const lod::Geodetic& origin)
     : config_(config), enu_(origin) {
-  const glm::dmat3 ned = nedToEcef(origin.lat_deg, origin.lon_deg);
-  // Rows east, north, up (glm is column-major: build columns, then transpose).
-  ecefToEnu_ = glm::transpose(glm::dmat3(ned[1], ned[0], -ned[2]));
   near_m_ = state_.near_m;
   far_m_ = state_.far_m;
   top_deg_ = 0.5 * state_.fovY_deg;
@@ -282,20 +255,12 @@ void CigiAssembler::computeEye() {
   state_.lat_deg = g.lat_deg;
   state_.lon_deg = g.lon_deg;
   state_.height_m = g.height_m;
-  // Attitude in the scene's ENU axes (lod::viewRotation's convention).
-  const glm::dvec3 f = ecefToEnu_ * pose.forwardEcef, r = ecefToEnu_ * pose.rightEcef;
-  const double pitch = std::asin(std::clamp(f.z, -1.0, 1.0));
-  double heading = std::atan2(f.x, f.y);
-  if (std::hypot(f.x, f.y) < 1e-9) heading = std::atan2(-r.y, r.x);  // straight up/down: from the right axis
-  const glm::dvec3 right0{std::cos(heading), -std::sin(heading), 0.0};
-  const glm::dvec3 up0 = glm::cross(right0, f);
-  const double roll = std::atan2(-glm::dot(r, up0), glm::dot(r, right0));
-  double heading_deg = heading / kDeg;
-  if (heading_deg < 0.0) heading_deg += 360.0;
-  if (heading_deg >= 360.0) heading_deg -= 360.0;
-  state_.heading_deg = heading_deg;
-  state_.pitch_deg = pitch / kDeg;
-  state_.roll_deg = roll / kDeg;
+  // Attitude in the scene's ENU axes (lod::viewRotation's convention), the same conversion as
+  // the CAN link's (lod::EnuFrame::attitudeFromGeodetic).
+  const lod::Attitude att = enu_.attitudeFromEcef(pose.forwardEcef, pose.rightEcef);
+  state_.heading_deg = att.heading_deg;
+  state_.pitch_deg = att.pitch_deg;
+  state_.roll_deg = att.roll_deg;
   state_.fovY_deg = top_deg_ - bottom_deg_;
   state_.near_m = near_m_;
   state_.far_m = far_m_;

@@ -109,7 +109,6 @@ class CigiAssembler {
 
   CigiAssemblerConfig config_;
   lod::EnuFrame enu_;
-  glm::dmat3 ecefToEnu_{1.0};  // rows: the origin's east, north, up in ECEF
   cigi::HostMessage msg_;
   HostState state_;
 

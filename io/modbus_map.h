@@ -15,7 +15,7 @@
 //    0    east_m         float32  m     [-1e6, 1e6]                    0      eyepoint, scene ENU
 //    2    north_m        float32  m     [-1e6, 1e6]                    0        frame (x east, y north,
 //    4    up_m           float32  m     [-1e6, 1e6]                    0        z up from the origin)
-//    6    heading_deg    float32  deg   [-360, 360]                    0      clockwise from north
+//    6    heading_deg    float32  deg   [-360, 360]                    0      clockwise from grid north (y)
 //    8    pitch_deg      float32  deg   [-90, 90]                      0      nose up positive
 //   10    roll_deg       float32  deg   [-180, 180]                    0      right wing down positive
 //   12    fovy_deg       float32  deg   (0, 180)                       45     vertical field of view

@@ -2,6 +2,7 @@
 // accurate to well below a millimetre for heights from -10 km to 1000 km.
 #include "lod/geo.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include <glm/geometric.hpp>
@@ -45,6 +46,31 @@ Geodetic ecefToGeodetic(const glm::dvec3& p) {
   return {lat / kDeg, lon / kDeg, h};
 }
 
+glm::dmat3 nedToEcef(double lat_deg, double lon_deg) {
+  const double sf = std::sin(lat_deg * kDeg), cf = std::cos(lat_deg * kDeg);
+  const double sl = std::sin(lon_deg * kDeg), cl = std::cos(lon_deg * kDeg);
+  return glm::dmat3(glm::dvec3(-sf * cl, -sf * sl, cf), glm::dvec3(-sl, cl, 0), glm::dvec3(-cf * cl, -cf * sl, -sf));
+}
+
+namespace {
+glm::dmat3 rotZ(double a) {
+  const double c = std::cos(a), s = std::sin(a);
+  return glm::dmat3(glm::dvec3(c, s, 0), glm::dvec3(-s, c, 0), glm::dvec3(0, 0, 1));
+}
+glm::dmat3 rotY(double a) {
+  const double c = std::cos(a), s = std::sin(a);
+  return glm::dmat3(glm::dvec3(c, 0, -s), glm::dvec3(0, 1, 0), glm::dvec3(s, 0, c));
+}
+glm::dmat3 rotX(double a) {
+  const double c = std::cos(a), s = std::sin(a);
+  return glm::dmat3(glm::dvec3(1, 0, 0), glm::dvec3(0, c, s), glm::dvec3(0, -s, c));
+}
+}  // namespace
+
+glm::dmat3 bodyToNed(double yaw_deg, double pitch_deg, double roll_deg) {
+  return rotZ(yaw_deg * kDeg) * rotY(pitch_deg * kDeg) * rotX(roll_deg * kDeg);
+}
+
 EnuFrame::EnuFrame(const Geodetic& origin) : originEcef_m_(geodeticToEcef(origin)) {
   const double lat = origin.lat_deg * kDeg, lon = origin.lon_deg * kDeg;
   east_ = {-std::sin(lon), std::cos(lon), 0.0};
@@ -59,6 +85,26 @@ glm::dvec3 EnuFrame::toEnu(const glm::dvec3& ecef_m) const {
 
 glm::dvec3 EnuFrame::toEcef(const glm::dvec3& enu_m) const {
   return originEcef_m_ + east_ * enu_m.x + north_ * enu_m.y + up_ * enu_m.z;
+}
+
+Attitude EnuFrame::attitudeFromEcef(const glm::dvec3& forwardEcef, const glm::dvec3& rightEcef) const {
+  const glm::dvec3 f{glm::dot(forwardEcef, east_), glm::dot(forwardEcef, north_), glm::dot(forwardEcef, up_)};
+  const glm::dvec3 r{glm::dot(rightEcef, east_), glm::dot(rightEcef, north_), glm::dot(rightEcef, up_)};
+  const double pitch = std::asin(std::clamp(f.z, -1.0, 1.0));
+  double heading = std::atan2(f.x, f.y);
+  if (std::hypot(f.x, f.y) < 1e-9) heading = std::atan2(-r.y, r.x);  // straight up/down: from the right axis
+  const glm::dvec3 right0{std::cos(heading), -std::sin(heading), 0.0};
+  const glm::dvec3 up0 = glm::cross(right0, f);
+  const double roll = std::atan2(-glm::dot(r, up0), glm::dot(r, right0));
+  double heading_deg = heading / kDeg;
+  if (heading_deg < 0.0) heading_deg += 360.0;
+  if (heading_deg >= 360.0) heading_deg -= 360.0;
+  return {heading_deg, pitch / kDeg, roll / kDeg};
+}
+
+Attitude EnuFrame::attitudeFromGeodetic(double lat_deg, double lon_deg, const Attitude& local) const {
+  const glm::dmat3 body = nedToEcef(lat_deg, lon_deg) * bodyToNed(local.heading_deg, local.pitch_deg, local.roll_deg);
+  return attitudeFromEcef(body[0], body[1]);
 }
 
 }  // namespace ig::lod

@@ -1,8 +1,10 @@
-// WGS-84 geodetic <-> ECEF <-> local ENU (east, north, up) conversions, all in double.
-// Used to give the host both the geodetic and the local eyepoint, and by tests of huge
+// WGS-84 geodetic <-> ECEF <-> local ENU (east, north, up) conversions, all in double, and
+// attitudes from the local level frame at a point into the scene's ENU axes. Used to give the
+// host both the geodetic and the local eyepoint (and attitude), and by tests of huge
 // coordinates. Pure functions; no state.
 #pragma once
 
+#include <glm/mat3x3.hpp>
 #include <glm/vec3.hpp>
 
 namespace ig::lod {
@@ -16,6 +18,20 @@ struct Geodetic {
 glm::dvec3 geodeticToEcef(const Geodetic& g);
 Geodetic ecefToGeodetic(const glm::dvec3& ecef_m);
 
+// An attitude in degrees, 3-2-1 sequence: heading clockwise from north, then pitch nose up
+// positive, then roll right wing down positive (io::HostState's fields).
+struct Attitude {
+  double heading_deg = 0.0;
+  double pitch_deg = 0.0;
+  double roll_deg = 0.0;
+};
+
+// Columns: north, east, down at geodetic (lat, lon), in ECEF.
+glm::dmat3 nedToEcef(double lat_deg, double lon_deg);
+// Columns: body x (forward), y (right), z (down) in the local NED frame for the 3-2-1 sequence
+// (yaw = heading, pitch, roll; degrees).
+glm::dmat3 bodyToNed(double yaw_deg, double pitch_deg, double roll_deg);
+
 // Local tangent plane anchored at `origin`: x east, y north, z up (metres).
 class EnuFrame {
  public:
@@ -24,6 +40,17 @@ class EnuFrame {
   glm::dvec3 toEcef(const glm::dvec3& enu_m) const;
   Geodetic toGeodetic(const glm::dvec3& enu_m) const { return ecefToGeodetic(toEcef(enu_m)); }
   glm::dvec3 fromGeodetic(const Geodetic& g) const { return toEnu(geodeticToEcef(g)); }
+
+  // Heading/pitch/roll relative to this frame's axes (grid north of the origin;
+  // lod::viewRotation's convention) of a body whose forward and right axes are the given ECEF
+  // unit vectors. Heading in [0, 360). Looking straight up or down, heading is taken from the
+  // right axis (roll 0).
+  Attitude attitudeFromEcef(const glm::dvec3& forwardEcef, const glm::dvec3& rightEcef) const;
+  // An attitude given in the local level frame at geodetic (lat, lon) -- heading from TRUE
+  // north there, pitch and roll against the local horizontal (CIGI, CAN) -- expressed in this
+  // frame's axes. Identity at the origin; elsewhere heading differs by the meridian
+  // convergence (about dlon * sin(lat)) and pitch/roll by the tilt of the local vertical.
+  Attitude attitudeFromGeodetic(double lat_deg, double lon_deg, const Attitude& local) const;
 
  private:
   glm::dvec3 originEcef_m_;

@@ -1,6 +1,10 @@
 # SocketCAN host link: the frame map, set assembly, candump logs and the DBC file (unit tests),
 # and the real kernel stack inside user-mode Linux (vcan + can-raw, driven by can-utils).
 ig_add_test(can_map_test can_map_test.cpp LIBS ig_io)
+# With the CIGI link built too, the CAN attitude is checked against the CIGI assembler's.
+if("cigi" IN_LIST IG_HOST_LINKS)
+  target_compile_definitions(can_map_test PRIVATE IG_TEST_WITH_CIGI=1)
+endif()
 
 # The real kernel stack inside user-mode Linux (tests/uml/). ASAN cannot run there (UML's
 # address space ends at 0x7fc0000000, below ASAN's fixed shadow range), so in a sanitizer build

@@ -10,7 +10,7 @@ The first form sends one set; every signal of every message in the DBC except Se
 be given a physical value. The second writes a candump log (for canplayer, interface vcan0) of
 a straight climbing flight from the default scene's origin (46.5 N, 7.9 E): set k at
 t = 1000 + k/30 s has latitude 46.5 + 2e-5 k deg, longitude 7.9 + 3e-5 k deg, height 1200 + k m,
-heading 10 + k deg, pitch 1, roll -2 deg, sim time 100 + k/30 s, host frame 7000 + k, counter
+heading 10 + k deg (from true north at the eye), pitch 1, roll -2 deg, sim time 100 + k/30 s, host frame 7000 + k, counter
 k mod 256 (tests/can_igd_check.py knows the same trajectory).
 """
 import re

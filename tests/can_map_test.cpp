@@ -17,6 +17,11 @@
 
 #include "io/can_link.h"
 #include "io/can_map.h"
+#include "scene_attitude.h"
+#ifdef IG_TEST_WITH_CIGI
+#include "io/cigi.h"
+#include "io/cigi_link.h"
+#endif
 
 using namespace ig::io;
 
@@ -36,6 +41,12 @@ CanEyeSet sampleSet() {
   s.simTime_s = 36000.125;
   s.hostFrame = 0x123456;
   return s;
+}
+
+// The attitude HostState must carry for an attitude sent at (lat, lon), in kOrigin's axes
+// (computed independently of igd's conversion).
+ig::test::SceneAttitude expectedAttitude(double lat, double lon, double heading, double pitch, double roll) {
+  return ig::test::sceneAttitude(kOrigin.lat_deg, kOrigin.lon_deg, lat, lon, heading, pitch, roll);
 }
 
 std::array<CanFrame, kCanFrameCount> encode(const CanEyeSet& s, uint8_t seq, uint32_t base = 0x100) {
@@ -224,8 +235,11 @@ TEST(CanMap, OutOfRangeRawValuesAreRejectedOneByOne) {
   f[3].data[4] = 0x00;
   a.pushAll(f, 1000);
   EXPECT_EQ(a.c().outOfRange, 1u);
-  EXPECT_NEAR(a.out.heading_deg, 271.25, 1e-9);
-  EXPECT_NEAR(a.out.pitch_deg, 0.16, 1e-9);
+  // The kept heading and the new pitch as sent, in the scene's axes at the set's eye.
+  const CanEyeSet g = sampleSet();
+  const auto want = expectedAttitude(g.lat_deg, g.lon_deg, 271.25, 0.16, g.roll_deg);
+  EXPECT_NEAR(a.out.heading_deg, want.heading_deg, 1e-9);
+  EXPECT_NEAR(a.out.pitch_deg, want.pitch_deg, 1e-9);
 }
 
 TEST(CanMap, OtherFieldsOfASetApplyWhenOneIsRejected) {
@@ -241,10 +255,133 @@ TEST(CanMap, OtherFieldsOfASetApplyWhenOneIsRejected) {
   EXPECT_EQ(a.c().outOfRange, 1u);
   EXPECT_NEAR(a.out.lat_deg, 47.2612345, 1e-9);  // kept
   EXPECT_DOUBLE_EQ(a.out.lon_deg, 12.0);
-  EXPECT_DOUBLE_EQ(a.out.heading_deg, 10.0);
+  // Heading 10 from true north at 12 E, in the axes of the origin at 11.35 E.
+  EXPECT_NEAR(a.out.heading_deg, expectedAttitude(47.2612345, 12.0, 10.0, s.pitch_deg, s.roll_deg).heading_deg, 1e-9);
   EXPECT_DOUBLE_EQ(a.out.simTime_s, 36001.0);
   EXPECT_EQ(a.out.hostFrame, 77u);
 }
+
+// CAN sends heading from TRUE north at the eye, pitch and roll against its local horizontal;
+// HostState's attitude is in the scene's ENU axes (grid north of the origin). One degree of
+// longitude east of an origin at 57.7 N, local north is turned by the meridian convergence:
+// exactly atan2(-sin(lat) sin(dlon), sin^2(lat) cos(dlon) + cos^2(lat)), about dlon * sin(lat)
+// = 0.845 deg, and tilted nose up by asin(sin(lat) cos(lat) (1 - cos(dlon))).
+TEST(CanSet, AttitudeIsConvertedToTheScenesAxes) {
+  const ig::lod::Geodetic origin{57.7, 11.97, 100.0};
+  CanLinkConfig config;
+  LinkCounters counters;
+  CanSetAssembler assembler(config, origin, counters);
+  CanEyeSet s = sampleSet();
+  s.lat_deg = 57.7;
+  s.lon_deg = 12.97;
+  s.height_m = 1000.0;
+  s.heading_deg = 0.0;
+  s.pitch_deg = 0.0;
+  s.roll_deg = 0.0;
+  HostState out;
+  int commits = 0;
+  for (const CanFrame& f : encode(s, 1))
+    commits += assembler.push(f, 0, out) == CanSetAssembler::Result::Committed ? 1 : 0;
+  ASSERT_EQ(commits, 1);
+  const double d = 3.14159265358979323846 / 180.0, sf = std::sin(57.7 * d), cf = std::cos(57.7 * d);
+  const double heading = 360.0 + std::atan2(-sf * std::sin(d), sf * sf * std::cos(d) + cf * cf) / d;
+  EXPECT_NEAR(out.heading_deg, heading, 1e-9);
+  EXPECT_NEAR(out.heading_deg, 360.0 - 1.0 * sf, 0.01);  // dlon * sin(lat)
+  EXPECT_NEAR(out.pitch_deg, std::asin(sf * cf * (1.0 - std::cos(d))) / d, 1e-9);
+  // A general attitude, and one looking straight up, against the independent conversion.
+  struct Case {
+    double heading, pitch, roll;
+  };
+  uint8_t seq = 2;
+  for (const Case c : {Case{30.0, 10.0, 20.0}, Case{271.25, -3.5, 12.75}, Case{45.0, 90.0, 0.0}}) {
+    s.heading_deg = c.heading;
+    s.pitch_deg = c.pitch;
+    s.roll_deg = c.roll;
+    for (const CanFrame& f : encode(s, seq)) assembler.push(f, 1000 * seq, out);
+    ++seq;
+    const auto want = ig::test::sceneAttitude(origin.lat_deg, origin.lon_deg, 57.7, 12.97, c.heading, c.pitch, c.roll);
+    EXPECT_NEAR(ig::test::headingDiff_deg(out.heading_deg, want.heading_deg), 0.0, 1e-9) << c.heading;
+    EXPECT_NEAR(out.pitch_deg, want.pitch_deg, 1e-9) << c.heading;
+    EXPECT_NEAR(out.roll_deg, want.roll_deg, 1e-9) << c.heading;
+  }
+  EXPECT_EQ(snapshot(counters).accepted, 4u);
+}
+
+// A rejected attitude field keeps its last good value AS SENT (true north at the eye) and is
+// converted again at the new eye: not the previous eye's scene-axes value carried along.
+TEST(CanSet, RejectedAttitudeKeepsTheSentValueConvertedAtTheNewEye) {
+  Assembly a;
+  CanEyeSet s = sampleSet();
+  s.heading_deg = 30.0;
+  s.pitch_deg = 5.0;
+  s.roll_deg = -10.0;
+  a.pushAll(encode(s, 1), 0);
+  auto want = expectedAttitude(s.lat_deg, s.lon_deg, 30.0, 5.0, -10.0);
+  EXPECT_NEAR(a.out.heading_deg, want.heading_deg, 1e-9);
+  EXPECT_NEAR(a.out.pitch_deg, want.pitch_deg, 1e-9);
+  EXPECT_NEAR(a.out.roll_deg, want.roll_deg, 1e-9);
+  s.lon_deg = kOrigin.lon_deg + 1.0;  // one degree east: about 0.73 deg of convergence at 47 N
+  s.heading_deg = kNaN;
+  s.pitch_deg = kNaN;
+  s.roll_deg = kNaN;
+  a.pushAll(encode(s, 2), 1000);
+  EXPECT_EQ(a.c().outOfRange, 3u);
+  want = expectedAttitude(s.lat_deg, s.lon_deg, 30.0, 5.0, -10.0);
+  EXPECT_NEAR(a.out.heading_deg, want.heading_deg, 1e-9);
+  EXPECT_NEAR(a.out.pitch_deg, want.pitch_deg, 1e-9);
+  EXPECT_NEAR(a.out.roll_deg, want.roll_deg, 1e-9);
+  EXPECT_LT(a.out.heading_deg, 29.5);
+}
+
+#ifdef IG_TEST_WITH_CIGI
+// The same geodetic pose sent over CAN and over CIGI renders the same view: both links convert
+// the attitude to the scene's axes with one function.
+TEST(CanSet, AttitudeMatchesTheCigiLinkForTheSamePose) {
+  const ig::lod::Geodetic origin{57.7, 11.97, 100.0};
+  CanLinkConfig config;
+  LinkCounters counters;
+  CanSetAssembler can(config, origin, counters);
+  CigiAssembler cigiAsm({}, origin);
+  struct Case {
+    double lat, lon, heading, pitch, roll;
+  };
+  uint8_t seq = 0;
+  uint32_t frame = 100;
+  for (const Case c : {Case{57.7, 12.97, 30.0, 10.0, 20.0}, Case{57.7, 12.97, 0.0, 0.0, 0.0},
+                       Case{58.2, 10.5, 271.25, -3.5, 12.75}, Case{57.7, 12.97, 45.0, 90.0, 0.0},
+                       Case{57.7, 12.97, 45.0, -90.0, 0.0}}) {
+    CanEyeSet s = sampleSet();
+    s.lat_deg = c.lat;
+    s.lon_deg = c.lon;
+    s.height_m = 1000.0;
+    s.heading_deg = c.heading;
+    s.pitch_deg = c.pitch;
+    s.roll_deg = c.roll;
+    HostState out;
+    for (const CanFrame& f : encode(s, seq)) can.push(f, 1000 * seq, out);
+    ++seq;
+    cigi::IgControl ig;
+    ig.hostFrame = frame++;
+    cigi::EntityControl e;
+    e.lat_deg = c.lat;
+    e.lon_deg = c.lon;
+    e.alt_m = 1000.0;
+    e.yaw_deg = static_cast<float>(c.heading);  // all exact in float32
+    e.pitch_deg = static_cast<float>(c.pitch);
+    e.roll_deg = static_cast<float>(c.roll);
+    std::vector<std::byte> msg(cigi::kIgControlSize + cigi::kEntityControlSize);
+    const size_t n = cigi::encode(ig, cigi::ByteOrder::big, msg);
+    cigi::encode(e, cigi::ByteOrder::big, std::span<std::byte>(msg).subspan(n));
+    LinkCounters cc;
+    ASSERT_EQ(cigiAsm.apply(msg, cc), CigiAssembler::Result::published);
+    const HostState& w = cigiAsm.state();
+    EXPECT_NEAR(ig::test::headingDiff_deg(out.heading_deg, w.heading_deg), 0.0, 1e-9) << c.heading << " " << c.pitch;
+    EXPECT_NEAR(out.pitch_deg, w.pitch_deg, 1e-9) << c.heading << " " << c.pitch;
+    EXPECT_NEAR(out.roll_deg, w.roll_deg, 1e-9) << c.heading << " " << c.pitch;
+    EXPECT_NEAR(glm::distance(out.eyeEnu_m, w.eyeEnu_m), 0.0, 1e-6);
+  }
+}
+#endif
 
 TEST(CanMap, FramesOutsideTheMapOrMalformed) {
   const auto frames = encode(sampleSet(), 3);
@@ -526,7 +663,9 @@ TEST(Candump, LogToRecordingRelativeToTheFirstSet) {
   EXPECT_DOUBLE_EQ(rec.samples[0].t_s, 0.0);
   EXPECT_NEAR(rec.samples[9].t_s, 9 * 0.016667, 1e-9);
   EXPECT_EQ(rec.samples[9].state.hostFrame, 109u);
-  EXPECT_NEAR(rec.samples[9].state.heading_deg, 90.0, 1e-9);
+  const CanEyeSet g = sampleSet();
+  EXPECT_NEAR(rec.samples[9].state.heading_deg,
+              expectedAttitude(g.lat_deg, g.lon_deg, 90.0, g.pitch_deg, g.roll_deg).heading_deg, 1e-9);
   EXPECT_NEAR(rec.samples[9].state.simTime_s, 10.15, 0.5e-3);
   EXPECT_EQ(stats.lines, 52u);
   EXPECT_EQ(stats.otherFrames, 1u);
@@ -579,7 +718,11 @@ TEST(Candump, RealCandumpLogFromUserModeLinux) {
     EXPECT_NEAR(s.lat_deg, 47.2612345 + 0.001 * static_cast<double>(k), 1e-9);
     EXPECT_NEAR(s.lon_deg, 11.3598765, 1e-9);
     EXPECT_NEAR(s.height_m, 1523.456, 1e-9);
-    EXPECT_NEAR(s.heading_deg, 271.25, 1e-9);
+    // Sent as heading 271.25, pitch -3.5, roll 12.75 from true north at the eye.
+    const auto want = expectedAttitude(s.lat_deg, s.lon_deg, 271.25, -3.5, 12.75);
+    EXPECT_NEAR(s.heading_deg, want.heading_deg, 1e-9);
+    EXPECT_NEAR(s.pitch_deg, want.pitch_deg, 1e-9);
+    EXPECT_NEAR(s.roll_deg, want.roll_deg, 1e-9);
     EXPECT_NEAR(s.simTime_s, 36000.125 + static_cast<double>(k), 1e-9);
   }
   EXPECT_EQ(stats.counters.received, 16u);

@@ -23,6 +23,7 @@
 
 #include "io/can_link.h"
 #include "io/can_map.h"
+#include "scene_attitude.h"
 
 using namespace ig::io;
 using Clock = std::chrono::steady_clock;
@@ -99,13 +100,16 @@ std::array<CanFrame, kCanFrameCount> frames(int k, uint8_t seq) {
   return f;
 }
 
-// The received state matches set k to the resolution of the map.
+// The received state matches set k to the resolution of the map; the attitude as sent (true
+// north at the eye) converted to kOrigin's axes, independently of igd (tests/scene_attitude.h).
 void checkState(const HostState& s, int k, const char* what) {
   const CanEyeSet want = makeSet(k);
+  const ig::test::SceneAttitude att = ig::test::sceneAttitude(kOrigin.lat_deg, kOrigin.lon_deg, s.lat_deg, s.lon_deg,
+                                                              want.heading_deg, want.pitch_deg, want.roll_deg);
   const bool ok = std::fabs(s.lat_deg - want.lat_deg) <= 0.5e-7 && std::fabs(s.lon_deg - want.lon_deg) <= 0.5e-7 &&
                   std::fabs(s.height_m - want.height_m) <= 0.5e-3 &&
-                  std::fabs(s.heading_deg - want.heading_deg) <= 0.005 &&
-                  std::fabs(s.pitch_deg - want.pitch_deg) <= 0.005 && std::fabs(s.roll_deg - want.roll_deg) <= 0.005 &&
+                  std::fabs(ig::test::headingDiff_deg(s.heading_deg, att.heading_deg)) <= 0.005 &&
+                  std::fabs(s.pitch_deg - att.pitch_deg) <= 0.005 && std::fabs(s.roll_deg - att.roll_deg) <= 0.005 &&
                   std::fabs(s.simTime_s - want.simTime_s) <= 0.5e-3 && s.hostFrame == want.hostFrame;
   CHECK(ok, "%s: state (lat %.7f lon %.7f h %.3f hdg %.2f p %.2f r %.2f t %.3f frame %llu) != set %d", what,
         s.lat_deg, s.lon_deg, s.height_m, s.heading_deg, s.pitch_deg, s.roll_deg, s.simTime_s,
@@ -276,9 +280,14 @@ int main(int argc, char** argv) {
     const auto states = sink.copy();
     if (states.size() == static_cast<size_t>(5 + kPlayed)) {
       const HostState& s = states.back();
+      // Heading 359.99, pitch -90, roll 180 at the eye in Sydney, in the axes of kOrigin.
+      const ig::test::SceneAttitude att =
+          ig::test::sceneAttitude(kOrigin.lat_deg, kOrigin.lon_deg, -33.8688197, 151.2092955, 359.99, -90.0, 180.0);
       CHECK(std::fabs(s.lat_deg + 33.8688197) < 1e-9 && std::fabs(s.lon_deg - 151.2092955) < 1e-9 &&
-                std::fabs(s.height_m + 12.5) < 1e-9 && std::fabs(s.heading_deg - 359.99) < 1e-9 &&
-                s.pitch_deg == -90.0 && s.roll_deg == 180.0 && std::fabs(s.simTime_s - 4000000.001) < 1e-6 &&
+                std::fabs(s.height_m + 12.5) < 1e-9 &&
+                std::fabs(ig::test::headingDiff_deg(s.heading_deg, att.heading_deg)) < 1e-9 &&
+                std::fabs(s.pitch_deg - att.pitch_deg) < 1e-9 && std::fabs(s.roll_deg - att.roll_deg) < 1e-9 &&
+                std::fabs(s.simTime_s - 4000000.001) < 1e-6 &&
                 s.hostFrame == 16777215u,
             "E: DBC-encoded set decoded as lat %.7f lon %.7f h %.3f hdg %.2f p %.2f r %.2f t %.3f frame %llu",
             s.lat_deg, s.lon_deg, s.height_m, s.heading_deg, s.pitch_deg, s.roll_deg, s.simTime_s,

@@ -3,15 +3,20 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <cstdlib>
 #include <limits>
 #include <sstream>
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
 #include <signal.h>
 #include <sys/resource.h>
+#include <sys/socket.h>
 #include <unistd.h>
 
 #include "ig/clock.h"
@@ -346,6 +351,112 @@ TEST(HostInputRecorder, AFileThatCannotBeWrittenFailsAtOpen) {
   error.clear();
   EXPECT_FALSE(input.start(nullptr, "/dev/full", 1.0, error));
   EXPECT_NE(error.find("host.record_file"), std::string::npos) << error;
+}
+
+// A link that binds a UDP port on 127.0.0.1 when it starts (like the CIGI link) and publishes
+// one sample from start() itself, before start() returns.
+class UdpPortLink final : public ig::io::HostLink {
+ public:
+  explicit UdpPortLink(uint16_t port) : port_(port) {}
+  ~UdpPortLink() override { stop(); }
+  std::string_view name() const override { return "udp"; }
+  bool start(ig::io::HostSink& sink, std::string& error) override {
+    fd_ = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    a.sin_port = htons(port_);
+    if (fd_ < 0 || bind(fd_, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0) {
+      error = "cannot bind 127.0.0.1:" + std::to_string(port_) + ": " + std::strerror(errno);
+      stop();
+      return false;
+    }
+    ig::io::HostState s;
+    s.hostFrame = 4711;
+    sink.publish(s);
+    return true;
+  }
+  void stop() override {
+    if (fd_ >= 0) ::close(fd_);
+    fd_ = -1;
+  }
+
+ private:
+  uint16_t port_;
+  int fd_ = -1;
+};
+
+// igd started while the port of its host link is in use fails at start-up; the recording of
+// the previous run (same record_file) must still be there: the file is created only once the
+// link runs. A start that succeeds then replaces it, keeping the samples published meanwhile.
+TEST(HostInputRecorder, AFailedLinkStartLeavesThePreviousRecordingAlone) {
+  const std::string file =
+      (std::filesystem::temp_directory_path() / ("igd_host_rec_keep_" + std::to_string(::getpid()) + ".rec")).string();
+  const std::string previous = "igd-recording 1\n0 1 0 1 2 3 the previous run's samples\n";
+  {
+    std::ofstream out(file, std::ios::binary);
+    out << previous;
+  }
+  auto contents = [&] {
+    std::ifstream in(file, std::ios::binary);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+  };
+  // Hold a port busy.
+  const int busy = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  ASSERT_GE(busy, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  ASSERT_EQ(bind(busy, reinterpret_cast<sockaddr*>(&a), sizeof a), 0);
+  socklen_t len = sizeof a;
+  ASSERT_EQ(getsockname(busy, reinterpret_cast<sockaddr*>(&a), &len), 0);
+  const uint16_t port = ntohs(a.sin_port);
+  ig::io::LatestValueMailbox<ig::io::HostState> mailbox;
+  ig::FakeClock clock;
+  std::string error;
+  {
+    ig::HostInput input(mailbox, clock);
+    EXPECT_FALSE(input.start(std::make_unique<UdpPortLink>(port), file, 1.0, error));
+    EXPECT_NE(error.find("Address already in use"), std::string::npos) << error;
+    EXPECT_EQ(input.recorder(), nullptr);
+  }
+  ::close(busy);
+  EXPECT_EQ(contents(), previous);
+  // Now the port is free: the start succeeds and the file is a new recording holding the sample
+  // the link published while starting.
+  {
+    ig::HostInput input(mailbox, clock);
+    ASSERT_TRUE(input.start(std::make_unique<UdpPortLink>(port), file, 1.0, error)) << error;
+    input.stop();
+  }
+  ig::io::Recording rec;
+  ASSERT_TRUE(ig::io::loadRecording(file, rec, error)) << error;
+  std::filesystem::remove(file);
+  ASSERT_EQ(rec.samples.size(), 1u);
+  EXPECT_EQ(rec.samples[0].state.hostFrame, 4711u);
+}
+
+// Before the host's first message the link is not "lost" for [host] link_timeout_s after the
+// start (docs/cigi.md: Start of Frame reports Operate / status 0 then, Standby / status 1 after).
+TEST(HostInputRecorder, NoHostYetIsLostOnlyAfterTheLinkTimeout) {
+  struct SilentLink final : ig::io::HostLink {
+    std::string_view name() const override { return "silent"; }
+    bool start(ig::io::HostSink&, std::string&) override { return true; }
+    void stop() override {}
+  };
+  ig::io::LatestValueMailbox<ig::io::HostState> mailbox;
+  ig::FakeClock clock;
+  ig::HostInput input(mailbox, clock);
+  std::string error;
+  ASSERT_TRUE(input.start(std::make_unique<SilentLink>(), "", 1.0, error)) << error;
+  EXPECT_FALSE(input.updateLost());
+  clock.advance_ns(900'000'000);
+  EXPECT_FALSE(input.updateLost());
+  clock.advance_ns(200'000'000);
+  EXPECT_TRUE(input.updateLost());
+  input.stop();
 }
 
 // Samples whose write fails after a good start (the disk fills up during the run) are counted
