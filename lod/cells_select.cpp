@@ -269,7 +269,9 @@ CellSelector::CellSelector(const CellTree& tree, const CellSelectorConfig& confi
   unknownCover_.reserve(n);
   parts_[0].covers.reserve(leaves);
   if (config_.runner != nullptr) {
-    chunkCells_ = (std::max(config_.chunkCells, 8u) + 7u) / 8u * 8u;
+    // At most 2^30 (one chunk for any cut that fits in memory: ~110 bytes a cell), so that neither
+    // the rounding nor the chunk counts in runPass() wrap around.
+    chunkCells_ = (std::clamp(config_.chunkCells, 8u, 1u << 30) + 7u) / 8u * 8u;
     Part& p1 = parts_[1];
     p1.marks.reserve((leaves + chunkCells_ - 1) / chunkCells_ + (n - leaves + chunkCells_ - 1) / chunkCells_ + 2);
     p1.evicted.reserve(leaves);
@@ -713,7 +715,10 @@ bool CellSelector::splitTop(HeapEntry& top) {
     if (splitFloor_ <= 0.0f) return false;
     // Below the window: queue the next band of the cut.
     const float hi = splitFloor_;
-    splitFloor_ = splitFloor_ > 1.25f * alpha_ && splitFloor_ > 1e-30f ? 0.8f * splitFloor_ : 0.0f;
+    // (From a window at inf, the last frame's greedy having stopped at a cell of e = inf, straight
+    // to 0: 0.8 * inf is inf, and the loop would never end.)
+    splitFloor_ =
+        splitFloor_ > 1.25f * alpha_ && splitFloor_ > 1e-30f && splitFloor_ < kInf ? 0.8f * splitFloor_ : 0.0f;
     for (uint32_t i = 0; i < cut_.n; ++i) {
       const Ev x{cut_.e[i], cut_.flags[i]};
       if (x.e >= splitFloor_ && x.e < hi && refinable(cut_.cell[i], x) && splitHeap_.size() < splitHeap_.capacity())
@@ -805,9 +810,11 @@ void CellSelector::merge(uint32_t p) {
 
 bool CellSelector::request(uint32_t c) {
   if (!residency_.empty() && residency_[c] == Residency::InFlight) return true;
-  if (reqStamp_[c] == frame_) return true;  // already requested this frame
+  // Already requested this frame, or already counted as unfetchable (W is the frame's).
+  if (reqStamp_[c] == frame_) return tree_.bytes(c) <= W_;
   if (tree_.bytes(c) > W_) {
     ++unfetchable_;
+    reqStamp_[c] = frame_;
     return false;
   }
   if (reqBytes_ + tree_.bytes(c) > W_ || reqCount_ >= reqOut_.size()) return false;

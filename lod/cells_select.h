@@ -57,8 +57,8 @@
 //
 // Residency (progressive loading). The caller passes each cell's residency. A live cell is drawn
 // only when resident; a split whose live children are not all resident is blocked: the missing
-// children are requested (largest e first, while sum S <= W; a cell in flight is not requested
-// again and costs no bytes), the voxels the split needs are reserved so that cells arriving in
+// children are requested (in the order the greedy meets their parents, largest parent e first;
+// while sum S <= W; a cell in flight is not requested again and costs no bytes), the voxels the split needs are reserved so that cells arriving in
 // a later frame fit without starving, and the cell stays drawn until its children arrive. Once
 // W is spent, the refinement stops at the next blocked split (the next frames fetch its cells). A
 // drawn cell that stops being resident is replaced by its nearest resident ancestor. A cover
@@ -144,7 +144,10 @@ class ChunkRunner {
 };
 
 struct CellSelectorConfig {
-  uint32_t maxOperations = 1u << 30;  // splits + merges per frame; the cut stays valid when it stops
+  // Splits + merges per frame after which the refinement examines no further split (the cut stays
+  // valid when it stops). The merges that keep the budget (coarsening when over it, room for the
+  // split under way) are never held back, so a frame's splits stay <= it, its merges need not.
+  uint32_t maxOperations = 1u << 30;
   // The per-frame passes over the cut (re-evaluation and eviction scan; costs and cheapest
   // covers; the draw list) run on this runner when set (it must outlive the selector), in
   // chunks of `chunkCells` cut cells (rounded up to a multiple of 8). Null: all on the caller.
@@ -188,7 +191,9 @@ class CellSelector {
 
   // One frame. `residency`: one entry per cell, or empty (every cell resident). Writes the drawn
   // cells (live, resident; in the order of the packed cut, not sorted) to `draw` and the cells to
-  // fetch, largest e first, to `requests`. No allocation.
+  // fetch to `requests`, in the order the greedy met them (the blocked splits' children by their
+  // parent's e, largest first, then the unknown covers' children); not sorted by their own e. No
+  // allocation.
   CellSelectStats select(const CellView& view, std::span<const Residency> residency, std::span<CellDraw> draw,
                          std::span<uint32_t> requests);
 
