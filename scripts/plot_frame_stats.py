@@ -26,7 +26,10 @@ KNOBS = [("terrain_tolerance_px", False), ("forest_near_m", True), ("hdlod_toler
 def load(path):
     rows, run = [], {}
     with open(path, encoding="utf-8") as f:
-        if path.endswith(".csv"):
+        # By content, not by name: igd writes either format to any file name (stats.format).
+        first = f.readline()
+        f.seek(0)
+        if not first.lstrip().startswith("{"):
             rows = [{k: float(v) for k, v in r.items()} for r in csv.DictReader(f)]
         else:
             for line in f:

