@@ -10,6 +10,7 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <string_view>
 #include <type_traits>
 #include <vector>
@@ -359,6 +360,13 @@ bool saveHdlodCache(const std::string& path, const HdlodTree& tree, uint64_t key
   header.payloadBytes = payload.size();
   header.checksum = checksumOf(payload.data(), payload.size());
   const std::string tmp = path + ".tmp." + std::to_string(static_cast<long>(::getpid()));
+  // The cache's folder is made as needed (a scene's `cache = "../../out/site.hdlod"` on a fresh
+  // checkout has no out/ yet: the tree was built again at every start). A folder that cannot be
+  // made shows as the failed open below.
+  if (const std::filesystem::path parent = std::filesystem::path(path).parent_path(); !parent.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(parent, ec);
+  }
   FILE* f = std::fopen(tmp.c_str(), "wb");
   if (!f) {
     error = path + ": cannot write the HDLOD cache: " + std::strerror(errno);
@@ -379,7 +387,9 @@ bool loadHdlodCache(const std::string& path, uint64_t key, HdlodTree& tree, std:
   tree = HdlodTree{};
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) {
-    error = path + ": HDLOD cache " + (errno == ENOENT ? "missing" : std::string("unreadable: ") + std::strerror(errno));
+    // No file there (also when a folder on the path is a file): "missing", a first build.
+    const bool none = errno == ENOENT || errno == ENOTDIR;
+    error = path + ": HDLOD cache " + (none ? "missing" : std::string("unreadable: ") + std::strerror(errno));
     return false;
   }
   struct stat st {};

@@ -217,12 +217,34 @@ TEST(HdlodCache, StaleCacheIsDetectedAndRebuilt) {
 
 TEST(HdlodCache, UnwritableCacheStillBuilds) {
   const Scene s = smallSite();
+  // Below a regular file: no folder can be made there, not even by root.
+  const std::string file = tempPath("not_a_folder");
+  { std::ofstream(file) << "x"; }
+  const std::string path = file + "/x/cache.bin";
   CacheOutcome outcome;
   std::string note;
-  const HdlodTree t = loadOrBuildHdlod(s, BuildConfig{}, "/nonexistent-dir/x/cache.bin", outcome, note);
+  const HdlodTree t = loadOrBuildHdlod(s, BuildConfig{}, path, outcome, note);
   EXPECT_EQ(outcome, CacheOutcome::Built);
-  EXPECT_NE(note.find("/nonexistent-dir/x/cache.bin"), std::string::npos) << note;
+  EXPECT_NE(note.find(path), std::string::npos) << note;
   EXPECT_FALSE(t.clusters.empty());
+  std::remove(file.c_str());
+}
+
+// The cache's folder is made when missing (a scene naming "../../out/x.hdlod" on a fresh
+// checkout): the next start loads the tree instead of building it again.
+TEST(HdlodCache, CacheInAFolderNotMadeYetIsWrittenAndLoaded) {
+  const Scene s = smallSite();
+  const std::string dir = tempPath("fresh_checkout");
+  std::filesystem::remove_all(dir);
+  const std::string path = dir + "/out/deeper/site.hdlod";
+  CacheOutcome outcome;
+  std::string note;
+  (void)loadOrBuildHdlod(s, BuildConfig{}, path, outcome, note);
+  EXPECT_EQ(outcome, CacheOutcome::Built) << note;
+  EXPECT_TRUE(std::filesystem::exists(path)) << note;
+  (void)loadOrBuildHdlod(s, BuildConfig{}, path, outcome, note);
+  EXPECT_EQ(outcome, CacheOutcome::Loaded) << note;
+  std::filesystem::remove_all(dir);
 }
 
 TEST(HdlodCache, ScheduleWrittenLoadsBackAsTheSameScene) {
