@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "ig/clock.h"
+#include "ig/json.h"
 
 #include "ig/stats.h"
 #include "render/context.h"
@@ -282,15 +283,18 @@ int runAdaptiveBench(const AdaptiveBenchOptions& o0) {
     p99[m] = percentile(all[m], 99);
   }
   const char* names[kModes] = {"percommand", "octree", "occlusion", "adaptive"};
-  std::string out;
+  // The device string (the calibration key: GL vendor, renderer and version, the CPU model) comes
+  // from outside: escaped, and appended rather than printed into `buf` (a long one was cut off at
+  // the buffer's size and left the JSON unterminated).
+  std::string out = "{\"bench\":\"adaptive\",\"device\":" + jsonString(cal.key);
   char buf[512];
   std::snprintf(buf, sizeof buf,
-                "{\"bench\":\"adaptive\",\"device\":\"%s\",\"viewport\":[%d,%d],\"objects\":%u,\"frames\":%d,\"window\":%d,"
+                ",\"viewport\":[%d,%d],\"objects\":%u,\"frames\":%d,\"window\":%d,"
                 "\"calibration_from_cache\":%s,\"calibration\":{\"frame_ns\":%.0f,\"tri_ns\":%.2f,\"frag_ns\":%.3f,"
                 "\"command_ns\":%.0f,\"rerecord_ns\":%.0f,\"submit_ns\":%.0f,\"cull_ns\":%.1f,"
                 "\"occlusion_test_ns\":%.0f,\"raster_tri_ns\":%.1f,\"edge_ns\":%.1f,\"draw_raster_ns\":%.1f,\"overlap\":%.2f,"
                 "\"overlap_triangles\":%.0f},\"modes\":{",
-                cal.key.c_str(), o.width_px, o.height_px, o.objects, frames, o.window, cal.fromCache ? "true" : "false",
+                o.width_px, o.height_px, o.objects, frames, o.window, cal.fromCache ? "true" : "false",
                 cal.constants.frame_ns, cal.constants.tri_ns, cal.constants.frag_ns, cal.constants.command_ns,
                 cal.constants.rerecord_ns, cal.constants.submit_ns, cal.constants.cull_ns, cal.constants.occlusionTest_ns,
                 cal.constants.rasterTri_ns, cal.constants.edge_ns, cal.constants.drawRaster_ns, cal.constants.overlap, cal.constants.overlapTriangles);

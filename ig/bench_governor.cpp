@@ -328,6 +328,8 @@ int runGovernorBench(const GovernorBenchOptions& o0) {
   if (!(o.samples >= 65 && o.samples <= 8193)) return badOption("--samples", o.samples, "out of range (65 ..= 8193)");
   if (!(o.rate_hz > 0.0 && o.rate_hz <= 1000.0)) return badOption("--rate", o.rate_hz, "out of range (> 0 and <= 1000)");
   if (!(o.seconds > 0.0 && o.seconds <= 3600.0)) return badOption("--seconds", o.seconds, "out of range (> 0 and <= 3600)");
+  // No frame to measure: the summary would report 0 frames with 0 % overruns and 0 ms, a goal met.
+  if (std::llround(o.seconds * o.rate_hz) < 1) return badOption("--seconds", o.seconds, "shorter than one frame at --rate");
   if (!(o.tolerance_px > 0.0 && std::isfinite(o.tolerance_px)))
     return badOption("--tolerance", o.tolerance_px, "out of range (> 0)");
   if (!(o.maxTolerance_px > o.tolerance_px && std::isfinite(o.maxTolerance_px)))

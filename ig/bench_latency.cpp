@@ -19,6 +19,7 @@
 
 #include "ig/app_common.h"
 #include "ig/clock.h"
+#include "ig/json.h"
 #include "ig/service.h"
 #include "ig/stats.h"
 #include "lod/geo.h"
@@ -268,7 +269,7 @@ int runLatencyBench(const LatencyBenchOptions& opt) {
         "\"decode_msgs_per_s\":%.0f,\"decode_msgs_per_s_swapped\":%.0f,\"flood_rate_pps\":%.0f,"
         "\"flood_seconds\":%.1f,\"flood_rate_achieved_pps\":%.0f,\"flood_frames\":%lld,\"flood_overruns\":%lld,\"flood_frame_ms_p99\":%.3f,"
         "\"flood_packets_sent\":%llu,\"flood_packets_received\":%llu,\"flood_packets_accepted\":%llu}\n",
-        renderer.c_str(), width, height, 1000.0 / period_ms, period_ms, opt.hostRate_hz, latency_ms.size(), p50, p99,
+        jsonEscape(renderer).c_str(), width, height, 1000.0 / period_ms, period_ms, opt.hostRate_hz, latency_ms.size(), p50, p99,
         lmax, latencyRun.workMs_p50, latencyRun.workMs_p99, goal_ms, static_cast<long long>(latencyRun.overruns),
         static_cast<unsigned long long>(latencyCounters.received),
         static_cast<unsigned long long>(latencyCounters.accepted), decodeNative, decodeSwapped, opt.floodRate_pps,

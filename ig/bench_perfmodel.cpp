@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "ig/clock.h"
+#include "ig/json.h"
 #include "ig/stats.h"
 #include "lod/perfmodel.h"
 #include "render/context.h"
@@ -277,7 +278,7 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
                 "\"repeats\":%d,\"calibration\":{\"from_cache\":%s,\"runs\":%d,\"seconds\":%.3f,\"frame_ns\":%.1f,\"tri_ns\":%.3f,"
                 "\"frag_ns\":%.4f,\"raster_tri_ns\":%.3f,\"edge_ns\":%.3f,\"draw_raster_ns\":%.1f,\"depth_frag_ns\":%.4f,\"state_ns\":%.1f,\"command_ns\":%.1f,\"rerecord_ns\":%.1f,"
                 "\"submit_ns\":%.1f,\"cull_ns\":%.2f,\"occlusion_test_ns\":%.1f,\"overlap\":%.3f,\"overlap_triangles\":%.0f,\"command_count\":%.0f,\"command_large_ns\":%.1f,\"command_large_count\":%.0f,\"tri_ns_by_draw\":%s},\"points\":[",
-                cal.key.c_str(), o.width_px, o.height_px, o.fragmentWork, o.coverage, repeats,
+                jsonEscape(cal.key).c_str(), o.width_px, o.height_px, o.fragmentWork, o.coverage, repeats,
                 cal.fromCache ? "true" : "false", cal.fromCache ? 0 : co.runs, cal.seconds, k.frame_ns, k.tri_ns, k.frag_ns, k.rasterTri_ns, k.edge_ns, k.drawRaster_ns,
                 k.depthFrag_ns, k.state_ns, k.command_ns, k.rerecord_ns, k.submit_ns, k.cull_ns, k.occlusionTest_ns, k.overlap, k.overlapTriangles,
                 k.commandCount, k.commandLarge_ns, k.commandLargeCount, byDrawJson.c_str());

@@ -90,7 +90,10 @@ double rmse(const Image& a, const Image& b) {
 double psnrDb(const Image& a, const Image& b) {
   const double e = rmse(a, b);
   if (e < 0.0) return -1.0;
-  return e > 0.0 ? 20.0 * std::log10(255.0 / e) : 99.0;
+  // Capped at the value of identical images: the smallest error an image of more than ~40,000
+  // pixels can have (one level in one channel of one pixel) is above 99 dB, and a near-identical
+  // image must not score better than an identical one.
+  return e > 0.0 ? std::min(99.0, 20.0 * std::log10(255.0 / e)) : 99.0;
 }
 
 double fractionDifferent(const Image& a, const Image& b, int threshold) {

@@ -19,8 +19,8 @@ bool readPng(const std::string& file, Image& image, std::string& error);
 // Root-mean-square difference over R, G, B of all pixels, in 8-bit levels (0..255).
 // Returns a negative value if the sizes differ.
 double rmse(const Image& a, const Image& b);
-// Peak signal-to-noise ratio over R, G, B in dB: 20 log10(255 / rmse); 99 for identical images,
-// negative if the sizes differ.
+// Peak signal-to-noise ratio over R, G, B in dB: 20 log10(255 / rmse), at most 99 (the value of
+// identical images, also for images that differ by less); negative if the sizes differ.
 double psnrDb(const Image& a, const Image& b);
 // Fraction of pixels whose largest channel difference exceeds `threshold` levels.
 double fractionDifferent(const Image& a, const Image& b, int threshold);

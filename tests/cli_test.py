@@ -966,6 +966,28 @@ class Tools(Tmp):
         self.assertGreater(obj["triangles_p50"], 0)
         self.assertEqual(os.listdir(self.tmp), ["igd.toml"], "igbench must not write stats or snapshots")
 
+    def test_igbench_latency_json_escapes_the_renderer(self):
+        # The GL renderer string comes from outside: Mesa's force_gl_renderer (driconf, read from
+        # the environment) names it with a quote and a backslash; printed raw, they broke the JSON.
+        # The shortest run the suite takes (1 s of latency, 1 s of flood, the decode rates).
+        config = service_config_copy(self.tmp)
+        env = dict(os.environ, force_gl_renderer='llvm"pipe\\x')
+        p = run([IGBENCH, "latency", "--config", config, "--json", "--seconds", "1", "--flood-seconds", "1",
+                 "--flood-rate", "1000", "--width", "64", "--height", "36"], timeout=RUN, env=env, cwd=self.tmp)
+        self.assertExit(p, 0)
+        obj = json.loads(p.stdout)
+        self.assertTrue(obj["renderer"].endswith('llvm"pipe\\x'), obj["renderer"])
+        self.assertGreater(obj["samples"], 0)
+
+    def test_igbench_governor_refuses_a_flight_shorter_than_a_frame(self):
+        # 0.01 s at 30 Hz rounds to 0 frames: the run measured nothing and reported 0 % overruns,
+        # 0 ms frames (the goal met), exit 0.
+        p = run([IGBENCH, "governor", "--quick", "--seconds", "0.01", "--samples", "65", "--json"], timeout=RUN,
+                cwd=self.tmp)
+        self.assertExit(p, 2)
+        self.assertMentions(p, "--seconds")
+        self.assertEqual(p.stdout, "")
+
     def test_igbench_frame_refuses_zero_frames(self):
         # igd's "--frames 0" means "until SIGTERM"; the benchmark free-runs a looping replay and
         # has no signal handling, so 0 frames rendered forever and printed nothing. It is a bad

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <limits>
 #include <string>
+#include <vector>
 
 #include <fcntl.h>
 #include <unistd.h>
@@ -252,4 +253,31 @@ TEST(Stats, WriteErrorsOfTheStatsFileAreReported) {
   EXPECT_NE(late.error().find(file), std::string::npos) << late.error();  // known during the run
   EXPECT_FALSE(late.close());
   std::filesystem::remove(file);
+}
+
+// The percentile helper of the benchmarks' summaries on hand-made numbers: nearest rank (what the
+// docs and scripts/plot_frame_stats.py assume), no interpolation.
+TEST(Stats, PercentileIsNearestRank) {
+  EXPECT_EQ(percentile({}, 50), 0.0);
+  EXPECT_EQ(percentile({7.0}, 50), 7.0);
+  EXPECT_EQ(percentile({7.0}, 99), 7.0);
+  // Unsorted input; rank ceil(p / 100 * n), at least 1.
+  const std::vector<double> v{5, 1, 4, 2, 3};
+  EXPECT_EQ(percentile(v, 0), 1.0);
+  EXPECT_EQ(percentile(v, 20), 1.0);
+  EXPECT_EQ(percentile(v, 21), 2.0);
+  EXPECT_EQ(percentile(v, 50), 3.0);
+  EXPECT_EQ(percentile(v, 99), 5.0);
+  EXPECT_EQ(percentile(v, 100), 5.0);
+  // Even count: p50 is the lower middle value (no interpolation).
+  EXPECT_EQ(percentile({1, 2, 3, 4}, 50), 2.0);
+  std::vector<double> hundred;
+  for (int i = 100; i >= 1; --i) hundred.push_back(i);
+  EXPECT_EQ(percentile(hundred, 50), 50.0);
+  EXPECT_EQ(percentile(hundred, 99), 99.0);
+  EXPECT_EQ(percentile(hundred, 1), 1.0);
+  std::vector<double> thousand;
+  for (int i = 1; i <= 1000; ++i) thousand.push_back(i);
+  EXPECT_EQ(percentile(thousand, 99), 990.0);
+  EXPECT_EQ(percentile(thousand, 50), 500.0);
 }

@@ -19,6 +19,25 @@ adaptive=$("$igbench" adaptive --quick --json --cache "$dir/calibration.txt" --t
 # must not run away (the box count wrapped around below zero and it added boxes without end).
 small=$(timeout 60 "$igbench" adaptive --objects 200 --frames-per-phase 10 --window 5 --repeats 1 --json \
         --cache "$dir/calibration.txt")
+# The device string (the calibration key: GL vendor, renderer, version, CPU model) goes into both
+# JSON objects escaped and whole: Mesa's force_gl_renderer (driconf, read from the environment)
+# names the renderer with a quote, a backslash and, as a long CPU model name and Mesa version
+# string can, enough characters to fill the adaptive benchmark's 512-byte header buffer (printed
+# raw, the quote broke the JSON; cut off at the buffer, the JSON was unterminated). The
+# perfmodel run calibrates at the adaptive run's viewport and material work, so the adaptive run
+# takes the constants from the cache.
+renderer="llvm\"pipe\\x$(printf 'y%.0s' $(seq 1 150))"
+named_perf=$(force_gl_renderer="$renderer" "$igbench" perfmodel --quick --sizes 10 --repeats 1 --width 480 --height 270 \
+             --fragment-work 0 --json --cache "$dir/named.txt")
+named_adaptive=$(force_gl_renderer="$renderer" timeout 60 "$igbench" adaptive --objects 100 --frames-per-phase 10 \
+                 --window 10 --repeats 1 --json --cache "$dir/named.txt")
+/usr/bin/python3 - "$named_perf" "$named_adaptive" "$renderer" <<'PY'
+import json, sys
+for text in sys.argv[1:3]:
+    d = json.loads(text)
+    assert ("|" + sys.argv[3] + "|") in d["device"], d["device"]
+assert json.loads(sys.argv[2])["calibration_from_cache"] is True
+PY
 /usr/bin/python3 - "$small" <<'PY'
 import json, sys
 s = json.loads(sys.argv[1])

@@ -554,3 +554,48 @@ TEST(RenderGL, DestroyingOneWindowContextKeepsAnotherWorking) {
   ASSERT_TRUE(renderer.init(16, 16, error)) << error;
   EXPECT_EQ(renderer.errors(), "");
 }
+
+// The image error of the LOD benchmarks (render/image.h) on hand-made images, no GL.
+namespace {
+render::Image flatImage(int w, int h, uint8_t r, uint8_t g, uint8_t b) {
+  render::Image im;
+  im.width = w;
+  im.height = h;
+  im.rgba.resize(static_cast<size_t>(w) * static_cast<size_t>(h) * 4);
+  for (size_t i = 0; i < im.rgba.size(); i += 4) im.rgba[i] = r, im.rgba[i + 1] = g, im.rgba[i + 2] = b, im.rgba[i + 3] = 255;
+  return im;
+}
+}  // namespace
+
+TEST(ImageError, RmseAndPsnrOnHandMadeImages) {
+  const render::Image a = flatImage(4, 2, 10, 20, 30);
+  render::Image b = a;
+  EXPECT_EQ(render::rmse(a, b), 0.0);
+  EXPECT_EQ(render::psnrDb(a, b), 99.0);  // identical
+  // One channel of every pixel 6 levels off: the mean over R, G, B of the squares is 36 / 3.
+  for (size_t i = 0; i < b.rgba.size(); i += 4) b.rgba[i + 1] = 26;
+  EXPECT_DOUBLE_EQ(render::rmse(a, b), std::sqrt(12.0));
+  EXPECT_NEAR(render::psnrDb(a, b), 20.0 * std::log10(255.0 / std::sqrt(12.0)), 1e-9);
+  // Alpha does not count.
+  render::Image c = a;
+  for (size_t i = 3; i < c.rgba.size(); i += 4) c.rgba[i] = 0;
+  EXPECT_EQ(render::rmse(a, c), 0.0);
+  // Black against white: the largest error, 0 dB.
+  EXPECT_DOUBLE_EQ(render::rmse(flatImage(3, 3, 0, 0, 0), flatImage(3, 3, 255, 255, 255)), 255.0);
+  EXPECT_DOUBLE_EQ(render::psnrDb(flatImage(3, 3, 0, 0, 0), flatImage(3, 3, 255, 255, 255)), 0.0);
+  // Sizes differ: negative.
+  EXPECT_LT(render::rmse(a, flatImage(2, 4, 10, 20, 30)), 0.0);
+  EXPECT_LT(render::psnrDb(a, flatImage(2, 4, 10, 20, 30)), 0.0);
+}
+
+// 99 dB stands for identical images, so nothing may score above it: one level off in one pixel of
+// a 256 x 256 image is an RMSE of 1 / sqrt(3 * 65536), 101 dB by the formula, and the sweeps
+// (terrain, hdlod, forest, cells) would rank it better than an identical picture.
+TEST(ImageError, PsnrOfANearlyIdenticalImageIsNotAboveThatOfAnIdenticalOne) {
+  const render::Image a = flatImage(256, 256, 100, 100, 100);
+  render::Image b = a;
+  b.rgba[0] = 101;
+  EXPECT_GT(render::rmse(a, b), 0.0);
+  EXPECT_LE(render::psnrDb(a, b), render::psnrDb(a, a));
+  EXPECT_LE(render::psnrDb(a, b), 99.0);
+}
