@@ -157,6 +157,7 @@ void CellsLayer::draw(render::Renderer& renderer) {
   stats_.residentCells = s.residentCells;
   stats_.fetchedBytes = s.arrivedBytes;
   stats_.arrivedCells = s.arrived;
+  stats_.inFlight = s.inFlight;
   stats_.broken = s.broken;
   stats_.uploadFailures = s.uploadFailures;
 }

@@ -56,6 +56,7 @@ struct CellsLayerStats {
   uint32_t residentCells = 0;
   uint64_t fetchedBytes = 0;     // payload bytes of the cells that arrived since start
   uint64_t arrivedCells = 0;
+  uint32_t inFlight = 0;         // cells requested and not yet arrived (broken ones excluded)
   uint64_t broken = 0;           // cells refused, corrupt after retries or undecodable
   uint64_t uploadFailures = 0;   // arrivals the arena had no room for
   uint64_t frames = 0;           // select() calls

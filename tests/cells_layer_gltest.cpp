@@ -121,8 +121,11 @@ render::Image converge(Gl& gl, CellsLayer& layer, const lod::Camera& cam, const 
     EXPECT_LE(s.select.drawnVoxels, c.voxelBudget) << "frame " << frame;
     EXPECT_LE(s.drawnPoints, c.voxelBudget) << "frame " << frame;
     EXPECT_LE(s.select.requestedBytes, c.wBytes) << "frame " << frame;
+    // Settled: nothing asked for, waited for or still on its way (a cell in flight that no split
+    // waits on, e.g. one the greedy stopped before, arrives later and changes the picture: on a
+    // loaded machine the fetcher's worker can take longer than three frames).
     const bool idle = s.select.requestedCells == 0 && s.select.blockedSplits == 0 && !s.select.stopped &&
-                      s.arrivedCells == lastArrived;
+                      s.arrivedCells == lastArrived && s.inFlight == 0;
     still = idle ? still + 1 : 0;
     lastArrived = s.arrivedCells;
     if (std::chrono::steady_clock::now() - t0 > std::chrono::seconds(20)) break;

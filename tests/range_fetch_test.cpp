@@ -356,11 +356,14 @@ TEST(RangeFetch, ServerDownAtStartAndKilledMidRun) {
     ASSERT_TRUE(f->submit(q, err)) << err;
     worstSubmit = std::max(worstSubmit, since(t0));
   }
-  EXPECT_LT(worstSubmit, 0.005);
+  // Bounds on a call, not a speed goal: a submit or poll that waited on the network would take a
+  // connect or I/O timeout (~1 ... 3 s here); 50 ms leaves room for a loaded 2-core machine's
+  // scheduling (measured ~0.05 ms).
+  EXPECT_LT(worstSubmit, 0.05);
   double worstPoll = 0.0;
   auto none = waitResults(*f, 1, 0.2, &worstPoll);
   EXPECT_TRUE(none.empty());
-  EXPECT_LT(worstPoll, 0.005);
+  EXPECT_LT(worstPoll, 0.05);
   EXPECT_GT(f->stats().connectFailures, 0u);
 
   Nginx nginx(dir.path);
@@ -394,7 +397,9 @@ TEST(RangeFetch, ServerDownAtStartAndKilledMidRun) {
   EXPECT_GT(f->stats().retries, retries0);
   // At 40 KB/s (unlimited, the rest takes a few ms).
   EXPECT_LT(restRate, 40000 * 1.5);  // measured 40 - 46 KB/s (nginx lets a 16 KB buffer through ahead)
-  EXPECT_GT(restRate, 40000 * 0.5);
+  // The limit above is the channel's; below it only that the rest came at all (after the restart
+  // the fetcher waits out its backoff, and a loaded machine delays nginx's start).
+  EXPECT_GT(restRate, 40000 * 0.2);
   std::printf("12 x 4 KB at 40 KB/s with a restart: %.2f s; after the restart %zu ranges at %.0f B/s\n", elapsed,
               rest.size(), restRate);
 }
@@ -480,8 +485,10 @@ TEST(RangeFetch, SlowServerNeverBlocksTheCaller) {
   double worstPoll = 0.0;
   auto res = waitResults(*f, reqs.size(), 5.0, &worstPoll);
   ASSERT_NO_FATAL_FAILURE(expectBytes(res, reqs, data));
-  EXPECT_LT(worstSubmit, 0.005);
-  EXPECT_LT(worstPoll, 0.005);  // measured ~0.05 ms; a blocking poll would take ~100 ms
+  // measured ~0.05 ms; a blocking call would take the server's ~100 ms delay (50 ms: room for a
+  // loaded machine's scheduling, still half of that)
+  EXPECT_LT(worstSubmit, 0.05);
+  EXPECT_LT(worstPoll, 0.05);
   std::printf("slow server: worst submit %.3f ms, worst poll %.3f ms\n", worstSubmit * 1e3, worstPoll * 1e3);
 }
 
