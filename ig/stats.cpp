@@ -94,6 +94,8 @@ SummaryCollector::SummaryCollector(size_t capacity) : capacity_(std::clamp<size_
 }
 
 void SummaryCollector::add(const FrameRecord& r) {
+  workMax_ms_ = added_ == 0 ? r.timing.work_ms : std::max(workMax_ms_, r.timing.work_ms);
+  workSum_ms_ += r.timing.work_ms;
   ++added_;
   if (records_.size() < capacity_) {
     records_.push_back(r);
@@ -119,17 +121,16 @@ RunSummary SummaryCollector::summarize(int64_t overruns, int64_t missedSlots) co
   s.missedSlots = missedSlots;
   if (records_.empty()) return s;
   std::vector<double> work, tris, calls;
-  double sum = 0.0;
   for (const auto& r : records_) {
     work.push_back(r.timing.work_ms);
     tris.push_back(static_cast<double>(r.triangles));
     calls.push_back(r.drawCalls);
-    sum += r.timing.work_ms;
   }
   s.workMs_p50 = percentile(work, 50);
   s.workMs_p99 = percentile(work, 99);
-  s.workMs_max = *std::max_element(work.begin(), work.end());
-  s.workMs_mean = sum / static_cast<double>(work.size());
+  // The maximum and the mean of the whole run, as frames (the percentiles: the frames kept).
+  s.workMs_max = workMax_ms_;
+  s.workMs_mean = workSum_ms_ / static_cast<double>(added_);
   for (int p = 0; p < kPhaseCount; ++p) {
     std::vector<double> v;
     for (const auto& r : records_) v.push_back(r.timing.phase_ms[static_cast<size_t>(p)]);

@@ -66,7 +66,8 @@ class StatsWriter {
 };
 
 struct RunSummary {
-  int64_t frames = 0;           // every frame of the run (percentiles: the last kMaxCapacity)
+  int64_t frames = 0;           // every frame of the run (percentiles: the last kMaxCapacity;
+                                // workMs_max and workMs_mean: every frame)
   int64_t overruns = 0;
   int64_t missedSlots = 0;
   double workMs_p50 = 0, workMs_p99 = 0, workMs_max = 0, workMs_mean = 0;
@@ -91,6 +92,7 @@ class SummaryCollector {
   size_t capacity_;
   size_t next_ = 0;
   int64_t added_ = 0;
+  double workMax_ms_ = 0.0, workSum_ms_ = 0.0;  // of every frame added (not only those kept)
 };
 
 double percentile(std::vector<double> values, double p);

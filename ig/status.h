@@ -77,6 +77,7 @@ class StatusReporter {
   int64_t lastReport_ns_ = 0;
   // Current interval.
   std::vector<double> work_ms_;     // reserved for the frames of 4 intervals; beyond: dropped
+  double workMax_ms_ = 0.0;         // of every frame of the interval (work_ms_ may have dropped some)
   std::array<double, kPhaseCount> phaseMax_ms_{};
   int64_t overruns_ = 0, missed_ = 0, frames_ = 0;
   uint64_t triangles_ = 0;

@@ -2,6 +2,8 @@
 
 #include <systemd/sd-daemon.h>
 
+#include <algorithm>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 
@@ -11,9 +13,13 @@ SystemdNotifier::SystemdNotifier(double interval_s) {
   underSystemd_ = std::getenv("NOTIFY_SOCKET") != nullptr;
   uint64_t usec = 0;
   if (sd_watchdog_enabled(0, &usec) > 0 && usec > 0) {
-    watchdogInterval_ns_ = static_cast<int64_t>(usec) * 1000 / 2;
+    // Half of WatchdogSec; a WATCHDOG_USEC beyond int64_t nanoseconds (about 292 years) saturates
+    // rather than overflowing into a negative interval (which would switch the pings off).
+    constexpr uint64_t kMaxUsec = static_cast<uint64_t>(INT64_MAX / 1000);
+    watchdogInterval_ns_ = usec > kMaxUsec ? INT64_MAX / 2 : static_cast<int64_t>(usec) * 1000 / 2;
     if (interval_s > 0 && interval_s * 1e6 < static_cast<double>(usec)) {
-      watchdogInterval_ns_ = static_cast<int64_t>(interval_s * 1e9);
+      // At least 1 ns: a tiny configured interval pings at every call; 0 would mean no watchdog.
+      watchdogInterval_ns_ = std::max<int64_t>(1, static_cast<int64_t>(interval_s * 1e9));
     } else if (interval_s > 0) {
       char buf[256];
       std::snprintf(buf, sizeof buf,

@@ -177,6 +177,23 @@ TEST(Stats, SummaryPercentilesAndFixedCapacity) {
   EXPECT_EQ(s.triangles_p50, 1000u);
 }
 
+// The summary igd prints at exit: frames and overruns count the whole run, and so must the
+// work maximum and mean; only the percentiles come from the last frames kept (a service that
+// runs for hours keeps the last 10 minutes). A 200 ms stall in the first hour is the run's max.
+TEST(Stats, SummaryMaxAndMeanCoverEveryFrame) {
+  SummaryCollector c(100);
+  for (int i = 0; i < 300; ++i) {
+    FrameRecord r;
+    r.timing.work_ms = i == 0 ? 200.0 : 10.0;
+    c.add(r);
+  }
+  const RunSummary s = c.summarize(0, 0);
+  EXPECT_EQ(s.frames, 300);
+  EXPECT_DOUBLE_EQ(s.workMs_max, 200.0);
+  EXPECT_DOUBLE_EQ(s.workMs_mean, (200.0 + 299 * 10.0) / 300.0);
+  EXPECT_DOUBLE_EQ(s.workMs_p50, 10.0);
+}
+
 // igd sizes the collector from frame.frames: a huge count (frames = 1e11 is a valid config)
 // must neither reserve terabytes (std::bad_alloc at start-up) nor cap the frame count.
 TEST(Stats, SummaryCapacityIsBoundedAndFramesAreCounted) {

@@ -255,6 +255,65 @@ TEST(Systemd, WatchdogIntervalNotBelowWatchdogSecIsReplaced) {
   EXPECT_TRUE(automatic.warning().empty());
 }
 
+// A free-running loop (--free-run) or a host that paces the frames faster than the configured
+// rate runs more frames in an interval than the reporter's buffer holds (4 intervals at the
+// rate): the percentiles may come from the frames kept, but the interval's maximum must cover
+// every frame, or a slow frame late in the interval goes unreported.
+TEST(Status, WorkMaxCoversEveryFrameOfTheInterval) {
+  ig::StatusReporter r("", 1.0, 10.0);  // room for about 4 x 10 frames
+  r.start(0);
+  for (int i = 0; i < 200; ++i) {
+    ig::FrameTiming t;
+    t.frame = i;
+    t.work_ms = i == 199 ? 90.0 : 5.0;
+    t.phase_ms[static_cast<size_t>(ig::Phase::Lod)] = t.work_ms;
+    r.addFrame(t, 100);
+  }
+  r.report(1'000'000'000, ig::StatusContext{});
+  EXPECT_NE(r.json().find("\"frames\":200,"), std::string::npos) << r.json();
+  EXPECT_NE(r.json().find("\"lod\":90.000"), std::string::npos) << r.json();
+  EXPECT_NE(r.json().find("\"work_ms_max\":90.000"), std::string::npos) << r.json();
+  // The next interval's maximum starts again.
+  ig::FrameTiming t;
+  t.frame = 200;
+  t.work_ms = 4.0;
+  r.addFrame(t, 100);
+  r.report(2'000'000'000, ig::StatusContext{});
+  EXPECT_NE(r.json().find("\"work_ms_max\":4.000"), std::string::npos) << r.json();
+}
+
+// service.watchdog_interval_s accepts any value in 0 ..= 3600: a tiny one (below a nanosecond)
+// must ping at every call, not switch the watchdog off (systemd would then kill igd after
+// WatchdogSec).
+TEST(Systemd, ATinyWatchdogIntervalStillPings) {
+  ::setenv("WATCHDOG_USEC", "2000000", 1);
+  ::setenv("WATCHDOG_PID", std::to_string(::getpid()).c_str(), 1);
+  ig::SystemdNotifier tiny(1e-10);
+  ::unsetenv("WATCHDOG_USEC");
+  ::unsetenv("WATCHDOG_PID");
+  EXPECT_TRUE(tiny.watchdogEnabled()) << tiny.watchdogInterval_ns();
+  EXPECT_GT(tiny.watchdogInterval_ns(), 0);
+  EXPECT_TRUE(tiny.watchdog(1'000'000'000));
+  EXPECT_TRUE(tiny.watchdog(1'000'000'001));
+}
+
+// WATCHDOG_USEC is parsed by libsystemd as any value below 2^64 - 1: a huge one (garbage, or a
+// watchdog of centuries) must not overflow the nanosecond interval (signed overflow, and a
+// negative interval switched the watchdog off).
+TEST(Systemd, AHugeWatchdogUsecDoesNotOverflow) {
+  ::setenv("WATCHDOG_USEC", "100000000000000000", 1);  // 1e17 us: 1e20 ns is beyond int64_t
+  ::setenv("WATCHDOG_PID", std::to_string(::getpid()).c_str(), 1);
+  ig::SystemdNotifier huge(0.0);
+  const ig::SystemdNotifier withInterval(0.5);
+  ::unsetenv("WATCHDOG_USEC");
+  ::unsetenv("WATCHDOG_PID");
+  EXPECT_TRUE(huge.watchdogEnabled()) << huge.watchdogInterval_ns();
+  EXPECT_GT(huge.watchdogInterval_ns(), 1'000'000'000'000'000'000) << huge.watchdogInterval_ns();
+  EXPECT_TRUE(huge.watchdog(0));  // the first call pings
+  EXPECT_EQ(withInterval.watchdogInterval_ns(), 500'000'000);
+  EXPECT_TRUE(withInterval.warning().empty()) << withInterval.warning();
+}
+
 TEST(Status, UnwritableFileIsReportedNotFatal) {
   ig::StatusReporter r("/nonexistent-dir/status.json", 1.0, 10.0);
   r.start(0);
