@@ -59,7 +59,7 @@ void StatsWriter::write(const FrameRecord& r) {
     const double govValues[6] = {r.predicted_ms, r.terrainTolerance_px, r.forestNear_m, r.hdlodTolerance_px, r.cellsVoxelBudget,
                                  r.forestLayers};
     for (int i = 0; i < 6; ++i) {
-      if (std::isnan(govValues[i])) std::snprintf(gov[i], sizeof gov[i], "null");
+      if (!std::isfinite(govValues[i])) std::snprintf(gov[i], sizeof gov[i], "null");  // no NaN or inf in JSON
       else std::snprintf(gov[i], sizeof gov[i], "%.3f", govValues[i]);
     }
     std::fprintf(file_,

@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <cstring>
 #include <ctime>
+#include <filesystem>
 
 namespace ig {
 namespace {
@@ -133,7 +134,7 @@ const std::string& StatusReporter::report(int64_t now_ns, const StatusContext& c
                                                     {"forest_layers", ctx.forestLayers}};
     json_ += ",\"governor\":{";
     for (const auto& [name, value] : knobs) {
-      if (std::isnan(value)) appendf(json_, "\"%s\":null,", name);
+      if (!std::isfinite(value)) appendf(json_, "\"%s\":null,", name);  // JSON has no NaN or inf
       else appendf(json_, "\"%s\":%.3f,", name, value);
     }
     appendf(json_, "\"decreases\":%lld,\"increases\":%lld,\"emergencies\":%lld}",
@@ -172,6 +173,13 @@ const std::string& StatusReporter::report(int64_t now_ns, const StatusContext& c
   if (!file_.empty()) {
     fileError_.clear();
     FILE* f = std::fopen(tmpFile_.c_str(), "w");
+    if (!f && errno == ENOENT) {
+      // The report's folder is made as the stats' and snapshots' are (then the write is tried once more).
+      std::error_code ec;
+      std::filesystem::create_directories(std::filesystem::path(file_).parent_path(), ec);
+      if (!ec) f = std::fopen(tmpFile_.c_str(), "w");
+      if (!f && ec) errno = ec.value();
+    }
     if (!f) {
       fileError_ = "service.status_file '" + file_ + "': cannot write '" + tmpFile_ + "': " + std::strerror(errno);
     } else {
@@ -179,8 +187,10 @@ const std::string& StatusReporter::report(int64_t now_ns, const StatusContext& c
       const bool closed = std::fclose(f) == 0;
       if (!wrote || !closed) {
         fileError_ = "service.status_file '" + file_ + "': write failed: " + std::strerror(errno);
+        std::remove(tmpFile_.c_str());
       } else if (std::rename(tmpFile_.c_str(), file_.c_str()) != 0) {
         fileError_ = "service.status_file '" + file_ + "': rename failed: " + std::strerror(errno);
+        std::remove(tmpFile_.c_str());
       }
     }
   }

@@ -315,11 +315,41 @@ TEST(Systemd, AHugeWatchdogUsecDoesNotOverflow) {
 }
 
 TEST(Status, UnwritableFileIsReportedNotFatal) {
-  ig::StatusReporter r("/nonexistent-dir/status.json", 1.0, 10.0);
+  // Below a regular file: no folder can be made there, not even by root.
+  const auto dir = std::filesystem::temp_directory_path() / ("igd_status_file_" + std::to_string(::getpid()));
+  { std::ofstream(dir.string()) << "x"; }
+  const std::string path = (dir / "status.json").string();
+  ig::StatusReporter r(path, 1.0, 10.0);
   r.start(0);
   const std::string line = r.report(1'000'000'000, ig::StatusContext{});
   EXPECT_FALSE(line.empty());
-  EXPECT_NE(r.fileError().find("/nonexistent-dir/status.json"), std::string::npos) << r.fileError();
+  EXPECT_NE(r.fileError().find(path), std::string::npos) << r.fileError();
+  std::filesystem::remove(dir);
+}
+
+// The report's folder is made when missing (as the stats' and the snapshots' are), and a knob
+// that is not finite is null: JSON has no inf (written as "inf", the file did not parse).
+TEST(Status, MissingFolderIsMadeAndNonFiniteKnobsAreNull) {
+  const auto dir = std::filesystem::temp_directory_path() / ("igd_status_new_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  const std::string file = (dir / "run" / "status.json").string();
+  ig::StatusReporter r(file, 1.0, 10.0);
+  r.start(0);
+  ig::StatusContext ctx;
+  ctx.haveGovernor = true;
+  ctx.terrainTolerance_px = std::numeric_limits<double>::infinity();
+  ctx.forestNear_m = -std::numeric_limits<double>::infinity();
+  ctx.hdlodTolerance_px = 2.0;
+  (void)r.report(1'000'000'000, ctx);
+  EXPECT_EQ(r.fileError(), "");
+  const std::string json = slurp(file);
+  EXPECT_EQ(json, r.json());
+  EXPECT_NE(json.find("\"terrain_tolerance_px\":null"), std::string::npos) << json;
+  EXPECT_NE(json.find("\"forest_near_m\":null"), std::string::npos) << json;
+  EXPECT_NE(json.find("\"hdlod_tolerance_px\":2.000"), std::string::npos) << json;
+  EXPECT_EQ(json.find("inf"), std::string::npos) << json;
+  EXPECT_FALSE(std::filesystem::exists(file + ".tmp"));
+  std::filesystem::remove_all(dir);
 }
 
 TEST(Realtime, AffinityToOneCpuAndBack) {
