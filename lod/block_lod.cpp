@@ -34,6 +34,35 @@ BlockLod::BlockLod(std::span<const float> heights_m, int width, int height, doub
   zMin_m_.assign(blocks, 0.0f);
   zMax_m_.assign(blocks, 0.0f);
   level_.assign(blocks, 0);
+  std::vector<RoamTriangle> scratch(2 * static_cast<size_t>(B_) * static_cast<size_t>(B_) + 8);
+  // Largest |mesh - sample| over the DEM samples in triangle t (clamped onto the DEM as drawn).
+  auto triangleError = [&](RoamTriangle t) {
+    for (auto& v : t.v) {
+      v.x = std::clamp(v.x, 0, width_ - 1);
+      v.y = std::clamp(v.y, 0, height_ - 1);
+    }
+    const int64_t d = area2(t);
+    if (d == 0) return 0.0f;
+    const double z0 = heightAt(t.v[0].x, t.v[0].y), z1 = heightAt(t.v[1].x, t.v[1].y), z2 = heightAt(t.v[2].x, t.v[2].y);
+    const int xl = std::min({t.v[0].x, t.v[1].x, t.v[2].x}), xh = std::max({t.v[0].x, t.v[1].x, t.v[2].x});
+    const int yl = std::min({t.v[0].y, t.v[1].y, t.v[2].y}), yh = std::max({t.v[0].y, t.v[1].y, t.v[2].y});
+    float e = 0.0f;
+    for (int y = yl; y <= yh; ++y)
+      for (int x = xl; x <= xh; ++x) {
+        // Barycentric weights (times d) of (x, y): exact integers; inside or on an edge when
+        // all three have the sign of d.
+        const int64_t w1 = static_cast<int64_t>(x - t.v[0].x) * (t.v[2].y - t.v[0].y) -
+                           static_cast<int64_t>(t.v[2].x - t.v[0].x) * (y - t.v[0].y);
+        const int64_t w2 = static_cast<int64_t>(t.v[1].x - t.v[0].x) * (y - t.v[0].y) -
+                           static_cast<int64_t>(x - t.v[0].x) * (t.v[1].y - t.v[0].y);
+        const int64_t w0 = d - w1 - w2;
+        if (d > 0 ? (w0 < 0 || w1 < 0 || w2 < 0) : (w0 > 0 || w1 > 0 || w2 > 0)) continue;
+        const double z = (static_cast<double>(w0) * z0 + static_cast<double>(w1) * z1 + static_cast<double>(w2) * z2) /
+                         static_cast<double>(d);
+        e = std::max(e, static_cast<float>(std::abs(z - static_cast<double>(heightAt(x, y)))));
+      }
+    return e;
+  };
   for (int by = 0; by < blocksY_; ++by) {
     for (int bx = 0; bx < blocksX_; ++bx) {
       const size_t b = static_cast<size_t>(by) * blocksX_ + bx;
@@ -46,24 +75,19 @@ BlockLod::BlockLod(std::span<const float> heights_m, int width, int height, doub
         }
       zMin_m_[b] = lo;
       zMax_m_[b] = hi;
-      // Exact error of level k: every sample against the level's triangle (quads split along
-      // the x = y diagonal, as emitted), made monotone in k.
+      // Exact error of level k: every DEM sample of the block against the triangles the block
+      // draws at that level with neighbours of its own level (the interior quads split along
+      // x = y, the border ring zipped, vertices clamped onto the DEM as emitted), made monotone
+      // in k. (On the padded grid with every quad split along x = y, the table missed the ring's
+      // other diagonal and the clamped blocks at the east / north edge: up to tens of metres.)
       float prev = 0.0f;
       for (int k = 0; k < levels_; ++k) {
         const int s = 1 << k;
         float e = 0.0f;
         if (k > 0) {
-          for (int y = 0; y <= B_; ++y)
-            for (int x = 0; x <= B_; ++x) {
-              const int qx = std::min(x / s, B_ / s - 1) * s, qy = std::min(y / s, B_ / s - 1) * s;
-              const double fx = static_cast<double>(x - qx) / s, fy = static_cast<double>(y - qy) / s;
-              const double h00 = heightAt(x0 + qx, y0 + qy), h10 = heightAt(x0 + qx + s, y0 + qy);
-              const double h01 = heightAt(x0 + qx, y0 + qy + s), h11 = heightAt(x0 + qx + s, y0 + qy + s);
-              // Triangles (00, 10, 11) below the diagonal and (00, 11, 01) above it.
-              const double z = fx >= fy ? h00 + (h10 - h00) * fx + (h11 - h10) * fy
-                                        : h00 + (h11 - h01) * fx + (h01 - h00) * fy;
-              e = std::max(e, static_cast<float>(std::abs(z - static_cast<double>(heightAt(x0 + x, y0 + y)))));
-            }
+          const int steps[4] = {s, s, s, s};
+          const size_t n = emitBlockSteps(bx, by, s, steps, scratch);
+          for (size_t i = 0; i < n; ++i) e = std::max(e, triangleError(scratch[i]));
         }
         prev = std::max(prev, e);
         error_m_[b * static_cast<size_t>(levels_) + static_cast<size_t>(k)] = prev;
@@ -94,8 +118,11 @@ BlockLodStats BlockLod::update(const RoamView& view) {
   BlockLodStats st;
   const Camera& cam = view.camera;
   const glm::dvec3 eye = cam.eye_m - origin_m_;
-  const bool finite = std::isfinite(eye.x) && std::isfinite(eye.y) && std::isfinite(eye.z) &&
-                      std::isfinite(cam.fovY_deg) && std::isfinite(view.tolerance_px);
+  // A camera that is not finite cannot cull or measure distances: every block, coarsest. An
+  // infinite tolerance is a valid view (any error goes: coarsest), which still culls; a NaN
+  // tolerance takes the coarsest level too.
+  const bool finite = std::isfinite(eye.x) && std::isfinite(eye.y) && std::isfinite(eye.z) && std::isfinite(cam.fovY_deg);
+  const bool refine = finite && !std::isnan(view.tolerance_px);
   Camera rel = cam;
   rel.eye_m = eye;
   const Frustum fr = makeFrustum(rel);
@@ -111,7 +138,7 @@ BlockLodStats BlockLod::update(const RoamView& view) {
       ++st.blocksVisible;
       const double d = finite ? distanceToBox(box, eye) : 0.0;
       int k = levels_ - 1;
-      if (finite) {
+      if (refine) {
         while (k > 0) {
           const double e = error_m_[b * static_cast<size_t>(levels_) + static_cast<size_t>(k)];
           const double px = e <= 0.0 ? 0.0 : (d > 0.0 ? e * scale / d : kInf);
@@ -163,7 +190,12 @@ size_t BlockLod::emitTriangles(std::span<RoamTriangle> out) const {
 
 // Emits one block into `out` (or only counts when `out` is empty).
 size_t BlockLod::emitBlock(int bx, int by, std::span<RoamTriangle> out) const {
-  const int s = 1 << level(bx, by);
+  const int steps[4] = {edgeStep(bx, by, bx, by - 1), edgeStep(bx, by, bx + 1, by), edgeStep(bx, by, bx, by + 1),
+                        edgeStep(bx, by, bx - 1, by)};
+  return emitBlockSteps(bx, by, 1 << level(bx, by), steps, out);
+}
+
+size_t BlockLod::emitBlockSteps(int bx, int by, int s, const int (&edgeSteps)[4], std::span<RoamTriangle> out) const {
   const int x0 = bx * B_, y0 = by * B_;
   size_t n = 0;
   RoamTriangle* const dst = out.data();  // null when only counting
@@ -200,16 +232,16 @@ size_t BlockLod::emitBlock(int bx, int by, std::span<RoamTriangle> out) const {
   struct Side {
     int ex, ey, dx, dy;  // edge start and direction (unit grid step)
     int ix, iy;          // inner row start
-    int nbx, nby;        // neighbour block
   };
   const Side sides[4] = {
-      {x0, y0, 1, 0, x0 + s, y0 + s, bx, by - 1},            // south
-      {x0 + B_, y0, 0, 1, x0 + B_ - s, y0 + s, bx + 1, by},  // east
-      {x0 + B_, y0 + B_, -1, 0, x0 + B_ - s, y0 + B_ - s, bx, by + 1},  // north
-      {x0, y0 + B_, 0, -1, x0 + s, y0 + B_ - s, bx - 1, by},  // west
+      {x0, y0, 1, 0, x0 + s, y0 + s},                    // south (edgeSteps[0])
+      {x0 + B_, y0, 0, 1, x0 + B_ - s, y0 + s},          // east
+      {x0 + B_, y0 + B_, -1, 0, x0 + B_ - s, y0 + B_ - s},  // north
+      {x0, y0 + B_, 0, -1, x0 + s, y0 + B_ - s},          // west
   };
-  for (const Side& sd : sides) {
-    const int es = edgeStep(bx, by, sd.nbx, sd.nby);
+  for (int side = 0; side < 4; ++side) {
+    const Side& sd = sides[side];
+    const int es = edgeSteps[side];
     // Positions along the side: edge vertices at 0, es, ..., B; inner at s, 2s, ..., B - s.
     int ei = 0, ii = s;
     const int innerEnd = B_ - s;

@@ -1,8 +1,9 @@
 // Regular decimation ("block LOD", geomipmapping-like): the baseline of paper 001, section 3
 // (shared/seeds/001). The DEM is cut into square blocks of B x B quads (B a power of two);
 // block level k keeps every 2^k-th row and column. Per block and level, the exact maximum
-// vertical error of that level's triangulation against every sample of the block is
-// precomputed (made monotone in k).
+// vertical error of that level's triangulation (as drawn: border ring zipped, clamped onto the
+// DEM, neighbours at the same level) against every sample of the block is precomputed (made
+// monotone in k). The fans to a coarser neighbour's edge are not in it (paper 001's crack fix).
 //
 // Selection rule (per frame, per block): a block outside the frustum is not drawn; otherwise
 // it takes the coarsest level k with
@@ -65,6 +66,8 @@ class BlockLod {
   Aabb blockBox(int bx, int by) const;  // relative to origin
   int edgeStep(int bx, int by, int nbx, int nby) const;
   size_t emitBlock(int bx, int by, std::span<RoamTriangle> out) const;
+  // emitBlock with the block's own step `s` and the edge steps (south, east, north, west) given.
+  size_t emitBlockSteps(int bx, int by, int s, const int (&edgeSteps)[4], std::span<RoamTriangle> out) const;
 
   const float* heights_m_;
   int width_, height_;
