@@ -47,8 +47,12 @@ bool finish(const std::string& file, const DemLoadOptions& o, bool hasNoData, do
   // The samples are floats: compare with the no-data value rounded to float the same way (as
   // GDAL does), or a float32 DEM whose no-data is -9999.9 kept its voids as
   // heights. A no-data value outside the float range matches no finite sample.
-  const bool noDataFits = hasNoData && std::isfinite(noData) &&
-                          std::abs(noData) <= static_cast<double>(std::numeric_limits<float>::max());
+  // A value a printing's rounding beyond the float range (-3.40282346639e+38: the float minimum
+  // with 12 digits, as ArcGIS and GDAL tools write it) names +-FLT_MAX, as GDAL takes it.
+  constexpr double kFloatMax = static_cast<double>(std::numeric_limits<float>::max());
+  if (hasNoData && std::isfinite(noData) && std::abs(noData) > kFloatMax && std::abs(noData) <= kFloatMax * (1.0 + 1e-10))
+    noData = std::copysign(kFloatMax, noData);
+  const bool noDataFits = hasNoData && std::isfinite(noData) && std::abs(noData) <= kFloatMax;
   const float noDataF = noDataFits ? static_cast<float>(noData) : 0.0f;
   for (size_t i = 0; i < dem.heights_m.size(); ++i) {
     const float h = dem.heights_m[i];
@@ -77,50 +81,95 @@ bool finish(const std::string& file, const DemLoadOptions& o, bool hasNoData, do
   return true;
 }
 
+// libpng's error callback: keeps the message and jumps back to readPngSamples' setjmp.
+[[noreturn]] void pngError(png_structp png, png_const_charp message) {
+  auto* text = static_cast<std::string*>(png_get_error_ptr(png));
+  if (text) *text = message ? message : "libpng error";
+  png_longjmp(png, 1);
+}
+void pngWarning(png_structp, png_const_charp) {}
+
+// The libpng part of loadPng16, kept free of C++ objects with destructors, so that libpng's
+// longjmp out of a decode skips none. The samples as stored: no gamma or sRGB transform (the
+// simplified API "linearises" grey by the file's gAMA / sRGB chunks, which bends heights).
+// Returns 0 on success, 1 when libpng failed (message in *pngMessage), 2 for a refused
+// colour type (message in *pngMessage), 3 for a size sizeOk refuses.
+int readPngSamples(png_structp png, png_infop info, std::FILE* f, const DemLoadOptions& o, std::vector<uint16_t>& raw,
+                   png_uint_32& width, png_uint_32& height, const char** refused) {
+  if (setjmp(png_jmpbuf(png))) return 1;
+  png_init_io(png, f);
+  png_read_info(png, info);
+  width = png_get_image_width(png, info);
+  height = png_get_image_height(png, info);
+  const int colorType = png_get_color_type(png, info);
+  const int depth = png_get_bit_depth(png, info);
+  if (colorType != PNG_COLOR_TYPE_GRAY || png_get_valid(png, info, PNG_INFO_tRNS)) {
+    *refused = (colorType & PNG_COLOR_MASK_COLOR) != 0 ? "colour" : "grey + alpha";
+    return 2;
+  }
+  if (width < 2 || height < 2 || static_cast<int64_t>(width) * static_cast<int64_t>(height) > o.maxSamples) return 3;
+  if (depth < 8) png_set_expand_gray_1_2_4_to_8(png);  // 0 ... 255, as the simplified API gave them
+  const int passes = png_set_interlace_handling(png);
+  png_read_update_info(png, info);
+  const size_t rowBytes = png_get_rowbytes(png, info);
+  const size_t bytesPerSample = depth == 16 ? 2 : 1;
+  if (rowBytes != static_cast<size_t>(width) * bytesPerSample) return 1;
+  raw.assign(static_cast<size_t>(width) * height * bytesPerSample / 2 + 1, 0);  // bytes, as 16-bit words
+  auto* bytes = reinterpret_cast<png_bytep>(raw.data());
+  for (int pass = 0; pass < passes; ++pass)
+    for (png_uint_32 y = 0; y < height; ++y) png_read_row(png, bytes + static_cast<size_t>(y) * rowBytes, nullptr);
+  png_read_end(png, nullptr);
+  return 0;
+}
+
 bool loadPng16(const std::string& file, const DemLoadOptions& o, Dem& dem, std::string& error) {
-  png_image png{};
-  png.version = PNG_IMAGE_VERSION;
-  if (!png_image_begin_read_from_file(&png, file.c_str())) {
-    error = file + ": not a readable PNG: " + png.message;
+  std::FILE* f = std::fopen(file.c_str(), "rb");
+  if (!f) {
+    error = file + ": not a readable PNG: " + std::strerror(errno);
     return false;
   }
-  if (!sizeOk(file, png.width, png.height, o, error)) {
-    png_image_free(&png);
+  unsigned char signature[8] = {};
+  if (std::fread(signature, 1, sizeof signature, f) != sizeof signature || png_sig_cmp(signature, 0, sizeof signature) != 0) {
+    std::fclose(f);
+    error = file + ": not a readable PNG: no PNG signature";
     return false;
   }
-  if (png.format & (PNG_FORMAT_FLAG_COLOR | PNG_FORMAT_FLAG_ALPHA)) {
-    // Colour is turned into luminance and alpha composited away by libpng: neither gives
-    // heights. (The old test let 16-bit colour through.)
-    error = file + ": " + ((png.format & PNG_FORMAT_FLAG_COLOR) ? "colour" : "grey + alpha") +
-            " PNG; a DEM must be a 16-bit (or 8-bit) greyscale PNG without alpha";
-    png_image_free(&png);
+  std::rewind(f);
+  std::string message;
+  png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &message, pngError, pngWarning);
+  png_infop info = png ? png_create_info_struct(png) : nullptr;
+  if (!info) {
+    if (png) png_destroy_read_struct(&png, nullptr, nullptr);
+    std::fclose(f);
+    error = file + ": not a readable PNG: out of memory";
     return false;
   }
-  std::vector<uint16_t> raw(static_cast<size_t>(png.width) * png.height);
-  if (png.format & PNG_FORMAT_FLAG_LINEAR) {
-    png.format = PNG_FORMAT_LINEAR_Y;  // 16-bit grey, linear (no gamma change for 16-bit input)
-    if (!png_image_finish_read(&png, nullptr, raw.data(), 0, nullptr)) {
-      error = file + ": PNG decode failed: " + png.message;
-      png_image_free(&png);
-      return false;
-    }
-  } else {
-    // 8-bit grey: the stored values as they are. Asking for linear 16-bit output here made
-    // libpng decode them as sRGB (128 -> 14146 instead of 128).
-    png.format = PNG_FORMAT_GRAY;
-    std::vector<uint8_t> raw8(raw.size());
-    if (!png_image_finish_read(&png, nullptr, raw8.data(), 0, nullptr)) {
-      error = file + ": PNG decode failed: " + png.message;
-      png_image_free(&png);
-      return false;
-    }
-    std::copy(raw8.begin(), raw8.end(), raw.begin());
+  std::vector<uint16_t> raw;
+  png_uint_32 w = 0, h = 0;
+  const char* refused = nullptr;
+  const int status = readPngSamples(png, info, f, o, raw, w, h, &refused);
+  const int depth = png_get_bit_depth(png, info);
+  png_destroy_read_struct(&png, &info, nullptr);
+  std::fclose(f);
+  if (status == 1) {
+    error = file + ": " + (w == 0 ? "not a readable PNG: " : "PNG decode failed: ") + message;
+    return false;
   }
-  dem.width = static_cast<int>(png.width);
-  dem.height = static_cast<int>(png.height);
-  dem.heights_m.resize(raw.size());
-  for (size_t i = 0; i < raw.size(); ++i)
-    dem.heights_m[i] = static_cast<float>(o.pngOffset_m + o.pngScale_m * raw[i]);
+  if (status == 2) {
+    // Colour is turned into luminance and alpha composited away: neither gives heights.
+    error = file + ": " + refused + " PNG; a DEM must be a 16-bit (or 8-bit) greyscale PNG without alpha";
+    return false;
+  }
+  if (!sizeOk(file, w, h, o, error)) return false;
+  const auto* bytes = reinterpret_cast<const uint8_t*>(raw.data());
+  const size_t count = static_cast<size_t>(w) * h;
+  dem.width = static_cast<int>(w);
+  dem.height = static_cast<int>(h);
+  dem.heights_m.resize(count);
+  for (size_t i = 0; i < count; ++i) {
+    const unsigned v = depth == 16 ? (static_cast<unsigned>(bytes[2 * i]) << 8) | bytes[2 * i + 1] : bytes[i];  // big-endian
+    dem.heights_m[i] = static_cast<float>(o.pngOffset_m + o.pngScale_m * v);
+  }
   dem.format = "png16";
   return finish(file, o, o.hasNoData, o.pngOffset_m + o.pngScale_m * o.noData, dem, error);
 }
@@ -509,9 +558,15 @@ bool loadDemCached(const std::string& file, const std::string& cacheDir, const D
   }
   const auto bytes = static_cast<uint64_t>(st.st_size);
   const auto mtime = static_cast<int64_t>(st.st_mtim.tv_sec) * 1000000000LL + st.st_mtim.tv_nsec;
-  // One cache file per source path (and scale options): a readable name plus a hash.
+  // One cache file per source path and load options (scale, no-data, and the void rule and
+  // size limit, so that a caller who rejects voids is not served a DEM another caller's rule
+  // filled): a readable name plus a hash.
+  char limits[96];
+  std::snprintf(limits, sizeof limits, "|%d|%.17g|%lld", options.voids == DemVoids::Reject ? 1 : 0,
+                options.maxVoidFraction, static_cast<long long>(options.maxSamples));
   const std::string key = std::filesystem::absolute(file, ec).string() + "|" + std::to_string(options.pngScale_m) + "|" +
-                          std::to_string(options.pngOffset_m) + "|" + std::to_string(options.hasNoData ? options.noData : -1e300);
+                          std::to_string(options.pngOffset_m) + "|" + std::to_string(options.hasNoData ? options.noData : -1e300) +
+                          limits;
   uint64_t hash = 1469598103934665603ull;
   for (unsigned char c : key) hash = (hash ^ c) * 1099511628211ull;
   char hex[17];

@@ -10,6 +10,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 
 #include "io/dem.h"
 
@@ -401,4 +402,94 @@ TEST(Dem, GeoTiffPixelScaleUnitsFollowTheModelType) {
   EXPECT_DOUBLE_EQ(d.spacing_m, 0.5 * 111320.0);
   ASSERT_TRUE(loadDem(tmp / "inf.tif", {}, d, e)) << e;
   EXPECT_EQ(d.spacing_m, 0.0);
+}
+
+// A float32 GeoTIFF whose GDAL no-data is the float minimum printed with 12 digits
+// ("-3.40282346639e+38", as ArcGIS and many GDAL tools write it): the double lies just beyond
+// the float range, but it names -FLT_MAX, the value the voids hold (GDAL snaps it the same
+// way). The voids were kept as heights of -3.4e38 m.
+TEST(Dem, NoDataJustBeyondTheFloatRangeNamesTheFloatMinimum) {
+  TempDir tmp;
+  const std::string file = tmp / "nd_fltmax.tif";
+  {
+    TIFF* t = TIFFOpen(file.c_str(), "w");
+    ASSERT_NE(t, nullptr);
+    setGreyTiff(t, 8, 8, true);
+    static const TIFFFieldInfo info[] = {{42113, -1, -1, TIFF_ASCII, FIELD_CUSTOM, 1, 0, const_cast<char*>("GDALNoDataValue")}};
+    TIFFMergeFieldInfo(t, info, 1);
+    TIFFSetField(t, 42113, "-3.40282346639e+38");
+    for (int y = 0; y < 8; ++y) {
+      std::vector<float> row(8, 100.0f);
+      if (y == 5) row[2] = -std::numeric_limits<float>::max();
+      ASSERT_GE(TIFFWriteScanline(t, row.data(), static_cast<uint32_t>(y), 0), 0);
+    }
+    TIFFClose(t);
+  }
+  Dem d;
+  std::string e;
+  ASSERT_TRUE(loadDem(file, {}, d, e)) << e;
+  EXPECT_EQ(d.voidsFilled, 1u);
+  EXPECT_FLOAT_EQ(d.at(2, 5), 100.0f);
+}
+
+// The cache serves a DEM loaded under the same void rule only: a file with voids cached under
+// DemVoids::Fill must still be refused when the caller asks for DemVoids::Reject (or a lower
+// maxVoidFraction), as loadDem refuses it. It was served from the cache.
+TEST(Dem, CachedDemHonoursTheVoidRuleOfTheCaller) {
+  TempDir tmp;
+  const std::string file = tmp / "N10E010.hgt";
+  writeHgt(file, 31, {{3, 4}, {10, 10}});
+  MappedDem a;
+  DemCacheInfo ia;
+  std::string error;
+  ASSERT_TRUE(loadDemCached(file, tmp / "cache", {}, a, ia, error)) << error;
+  DemLoadOptions reject;
+  reject.voids = DemVoids::Reject;
+  Dem direct;
+  EXPECT_FALSE(loadDem(file, reject, direct, error));
+  MappedDem b;
+  DemCacheInfo ib;
+  EXPECT_FALSE(loadDemCached(file, tmp / "cache", reject, b, ib, error)) << "served from " << ib.cacheFile;
+  DemLoadOptions strict;
+  strict.maxVoidFraction = 1e-4;  // 2 voids in 961 samples is above this
+  EXPECT_FALSE(loadDemCached(file, tmp / "cache", strict, b, ib, error)) << "served from " << ib.cacheFile;
+}
+
+// A 16-bit greyscale PNG heightmap that carries a gAMA chunk (ImageMagick and many image
+// tools write one): the samples are heights, not light, and must come out as stored. libpng's
+// simplified reader "linearised" them (32768 -> ~14000 with gamma 1/2.2), bending the terrain.
+TEST(Dem, Png16WithAGammaChunkIsReadAsStored) {
+  TempDir tmp;
+  const std::string file = tmp / "gamma.png";
+  const int w = 5, h = 4;
+  {
+    std::FILE* f = std::fopen(file.c_str(), "wb");
+    ASSERT_NE(f, nullptr);
+    png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
+    png_infop info = png_create_info_struct(png);
+    png_init_io(png, f);
+    png_set_IHDR(png, info, w, h, 16, PNG_COLOR_TYPE_GRAY, PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT,
+                 PNG_FILTER_TYPE_DEFAULT);
+    png_set_gAMA(png, info, 1.0 / 2.2);
+    png_write_info(png, info);
+    std::vector<uint8_t> row(static_cast<size_t>(w) * 2);
+    for (int y = 0; y < h; ++y) {
+      for (int x = 0; x < w; ++x) {
+        const auto v = static_cast<uint16_t>(1000 * x + 10000 * y + 7);
+        row[2 * static_cast<size_t>(x)] = static_cast<uint8_t>(v >> 8);  // PNG is big-endian
+        row[2 * static_cast<size_t>(x) + 1] = static_cast<uint8_t>(v & 0xFF);
+      }
+      png_write_row(png, row.data());
+    }
+    png_write_end(png, nullptr);
+    png_destroy_write_struct(&png, &info);
+    std::fclose(f);
+  }
+  Dem d;
+  std::string e;
+  ASSERT_TRUE(loadDem(file, {}, d, e)) << e;
+  ASSERT_EQ(d.width, w);
+  ASSERT_EQ(d.height, h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) ASSERT_EQ(d.at(x, y), static_cast<float>(1000 * x + 10000 * y + 7)) << x << "," << y;
 }
