@@ -92,6 +92,7 @@ struct TerrainMeshLayer {
   double spacing_m = 1.0;
   glm::dvec3 origin_m{0.0};      // ENU of sample (0, 0)
   double heightRange_m = 1.0;
+  double minHeight_m = 0.0;     // the lowest post (relative to origin_m): the bottom of the relief the shading scales
   double maxHeight_m = 0.0;     // the highest post (relative to origin_m)
   double drawNearest_m = 0.0;   // a lower bound on the distance from the eye to what is drawn (terrain detail variant)
   std::unique_ptr<lod::Roam> roam;
@@ -411,6 +412,7 @@ static bool createTerrainMesh(const TerrainLayerConfig& t, const ServiceConfig& 
   const auto [lo, hi] = std::minmax_element(m.heights_m.begin(), m.heights_m.end());
   m.heightRange_m = std::max(1.0, static_cast<double>(*hi - *lo));
   m.maxHeight_m = static_cast<double>(*hi);
+  m.minHeight_m = static_cast<double>(*lo);
   m.origin_m = {t.offset_m[0], t.offset_m[1], t.offset_m[2]};
   m.tolerance_px = t.tolerance_px;
   m.budget_ms = t.lodBudget_ms;
@@ -782,7 +784,7 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
   } else if (scene.terrain) {
     if (!createTerrainMesh(*scene.terrain, config, m.terrainMesh, error)) return nullptr;
     TerrainMeshLayer& t = *m.terrainMesh;
-    if (!m.renderer.addTerrainMesh(t.bufferTriangles * 3, t.heightRange_m, error)) return nullptr;
+    if (!m.renderer.addTerrainMesh(t.bufferTriangles * 3, t.heightRange_m, error, t.minHeight_m)) return nullptr;
     t.gpu = m.renderer.terrainMeshVertices();
     s->info_.layers.push_back(scene.terrain->lod == TerrainLayerConfig::Lod::Roam ? "terrain (roam)" : "terrain (block)");
     s->info_.terrainTriangles = 2ull * static_cast<uint64_t>(t.width - 1) * static_cast<uint64_t>(t.height - 1);

@@ -7,6 +7,21 @@
 #include <glm/geometric.hpp>
 
 namespace ig::lod {
+namespace {
+
+// Normal at post (x, y) from central differences over the neighbouring posts; on the border,
+// where one neighbour is the post itself, over the one spacing there is (a plane keeps its
+// normal up to the edge).
+template <class Height>
+glm::dvec3 centralNormal(const Height& h, int x, int y, int width, int height, double spacing_m) {
+  const int x0 = std::max(x - 1, 0), x1 = std::min(x + 1, width - 1);
+  const int y0 = std::max(y - 1, 0), y1 = std::min(y + 1, height - 1);
+  const double dx = x1 > x0 ? (h(x0, y) - h(x1, y)) / (x1 - x0) : 0.0;
+  const double dy = y1 > y0 ? (h(x, y0) - h(x, y1)) / (y1 - y0) : 0.0;
+  return glm::normalize(glm::dvec3(dx, dy, spacing_m));
+}
+
+}  // namespace
 
 TerrainVertex heightFieldVertex(std::span<const float> heights_m, int width, int height, double spacing_m, int x, int y) {
   auto h = [&](int i, int j) {
@@ -16,7 +31,7 @@ TerrainVertex heightFieldVertex(std::span<const float> heights_m, int width, int
   };
   x = std::clamp(x, 0, width - 1);
   y = std::clamp(y, 0, height - 1);
-  const glm::dvec3 n = glm::normalize(glm::dvec3(h(x - 1, y) - h(x + 1, y), h(x, y - 1) - h(x, y + 1), 2.0 * spacing_m));
+  const glm::dvec3 n = centralNormal(h, x, y, width, height, spacing_m);
   TerrainVertex v{};
   v.position[0] = static_cast<float>(x * spacing_m);
   v.position[1] = static_cast<float>(y * spacing_m);
@@ -56,8 +71,7 @@ TerrainGrid::TerrainGrid(const TerrainGridDesc& desc) : desc_(desc) {
           const int gx = cx + x, gy = cy + y;
           const double z = h(gx, gy);
           // Central differences over neighbouring posts give a crack-free shared normal.
-          const glm::dvec3 n = glm::normalize(glm::dvec3(h(gx - 1, gy) - h(gx + 1, gy),
-                                                         h(gx, gy - 1) - h(gx, gy + 1), 2.0 * s));
+          const glm::dvec3 n = centralNormal(h, gx, gy, hf.postsX, hf.postsY, s);
           TerrainVertex v{};
           v.position[0] = static_cast<float>(x * s);
           v.position[1] = static_cast<float>(y * s);

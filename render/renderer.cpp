@@ -43,6 +43,7 @@ uniform float uAmbient;
 uniform vec3 uFogColor;
 uniform float uFogDensity;               // per metre; 0 = no fog
 uniform float uHeightScale;
+uniform float uHeightBase;               // height (relative to the origin) at the bottom of the relief
 out vec4 fragColor;
 uniform vec2 uDetailPhase;               // chunk origin mod 1024 m (computed in double)
 float hash(vec2 p) { return fract(sin(dot(p, vec2(127.1, 311.7))) * 43758.5453); }
@@ -57,7 +58,7 @@ float noise(vec2 p, float period) {
 void main() {
   vec3 n = normalize(vNormal);
   float slope = 1.0 - n.z;
-  float h = vLocal.z / max(uHeightScale, 1.0);
+  float h = (vLocal.z - uHeightBase) / max(uHeightScale, 1.0);
   // Ground detail for low-level flight: 0.25 m and 2 m value noise, faded out with distance
   // before it would alias (0 from 40 m and from 400 m: kTerrainFineDetailReach_m,
   // kTerrainDetailReach_m). Each program variant has only the terms that are not 0 where it
@@ -131,7 +132,7 @@ bool completeFramebuffer(GLuint fbo, int width_px, int height_px, std::string& e
 // dynamic triangle list re-uploaded each frame (ROAM / block LOD output), or both.
 class TerrainPass {
  public:
-  bool initProgram(double heightScale_m, std::string& error) {
+  bool initProgram(double heightScale_m, double heightBase_m, std::string& error) {
     for (int detail = 0; detail < 3; ++detail) {
       Program& g = programs_[detail];
       g.program = buildProgram(kTerrainVs, withDefine(kTerrainFs, "TERRAIN_DETAIL", detail).c_str(), error);
@@ -148,14 +149,16 @@ class TerrainPass {
       g.uFogColor = gl.GetUniformLocation(p, "uFogColor");
       g.uFogDensity = gl.GetUniformLocation(p, "uFogDensity");
       g.uHeightScale = gl.GetUniformLocation(p, "uHeightScale");
+      g.uHeightBase = gl.GetUniformLocation(p, "uHeightBase");
       g.uDetailPhase = gl.GetUniformLocation(p, "uDetailPhase");
     }
     heightScale_ = static_cast<float>(heightScale_m);
+    heightBase_ = static_cast<float>(heightBase_m);
     return true;
   }
 
   bool initStatic(const lod::TerrainGrid& grid, std::string& error) {
-    if (!initProgram(grid.desc().heights.heightScale_m, error)) return false;
+    if (!initProgram(grid.desc().heights.heightScale_m, 0.0, error)) return false;
     const auto vertices = grid.vertices();
     const auto indices = grid.indices();
     GLuint ids[2];
@@ -173,7 +176,7 @@ class TerrainPass {
     return true;
   }
 
-  bool initDynamic(size_t capacityVertices, double heightScale_m, std::string& error) {
+  bool initDynamic(size_t capacityVertices, double heightScale_m, double heightBase_m, std::string& error) {
     // A buffer of no bytes, or more than GLsizeiptr holds, is a GL_INVALID_VALUE (and the map
     // then fails): refused here, naming the value.
     const std::string capacity = "terrain mesh: a vertex buffer of " + std::to_string(capacityVertices) + " vertices";
@@ -185,7 +188,7 @@ class TerrainPass {
       error = capacity + ": more bytes than a GL buffer can have";
       return false;
     }
-    if (!programs_[0].program && !initProgram(heightScale_m, error)) return false;
+    if (!programs_[0].program && !initProgram(heightScale_m, heightBase_m, error)) return false;
     GLuint id = 0;
     gl.CreateBuffers(1, &id);
     dynamicBuffer_ = GlBuffer::wrap(id);
@@ -342,6 +345,7 @@ class TerrainPass {
     // Koschmieder: 2 % contrast at the visibility distance.
     gl.ProgramUniform1f(p, g.uFogDensity, lighting.fog ? static_cast<float>(3.912 / lighting.fogVisibility_m) : 0.0f);
     gl.ProgramUniform1f(p, g.uHeightScale, heightScale_);
+    gl.ProgramUniform1f(p, g.uHeightBase, heightBase_);
     gl.UseProgram(p);
     return p;
   }
@@ -358,7 +362,7 @@ class TerrainPass {
   struct Program {
     GlProgram program;
     GLint uViewProjection = -1, uChunkOffset = -1, uSunDirection = -1, uSunColor = -1, uAmbient = -1, uFogColor = -1,
-          uFogDensity = -1, uHeightScale = -1, uDetailPhase = -1;
+          uFogDensity = -1, uHeightScale = -1, uHeightBase = -1, uDetailPhase = -1;
   };
 
   std::vector<GLint> firsts_;    // drawDynamicRanges: grown once, reused
@@ -371,6 +375,7 @@ class TerrainPass {
   std::vector<lod::TerrainChunk> chunks_;
   uint64_t bytes_ = 0;
   float heightScale_ = 1.0f;
+  float heightBase_ = 0.0f;
   bool warmed_ = false;  // warmUp() done
 };
 
@@ -445,9 +450,9 @@ bool Renderer::addTerrain(const lod::TerrainGrid& grid, std::string& error) {
   return true;
 }
 
-bool Renderer::addTerrainMesh(size_t capacityVertices, double heightScale_m, std::string& error) {
+bool Renderer::addTerrainMesh(size_t capacityVertices, double heightScale_m, std::string& error, double heightBase_m) {
   auto pass = std::make_unique<TerrainPass>();
-  if (!pass->initDynamic(capacityVertices, heightScale_m, error)) return false;
+  if (!pass->initDynamic(capacityVertices, heightScale_m, heightBase_m, error)) return false;
   terrainMesh_ = std::move(pass);
   return true;
 }

@@ -59,8 +59,10 @@ class Renderer {
   bool addTerrain(const lod::TerrainGrid& grid, std::string& error);
   bool hasTerrain() const { return terrain_ != nullptr; }
   // Creates the pass for a terrain triangle list that changes every frame (ROAM, block LOD),
-  // with a vertex buffer of `capacityVertices` allocated once and mapped persistently.
-  bool addTerrainMesh(size_t capacityVertices, double heightScale_m, std::string& error);
+  // with a vertex buffer of `capacityVertices` allocated once and mapped persistently. The
+  // shading places a vertex's height within the relief: (z - heightBase_m) / heightScale_m,
+  // z relative to the mesh origin (a DEM's lowest post is its base, not 0).
+  bool addTerrainMesh(size_t capacityVertices, double heightScale_m, std::string& error, double heightBase_m = 0.0);
   // The mapped vertex buffer of the terrain mesh (empty without one): write only what changed
   // (lod/triangle_slots.h), between frames (every frame ends with glFinish).
   std::span<lod::TerrainVertex> terrainMeshVertices() const;

@@ -282,3 +282,35 @@ TEST(Sun, DeclinationAtPublishedEquinoxesAndSolstices) {
   EXPECT_NEAR(a.elevation_deg, b.elevation_deg, 0.01);
   EXPECT_NEAR(a.azimuth_deg, b.azimuth_deg, 0.05);
 }
+
+// Normals of a plane are the plane's normal on every post, the DEM's border rows and columns
+// included: there the central difference has one neighbour (the other clamps onto the post
+// itself) and must be taken over one spacing, not two. It halved the slope on the border
+// (a lighter or darker stripe along the terrain's edge). TerrainGrid's vertices use the same
+// rule as heightFieldVertex.
+TEST(TerrainGrid, PlaneNormalsAreExactOnTheBorderToo) {
+  const int w = 5, h = 4;
+  const double spacing = 10.0;
+  std::vector<float> z(static_cast<size_t>(w) * h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) z[static_cast<size_t>(y) * w + x] = static_cast<float>(0.2 * x * spacing - 0.5 * y * spacing);
+  const glm::dvec3 expected = glm::normalize(glm::dvec3(-0.2, 0.5, 1.0));
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const TerrainVertex v = heightFieldVertex(z, w, h, spacing, x, y);
+      EXPECT_NEAR(v.normal[0], expected.x, 1e-5) << x << "," << y;
+      EXPECT_NEAR(v.normal[1], expected.y, 1e-5) << x << "," << y;
+      EXPECT_NEAR(v.normal[2], expected.z, 1e-5) << x << "," << y;
+    }
+  const TerrainGridDesc d = smallTerrain({0, 0, 0});
+  const TerrainGrid g(d);
+  std::vector<float> hts(static_cast<size_t>(d.heights.postsX) * static_cast<size_t>(d.heights.postsY));
+  generateHeightfield(d.heights, hts);
+  const TerrainChunk& c = g.chunks()[0];
+  for (int y = 0; y <= c.quadsY; ++y)
+    for (int x = 0; x <= c.quadsX; ++x) {
+      const TerrainVertex a = g.vertices()[c.firstVertex + static_cast<size_t>(y) * static_cast<size_t>(c.quadsX + 1) + static_cast<size_t>(x)];
+      const TerrainVertex b = heightFieldVertex(hts, d.heights.postsX, d.heights.postsY, d.heights.postSpacing_m, x, y);
+      for (int i = 0; i < 3; ++i) ASSERT_NEAR(a.normal[i], b.normal[i], 1e-6) << x << "," << y;
+    }
+}

@@ -450,6 +450,56 @@ TEST(ServiceGL, DemTerrainFromAFileAndItsErrors) {
   std::filesystem::remove_all(dir);
 }
 
+// The terrain's shading (grass, rock, snow by height within the relief) depends on where a
+// post lies within the DEM's relief, not on the DEM's datum: the same ridge stored 4000 m
+// higher (a plateau DEM) and placed 4000 m lower is the same world and must look the same. The
+// height scale was the relief (highest - lowest) but the heights were taken from 0, not from
+// the lowest post, so the plateau rendered white with snow everywhere.
+TEST(ServiceGL, DemShadingFollowsTheReliefNotTheDatum) {
+  const auto dir = std::filesystem::temp_directory_path() / ("igd_dem_datum_gltest_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  auto writeRidge = [&](const std::string& name, int base) {
+    std::vector<uint8_t> b(65 * 65 * 2);
+    for (int y = 0; y < 65; ++y)
+      for (int x = 0; x < 65; ++x) {
+        const auto v = static_cast<uint16_t>(base + 600.0 - 15.0 * std::abs(x - 32) + 150.0 * std::sin(x / 4.0) * std::cos(y / 6.0));
+        const size_t i = static_cast<size_t>(y) * 65 + static_cast<size_t>(x);
+        b[2 * i] = static_cast<uint8_t>(v >> 8);
+        b[2 * i + 1] = static_cast<uint8_t>(v & 0xFF);
+      }
+    std::ofstream((dir / name).string(), std::ios::binary).write(reinterpret_cast<const char*>(b.data()), 65 * 65 * 2);
+  };
+  writeRidge("low.hgt", 0);
+  writeRidge("high.hgt", 4000);
+  for (const auto lod : {TerrainLayerConfig::Lod::Roam, TerrainLayerConfig::Lod::Block}) {
+    ServiceConfig cfg;
+    SceneConfig scene;
+    test::defaultConfigs(cfg, scene);
+    scene.terrain->source = TerrainLayerConfig::Source::Dem;
+    scene.terrain->lod = lod;
+    scene.terrain->demSpacing_m = 50.0;
+    io::HostState h = test::defaultHostAt(0.0);
+    h.eyeEnu_m = {0, -3000, 1500};
+    h.heading_deg = 0;
+    h.pitch_deg = -20;
+    h.roll_deg = 0;
+    scene.terrain->file = (dir / "low.hgt").string();
+    scene.terrain->offset_m = {-1600, -1600, 0};
+    const render::Image low = renderScene(scene, h);
+    scene.terrain->file = (dir / "high.hgt").string();
+    scene.terrain->offset_m = {-1600, -1600, -4000};
+    const render::Image high = renderScene(scene, h);
+    size_t ground = 0;
+    for (size_t i = 0; i < low.rgba.size(); i += 4) ground += low.rgba[i] != low.rgba[0];
+    EXPECT_GT(ground, low.rgba.size() / 4 / 10) << "the ridge must cover part of the view";
+    const double e = render::rmse(low, high);
+    EXPECT_GE(e, 0.0);
+    EXPECT_LT(e, 2.0) << (lod == TerrainLayerConfig::Lod::Roam ? "roam" : "block")
+                      << ": per-pixel RMSE (8-bit levels) between the same ridge at two datums";
+  }
+  std::filesystem::remove_all(dir);
+}
+
 TEST(ServiceGL, RoamWritesOnlyChangedTrianglesToTheGpu) {
   const auto dir = std::filesystem::temp_directory_path() / ("igd_uploads_gltest_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
