@@ -361,37 +361,64 @@ bool loadGeoTiff(const std::string& file, const DemLoadOptions& o, Dem& dem, std
 }  // namespace
 
 bool fillVoids(std::vector<float>& heights, int width, int height, std::vector<uint8_t>& isVoid) {
-  std::vector<size_t> pending, next;
-  for (size_t i = 0; i < isVoid.size(); ++i)
-    if (isVoid[i]) pending.push_back(i);
-  if (pending.size() == heights.size()) return false;
-  std::vector<std::pair<size_t, float>> fills;
-  while (!pending.empty()) {
-    next.clear();
+  // Layer by layer outwards from the valid samples: layer k + 1 is the voids next to layer k,
+  // each filled with the mean of its 8-neighbours that were valid or filled in an earlier layer
+  // (a layer is applied after it is computed, so the result does not depend on the scan order).
+  // Each void is visited once per neighbour: linear in the DEM (a pass over every remaining void
+  // per layer took ~an hour for a 16k DEM whose sea is no-data).
+  const size_t w = static_cast<size_t>(width), n = heights.size();
+  size_t voids = 0;
+  for (uint8_t v : isVoid) voids += v ? 1 : 0;
+  if (voids == 0) return true;
+  if (voids == n) return false;
+  auto forNeighbours = [&](size_t i, auto&& fn) {
+    const int x = static_cast<int>(i % w), y = static_cast<int>(i / w);
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx) {
+        const int nx = x + dx, ny = y + dy;
+        if ((dx == 0 && dy == 0) || nx < 0 || ny < 0 || nx >= width || ny >= height) continue;
+        fn(static_cast<size_t>(ny) * w + static_cast<size_t>(nx));
+      }
+  };
+  // queued: a void already in the current or the next layer.
+  std::vector<uint8_t> queued(n, 0);
+  std::vector<size_t> layer, next;
+  for (size_t i = 0; i < n; ++i) {
+    if (!isVoid[i]) continue;
+    bool rim = false;
+    forNeighbours(i, [&](size_t j) { rim = rim || !isVoid[j]; });
+    if (rim) {
+      layer.push_back(i);
+      queued[i] = 1;
+    }
+  }
+  std::vector<float> fills;
+  while (!layer.empty()) {
     fills.clear();
-    for (size_t i : pending) {
-      const int x = static_cast<int>(i % static_cast<size_t>(width)), y = static_cast<int>(i / static_cast<size_t>(width));
+    for (size_t i : layer) {
       double sum = 0.0;
-      int n = 0;
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx) {
-          const int nx = x + dx, ny = y + dy;
-          if ((dx == 0 && dy == 0) || nx < 0 || ny < 0 || nx >= width || ny >= height) continue;
-          const size_t j = static_cast<size_t>(ny) * static_cast<size_t>(width) + static_cast<size_t>(nx);
-          if (!isVoid[j]) {
-            sum += static_cast<double>(heights[j]);
-            ++n;
-          }
+      int k = 0;
+      forNeighbours(i, [&](size_t j) {
+        if (!isVoid[j]) {
+          sum += static_cast<double>(heights[j]);
+          ++k;
         }
-      if (n > 0) fills.emplace_back(i, static_cast<float>(sum / n));
-      else next.push_back(i);
+      });
+      fills.push_back(static_cast<float>(sum / k));  // k > 0: a layer's voids touch a filled sample
     }
-    // Apply after the sweep so the result does not depend on the scan order.
-    for (const auto& [i, h] : fills) {
-      heights[i] = h;
-      isVoid[i] = 0;
+    for (size_t m = 0; m < layer.size(); ++m) {
+      heights[layer[m]] = fills[m];
+      isVoid[layer[m]] = 0;
     }
-    pending.swap(next);
+    next.clear();
+    for (size_t i : layer)
+      forNeighbours(i, [&](size_t j) {
+        if (isVoid[j] && !queued[j]) {
+          queued[j] = 1;
+          next.push_back(j);
+        }
+      });
+    layer.swap(next);
   }
   return true;
 }

@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <random>
 
 #include "io/dem.h"
 
@@ -170,6 +171,90 @@ TEST(Dem, VoidsAreFilledFromTheirNeighboursOrRejected) {
   EXPECT_FALSE(loadDem(tmp / "nd.tif", reject, d, e));
   EXPECT_NE(e.find("nd.tif"), std::string::npos);
   EXPECT_NE(e.find("2 void samples"), std::string::npos) << e;
+}
+
+namespace {
+
+// The void fill as first written (every remaining void rescanned per layer: quadratic), kept
+// here as the reference the linear fill must match bit for bit.
+bool fillVoidsByPasses(std::vector<float>& heights, int width, int height, std::vector<uint8_t>& isVoid) {
+  std::vector<size_t> pending, next;
+  for (size_t i = 0; i < isVoid.size(); ++i)
+    if (isVoid[i]) pending.push_back(i);
+  if (pending.size() == heights.size()) return false;
+  std::vector<std::pair<size_t, float>> fills;
+  while (!pending.empty()) {
+    next.clear();
+    fills.clear();
+    for (size_t i : pending) {
+      const int x = static_cast<int>(i % static_cast<size_t>(width)), y = static_cast<int>(i / static_cast<size_t>(width));
+      double sum = 0.0;
+      int n = 0;
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const int nx = x + dx, ny = y + dy;
+          if ((dx == 0 && dy == 0) || nx < 0 || ny < 0 || nx >= width || ny >= height) continue;
+          const size_t j = static_cast<size_t>(ny) * static_cast<size_t>(width) + static_cast<size_t>(nx);
+          if (!isVoid[j]) {
+            sum += static_cast<double>(heights[j]);
+            ++n;
+          }
+        }
+      if (n > 0) fills.emplace_back(i, static_cast<float>(sum / n));
+      else next.push_back(i);
+    }
+    for (const auto& [i, h] : fills) {
+      heights[i] = h;
+      isVoid[i] = 0;
+    }
+    pending.swap(next);
+  }
+  return true;
+}
+
+}  // namespace
+
+// Random void masks (scattered holes, blobs, a "sea" over most of the DEM, single valid
+// samples, 1-wide DEMs): the layered fill gives exactly the heights of the pass-by-pass one.
+TEST(Dem, VoidFillMatchesThePassByPassFillBitForBit) {
+  std::mt19937 rng(7);
+  int compared = 0;
+  for (int trial = 0; trial < 60; ++trial) {
+    const int width = 1 + static_cast<int>(rng() % 40), height = 1 + static_cast<int>(rng() % 40);
+    const size_t n = static_cast<size_t>(width) * static_cast<size_t>(height);
+    std::vector<float> h(n);
+    std::uniform_real_distribution<float> z(-50.0f, 3000.0f);
+    for (float& v : h) v = z(rng);
+    std::vector<uint8_t> mask(n, 0);
+    const int kind = trial % 4;
+    const double p = kind == 0 ? 0.2 : kind == 1 ? 0.9 : kind == 2 ? 0.995 : 0.5;
+    std::bernoulli_distribution hole(p);
+    for (size_t i = 0; i < n; ++i) mask[i] = hole(rng) ? 1 : 0;
+    if (kind == 3)  // a sea: everything south of a wavy coast
+      for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x)
+          mask[static_cast<size_t>(y) * static_cast<size_t>(width) + static_cast<size_t>(x)] =
+              y < height / 2 + static_cast<int>(3.0 * std::sin(x * 0.7)) ? 1 : 0;
+    std::vector<float> a = h, b = h;
+    std::vector<uint8_t> va = mask, vb = mask;
+    const bool okA = fillVoids(a, width, height, va);
+    const bool okB = fillVoidsByPasses(b, width, height, vb);
+    ASSERT_EQ(okA, okB) << "trial " << trial;
+    if (!okA) continue;
+    ++compared;
+    EXPECT_EQ(va, vb) << "trial " << trial;
+    for (size_t i = 0; i < n; ++i) ASSERT_EQ(a[i], b[i]) << "trial " << trial << " sample " << i;
+  }
+  EXPECT_GT(compared, 40);
+  // A 1,025 x 1,025 DEM whose southern 45 % is a no-data sea fills (a pass per layer over every
+  // remaining void took ~1.3 s here; the layered fill ~0.1 s: no time is asserted).
+  const int side = 1025;
+  std::vector<float> h(static_cast<size_t>(side) * side, 10.0f);
+  std::vector<uint8_t> v(h.size(), 0);
+  for (size_t i = 0; i < h.size() * 45 / 100; ++i) v[i] = 1;
+  ASSERT_TRUE(fillVoids(h, side, side, v));
+  EXPECT_EQ(h.front(), 10.0f);
+  EXPECT_EQ(std::count(v.begin(), v.end(), uint8_t{1}), 0);
 }
 
 TEST(Dem, MostlyVoidIsRejectedAndAllVoidCannotBeFilled) {
