@@ -78,6 +78,13 @@ void StatsWriter::write(const FrameRecord& r) {
                  r.simTime_s, r.eyeEast_m, r.eyeNorth_m, r.eyeHeight_m, r.heading_deg, r.hostLost ? "true" : "false", t.between_ms,
                  gov[0], gov[1], gov[2], gov[3], gov[4], gov[5]);
   }
+  // Written out at least every kFlushEvery_ns of frame time (not only when stdio's 4 KiB buffer
+  // fills, ~25 frames): a process the watchdog kills (SIGKILL: no close) keeps the lines of the
+  // frames before the hang, which are the ones a post-mortem needs.
+  if (t.start_ns - lastFlush_ns_ >= kFlushEvery_ns || t.start_ns < lastFlush_ns_) {
+    std::fflush(file_);
+    lastFlush_ns_ = t.start_ns;
+  }
   if (std::ferror(file_) && error_.empty()) noteError();  // stdio keeps the error of a failed buffer write
 }
 

@@ -59,7 +59,9 @@ class StatsWriter {
 
  private:
   void noteError();
+  static constexpr int64_t kFlushEvery_ns = 250'000'000;  // of frame time (FrameTiming::start_ns)
   FILE* file_ = nullptr;
+  int64_t lastFlush_ns_ = INT64_MIN / 2;  // the first frame is flushed
   std::string path_;
   StatsFormat format_ = StatsFormat::Csv;
   std::string error_;

@@ -264,11 +264,36 @@ TEST(Stats, WriteErrorsOfTheStatsFileAreReported) {
   ::close(full);
   ASSERT_TRUE(swapped);
   FrameRecord r;
-  late.write(r);  // fits in stdio's buffer: nothing reached the file yet
-  EXPECT_EQ(late.error(), "");
-  for (int i = 0; i < 200; ++i) late.write(r);  // about 100 KiB: stdio writes, the disk refuses
+  late.write(r);  // the first frame is written out at once (below): the disk refuses it
   EXPECT_NE(late.error().find(file), std::string::npos) << late.error();  // known during the run
   EXPECT_FALSE(late.close());
+  std::filesystem::remove(file);
+}
+
+// The lines reach the file every 0.25 s of frame time, not only when stdio's 4 KiB buffer fills
+// (~25 frames) or at close: a process the watchdog kills keeps the frames before its hang.
+TEST(Stats, LinesReachTheFileWithinAQuarterSecondOfFrameTime) {
+  const std::string file =
+      (std::filesystem::temp_directory_path() / ("igd_stats_flush_" + std::to_string(::getpid()) + ".csv")).string();
+  StatsWriter w;
+  std::string error;
+  ASSERT_TRUE(w.open(file, StatsFormat::Csv, "", error)) << error;
+  auto lines = [&] {
+    std::ifstream in(file);
+    std::string line;
+    int n = 0;
+    while (std::getline(in, line)) ++n;
+    return n - 1;  // the header
+  };
+  FrameRecord r;
+  for (int i = 0; i < 10; ++i) {  // 30 Hz: 0 ... 300 ms
+    r.timing.frame = i;
+    r.timing.start_ns = int64_t{i} * 33'333'333;
+    w.write(r);
+  }
+  EXPECT_EQ(lines(), 9) << "frames 0 ... 8 (flushed at frame 0 and at frame 8, 267 ms)";
+  EXPECT_TRUE(w.close());
+  EXPECT_EQ(lines(), 10);
   std::filesystem::remove(file);
 }
 
