@@ -14,6 +14,7 @@
 #include <thread>
 
 #include "gl_fixture.h"
+#include "gl_objects.h"
 #include "ig/clock.h"
 #include "lod/terrain_grid.h"
 
@@ -39,10 +40,7 @@ TEST(ForestServiceGL, SceneWithoutForestBuildsNoForestPassBufferTextureOrThread)
   render::Image image;
   service->renderOnce(test::defaultHostAt(5.0), &image);
   // The forest is the only part of igd that creates textures (T, S, Gr): none may exist.
-  using IsTexture = GLboolean (*)(GLuint);
-  auto isTexture = reinterpret_cast<IsTexture>(eglGetProcAddress("glIsTexture"));
-  ASSERT_NE(isTexture, nullptr);
-  for (GLuint id = 1; id <= 4096; ++id) ASSERT_FALSE(isTexture(id)) << "texture " << id << " exists";
+  EXPECT_EQ(test::liveGlObjects("glIsTexture", 4096), 0);
 }
 
 // [governor.forest] min_m bounds the 3D trees' distance the governor gives, also when max_m is
@@ -84,13 +82,7 @@ TEST(ForestServiceGL, GovernorKeepsTheForestNearDistanceWithinMinM) {
 
 namespace {
 // Textures that exist in the current context (names 1..4096).
-int liveTextures() {
-  using IsTexture = GLboolean (*)(GLuint);
-  static const auto isTexture = reinterpret_cast<IsTexture>(eglGetProcAddress("glIsTexture"));
-  int n = 0;
-  for (GLuint id = 1; id <= 4096; ++id) n += isTexture(id) ? 1 : 0;
-  return n;
-}
+int liveTextures() { return test::liveGlObjects("glIsTexture", 4096); }
 
 // A fake clock (no time passes in a frame) that asks for a reload at its 3rd frame deadline,
 // waits for the reload thread to read the configs, and at the first deadline after the reload was
