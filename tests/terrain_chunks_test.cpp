@@ -11,7 +11,6 @@
 #include <map>
 #include <optional>
 #include <random>
-#include <set>
 #include <string>
 #include <vector>
 
@@ -48,12 +47,31 @@ struct Buffer {
   }
 };
 
-std::multiset<Tri> allLeaves(const Roam& roam) {
+// A multiset of triangles as a sorted vector (std::multiset's node per triangle made the checks
+// below the slowest tests under ASAN).
+using Tris = std::vector<Tri>;
+Tris sorted(Tris v) {
+  std::sort(v.begin(), v.end());
+  return v;
+}
+size_t countOf(const Tris& sortedTris, const Tri& t) {
+  const auto [first, last] = std::equal_range(sortedTris.begin(), sortedTris.end(), t);
+  return static_cast<size_t>(last - first);
+}
+Tris inBufferOf(const Buffer& buffer) {
+  Tris v;
+  for (const auto& s : buffer.slots)
+    if (s) v.push_back(*s);
+  return sorted(std::move(v));
+}
+
+Tris allLeaves(const Roam& roam) {
   std::vector<RoamTriangle> tris(roam.triangleCount());
   tris.resize(roam.emitTriangles(tris));
-  std::multiset<Tri> m;
-  for (const auto& t : tris) m.insert(canon(t));
-  return m;
+  Tris m;
+  m.reserve(tris.size());
+  for (const auto& t : tris) m.push_back(canon(t));
+  return sorted(std::move(m));
 }
 
 // Checks one frame: the buffer's triangles in the drawn ranges are exactly the leaves of the
@@ -69,20 +87,18 @@ void checkFrame(const Roam& roam, const TerrainChunks& chunks, const Buffer& buf
                 const std::string& where) {
   std::string why;
   ASSERT_TRUE(chunks.validate(&why)) << where << ": " << why;
-  std::multiset<Tri> inBuffer;
-  for (const auto& s : buffer.slots)
-    if (s) inBuffer.insert(*s);
-  ASSERT_EQ(inBuffer, allLeaves(roam)) << where << ": the buffer is not the mesh";
+  ASSERT_EQ(inBufferOf(buffer), allLeaves(roam)) << where << ": the buffer is not the mesh";
   std::vector<TerrainDrawRange> ranges;
   const size_t drawnLive = chunks.cull(cam, ranges);
-  std::multiset<Tri> drawn;
+  Tris drawn;
   uint32_t last = 0;
   for (const TerrainDrawRange& r : ranges) {
     ASSERT_LE(r.first + r.count, chunks.capacity()) << where;
     for (uint32_t s = r.first; s < r.first + r.count; ++s)
-      if (buffer.slots[s]) drawn.insert(*buffer.slots[s]);
+      if (buffer.slots[s]) drawn.push_back(*buffer.slots[s]);
     last = std::max(last, r.first + r.count);
   }
+  drawn = sorted(std::move(drawn));
   EXPECT_EQ(drawn.size(), drawnLive) << where << ": the live count of the drawn chunks";
   // Every leaf whose own box (its three vertices) meets the frustum is drawn.
   std::vector<RoamTriangle> tris(roam.triangleCount());
@@ -97,7 +113,7 @@ void checkFrame(const Roam& roam, const TerrainChunks& chunks, const Buffer& buf
     }
     if (!frustum.intersects(Aabb{box.min - cam.eye_m, box.max - cam.eye_m})) continue;
     ++visible;
-    ASSERT_TRUE(drawn.count(canon(t))) << where << ": a visible leaf is not in the drawn ranges";
+    ASSERT_TRUE(std::binary_search(drawn.begin(), drawn.end(), canon(t))) << where << ": a visible leaf is not in the drawn ranges";
   }
   EXPECT_GE(drawn.size(), visible);
   for (const TerrainDrawRange& r : ranges) {
@@ -109,13 +125,13 @@ void checkFrame(const Roam& roam, const TerrainChunks& chunks, const Buffer& buf
     constexpr double kReach = 600.0;
     std::vector<TerrainDrawRange> split;
     EXPECT_EQ(chunks.cull(cam, split, kReach), drawnLive) << where;
-    std::multiset<Tri> drawnSplit;
+    Tris drawnSplit;
     size_t nearRanges = 0;
     for (const TerrainDrawRange& r : split) {
       nearRanges += r.near;
       for (uint32_t s = r.first; s < r.first + r.count; ++s) {
         if (!buffer.slots[s]) continue;
-        drawnSplit.insert(*buffer.slots[s]);
+        drawnSplit.push_back(*buffer.slots[s]);
         double closest = 1e300;
         for (const auto& [x, y] : *buffer.slots[s]) closest = std::min(closest, glm::length(roam.vertexPosition(x, y) - cam.eye_m));
         if (r.near == 0) {
@@ -123,7 +139,7 @@ void checkFrame(const Roam& roam, const TerrainChunks& chunks, const Buffer& buf
         }
       }
     }
-    ASSERT_EQ(drawnSplit, drawn) << where << ": the split ranges draw other triangles";
+    ASSERT_EQ(sorted(std::move(drawnSplit)), drawn) << where << ": the split ranges draw other triangles";
     gReach.nearRanges += nearRanges;
     gReach.farRanges += split.size() - nearRanges;
   }
@@ -341,14 +357,12 @@ TEST(TerrainChunks, RandomViewsBudgetsAndSmallBuffersMatchTheMesh) {
         if (::testing::Test::HasFatalFailure()) return;
         continue;
       }
-      const std::multiset<Tri> leaves = allLeaves(roam);
-      std::multiset<Tri> inBuffer;
-      for (const auto& s : buffer.slots)
-        if (s) inBuffer.insert(*s);
+      const Tris leaves = allLeaves(roam);
+      const Tris inBuffer = inBufferOf(buffer);
       ASSERT_EQ(inBuffer.size(), chunks.liveTriangles()) << where;
       for (const Tri& t : inBuffer) {
-        ASSERT_EQ(inBuffer.count(t), 1u) << where << ": a triangle in two slots";
-        ASSERT_TRUE(leaves.count(t)) << where << ": a stale triangle in the buffer";
+        ASSERT_EQ(countOf(inBuffer, t), 1u) << where << ": a triangle in two slots";
+        ASSERT_TRUE(std::binary_search(leaves.begin(), leaves.end(), t)) << where << ": a stale triangle in the buffer";
       }
       std::vector<TerrainDrawRange> ranges;
       chunks.cull(v.camera, ranges);
