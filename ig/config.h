@@ -132,7 +132,8 @@ struct ForestLayerConfig {
   // forest_textures.txt). "" = procedural models, textures rendered at start-up.
   std::string assets;
   // Distribution map: RGBA PNG, rgb = tint Gr.rgb, a = density (0 = glade), row 0 = north,
-  // one pixel per cell_m, south-west corner at the forest area's south-west corner.
+  // one pixel per cell_m, south-west corner at the forest area's south-west corner; cells beyond
+  // the area (east, north) are not used.
   // "" = generated from `seed`.
   std::string map;
   uint32_t seed = 1;

@@ -3,6 +3,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
+#include <vector>
 
 #include "ig/forest_tool.h"
 #include "render/image.h"
@@ -40,6 +42,27 @@ bool loadMapPng(const std::string& file, double cell_m, const glm::dvec2& origin
     return false;
   }
   return true;
+}
+
+// Cuts `map` to its first cellsX x cellsY cells from the SW corner (row 0 is the south row).
+// An image larger than the forest area would plant trees beyond the area, which is clipped to
+// the terrain: there they stood on the height field's clamped edge, off the terrain.
+void cropMap(lod::ForestMap& map, int cellsX, int cellsY) {
+  const int w = std::clamp(cellsX, 1, map.width), h = std::clamp(cellsY, 1, map.height);
+  if (w == map.width && h == map.height) return;
+  std::vector<float> density(static_cast<size_t>(w) * static_cast<size_t>(h));
+  std::vector<uint32_t> gr(density.size());
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const size_t from = static_cast<size_t>(y) * static_cast<size_t>(map.width) + static_cast<size_t>(x);
+      const size_t to = static_cast<size_t>(y) * static_cast<size_t>(w) + static_cast<size_t>(x);
+      density[to] = map.density[from];
+      gr[to] = map.gr[from];
+    }
+  map.width = w;
+  map.height = h;
+  map.density = std::move(density);
+  map.gr = std::move(gr);
 }
 
 }  // namespace
@@ -107,12 +130,16 @@ std::unique_ptr<ForestLayer> ForestLayer::create(const ForestLayerConfig& c, con
     md.featureSize_m = c.featureSize_m;
     f.map_ = lod::generateForestMap(md);
     if (!lod::validateForestMap(f.map_, error)) return nullptr;
-  } else if (!loadMapPng(c.map, c.cell_m, {a[0], a[1]}, f.map_, error)) {
-    return nullptr;
-  } else if (f.map_.width > kMaxMapSide || f.map_.height > kMaxMapSide) {
-    error = "forest.map '" + c.map + "': " + std::to_string(f.map_.width) + " x " + std::to_string(f.map_.height) +
-            " pixels, more than " + std::to_string(kMaxMapSide) + " a side";
-    return nullptr;
+  } else {
+    if (!loadMapPng(c.map, c.cell_m, {a[0], a[1]}, f.map_, error)) return nullptr;
+    // The image's cells beyond the area (east, north) are not the forest's: cut to the area's
+    // whole cells, as many as a generated map has (at least one: checked above).
+    cropMap(f.map_, static_cast<int>(std::min(cellsX, 2.0e9)), static_cast<int>(std::min(cellsY, 2.0e9)));
+    if (f.map_.width > kMaxMapSide || f.map_.height > kMaxMapSide) {
+      error = "forest.map '" + c.map + "': " + std::to_string(f.map_.width) + " x " + std::to_string(f.map_.height) +
+              " pixels, more than " + std::to_string(kMaxMapSide) + " a side";
+      return nullptr;
+    }
   }
 
   // Models and textures.
@@ -134,6 +161,10 @@ std::unique_ptr<ForestLayer> ForestLayer::create(const ForestLayerConfig& c, con
   if (textures.layerCount == 0) {
     render::ForestTextureDesc td;
     td.layers = c.layers;
+    // The tile holds tile^2 / spacing^2 trees (the forest at full density): at least 16, so that
+    // a sparse forest's layers are as sparse as its trees (a 24 m tile holds at least one tree:
+    // beyond 34 m spacing the layers stood for a denser forest than the one planted).
+    td.tile_m = std::max(td.tile_m, 4.0 * c.spacing_m);
     td.treesPerTile = std::max(1, static_cast<int>(std::lround(td.tile_m * td.tile_m / (c.spacing_m * c.spacing_m))));
     if (!render::renderForestTextures(models, td, textures, error)) return nullptr;
   }

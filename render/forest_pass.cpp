@@ -4,6 +4,7 @@
 
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -351,7 +352,10 @@ struct TreeDrawer {
     return true;
   }
 
-  // Uploads instances and issues one instanced draw per non-empty model range.
+  // Uploads instances and issues instanced draws per non-empty model range: first the opaque
+  // trees (alpha 1) of every model, writing depth; then the fading ones (alpha < 1: the fade
+  // band, the farthest of each far-to-near range), blended and depth tested only, so that a tree
+  // fading out never hides what is drawn behind it later (the shell layers and fins fading in).
   void draw(std::span<const lod::ForestInstance> inst, std::span<const lod::ForestModelRange> ranges,
             ForestDrawStats& stats) {
     const size_t n = std::min(inst.size(), capacity);
@@ -359,19 +363,40 @@ struct TreeDrawer {
     gl.NamedBufferSubData(instances.id(), 0, static_cast<GLsizeiptr>(n * sizeof(lod::ForestInstance)), inst.data());
     gl.UseProgram(program.id());
     gl.BindVertexArray(vao.id());
-    for (size_t m = 0; m < ranges.size() && m < models.size(); ++m) {
+    const size_t nm = std::min(ranges.size(), models.size());
+    std::array<uint32_t, 256> fading{};  // per model: the leading instances with alpha < 1
+    bool anyFading = false;
+    for (size_t m = 0; m < nm; ++m) {
       const lod::ForestModelRange& r = ranges[m];
       if (r.count == 0 || r.first >= n) continue;
-      const auto count = static_cast<GLsizei>(std::min<size_t>(r.count, n - r.first));
+      const auto count = static_cast<uint32_t>(std::min<size_t>(r.count, n - r.first));
+      uint32_t f = 0;
+      while (f < count && !(inst[r.first + f].alpha >= 1.0f)) ++f;
+      fading[m] = f;
+      anyFading = anyFading || f > 0;
+    }
+    const auto drawRange = [&](size_t m, uint32_t first, uint32_t count) {
+      if (count == 0) return;
       const ModelRange& mr = models[m];
       gl.ProgramUniform1f(program.id(), uModelHeight, mr.height_m);
       gl.DrawElementsInstancedBaseVertexBaseInstance(
           GL_TRIANGLES, static_cast<GLsizei>(mr.indexCount), GL_UNSIGNED_INT,
-          reinterpret_cast<const void*>(static_cast<uintptr_t>(mr.firstIndex) * sizeof(uint32_t)), count, mr.baseVertex,
-          r.first);
+          reinterpret_cast<const void*>(static_cast<uintptr_t>(mr.firstIndex) * sizeof(uint32_t)),
+          static_cast<GLsizei>(count), mr.baseVertex, first);
       stats.trees += static_cast<uint64_t>(count);
       stats.triangles += static_cast<uint64_t>(count) * (mr.indexCount / 3);
       ++stats.drawCalls;
+    };
+    for (size_t m = 0; m < nm; ++m) {
+      const lod::ForestModelRange& r = ranges[m];
+      if (r.count == 0 || r.first >= n) continue;
+      const auto count = static_cast<uint32_t>(std::min<size_t>(r.count, n - r.first));
+      drawRange(m, r.first + fading[m], count - fading[m]);
+    }
+    if (anyFading) {
+      gl.DepthMask(GL_FALSE);
+      for (size_t m = 0; m < nm; ++m) drawRange(m, ranges[m].first, fading[m]);
+      gl.DepthMask(GL_TRUE);
     }
     gl.BindVertexArray(0);
   }

@@ -20,7 +20,9 @@
 // instance alpha nearAlpha(d)); the tree's colour is 2 * albedo * tint.
 // Everything is lit by the sun with the terrain normal (and mildly by the model normal for the
 // 3D trees, baked the same way into T and S), fogged like the terrain.
-// Order: trees (blended, depth written), then layers, then fins (blended, depth tested only).
+// Order: opaque trees (alpha 1, depth written), the fading trees (alpha < 1, blended, depth
+// tested only: a tree fading out must not hide the layers fading in behind it), then layers,
+// then fins (blended, depth tested only).
 // The pass leaves the FBO, viewport, depth test and cull state as it found them.
 #pragma once
 

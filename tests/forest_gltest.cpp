@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -599,6 +600,119 @@ TEST(ForestGL, LayersStopAtTheEdgeOfTheMap) {
   compareHalves(without, with, sky, kW / 2 - 2, kW / 2 + 2, outsideMax, forestChanged);
   EXPECT_EQ(outsideMax, 0) << "layers drawn west of the map";
   EXPECT_GT(forestChanged, 0.3) << "layers should tint the map's half";
+  EXPECT_EQ(w.renderer.errors(), "");
+}
+
+// A distribution map image larger than the forest area (here 64 x 64 cells of 32 m, 2048 m, over
+// a 1024 m terrain) is the area's forest, SW corner at the area's: no tree is planted beyond the
+// area (beyond the terrain they stood on the height field's clamped edge, in the air), with the
+// whole terrain as the area and with its eastern half.
+TEST(ForestGL, AMapImageLargerThanTheAreaPlantsNoTreeOutsideIt) {
+  World w;
+  ASSERT_NO_FATAL_FAILURE(w.setUp());
+  render::Image map;
+  map.width = map.height = 64;
+  map.rgba.assign(64 * 64 * 4, 255);
+  const std::string file = w.mapFile + ".large.png";
+  std::string error;
+  ASSERT_TRUE(render::writePng(file, map, error)) << error;
+  const std::array<double, 4> areas[] = {{0.0, 0.0, 0.0, 0.0}, {512.0, 0.0, 1024.0, 1024.0}};
+  for (const std::array<double, 4>& area : areas) {
+    ForestLayerConfig c = w.config();
+    c.map = file;
+    c.area_m = area;
+    auto forest = ForestLayer::create(c, w.ground(), error);
+    ASSERT_TRUE(forest) << error;
+    const double x0 = area[2] > 0.0 ? area[0] : 0.0;
+    EXPECT_LE(forest->map().extentEast_m(), 1024.0 - x0);
+    EXPECT_LE(forest->map().extentNorth_m(), 1024.0);
+    const lod::ForestKdTree& kd = forest->kdTree();
+    ASSERT_GT(kd.trees().size(), 1000u);
+    size_t outside = 0;
+    glm::dvec2 most(0.0);
+    for (uint32_t i = 0; i < kd.trees().size(); ++i) {
+      const glm::dvec3 p = kd.decode(i);
+      most = glm::max(most, glm::dvec2(p));
+      outside += p.x < x0 - 1e-6 || p.y < -1e-6 || p.x > 1024.0 + 1e-6 || p.y > 1024.0 + 1e-6;
+    }
+    EXPECT_EQ(outside, 0u) << "of " << kd.trees().size() << " trees; farthest east / north " << most.x << ", "
+                           << most.y << " m on a 1024 m terrain (area x from " << x0 << ")";
+  }
+  std::filesystem::remove(file);
+  EXPECT_EQ(w.renderer.errors(), "");
+}
+
+// The cross-fade's far edge: a 3D tree that has faded out (alpha 1/512, as at 0.4 m before
+// near_fade_end_m of a 200 m band) shows nothing, so the frame equals the layers alone. The
+// fading trees wrote depth: every layer fragment behind them was rejected and the faded trees
+// stayed visible as tree-shaped holes in the shell layers (which are fully in there), until
+// they left the band and the holes popped shut.
+TEST(ForestGL, FadedOutTreesLeaveTheLayersBehindThem) {
+  World w;
+  ASSERT_NO_FATAL_FAILURE(w.setUp());
+  std::string error;
+  auto forest = ForestLayer::create(w.config(), w.ground(), error);
+  ASSERT_TRUE(forest) << error;
+  lod::Camera cam = downCamera(120.0);
+  cam.eye_m = {700.3125, -300.4375, 120.0};  // south of the forest, looking north over it
+  cam.pitch_deg = -8.0;
+  forest->select(cam);
+  std::vector<lod::ForestInstance> faded(forest->selectedTrees().begin(), forest->selectedTrees().end());
+  const std::vector<lod::ForestModelRange> ranges(forest->selectedModels().begin(), forest->selectedModels().end());
+  ASSERT_GT(faded.size(), 200u);
+  for (lod::ForestInstance& t : faded) t.alpha = 1.0f / 512.0f;
+  const auto frame = [&](bool trees, bool layers) {
+    w.renderer.beginFrame(cam, w.lighting);
+    w.renderer.drawTerrainMesh(w.origin, w.vertexCount);
+    if (trees) forest->pass().drawTrees(w.renderer, faded, ranges);
+    if (layers) forest->pass().drawLayers(w.renderer, w.origin, w.vertexCount, forest->layerCount());
+    w.renderer.endFrame();
+    w.renderer.finish();
+    render::Image img;
+    w.renderer.readPixels(img);
+    return img;
+  };
+  const render::Image terrain = frame(false, false), layers = frame(false, true), both = frame(true, true);
+  EXPECT_GT(render::fractionDifferent(layers, terrain, 8), 0.05) << "the layers should show there";
+  EXPECT_LT(render::fractionDifferent(both, layers, 2), 0.001) << "faded-out trees cut holes into the layers";
+  EXPECT_EQ(w.renderer.errors(), "");
+}
+
+// A sparse forest's far representation is as sparse as its trees: seen straight down from
+// 300 m over the full-density half of the map, the shell layers alone change the picture about
+// as much as the 3D trees alone. The start-up textures planted a 24 m tile with at least one
+// tree (of one model), so beyond ~34 m spacing the layers stood for a denser forest than the
+// one planted: 2.1 times the trees' change at 24 m spacing, 7.7 times at 48 m.
+TEST(ForestGL, SparseForestLayersAreAsDenseAsItsTrees) {
+  World w;
+  ASSERT_NO_FATAL_FAILURE(w.setUp());
+  const auto meanChange = [](const render::Image& a, const render::Image& b) {
+    double sum = 0.0;
+    size_t n = 0;
+    for (int y = 0; y < kH; ++y)
+      for (int x = kW / 2 + 4; x < kW; ++x, ++n) sum += channelDiff(a, b, x, y);
+    return sum / static_cast<double>(n);
+  };
+  std::string error;
+  for (const double spacing : {24.0, 48.0}) {
+    ForestLayerConfig c = w.config();
+    c.spacing_m = spacing;
+    c.fins = false;
+    auto forest = ForestLayer::create(c, w.ground(), error);
+    ASSERT_TRUE(forest) << error;
+    const lod::Camera cam = downCamera(300.0);
+    const render::Image none = w.frame(cam, nullptr);
+    // Every tree as a 3D model, no layers; then the layers at full alpha, no trees.
+    ASSERT_TRUE(forest->setFades({1999.0, 2000.0}, {1999.0, 2000.0, 6000.0, 8000.0}, error)) << error;
+    forest->enableParts(true, false, false);
+    const double trees = meanChange(w.frame(cam, forest.get()), none);
+    ASSERT_TRUE(forest->setFades({1.0, 2.0}, {1.0, 2.0, 6000.0, 8000.0}, error)) << error;
+    forest->enableParts(false, true, false);
+    const double layers = meanChange(w.frame(cam, forest.get()), none);
+    ASSERT_GT(trees, 0.2) << spacing;
+    EXPECT_GT(layers / trees, 0.67) << "spacing " << spacing << " m: layers " << layers << ", trees " << trees;
+    EXPECT_LT(layers / trees, 1.5) << "spacing " << spacing << " m: layers " << layers << ", trees " << trees;
+  }
   EXPECT_EQ(w.renderer.errors(), "");
 }
 
