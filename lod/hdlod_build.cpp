@@ -642,17 +642,33 @@ class Builder {
     if (!std::isfinite(d)) d = emptyError;
     if (!config_.strictHausdorff) simple.indices.resize(simple.indices.size() - simple.collapsed.size());
     if (config_.twoSidedHausdorff && !simple.indices.empty() && indices.size() >= 3) {
-      // The other direction: from the drawn triangles (vertices and centroids) to the input.
+      // The other direction: from the drawn triangles to the input. Their corners, and points
+      // spread over each triangle (a barycentric grid of kBackGrid steps per edge, its edges'
+      // and inner points) while the cap allows, else their centroids: a drawn triangle can
+      // span a gap of the input (the sloppy grid joins a window frame's bars across the pane)
+      // with its corners and centroid on the input and its edges far from it.
       samples_.clear();
-      const size_t snt = simple.indices.size() / 3, stotal = simple.positions.size() + snt;
-      const size_t sstride = std::max<size_t>(1, (stotal + cap - 1) / cap);
-      for (size_t i = 0; i < stotal; i += sstride) {
-        if (i < simple.positions.size()) {
-          samples_.push_back(simple.positions[i]);
-        } else {
-          const size_t t = i - simple.positions.size();
-          samples_.push_back((simple.positions[simple.indices[3 * t]] + simple.positions[simple.indices[3 * t + 1]] +
-                              simple.positions[simple.indices[3 * t + 2]]) / 3.0f);
+      constexpr int kBackGrid = 4;
+      constexpr size_t kBackPerTriangle = (kBackGrid + 1) * (kBackGrid + 2) / 2 - 3;
+      const size_t snt = simple.indices.size() / 3;
+      const size_t sstride = std::max<size_t>(1, (simple.positions.size() + cap - 1) / cap);
+      for (size_t i = 0; i < simple.positions.size(); i += sstride) samples_.push_back(simple.positions[i]);
+      const size_t room = cap > samples_.size() ? cap - samples_.size() : 0;
+      const bool grid = snt * kBackPerTriangle <= room;
+      const size_t tstride = grid ? 1 : std::max<size_t>(1, (snt + std::max<size_t>(room, 1) - 1) / std::max<size_t>(room, 1));
+      for (size_t t = 0; t < snt; t += tstride) {
+        const glm::vec3 a = simple.positions[simple.indices[3 * t]], b = simple.positions[simple.indices[3 * t + 1]],
+                        c = simple.positions[simple.indices[3 * t + 2]];
+        if (!grid) {
+          samples_.push_back((a + b + c) / 3.0f);
+          continue;
+        }
+        for (int i = 0; i <= kBackGrid; ++i) {
+          for (int j = 0; i + j <= kBackGrid; ++j) {
+            if (i == kBackGrid || j == kBackGrid || (i == 0 && j == 0)) continue;  // the corners
+            const float u = static_cast<float>(i) / kBackGrid, v = static_cast<float>(j) / kBackGrid;
+            samples_.push_back(a + (b - a) * u + (c - a) * v);
+          }
         }
       }
       tree_.stats.hausdorffSamples += samples_.size();
@@ -675,46 +691,59 @@ class Builder {
     sp.maxSamples = static_cast<uint32_t>(std::max(1, config_.maxHausdorffSamples));
     for (size_t m = 0; m < scene_.models.size(); ++m) {
       const Model& model = scene_.models[m];
+      const size_t begin = tree_.modelLods.size();
       if (used[m] && model.triangleCount() > config_.modelLodMinTriangles) {
         const double diag = diagonal(model.box);
-        size_t previous = model.triangleCount();
-        double previousEps = 0.0;
         for (int k = 0; k < config_.modelLodLevels; ++k) {
           const double eps = diag * std::exp2(k - 6);
           simplifyMesh(model.positions, model.indices, eps, sp, simplified_);
-          const double d = measuredError(model.positions, model.indices, simplified_, 0.5 * diag);
-          const size_t triangles = simplified_.indices.size() / 3;
-          if (triangles == 0 || 4 * triangles > 3 * previous) continue;
-          ClusterMesh mesh;
-          compactMesh(simplified_.positions, simplified_.indices, mesh);
-          mesh.materials.assign(mesh.indices.size() / 3, materialOf(m));
-          previousEps = std::max(previousEps, d);
-          tree_.modelLods.push_back({static_cast<uint32_t>(tree_.meshes.size()), static_cast<uint32_t>(triangles), previousEps});
-          tree_.meshes.push_back(std::move(mesh));
-          previous = triangles;
-          ++tree_.stats.modelLods;
+          addModelVersion(m, begin, model, /*box=*/false);
         }
         // Last, the model's box (12 triangles): thin or lattice parts that edge collapses keep.
-        if (previous > 12) {
-          const Model box = makeBoxModel("", model.box.max - model.box.min);
-          const glm::vec3 shift((model.box.min + model.box.max) * 0.5 - glm::dvec3(0, 0, 0.5 * (model.box.max.z - model.box.min.z)));
-          simplified_.positions = box.positions;
-          for (glm::vec3& v : simplified_.positions) v += shift;
-          simplified_.indices = box.indices;
-          simplified_.collapsed.clear();
-          const double d = measuredError(model.positions, model.indices, simplified_, 0.5 * diag);
-          ClusterMesh mesh;
-          mesh.positions = simplified_.positions;
-          mesh.indices = simplified_.indices;
-          mesh.materials.assign(mesh.indices.size() / 3, materialOf(m));
-          previousEps = std::max(previousEps, d);
-          tree_.modelLods.push_back({static_cast<uint32_t>(tree_.meshes.size()), 12u, previousEps});
-          tree_.meshes.push_back(std::move(mesh));
-          ++tree_.stats.modelLods;
-        }
+        const Model box = makeBoxModel("", model.box.max - model.box.min);
+        const glm::vec3 shift((model.box.min + model.box.max) * 0.5 - glm::dvec3(0, 0, 0.5 * (model.box.max.z - model.box.min.z)));
+        simplified_.positions = box.positions;
+        for (glm::vec3& v : simplified_.positions) v += shift;
+        simplified_.indices = box.indices;
+        simplified_.collapsed.clear();
+        addModelVersion(m, begin, model, /*box=*/true);
       }
       tree_.modelLodBegin.push_back(static_cast<uint32_t>(tree_.modelLods.size()));
     }
+  }
+
+  // Measures simplified_ as a version of scene model m (whose versions start at modelLods[begin])
+  // and keeps it when it is worth drawing. A leaf draws its version's triangles and nothing else,
+  // so the version is measured against them alone: a part that vanished (recorded as a segment
+  // in simplified_.collapsed for merged clusters) is an error of its whole extent here, not of
+  // its thickness (the crane jib's lattice vanished and its counterweight alone claimed 0.8 m).
+  // Versions already kept with no fewer triangles and no smaller eps are dropped (the selection
+  // would never want them), so the eps rise and the triangle counts fall along the list; a
+  // version then needs at most 3/4 of the triangles of the one before it (the box: fewer).
+  void addModelVersion(size_t m, size_t begin, const Model& model, bool box) {
+    ClusterMesh mesh;
+    compactMesh(simplified_.positions, simplified_.indices, mesh);
+    simplified_.positions = mesh.positions;
+    simplified_.indices = mesh.indices;
+    simplified_.collapsed.clear();
+    const size_t triangles = mesh.indices.size() / 3;
+    if (triangles == 0) return;
+    const double d = measuredError(model.positions, model.indices, simplified_, 0.5 * diagonal(model.box));
+    size_t keep = tree_.modelLods.size();
+    while (keep > begin && tree_.modelLods[keep - 1].eps_m >= d && tree_.modelLods[keep - 1].triangles >= triangles) --keep;
+    const size_t previous = keep > begin ? tree_.modelLods[keep - 1].triangles : model.triangleCount();
+    if (box ? triangles >= previous : 4 * triangles > 3 * previous) return;
+    assert(keep == begin || tree_.modelLods[keep - 1].eps_m < d);
+    while (tree_.modelLods.size() > keep) {
+      assert(tree_.modelLods.back().mesh + 1 == tree_.meshes.size());  // this model's versions are the last meshes
+      tree_.meshes.pop_back();
+      tree_.modelLods.pop_back();
+      --tree_.stats.modelLods;
+    }
+    mesh.materials.assign(triangles, materialOf(m));
+    tree_.modelLods.push_back({static_cast<uint32_t>(tree_.meshes.size()), static_cast<uint32_t>(triangles), d});
+    tree_.meshes.push_back(std::move(mesh));
+    ++tree_.stats.modelLods;
   }
 
   // Renumbers the clusters depth-first (pre-order from the root), children contiguous.

@@ -20,8 +20,10 @@
 //   draws nothing; at most `maxHausdorffSamples`, evenly strided) to the
 //   nearest point of the simplified complex (exact point-triangle distance through a BVH), and
 //   with `twoSidedHausdorff` (default, the paper's D_H) also from a sample of the simplified
-//   triangles back to the children's, whatever the simplifier (their own error estimates are
-//   not used). The complex is g_c's
+//   triangles back to the children's (their corners, and a barycentric grid of 4 steps per edge
+//   over each triangle while the sample cap allows, else its centroid: a triangle spanning a
+//   gap of the input has its corners and centroid on the input), whatever the simplifier (their
+//   own error estimates are not used). The complex is g_c's
 //   triangles plus, for vertex clustering only, the segments and points it made of the
 //   collapsed triangles (Rossignac-Borrel): a thin column that collapses to a segment counts as
 //   an error of about its thickness (what is lost on screen), not as its distance to the
@@ -42,11 +44,14 @@
 // - Model versions (the paper's "optional parents with simplified geometry" of dynamic objects,
 //   used for every leaf): each scene model with more than `modelLodMinTriangles` triangles gets
 //   up to `modelLodLevels` coarser versions, simplified like merged clusters to eps = the
-//   model's diagonal x 2^-(6 - k), k = 0, 1, ..., each measured (sampled one-sided Hausdorff
-//   distance from the model to the version) and kept only when it has at most 3/4 of the
-//   previous version's triangles; then, if the last has more than 12, the model's box (lattices
-//   and thin parts that edge collapses cannot remove). A version's eps is at least the previous
-//   one's. Shared by every instance (static, pseudo-dynamic, dynamic). A
+//   model's diagonal x 2^-(6 - k), k = 0, 1, ..., each measured like merged clusters but against
+//   its drawn triangles only (a leaf draws nothing else: a part that vanished is lost whole, not
+//   a segment of its thickness), then the model's box (lattices and thin parts that edge
+//   collapses cannot remove). A version drops the versions before it that have no fewer
+//   triangles and no smaller eps (the selection would never want them) and is kept when it has
+//   at most 3/4 of the triangles of the version now before it (the box: fewer), so along the
+//   list the eps rise and the triangle counts fall. Shared by every instance (static,
+//   pseudo-dynamic, dynamic). A
 //   leaf drawn at distance d may use the coarsest version whose eps < r d (hdlod_select.h).
 // - Layout: after the build, clusters are renumbered depth-first (pre-order from the root), so
 //   a traversal reads the cluster, step and matrix arrays front to back.

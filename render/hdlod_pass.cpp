@@ -72,7 +72,6 @@ struct Range {
 };
 
 constexpr uint32_t kNone = ~0u;
-constexpr uint32_t kLodSlots = 8;  // keys: cluster * 8 + lod
 
 struct Node {
   glm::dvec3 centre{0.0};
@@ -105,6 +104,10 @@ struct HdlodPass::Impl {
   int depth = 3;
   lod::Aabb box;
   std::vector<Node> nodes;                  // level order: level k starts at (8^k - 1) / 7
+  // A draw's key: cluster * lodSlots + its version (0 = the model itself), lodSlots = 1 + the
+  // most versions of any model, so every version of a leaf is its own draw (with a fixed 8, a
+  // leaf switching between versions 8 and 9 kept the first one's command).
+  uint32_t lodSlots = 1;
   std::vector<uint32_t> slotNode, slotIndex, seen;  // per key
   std::vector<uint32_t> clusterNode;        // static and merged clusters: their node
   std::vector<uint32_t> active;             // nodes with draws
@@ -201,7 +204,7 @@ struct HdlodPass::Impl {
     ++frame;
     for (const hd::Draw& d : draws) {
       if (d.cluster >= tree->clusters.size() || !d.model) continue;
-      const uint32_t key = d.cluster * kLodSlots + std::min(d.lod, kLodSlots - 1);
+      const uint32_t key = d.cluster * lodSlots + std::min(d.lod, lodSlots - 1);
       const hd::Cluster& c = tree->clusters[d.cluster];
       const bool moving = c.kind == hd::ClusterKind::Dynamic;
       uint32_t node = clusterNode[d.cluster];
@@ -423,7 +426,21 @@ bool HdlodPass::init(const hd::HdlodTree& tree, const hd::Scene& scene, int octr
     }
     count *= 8;
   }
-  const size_t keys = tree.clusters.size() * kLodSlots;
+  // Versions per model: BuildConfig::modelLodLevels + 1 (each eps twice the one before), so
+  // more than 63 is no tree the builder makes (a damaged cache's would overflow the keys).
+  constexpr uint32_t kMaxLodSlots = 64;
+  m.lodSlots = 1;
+  for (size_t i = 0; i + 1 < tree.modelLodBegin.size(); ++i) {
+    const uint64_t versions = uint64_t{tree.modelLodBegin[i + 1]} - tree.modelLodBegin[i];
+    if (tree.modelLodBegin[i + 1] < tree.modelLodBegin[i] || versions + 1 > kMaxLodSlots ||
+        tree.clusters.size() * kMaxLodSlots > uint64_t{kNone}) {
+      error = "hdlod pass: model " + std::to_string(i) + ": " + std::to_string(versions) + " versions for " +
+              std::to_string(tree.clusters.size()) + " clusters (at most " + std::to_string(kMaxLodSlots - 1) + " versions)";
+      return false;
+    }
+    m.lodSlots = std::max(m.lodSlots, static_cast<uint32_t>(versions + 1));
+  }
+  const size_t keys = tree.clusters.size() * m.lodSlots;
   m.slotNode.assign(keys, kNone);
   m.slotIndex.assign(keys, kNone);
   m.seen.assign(keys, 0);

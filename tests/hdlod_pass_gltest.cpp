@@ -208,6 +208,48 @@ TEST(HdlodPass, OctantArraysAreUpdatedIncrementally) {
   EXPECT_NE(error.find("octree depth 9"), std::string::npos) << error;
 }
 
+// A leaf whose selection switches to another version of its model draws that version, whatever
+// the number of versions (BuildConfig::modelLodLevels is the caller's): the pass keyed a draw
+// by cluster x 8 + min(version, 7), so versions 7, 8, 9 ... of one leaf shared a key and a
+// switch from version 8 to 9 kept drawing version 8 (no change seen, nothing uploaded).
+TEST(HdlodPass, EveryModelVersionIsItsOwnDraw) {
+  Gl gl;
+  Scene s;
+  s.duration_s = 10.0;
+  s.models.push_back(makeBoxModel("box", {2, 2, 2}));
+  Object o;
+  o.name = "a";
+  o.path = {{0, {0, 0, 0}, 0}};
+  o.visible = {{0.0, 10.0}};
+  s.objects.push_back(o);
+  HdlodTree t = buildHdlod(s);
+  // Twelve versions of the box's model: version k (1-based) draws 12 - k of its triangles.
+  t.modelLods.clear();
+  t.modelLodBegin = {0};
+  for (uint32_t k = 1; k <= 11; ++k) {
+    ClusterMesh mesh;
+    mesh.positions = s.models[0].positions;
+    mesh.indices.assign(s.models[0].indices.begin(), s.models[0].indices.begin() + 3 * (12 - k));
+    mesh.materials.assign(12 - k, 0);
+    t.modelLods.push_back({static_cast<uint32_t>(t.meshes.size()), 12 - k, 0.01 * k});
+    t.meshes.push_back(std::move(mesh));
+  }
+  t.modelLodBegin.push_back(static_cast<uint32_t>(t.modelLods.size()));
+  render::HdlodPass pass;
+  std::string error;
+  ASSERT_TRUE(pass.init(t, s, 1, error)) << error;
+  lod::Camera cam;
+  cam.eye_m = {0, -30, 5};
+  cam.aspect = static_cast<double>(kW) / kH;
+  const uint32_t leaf = t.objectCluster[0];
+  for (uint32_t lod : {0u, 6u, 7u, 8u, 9u, 11u, 8u, 0u}) {
+    const Draw d{leaf, lod, &t.leafMatrix[leaf]};
+    renderOnce(gl, pass, cam, std::span<const Draw>(&d, 1));
+    EXPECT_EQ(pass.lastStats().draws, 1u);
+    EXPECT_EQ(pass.lastStats().triangles, lod == 0 ? 12u : 12u - lod) << "version " << lod;
+  }
+}
+
 TEST(HdlodPass, FarFromTheOriginRendersTheSamePicture) {
   Gl gl;
   for (const glm::dvec3 far : {glm::dvec3(1.0e6, -1.0e6, 0.0), glm::dvec3(4.1e6, -1.0e7, 4.9e6)}) {  // and ECEF-like
