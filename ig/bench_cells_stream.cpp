@@ -55,7 +55,7 @@ class Server {
     script_ = script;
     runDir_ = runDir;
     const std::string cmd = script + " start --root '" + root + "' --port 0 --rate " + std::to_string(rate) +
-                            " --dir '" + runDir + "' 2>&1";
+                            " --dir '" + runDir + "' --owner " + std::to_string(::getpid()) + " 2>&1";
     FILE* p = popen(cmd.c_str(), "r");
     if (!p) {
       error = "cannot run " + script;

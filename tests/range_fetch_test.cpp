@@ -581,3 +581,56 @@ TEST(RangeFetch, ResponseHeadCheckedBeforeItsBody) {
     for (auto& r : res) EXPECT_NE(r.error.find("ignored the Range"), std::string::npos) << r.error;
   }
 }
+
+namespace {
+// nginx masters started with `rundir`'s nginx.conf (scripts/cells-server's command line).
+int nginxMastersOf(const std::string& rundir) {
+  int n = 0;
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator("/proc", ec)) {
+    std::ifstream in(e.path() / "cmdline", std::ios::binary);
+    std::string cmd((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    std::replace(cmd.begin(), cmd.end(), '\0', ' ');
+    if (cmd.rfind("nginx: master", 0) == 0 && cmd.find(" -c " + rundir + "/nginx.conf") != std::string::npos) ++n;
+  }
+  return n;
+}
+}  // namespace
+
+// A test process that dies after starting nginx (a crash, or ctest's timeout: SIGKILL, no
+// destructor runs Nginx::stop) leaves no nginx running: cells-server's watcher of the owner
+// stops it. nginx runs as a daemon; without an owner it stayed up for good.
+TEST(RangeFetch, NginxOfAKilledTestProcessIsStopped) {
+  TempDir dir;
+  std::filesystem::create_directory(dir.path / "root");
+  const std::string rundir = (dir.path / "run").string();
+  int fds[2];
+  ASSERT_EQ(::pipe(fds), 0);
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    ::close(fds[0]);
+    Nginx nginx(dir.path);
+    nginx.start(dir.path / "root", 0, 0);
+    const char started = nginx.running ? '1' : '0';
+    if (::write(fds[1], &started, 1) != 1) ::_exit(3);
+    ::raise(SIGKILL);  // no destructor, no stop()
+    ::_exit(4);
+  }
+  ::close(fds[1]);
+  char started = 0;
+  EXPECT_EQ(::read(fds[0], &started, 1), 1);
+  ::close(fds[0]);
+  int st = 0;
+  ASSERT_EQ(::waitpid(child, &st, 0), child);
+  EXPECT_TRUE(WIFSIGNALED(st) && WTERMSIG(st) == SIGKILL);
+  ASSERT_EQ(started, '1') << "nginx did not start in the child";
+  int left = nginxMastersOf(rundir);
+  for (int i = 0; i < 500 && left > 0; ++i) {  // the watcher polls every 0.2 s; a loaded machine: 5 s
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    left = nginxMastersOf(rundir);
+  }
+  EXPECT_EQ(left, 0) << "nginx of " << rundir << " outlived its test process";
+  std::string out;  // whatever the outcome, leave nothing behind
+  run(std::string(IG_SOURCE_DIR) + "/scripts/cells-server stop --dir '" + rundir + "' 2>&1", out);
+}

@@ -62,7 +62,8 @@ inline int run(const std::string& cmd, std::string& out) {
   return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
 }
 
-// nginx through scripts/cells-server.
+// nginx through scripts/cells-server, owned by this process: a test that crashes or is killed
+// (ctest's timeout) before stop() leaves no server running (the script's watcher stops it).
 struct Nginx {
   std::string rundir, url;
   bool running = false;
@@ -72,7 +73,7 @@ struct Nginx {
     std::string out;
     std::string cmd = std::string(IG_SOURCE_DIR) + "/scripts/cells-server start --root '" + root.string() +
                       "' --port " + std::to_string(port) + " --rate " + std::to_string(rate) + " --dir '" + rundir +
-                      "' 2>&1";
+                      "' --owner " + std::to_string(::getpid()) + " 2>&1";
     int rc = run(cmd, out);
     ASSERT_EQ(rc, 0) << cmd << "\n" << out;
     ASSERT_EQ(out.rfind("http://127.0.0.1:", 0), 0u) << out;
