@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cctype>
 #include <cerrno>
 #include <cmath>
@@ -507,8 +508,12 @@ bool writeDemCache(const std::string& path, std::span<const float> heights_m, in
   h.spacing_m = spacing_m;
   h.sourceBytes = sourceBytes;
   h.sourceMtime = sourceMtime;
-  const std::string tmp = path + ".tmp" + std::to_string(getpid());
-  std::FILE* f = std::fopen(tmp.c_str(), "wb");
+  // A name of its own per call, not only per process: two threads writing the same cache shared
+  // "path.tmpPID" (the second truncated the first one's file, wrote on into the inode the first
+  // had renamed into place, and its own rename failed).
+  static std::atomic<uint64_t> sequence{0};
+  const std::string tmp = path + ".tmp" + std::to_string(getpid()) + "." + std::to_string(sequence.fetch_add(1));
+  std::FILE* f = std::fopen(tmp.c_str(), "wbx");  // x: exclusive, never someone else's file
   if (!f) {
     error = path + ": cannot write the DEM cache: " + std::strerror(errno);
     return false;

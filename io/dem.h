@@ -80,7 +80,9 @@ class MappedDem {
 };
 
 // Writes a cache file (heights south row first, as the LOD wants them) atomically (a temporary
-// file renamed into place). sourceBytes / sourceMtime identify what it was made from.
+// file of its own, unique per call, renamed into place: concurrent writers of one path, threads
+// or processes, each rename a whole file; a reader sees an old or a whole new one).
+// sourceBytes / sourceMtime identify what it was made from.
 bool writeDemCache(const std::string& path, std::span<const float> heights_m, int width, int height, double spacing_m,
                    uint64_t sourceBytes, int64_t sourceMtime, std::string& error);
 // Maps a cache file. With sourceBytes != 0, a cache made from another source version is

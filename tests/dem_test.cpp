@@ -6,12 +6,14 @@
 #include <png.h>
 #include <tiffio.h>
 
+#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <limits>
 #include <random>
+#include <thread>
 
 #include "io/dem.h"
 
@@ -577,4 +579,43 @@ TEST(Dem, Png16WithAGammaChunkIsReadAsStored) {
   ASSERT_EQ(d.height, h);
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) ASSERT_EQ(d.at(x, y), static_cast<float>(1000 * x + 10000 * y + 7)) << x << "," << y;
+}
+
+// Two threads of one process writing the same cache at once (the temporary name was
+// "path.tmpPID" for both): each write succeeds and the file is one writer's whole grid, never a
+// mix or a truncated one; no temporary file is left.
+TEST(Dem, TwoThreadsWritingOneCacheEachWriteAWholeFile) {
+  TempDir tmp;
+  const std::string path = tmp / "shared.igdem";
+  const int w = 513, h = 513;
+  const std::vector<float> ones(static_cast<size_t>(w) * h, 1.0f), twos(static_cast<size_t>(w) * h, 2.0f);
+  for (int round = 0; round < 20; ++round) {
+    std::atomic<int> ready{0};
+    bool okA = false, okB = false;
+    std::string errA, errB;
+    auto writer = [&](const std::vector<float>& v, bool& ok, std::string& err) {
+      ++ready;
+      while (ready < 2) {
+      }
+      ok = writeDemCache(path, v, w, h, 30.0, 0, 0, err);
+    };
+    std::thread a(writer, std::cref(ones), std::ref(okA), std::ref(errA));
+    std::thread b(writer, std::cref(twos), std::ref(okB), std::ref(errB));
+    a.join();
+    b.join();
+    EXPECT_TRUE(okA) << "round " << round << ": " << errA;
+    EXPECT_TRUE(okB) << "round " << round << ": " << errB;
+    MappedDem m;
+    std::string error;
+    ASSERT_TRUE(mapDemCache(path, m, error)) << "round " << round << ": " << error;
+    const std::span<const float> hs = m.heights_m();
+    ASSERT_EQ(hs.size(), ones.size());
+    const float first = hs[0];
+    EXPECT_TRUE(first == 1.0f || first == 2.0f) << "round " << round << ": " << first;
+    EXPECT_EQ(std::count(hs.begin(), hs.end(), first), static_cast<std::ptrdiff_t>(hs.size())) << "round " << round;
+    if (HasFailure()) break;
+  }
+  size_t left = 0;  // no temporary file left behind
+  for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator(tmp.path)) ++left;
+  EXPECT_EQ(left, 1u);
 }
