@@ -40,8 +40,6 @@ struct TraceRow {
   lod::ModeInputs inputs;  // the adaptive pass's model terms on the window's last frame
 };
 
-double median(std::vector<double> v) { return v.empty() ? 0.0 : percentile(std::move(v), 50); }
-
 }  // namespace
 
 int runAdaptiveBench(const AdaptiveBenchOptions& o0) {

@@ -16,6 +16,7 @@
 #include "ig/clock.h"
 #include "ig/hdlod_tool.h"
 #include "ig/json.h"
+#include "ig/stats.h"
 #include "lod/hdlod_build.h"
 #include "lod/hdlod_cache.h"
 #include "lod/hdlod_select.h"
@@ -31,12 +32,6 @@ namespace {
 namespace hd = lod::hdlod;
 using BenchClock = std::chrono::steady_clock;
 double secondsSince(BenchClock::time_point t0) { return std::chrono::duration<double>(BenchClock::now() - t0).count(); }
-
-double median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
-  return v[v.size() / 2];
-}
 
 // One side of a case (HDLOD or full detail).
 struct Side {

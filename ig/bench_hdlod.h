@@ -24,7 +24,7 @@ struct HdlodBenchOptions {
   double tolerance_px = 1.0;  // r for the cases
   int msaa = 4;             // samples per pixel of both images (render::Renderer::init), as a cabin display renders
   int repeats = 21;         // selections per case (the median is reported)
-  int frames = 5;           // rendered frames per case (the median is reported)
+  int frames = 5;           // rendered frames per case (the median is reported: ig::median, nearest rank)
   int animationFrames = 60; // frames of the "animation" case (0 to T)
   bool render = true;       // frame_ms and psnr_db (needs a GL context)
   bool quick = false;       // CI: scale 0.05, at most 480x270, 5 repeats, 2 frames, 8 animation frames, no simplifier comparison

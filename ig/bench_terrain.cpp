@@ -139,7 +139,8 @@ struct UpdateResult {
 template <class Update, class Visible, class ExactError>
 MethodResult fly(const char* name, const std::vector<PathFrame>& path, int height_px, double tolerance_px,
                  Update update, Visible visible, ExactError exactError) {
-  std::vector<double> ms, cpu, tris, uploads, visibleTris, emitMs, visits, pending;
+  TerrainFlightSamples s;
+  std::vector<double> uploads;
   std::vector<lod::RoamTriangle> out;
   std::vector<uint64_t> prev, cur;
   MethodResult r;
@@ -153,16 +154,9 @@ MethodResult fly(const char* name, const std::vector<PathFrame>& path, int heigh
     const UpdateResult u = update(view, i);
     const double t = msSince(t0);
     // The first frame builds the mesh from the base triangles (the start-up): reported apart.
-    if (i == 0) {
-      r.startupMs = t;
-    } else {
-      ms.push_back(t);
-      cpu.push_back(threadCpuMs() - c0);
-    }
+    if (i == 0) r.startupMs = t;
+    s.addUpdate(i, t, threadCpuMs() - c0, static_cast<double>(u.triangles), u.visits, u.pending);
     if (f.teleport) r.teleport = t;
-    tris.push_back(static_cast<double>(u.triangles));
-    visits.push_back(u.visits);
-    pending.push_back(u.pending);
     if (u.finished) {
       r.maxErrorPx = std::max(r.maxErrorPx, u.maxErrorPx);
     } else {
@@ -172,8 +166,7 @@ MethodResult fly(const char* name, const std::vector<PathFrame>& path, int heigh
     const auto t1 = BenchClock::now();
     double written = -1.0;
     const size_t n = visible(f.camera, out, written);
-    emitMs.push_back(msSince(t1));
-    visibleTris.push_back(static_cast<double>(n));
+    s.addEmit(i, msSince(t1), static_cast<double>(n));
     if (written >= 0.0) {
       if (i % 8 == 0 && i > 0) uploads.push_back(written);
     } else if (i % 8 == 7 || (i % 8 == 0 && i > 0)) {
@@ -184,16 +177,16 @@ MethodResult fly(const char* name, const std::vector<PathFrame>& path, int heigh
       prev.swap(cur);
     }
   }
-  r.updateP50 = percentile(ms, 50);
-  r.updateP99 = percentile(ms, 99);
-  r.cpuP50 = percentile(cpu, 50);
-  r.cpuP99 = percentile(cpu, 99);
-  r.emitP50 = percentile(emitMs, 50);
-  r.trianglesP50 = static_cast<uint64_t>(percentile(tris, 50));
+  r.updateP50 = percentile(s.update_ms, 50);
+  r.updateP99 = percentile(s.update_ms, 99);
+  r.cpuP50 = percentile(s.cpu_ms, 50);
+  r.cpuP99 = percentile(s.cpu_ms, 99);
+  r.emitP50 = percentile(s.emit_ms, 50);
+  r.trianglesP50 = static_cast<uint64_t>(percentile(s.triangles, 50));
   r.uploadsP50 = uploads.empty() ? 0 : static_cast<uint64_t>(percentile(uploads, 50));
-  r.visibleP50 = static_cast<uint64_t>(percentile(visibleTris, 50));
-  r.visitsP50 = percentile(visits, 50);
-  r.pendingP99 = percentile(pending, 99);
+  r.visibleP50 = static_cast<uint64_t>(percentile(s.visible, 50));
+  r.visitsP50 = percentile(s.visits, 50);
+  r.pendingP99 = percentile(s.pending, 99);
   return r;
 }
 
@@ -411,6 +404,22 @@ bool loadField(const TerrainBenchOptions& o, Field& f, std::string& demName, boo
 }
 
 }  // namespace
+
+void TerrainFlightSamples::addUpdate(size_t frame, double ms, double cpuMs, double tris, double nodeVisits,
+                                     double pendingNodes) {
+  if (frame == 0) return;  // the start-up
+  update_ms.push_back(ms);
+  cpu_ms.push_back(cpuMs);
+  triangles.push_back(tris);
+  visits.push_back(nodeVisits);
+  pending.push_back(pendingNodes);
+}
+
+void TerrainFlightSamples::addEmit(size_t frame, double ms, double visibleTris) {
+  if (frame == 0) return;
+  emit_ms.push_back(ms);
+  visible.push_back(visibleTris);
+}
 
 int runTerrainBench(const TerrainBenchOptions& o) {
   Field dem;

@@ -7,8 +7,10 @@
 // docs/terrain.md explains every field.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 namespace ig {
 
@@ -36,5 +38,15 @@ struct TerrainBenchOptions {
 };
 
 int runTerrainBench(const TerrainBenchOptions& options);
+
+// The per-frame samples of one method's flight, of which igbench terrain reports percentiles.
+// Frame 0 builds the mesh from the base triangles (the start-up, reported apart as
+// startup_update_ms): it is in none of them, so update_ms_*, triangles_p50,
+// visible_triangles_p50, emit_visible_ms_p50, visits_p50 and pending_p99 cover the same frames.
+struct TerrainFlightSamples {
+  std::vector<double> update_ms, cpu_ms, triangles, visible, emit_ms, visits, pending;
+  void addUpdate(size_t frame, double ms, double cpuMs, double tris, double nodeVisits, double pendingNodes);
+  void addEmit(size_t frame, double ms, double visibleTris);
+};
 
 }  // namespace ig

@@ -480,9 +480,11 @@ bool parseService(const std::string& text, const std::string& name, const std::s
   r.get(output, "snapshot_every", cfg.snapshotEvery, IntRange{0});
   r.get(output, "snapshot_frames", cfg.snapshotFrames, IntRange{0});
 
-  const Table stats = r.table(root, "stats", {"file", "format"});
+  const Table stats = r.table(root, "stats", {"file", "format", "max_mb", "keep"});
   r.get(stats, "file", cfg.statsFile);
   r.getEnum(stats, "format", cfg.statsFormat, {{"csv", StatsFormat::Csv}, {"jsonl", StatsFormat::JsonLines}});
+  r.get(stats, "max_mb", cfg.statsMax_mb, closed(0.0, 1048576.0));  // up to 1 TiB
+  r.get(stats, "keep", cfg.statsKeep, IntRange{0, 1000});
 
   const Table host = r.table(root, "host", {"source", "replay_file", "replay_loop", "link_timeout_s",
                                             "record_file", "cigi", "can", "modbus"});

@@ -79,6 +79,8 @@ struct ServiceConfig {
   // [stats]
   std::string statsFile = "out/frame_stats.csv"; // "" = no stats file
   StatsFormat statsFormat = StatsFormat::Csv;
+  double statsMax_mb = 64.0;                 // rotate the file at this size (MiB), 0 = no limit
+  int statsKeep = 3;                         // old files kept (file.1 ... file.N), 0 = none
   // [host]
   HostSource host = HostSource::Replay;
   std::string replayFile;                    // timestamped text recording (io/replay.h)

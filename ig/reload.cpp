@@ -68,6 +68,8 @@ ReloadPlan planReload(const ServiceConfig& runC, const SceneConfig& runS, const 
   check(runC, newC, &ServiceConfig::snapshotDir, "output.snapshot_dir", r);
   check(runC, newC, &ServiceConfig::statsFile, "stats.file", r);
   check(runC, newC, &ServiceConfig::statsFormat, "stats.format", r);
+  check(runC, newC, &ServiceConfig::statsMax_mb, "stats.max_mb", r);
+  check(runC, newC, &ServiceConfig::statsKeep, "stats.keep", r);
   check(runC, newC, &ServiceConfig::host, "host.source", r);
   check(runC, newC, &ServiceConfig::replayFile, "host.replay_file", r);
   check(runC, newC, &ServiceConfig::replayLoop, "host.replay_loop", r);

@@ -759,9 +759,7 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
   m.config = config;
   m.scene = scene;
   // At most SummaryCollector::kMaxCapacity frames are kept (frames = 1e11 must not reserve terabytes).
-  m.summary = SummaryCollector(config.frames > 0 && config.frames < static_cast<int64_t>(SummaryCollector::kMaxCapacity)
-                                   ? static_cast<size_t>(config.frames)
-                                   : SummaryCollector::kMaxCapacity);
+  m.summary = SummaryCollector(SummaryCollector::capacityFor(config.frames));
 
   if (config.host == HostSource::Replay) {
     io::Recording rec;
@@ -948,7 +946,10 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
                   "\"gpu_buffer_bytes\":%llu,\"threads\":%u,\"terrain_build_ms\":%.1f",
                   cfg.rate_hz, cfg.width_px, cfg.height_px, layers.c_str(), info_.passes,
                   static_cast<unsigned long long>(info_.gpuBufferBytes), info_.threads, info_.terrainBuild_ms);
-    if (!stats.open(cfg.statsFile, cfg.statsFormat, runInfo, error)) {
+    StatsRotation rotation;
+    rotation.maxBytes = static_cast<uint64_t>(cfg.statsMax_mb * 1048576.0);
+    rotation.keep = cfg.statsKeep;
+    if (!stats.open(cfg.statsFile, cfg.statsFormat, runInfo, error, rotation)) {
       std::fprintf(stderr, "igd: %s\n", error.c_str());
       return 3;  // a start-up failure, before the first frame (README: exit codes)
     }
@@ -1081,6 +1082,9 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
     const bool statusChanged = mc.statusFile != cfg.statusFile || mc.statusInterval_s != cfg.statusInterval_s;
     m.config = std::move(mc);  // `cfg` refers to m.config
     m.scene = std::move(ms);
+    // More frames than at start-up: the exit summary's percentiles still cover the run's last
+    // kMaxCapacity frames (sized by the start-up frames, they covered only that many).
+    m.summary.grow(SummaryCollector::capacityFor(cfg.frames));
     ++m.generation;
     m.lastReloadError.clear();
     pacer.setBudget_ms(cfg.budgetFrame_ms);
@@ -1129,6 +1133,14 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
   notifier.ready("rendering at " + std::to_string(cfg.rate_hz) + " Hz");
   std::string why;
   bool statsErrorLogged = false;
+  bool statsRotateLogged = false;
+  auto logRotateError = [&] {
+    if (!stats.rotateError().empty() && !statsRotateLogged) {
+      std::fprintf(stderr, "igd: %s; the file is not rotated (it grows past stats.max_mb)\n", stats.rotateError().c_str());
+      statsRotateLogged = true;
+    }
+  };
+  logRotateError();  // at start-up: the previous run's file could not be kept
   bool hostWasBad = false;
   bool prevOverrun = false;
   char snapshotPath[4096];
@@ -1243,6 +1255,7 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
       std::fprintf(stderr, "igd: %s; stats lines are being lost\n", stats.error().c_str());
       statsErrorLogged = true;
     }
+    logRotateError();
     m.summary.add(r);
     const int64_t now = clock.now_ns();
     notifier.watchdog(now);

@@ -5,34 +5,87 @@
 #include <cmath>
 #include <cstring>
 
+#include <sys/stat.h>
+
 namespace ig {
 
 StatsWriter::~StatsWriter() { close(); }
 
-bool StatsWriter::open(const std::string& file, StatsFormat format, const std::string& runInfo, std::string& error) {
+namespace {
+bool isRegularFile(const std::string& path) {
+  struct stat st {};
+  return ::stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode);
+}
+}  // namespace
+
+bool StatsWriter::writeHeader() {
+  int n = 0;
+  if (format_ == StatsFormat::Csv) {
+    n += std::fprintf(file_, "frame,t_ms,period_ms,interval_ms,lateness_ms");
+    for (int p = 0; p < kPhaseCount; ++p) n += std::fprintf(file_, ",%s_ms", phaseName(static_cast<Phase>(p)));
+    n += std::fprintf(file_, "%s", ",work_ms,overrun,missed_slots,triangles,draw_calls,passes,uploads,host_frame,sim_time_s,eye_east_m,eye_north_m,eye_up_m,heading_deg,host_lost,between_ms,gov_predicted_ms,terrain_tolerance_px,forest_near_m,hdlod_tolerance_px,cells_voxel_budget,forest_layers\n");
+  } else {
+    n += std::fprintf(file_, "{\"run\":{%s}}\n", runInfo_.c_str());
+  }
+  bytes_ = n > 0 ? static_cast<uint64_t>(n) : 0;
+  return std::fflush(file_) == 0;
+}
+
+bool StatsWriter::renameOld() {
+  for (int i = rotation_.keep; i >= 1; --i) {
+    const std::string from = i == 1 ? path_ : path_ + "." + std::to_string(i - 1);
+    const std::string to = path_ + "." + std::to_string(i);
+    if (std::rename(from.c_str(), to.c_str()) != 0 && errno != ENOENT) {
+      if (rotateError_.empty())
+        rotateError_ = "stats file '" + path_ + "': cannot rotate ('" + from + "' -> '" + to + "'): " + std::strerror(errno);
+      return false;
+    }
+  }
+  return true;
+}
+
+bool StatsWriter::open(const std::string& file, StatsFormat format, const std::string& runInfo, std::string& error,
+                       StatsRotation rotation) {
   close();
+  path_ = file;
+  error_.clear();
+  rotateError_.clear();
+  format_ = format;
+  runInfo_ = runInfo;
+  rotation_ = rotation;
+  // A restart keeps the previous run's file (a post-mortem after a crash needs it).
+  if (rotation_.keep > 0 && isRegularFile(path_)) renameOld();
   file_ = std::fopen(file.c_str(), "w");
   if (!file_) {
     error = "stats file '" + file + "': cannot write: " + std::strerror(errno);
     return false;
   }
-  path_ = file;
-  error_.clear();
-  format_ = format;
-  if (format_ == StatsFormat::Csv) {
-    std::fputs("frame,t_ms,period_ms,interval_ms,lateness_ms", file_);
-    for (int p = 0; p < kPhaseCount; ++p) std::fprintf(file_, ",%s_ms", phaseName(static_cast<Phase>(p)));
-    std::fputs(",work_ms,overrun,missed_slots,triangles,draw_calls,passes,uploads,host_frame,sim_time_s,eye_east_m,eye_north_m,eye_up_m,heading_deg,host_lost,between_ms,gov_predicted_ms,terrain_tolerance_px,forest_near_m,hdlod_tolerance_px,cells_voxel_budget,forest_layers\n", file_);
-  } else {
-    std::fprintf(file_, "{\"run\":{%s}}\n", runInfo.c_str());
-  }
-  if (std::fflush(file_) != 0) {
+  regular_ = isRegularFile(path_);
+  if (!writeHeader()) {
     error = "stats file '" + file + "': cannot write: " + std::strerror(errno);
     std::fclose(file_);
     file_ = nullptr;
     return false;
   }
+  rotateAt_ = rotation_.maxBytes;
   return true;
+}
+
+void StatsWriter::rollOver() {
+  std::fflush(file_);
+  if (std::ferror(file_) && error_.empty()) noteError();
+  if (rotation_.keep > 0 && !renameOld()) {
+    rotateAt_ = bytes_ + rotation_.maxBytes;  // go on in this file; try again one limit later
+    return;
+  }
+  if (std::fclose(file_) != 0) noteError();
+  file_ = std::fopen(path_.c_str(), "w");
+  if (!file_) {
+    noteError();
+    return;
+  }
+  if (!writeHeader()) noteError();
+  rotateAt_ = rotation_.maxBytes;
 }
 
 void StatsWriter::noteError() {
@@ -43,8 +96,9 @@ void StatsWriter::write(const FrameRecord& r) {
   if (!file_) return;
   const FrameTiming& t = r.timing;
   const auto& ph = t.phase_ms;
+  int n = 0;
   if (format_ == StatsFormat::Csv) {
-    std::fprintf(file_, "%lld,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%d,%lld,%llu,%u,%u,%llu,%llu,%.4f,%.2f,%.2f,%.2f,%.3f,%d,%.3f,%.3f,%.3f,%.1f,%.3f,%.0f,%.0f\n",
+    n = std::fprintf(file_, "%lld,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%d,%lld,%llu,%u,%u,%llu,%llu,%.4f,%.2f,%.2f,%.2f,%.3f,%d,%.3f,%.3f,%.3f,%.1f,%.3f,%.0f,%.0f\n",
                  static_cast<long long>(t.frame), static_cast<double>(t.start_ns) * 1e-6, r.period_ms, t.interval_ms,
                  static_cast<double>(t.lateness_ns) * 1e-6, ph[0], ph[1], ph[2], ph[3], ph[4], t.work_ms,
                  t.overrun ? 1 : 0, static_cast<long long>(t.missedSlots),
@@ -62,7 +116,7 @@ void StatsWriter::write(const FrameRecord& r) {
       if (!std::isfinite(govValues[i])) std::snprintf(gov[i], sizeof gov[i], "null");  // no NaN or inf in JSON
       else std::snprintf(gov[i], sizeof gov[i], "%.3f", govValues[i]);
     }
-    std::fprintf(file_,
+    n = std::fprintf(file_,
                  "{\"frame\":%lld,\"t_ms\":%.3f,\"period_ms\":%.3f,\"interval_ms\":%.3f,\"lateness_ms\":%.3f,\"input_ms\":%.3f,"
                  "\"lod_ms\":%.3f,\"submit_ms\":%.3f,\"gpu_finish_ms\":%.3f,\"present_ms\":%.3f,\"work_ms\":%.3f,"
                  "\"overrun\":%s,\"missed_slots\":%lld,\"triangles\":%llu,\"draw_calls\":%u,\"passes\":%u,\"uploads\":%llu,"
@@ -86,6 +140,9 @@ void StatsWriter::write(const FrameRecord& r) {
     lastFlush_ns_ = t.start_ns;
   }
   if (std::ferror(file_) && error_.empty()) noteError();  // stdio keeps the error of a failed buffer write
+  if (n > 0) bytes_ += static_cast<uint64_t>(n);
+  // Rotated between lines (a line is never split across files).
+  if (rotation_.maxBytes > 0 && regular_ && bytes_ >= rotateAt_) rollOver();
 }
 
 bool StatsWriter::close() {
@@ -98,6 +155,20 @@ bool StatsWriter::close() {
 
 SummaryCollector::SummaryCollector(size_t capacity) : capacity_(std::clamp<size_t>(capacity, 1, kMaxCapacity)) {
   records_.reserve(capacity_);
+}
+
+size_t SummaryCollector::capacityFor(int64_t frames) {
+  return frames > 0 && frames < static_cast<int64_t>(kMaxCapacity) ? static_cast<size_t>(frames) : kMaxCapacity;
+}
+
+void SummaryCollector::grow(size_t capacity) {
+  capacity = std::clamp<size_t>(capacity, 1, kMaxCapacity);
+  if (capacity <= capacity_) return;
+  // Oldest first (a full ring's oldest is at next_), then room for the new frames.
+  std::rotate(records_.begin(), records_.begin() + static_cast<std::ptrdiff_t>(next_), records_.end());
+  next_ = 0;
+  records_.reserve(capacity);
+  capacity_ = capacity;
 }
 
 void SummaryCollector::add(const FrameRecord& r) {
@@ -120,6 +191,8 @@ double percentile(std::vector<double> v, double p) {
   const size_t i = static_cast<size_t>(std::clamp(rank, 1.0, static_cast<double>(v.size()))) - 1;
   return v[i];
 }
+
+double median(std::vector<double> v) { return percentile(std::move(v), 50); }
 
 RunSummary SummaryCollector::summarize(int64_t overruns, int64_t missedSlots) const {
   RunSummary s;

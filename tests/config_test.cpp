@@ -1128,3 +1128,43 @@ TEST(ConfigCells, ReloadAppliesTheBudgetsAndNamesTheRest) {
 
 }  // namespace
 }  // namespace ig
+
+namespace ig {
+namespace {
+
+// [stats] max_mb and keep (rotation of the stats file) are validated like the other numbers:
+// NaN, negative and huge values are refused naming the key and the value; the defaults are
+// those config/igd.toml documents.
+TEST(ConfigErrors, StatsRotationKeysAreValidated) {
+  struct Case {
+    std::string text, key, value;
+  };
+  const Case cases[] = {
+      {"[stats]\nmax_mb = nan\n", "stats.max_mb", "nan"},
+      {"[stats]\nmax_mb = -1\n", "stats.max_mb", "-1"},
+      {"[stats]\nmax_mb = 1e300\n", "stats.max_mb", "1e300"},
+      {"[stats]\nmax_mb = inf\n", "stats.max_mb", "inf"},
+      {"[stats]\nkeep = -1\n", "stats.keep", "-1"},
+      {"[stats]\nkeep = 1001\n", "stats.keep", "1001"},
+      {"[stats]\nkeep = 99999999999999\n", "stats.keep", "99999999999999"},
+      {"[stats]\nkeep = 1.5\n", "stats.keep", "1.5"},
+  };
+  for (const Case& c : cases) {
+    const ConfigError e = serviceError(std::string(kMinimalService) + c.text);
+    EXPECT_EQ(e.key, c.key) << c.text << " -> " << e.what();
+    EXPECT_EQ(e.value, c.value) << c.text << " -> " << e.what();
+  }
+  ServiceConfig cfg;
+  ConfigError error;
+  ASSERT_TRUE(parseServiceConfig(std::string(kMinimalService) + "[stats]\nmax_mb = 0.5\nkeep = 0\n", "svc.toml", "/base",
+                                 cfg, error))
+      << error.what();
+  EXPECT_EQ(cfg.statsMax_mb, 0.5);
+  EXPECT_EQ(cfg.statsKeep, 0);
+  ASSERT_TRUE(parseServiceConfig(kMinimalService, "svc.toml", "/base", cfg, error)) << error.what();
+  EXPECT_EQ(cfg.statsMax_mb, 64.0);
+  EXPECT_EQ(cfg.statsKeep, 3);
+}
+
+}  // namespace
+}  // namespace ig

@@ -2,9 +2,11 @@
 // accounting, free-run. No real time passes in these tests. Also the summary and the JSON helpers.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <limits>
 #include <string>
 #include <vector>
@@ -13,6 +15,7 @@
 #include <unistd.h>
 
 #include "ig/clock.h"
+#include "ig/bench_terrain.h"
 #include "ig/frame_loop.h"
 #include "ig/json.h"
 #include "ig/stats.h"
@@ -322,4 +325,136 @@ TEST(Stats, PercentileIsNearestRank) {
   for (int i = 1; i <= 1000; ++i) thousand.push_back(i);
   EXPECT_EQ(percentile(thousand, 99), 990.0);
   EXPECT_EQ(percentile(thousand, 50), 500.0);
+}
+
+namespace {
+// A fresh temporary folder for one stats-rotation test.
+std::filesystem::path statsDir(const char* name) {
+  const auto d = std::filesystem::temp_directory_path() / (std::string("igd_rot_") + name + "_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(d);
+  std::filesystem::create_directories(d);
+  return d;
+}
+std::vector<std::string> fileLines(const std::filesystem::path& f) {
+  std::ifstream in(f);
+  std::vector<std::string> lines;
+  std::string line;
+  while (std::getline(in, line)) lines.push_back(line);
+  return lines;
+}
+FrameRecord frameAt(int64_t i) {
+  FrameRecord r;
+  r.timing.frame = i;
+  r.timing.start_ns = i * 33'333'333;
+  return r;
+}
+}  // namespace
+
+// [stats] max_mb, keep: the file is rotated at the size limit (after the line that reaches it),
+// every file starts with the header, no line is split, and only `keep` old files stay (the
+// oldest deleted). A CSV line is ~170 bytes, the header ~370: a 1000-byte limit holds a few lines.
+TEST(StatsRotation, RotatesAtTheSizeLimitKeepingKeepFiles) {
+  const auto dir = statsDir("size");
+  const std::string file = (dir / "s.csv").string();
+  StatsWriter w;
+  std::string error;
+  ASSERT_TRUE(w.open(file, StatsFormat::Csv, "", error, StatsRotation{1000, 2})) << error;
+  const int n = 60;
+  for (int i = 0; i < n; ++i) w.write(frameAt(i));
+  EXPECT_TRUE(w.close()) << w.error();
+  EXPECT_EQ(w.rotateError(), "");
+  EXPECT_TRUE(std::filesystem::exists(file + ".1"));
+  EXPECT_TRUE(std::filesystem::exists(file + ".2"));
+  EXPECT_FALSE(std::filesystem::exists(file + ".3"));  // keep = 2: the oldest were deleted
+  // Newest first: file, file.1, file.2 hold consecutive frames ending at n - 1; each file starts
+  // with the header and holds whole lines (31 fields), at most one line past the limit.
+  int64_t expected = n - 1;
+  for (const std::string& f : {file, file + ".1", file + ".2"}) {
+    const auto lines = fileLines(f);
+    ASSERT_GE(lines.size(), f == file ? 1u : 2u) << f;  // the current file may hold only its header
+    EXPECT_EQ(lines[0].rfind("frame,t_ms,", 0), 0u) << f;
+    EXPECT_LT(std::filesystem::file_size(f), 1000u + 400u) << f;
+    for (size_t k = lines.size() - 1; k >= 1; --k, --expected) {
+      EXPECT_EQ(std::count(lines[k].begin(), lines[k].end(), ','), 30) << f << ": " << lines[k];
+      EXPECT_EQ(std::stoll(lines[k]), expected) << f << ": " << lines[k];
+    }
+  }
+  EXPECT_GT(expected, 0);  // frame 0 was in a file that keep = 2 deleted
+  std::filesystem::remove_all(dir);
+}
+
+// A restart (open() again) moves the previous run's file to file.1 instead of truncating it;
+// JSON-lines files start with their "run" object after a rotation too.
+TEST(StatsRotation, StartUpMovesThePreviousRunsFile) {
+  const auto dir = statsDir("start");
+  const std::string file = (dir / "s.jsonl").string();
+  std::string error;
+  for (int run = 0; run < 3; ++run) {
+    StatsWriter w;
+    ASSERT_TRUE(w.open(file, StatsFormat::JsonLines, "\"run_no\":" + std::to_string(run), error, StatsRotation{0, 3}))
+        << error;
+    for (int i = 0; i < 3; ++i) w.write(frameAt(i));
+    EXPECT_TRUE(w.close());
+  }
+  EXPECT_EQ(fileLines(file).front(), "{\"run\":{\"run_no\":2}}");
+  EXPECT_EQ(fileLines(file + ".1").front(), "{\"run\":{\"run_no\":1}}");
+  EXPECT_EQ(fileLines(file + ".2").front(), "{\"run\":{\"run_no\":0}}");
+  EXPECT_EQ(fileLines(file + ".1").size(), 4u);
+  // keep = 0 (and the default): the old behaviour, truncated, no old files.
+  StatsWriter w;
+  ASSERT_TRUE(w.open(file, StatsFormat::JsonLines, "\"run_no\":9", error));
+  EXPECT_TRUE(w.close());
+  EXPECT_EQ(fileLines(file).size(), 1u);
+  EXPECT_EQ(fileLines(file + ".1").front(), "{\"run\":{\"run_no\":1}}");
+  std::filesystem::remove_all(dir);
+}
+
+// A rename that is refused (here: file.1 is a non-empty folder, which refuses as root too) is
+// reported once, naming the file; the writer goes on writing every line to the file it has, and
+// the lines still reach the file within 0.25 s of frame time.
+TEST(StatsRotation, ARefusedRenameIsReportedAndWritingGoesOn) {
+  const auto dir = statsDir("refused");
+  const std::string file = (dir / "s.csv").string();
+  std::filesystem::create_directories(file + ".1/x");
+  StatsWriter w;
+  std::string error;
+  ASSERT_TRUE(w.open(file, StatsFormat::Csv, "", error, StatsRotation{1000, 1})) << error;
+  for (int i = 0; i < 30; ++i) w.write(frameAt(i));
+  EXPECT_NE(w.rotateError().find(file), std::string::npos) << w.rotateError();
+  EXPECT_EQ(w.error(), "");
+  EXPECT_GE(fileLines(file).size(), 26u) << "the header and frames 0 ... 24 (flushed at 0.8 s)";
+  EXPECT_TRUE(w.close());
+  EXPECT_EQ(fileLines(file).size(), 31u);
+  EXPECT_TRUE(std::filesystem::is_directory(file + ".1"));
+  std::filesystem::remove_all(dir);
+}
+
+// The benchmarks' median is the nearest-rank p50 of the percentile helper: of an even count the
+// lower middle value (igbench hdlod --quick's 2 frames: the faster; its own median took the upper).
+TEST(Stats, MedianIsTheNearestRankP50) {
+  EXPECT_EQ(median({}), 0.0);
+  EXPECT_EQ(median({7.0}), 7.0);
+  EXPECT_EQ(median({9.0, 3.0}), 3.0);
+  EXPECT_EQ(median({4, 1, 3, 2}), 2.0);
+  EXPECT_EQ(median({5, 1, 4, 2, 3}), 3.0);
+  const std::vector<double> v{8, 6, 2, 4};
+  EXPECT_EQ(median(v), percentile(v, 50));
+}
+
+// igbench terrain's per-method percentiles cover the same frames: frame 0 (the start-up build,
+// startup_update_ms) is in none of them. triangles_p50 took frame 0 (a mesh built from the base
+// triangles, or under Deferred's visit budget a partial one) while update_ms left it out.
+TEST(Stats, TerrainFlightPercentilesLeaveOutTheStartUpFrame) {
+  TerrainFlightSamples s;
+  s.addUpdate(0, 50.0, 50.0, 10.0, 100.0, 7.0);  // the start-up: few triangles, much work left
+  s.addEmit(0, 5.0, 8.0);
+  s.addUpdate(1, 1.0, 1.0, 1000.0, 20.0, 0.0);  // the one steady frame of the flight
+  s.addEmit(1, 0.5, 800.0);
+  for (const auto* v : {&s.update_ms, &s.cpu_ms, &s.triangles, &s.visible, &s.emit_ms, &s.visits, &s.pending})
+    EXPECT_EQ(v->size(), 1u);
+  EXPECT_EQ(percentile(s.triangles, 50), 1000.0);
+  EXPECT_EQ(percentile(s.visible, 50), 800.0);
+  EXPECT_EQ(percentile(s.visits, 50), 20.0);
+  EXPECT_EQ(percentile(s.pending, 99), 0.0);
+  EXPECT_EQ(percentile(s.update_ms, 99), 1.0);
 }

@@ -760,3 +760,65 @@ TEST(ServiceGL, UnusedSubsystemsStartNoThreads) {
     std::filesystem::remove_all(dir);
   }
 }
+
+namespace {
+// A fake clock that makes the work of frame `spikeFrame` (counted from 1 by the sleeps) 100 ms
+// long, asks for a reload at its 3rd deadline and holds later deadlines until it is read.
+class SpikeAndReloadClock final : public Clock {
+ public:
+  SpikeAndReloadClock(ReloadSource& reload, std::atomic<bool>& loaded) : reload_(reload), loaded_(loaded) {}
+  int64_t now_ns() const override {
+    // The first call after the sleep is the frame's start; the next one is within its work.
+    if (calls_++ == 1 && sleeps_ == 2) offset_ += 100'000'000;
+    return clock_.now_ns() + offset_;
+  }
+  void sleepUntil_ns(int64_t deadline_ns) override {
+    clock_.sleepUntil_ns(deadline_ns - offset_);
+    ++sleeps_;
+    calls_ = 0;
+    if (sleeps_ == 3) reload_.requested = true;
+    if (sleeps_ > 3)
+      for (int i = 0; i < 5000 && !loaded_; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+
+ private:
+  FakeClock clock_;
+  ReloadSource& reload_;
+  std::atomic<bool>& loaded_;
+  int sleeps_ = 0;
+  mutable int calls_ = 0;
+  mutable int64_t offset_ = 0;
+};
+}  // namespace
+
+// The exit summary's percentiles cover the run's frames (up to SummaryCollector::kMaxCapacity),
+// also after a reload that raises frame.frames: sized by the start-up frames = 10, they covered
+// only the last 10 of the 40 frames, and frame 1's 100 ms spike was missing from p99 (which, at
+// 40 frames, nearest rank, is the maximum).
+TEST(ServiceGL, AReloadThatRaisesFramesKeepsTheSummaryOverEveryFrame) {
+  ServiceConfig cfg;
+  SceneConfig scene;
+  test::defaultConfigs(cfg, scene);
+  cfg.frames = 10;
+  cfg.rate_hz = 5;  // 200 ms slots: the spike is no overrun
+  cfg.statsFile = "";
+  std::string error;
+  auto service = Service::create(cfg, scene, error);
+  ASSERT_TRUE(service) << error;
+  std::atomic<bool> loaded{false}, stop{false};
+  ReloadSource reload;
+  reload.load = [&](ServiceConfig& c, SceneConfig& s, std::string&) {
+    c = cfg;
+    c.frames = 40;
+    s = scene;
+    loaded = true;
+    return true;
+  };
+  SpikeAndReloadClock clock(reload, loaded);
+  ASSERT_EQ(service->run(clock, stop, &reload), 0);
+  EXPECT_EQ(service->configGeneration(), 2);
+  const RunSummary s = service->summary();
+  EXPECT_EQ(s.frames, 40);
+  EXPECT_GE(s.workMs_max, 100.0);
+  EXPECT_EQ(s.workMs_p99, s.workMs_max) << "p99 over the last 10 frames only";
+}
