@@ -115,8 +115,10 @@ void ForgettingLeastSquares::update(const double* x, double y, double maxError) 
     for (int j = 0; j < n_; ++j) px[static_cast<size_t>(i)] += p_[at(i, j)] * x[j];
     r += x[i] * px[static_cast<size_t>(i)];
   }
+  // A sample so large that x'Px overflows (a glitched count of 1e200: finite, so not a bad
+  // measurement) would write NaN into P and theta for good: it is dropped.
+  if (!std::isfinite(r)) return;
   const double err = std::clamp(y - predict(x), -maxError, maxError);
-  for (int i = 0; i < n_; ++i) theta_[static_cast<size_t>(i)] += px[static_cast<size_t>(i)] / (1.0 + r) * err;
   // EFRA (exponential forgetting and resetting, Salgado, Goodwin & Middleton 1988):
   //   P' = P / lambda - P x x' P / (1 + x' P x) + beta I - delta2 P^2
   // keeps P between two bounds whatever the excitation: no wind-up while the load does not
@@ -129,6 +131,14 @@ void ForgettingLeastSquares::update(const double* x, double y, double maxError) 
       next[at(i, j)] = p_[at(i, j)] / lambda_ - px[static_cast<size_t>(i)] * px[static_cast<size_t>(j)] / (1.0 + r) +
                        (i == j ? beta_ : 0.0) - delta2_ * p2;
     }
+  std::array<double, kMax> theta = theta_;
+  for (int i = 0; i < n_; ++i) theta[static_cast<size_t>(i)] += px[static_cast<size_t>(i)] / (1.0 + r) * err;
+  for (int i = 0; i < n_; ++i) {
+    if (!std::isfinite(theta[static_cast<size_t>(i)])) return;
+    for (int j = 0; j < n_; ++j)
+      if (!std::isfinite(next[at(i, j)])) return;
+  }
+  theta_ = theta;
   for (int i = 0; i < n_; ++i)
     for (int j = 0; j < n_; ++j) p_[at(i, j)] = 0.5 * (next[at(i, j)] + next[at(j, i)]);
   ++samples_;
@@ -300,7 +310,11 @@ double Governor::deferrableBudget_ms(GovPhase p) const {
 WorkBudget Governor::workBudget(GovPhase p, int64_t phaseStart_ns, TimeSource source) const {
   const double ms = deferrableBudget_ms(p);
   if (!(ms > 0.0)) return {};
-  return WorkBudget(phaseStart_ns + static_cast<int64_t>(ms * 1e6), source);
+  // A budget past the end of the clock's range (validate() takes any finite frame_budget_ms) is no
+  // limit: converting it to int64_t was undefined (x86: INT64_MIN, a deadline long past).
+  const double ns = ms * 1e6;
+  if (!(ns < static_cast<double>(WorkBudget::kNever) - static_cast<double>(phaseStart_ns))) return {};
+  return WorkBudget(phaseStart_ns + static_cast<int64_t>(ns), source);
 }
 
 int Governor::features(GovPhase p, const std::array<double, kGovLayers>& load, double* x) const {

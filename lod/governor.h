@@ -202,7 +202,8 @@ class ForgettingLeastSquares {
   // n in [1, kMax]; initial covariance delta * I; lambda in (0, 1].
   ForgettingLeastSquares(int n, double lambda, double delta = 10.0);
   // x: n values; non-finite input is the caller's bug. The residual is clipped to
-  // +-maxError (robust against outliers: a preempted frame does not wreck the fit).
+  // +-maxError (robust against outliers: a preempted frame does not wreck the fit). A sample
+  // whose update overflows (a huge finite x, x'Px = inf) is dropped: the fit stays as it was.
   void update(const double* x, double y, double maxError = std::numeric_limits<double>::infinity());
   double predict(const double* x) const;
   double theta(int i) const { return theta_[static_cast<size_t>(i)]; }

@@ -246,8 +246,11 @@ uint32_t optimalQ(const OcclusionCoefficients& k, const OcclusionCosts& t, uint3
 }
 
 bool OcclusionFits::add(double q, double c, double s, double e) {
+  // No frame issues 1e12 tests, commands or primitives: a larger count is a glitch, whose square
+  // would dominate the sums for thousands of frames (or overflow them to inf for good).
+  constexpr double kMaxCount = 1e12;
   for (double v : {q, c, s, e})
-    if (!std::isfinite(v) || v < 0.0) return false;
+    if (!std::isfinite(v) || v < 0.0 || v > kMaxCount) return false;
   const double f = forget_;
   const double x = std::log1p(q), yc = c - q;
   n_ = n_ * f + 1.0;

@@ -9,7 +9,7 @@
 // Input policy: a count or time that is NaN, infinite or negative is clamped to 0 (a count
 // cannot be negative; an unknown statistic contributes nothing) and reported by the functions
 // that return a bool; one above 1e150 counts as 1e150 (so that the predicted times stay finite).
-// Fits reject such samples (add() returns false).
+// Fits reject such samples, and counts above 1e12 (add() returns false).
 #pragma once
 
 #include <array>
@@ -249,7 +249,8 @@ uint32_t optimalQ(const OcclusionCoefficients& k, const OcclusionCosts& t, uint3
 class OcclusionFits {
  public:
   explicit OcclusionFits(double forget = 0.98) : forget_(forget) {}
-  // False (sample ignored) if any value is NaN, infinite or negative.
+  // False (sample ignored) if any value is NaN, infinite, negative or above 1e12 (a glitch: no
+  // frame has that many; its square would swamp or overflow the sums).
   bool add(double q, double c, double s, double e);
   // False until the samples span at least three distinct q (the e fit has three unknowns)
   // and the normal equations are well conditioned.

@@ -767,6 +767,15 @@ bool measure(const CalibrationOptions& o, lod::PerfConstants& c, std::string& er
 
 }  // namespace
 
+double medianOfRuns(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  // Nearest rank: the lower middle of an even count (v[n / 2] took the upper one, the slower run
+  // of two: the very run a slow phase of the machine covered).
+  const auto k = static_cast<long>((v.size() - 1) / 2);
+  std::nth_element(v.begin(), v.begin() + k, v.end());
+  return v[static_cast<size_t>(k)];
+}
+
 bool calibrate(const std::string& cachePath, const CalibrationOptions& o, CalibrationResult& out, std::string& error,
                std::string* warning) {
   if (o.width_px <= 0 || o.height_px <= 0 || o.width_px > 16384 || o.height_px > 16384) {
@@ -795,8 +804,7 @@ bool calibrate(const std::string& cachePath, const CalibrationOptions& o, Calibr
   const auto median = [&](const auto& get) {
     std::vector<double> v;
     for (lod::PerfConstants& m : measured) v.push_back(get(m));
-    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
-    return v[v.size() / 2];
+    return medianOfRuns(std::move(v));
   };
   for (const Field& f : kFields) c.*f.member = median([&](lod::PerfConstants& m) -> double { return m.*f.member; });
   for (size_t i = 0; i < c.triByDraw_ns.size(); ++i)

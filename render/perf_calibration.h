@@ -39,6 +39,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "lod/perfmodel.h"
 
@@ -75,6 +76,11 @@ bool calibrate(const std::string& cachePath, const CalibrationOptions& options, 
 // calibration's), 0.4 m apart on a 4 x 4 x 4 lattice inside the leaf: one instanced call of
 // `perNode` boxes per leaf.
 void addCalibrationGrid(DynamicPass& pass, uint32_t nodes, int perNode);
+
+// The median of the runs' values of one constant (calibrate() with runs > 1): the nearest-rank
+// p50, the lower middle of an even count, as ig::percentile (ig/stats.h). Preemption only adds
+// time, so of two runs the faster is the undisturbed one. 0 for none.
+double medianOfRuns(std::vector<double> values);
 
 // The cache key of the current context for these options.
 std::string calibrationKey(const CalibrationOptions& options);

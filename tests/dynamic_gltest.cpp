@@ -647,3 +647,15 @@ TEST_F(DynamicGl, CalibrateUsesAMatchingCacheAndRewritesACorruptOne) {
 }
 
 }  // namespace
+
+// calibrate() with runs > 1 takes each constant's median over the runs. Of an even count it took
+// the upper middle, v[n / 2]: of two runs the slower (on a shared machine the one a slow phase
+// covered, which the median is there to leave out), unlike the nearest-rank p50 of the rest of
+// the project (ig::percentile: the lower middle).
+TEST(Calibration, TheMedianOfTheRunsIsTheNearestRankLowerMiddle) {
+  EXPECT_DOUBLE_EQ(render::medianOfRuns({2.0, 1.0}), 1.0);
+  EXPECT_DOUBLE_EQ(render::medianOfRuns({4.0, 1.0, 3.0, 2.0}), 2.0);
+  EXPECT_DOUBLE_EQ(render::medianOfRuns({3.0, 1.0, 2.0}), 2.0);
+  EXPECT_DOUBLE_EQ(render::medianOfRuns({7.0}), 7.0);
+  EXPECT_DOUBLE_EQ(render::medianOfRuns({}), 0.0);
+}

@@ -826,3 +826,63 @@ TEST(Governor, AStallOutsideThePhasesDoesNotKeepCuttingDetail) {
   EXPECT_GE(back, 0);
   EXPECT_LE(back, 300);  // as after a stall inside a phase (RecoversAfterASpike): within 10 s
 }
+
+// A glitched load counter (a huge but finite count, e.g. a "not measured" sentinel of DBL_MAX
+// or a wrapped counter read as 1e200) is not a NaN / infinite / negative measurement, so the
+// governor takes it. It must not break the models for good: the RLS update with x'Px = inf
+// wrote NaN into the covariance, every prediction after it was 0 (max(0, NaN)), and the governor
+// raised detail into overrun after overrun for the rest of the run.
+TEST(Governor, AHugeLoadCountDoesNotBreakTheModelForGood) {
+  Governor g(terrainConfig());
+  FakeWorld w;
+  for (int i = 0; i < 300; ++i) g.update(w.frame(g, 200e3));
+  GovSample s = w.frame(g, 200e3);
+  s.load[0] = 1e200;
+  g.update(s);
+  int64_t overrunsBefore = 0;
+  for (int i = 0; i < 600; ++i) {
+    if (i == 300) overrunsBefore = g.stats().overruns;
+    const GovDecision& d = g.update(w.frame(g, 200e3));
+    ASSERT_TRUE(std::isfinite(g.knob(GovLayer::Terrain))) << "frame " << i;
+    ASSERT_TRUE(std::isfinite(d.predicted_ms)) << "frame " << i;
+  }
+  for (int p : {0, 1, 4, 5})
+    for (int k = 0; k < g.model(static_cast<GovPhase>(p)).size(); ++k)
+      EXPECT_TRUE(std::isfinite(g.model(static_cast<GovPhase>(p)).theta(k))) << "phase " << p << " theta " << k;
+  // Steady load: after 300 frames to settle again, no overruns and a prediction near the frame.
+  EXPECT_EQ(g.stats().overruns - overrunsBefore, 0);
+  const GovSample last = w.frame(g, 200e3);
+  EXPECT_NEAR(g.predicted_ms(), last.frame_ms, 0.2 * last.frame_ms);
+}
+
+// ForgettingLeastSquares on its own: a sample whose x'Px overflows is dropped, the fit stays.
+TEST(ForgettingLeastSquares, AnOverflowingSampleLeavesTheFitFinite) {
+  ForgettingLeastSquares f(2, 0.97);
+  for (int i = 0; i < 200; ++i) {
+    const double x[2] = {1.0, static_cast<double>(i % 10)};
+    f.update(x, 2.0 + 3.0 * x[1]);
+  }
+  const double huge[2] = {1.0, 1e200};
+  f.update(huge, 5.0);
+  for (int i = 0; i < 50; ++i) {
+    const double x[2] = {1.0, static_cast<double>(i % 10)};
+    f.update(x, 2.0 + 3.0 * x[1]);
+  }
+  EXPECT_NEAR(f.theta(0), 2.0, 1e-3);
+  EXPECT_NEAR(f.theta(1), 3.0, 1e-3);
+}
+
+// validate() takes any finite frame budget; one of 1e14 ms (the budget of an offline run) made
+// the deferrable work's deadline 2e19 ns, beyond int64_t: the conversion was undefined and on
+// x86 gave INT64_MIN, a deadline long past, so deferrable work did nothing at all.
+TEST(Governor, AHugeFrameBudgetGivesNoDeadlineInThePast) {
+  GovernorConfig c = terrainConfig();
+  c.frameBudget_ms = 1e14;
+  ASSERT_EQ(Governor::validate(c), "");
+  Governor g(c);
+  const int64_t start = 1'000'000'000;
+  const WorkBudget b = g.workBudget(GovPhase::Terrain, start);
+  EXPECT_FALSE(b.expired(start));
+  EXPECT_GE(b.deadline_ns(), start);
+  EXPECT_GT(b.remaining_ms(start), 1e9);
+}

@@ -456,6 +456,28 @@ TEST(PerfModel, FitsRecoverKnownCoefficients) {
   EXPECT_FALSE(two.solve(k2));
 }
 
+// A glitched count (finite but absurd: 1e200 tests in a frame) must not poison the sums: q^2
+// overflowed to inf and, with forgetting, stayed inf, so solve() failed for the rest of the run.
+TEST(PerfModel, FitsRefuseAHugeCountAndKeepSolving) {
+  OcclusionFits fits(0.98);
+  const auto sample = [&](double q) {
+    const double l = std::log1p(q);
+    return fits.add(q, 5000 - 300 * l + q, 801 - 60 * l, 2e6 + 40 * q - 1.5e5 * l);
+  };
+  for (int rep = 0; rep < 5; ++rep)
+    for (double q : {0.0, 1.0, 3.0, 7.0, 15.0, 31.0, 63.0}) ASSERT_TRUE(sample(q));
+  OcclusionCoefficients before;
+  ASSERT_TRUE(fits.solve(before));
+  EXPECT_FALSE(fits.add(1e200, 1e200, 1.0, 1e200));
+  EXPECT_FALSE(fits.add(1e160, 10.0, 1.0, 10.0));
+  for (double q : {0.0, 1.0, 3.0, 7.0}) ASSERT_TRUE(sample(q));
+  OcclusionCoefficients k;
+  ASSERT_TRUE(fits.solve(k));
+  EXPECT_NEAR(k.e1, 1.5e5, 1.0);
+  EXPECT_NEAR(k.p, 40.0, 1e-3);
+  EXPECT_NEAR(k.cB, 300.0, 1e-3);
+}
+
 // ---- octree ----------------------------------------------------------------------------------
 
 Aabb cube(glm::dvec3 c, double h) { return {c - glm::dvec3(h), c + glm::dvec3(h)}; }
