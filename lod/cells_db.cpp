@@ -293,6 +293,7 @@ bool parseCellDbIndex(const CellDbHeader& header, std::span<const uint8_t> index
   if (crc != header.indexCrc32) return fail(error, "index crc 0x%08x != 0x%08x in the header", crc, header.indexCrc32);
   const uint32_t n = header.cellCount;
   const uint64_t d = header.voxelDepth;
+  if (d > 8) return fail(error, "voxel depth %llu: allowed range 0..8", static_cast<ull>(d));  // a header not from parseCellDbHeader
   std::vector<CellDesc> cells(n);
   std::vector<uint8_t> levels(n);
   entries.assign(n, CellDbEntry{});
@@ -308,6 +309,9 @@ bool parseCellDbIndex(const CellDbHeader& header, std::span<const uint8_t> index
     const uint64_t off = get64(e + 16);
     if (get16(e + 6) != 0 || get32(e + 28) != 0) return fail(error, "index entry %u: reserved bytes not 0", i);
     if (c.voxels == 0) return fail(error, "index entry %u: V = 0 (every cell holds at least one voxel)", i);
+    if (uint64_t{c.voxels} > uint64_t{1} << (3 * d))
+      return fail(error, "index entry %u: V = %u: more than the 8^%llu voxels of a depth-%llu octree image", i, c.voxels,
+                  static_cast<ull>(d), static_cast<ull>(d));
     const uint64_t minS = kCellDbPayloadHeaderBytes + 3 * uint64_t{c.voxels} + d;
     const uint64_t maxS = kCellDbPayloadHeaderBytes + 3 * uint64_t{c.voxels} + (d == 0 ? 0 : 1 + (d - 1) * c.voxels);
     if (c.bytes < minS || c.bytes > maxS)
@@ -361,6 +365,8 @@ bool decodeCell(const CellTree& tree, uint32_t cell, std::span<const uint8_t> pa
     return fail(error, "cell %u: payload of %zu bytes: shorter than a header and one voxel", cell, payload.size());
   const uint8_t* p = payload.data();
   const int q = tree.level(cell), d = tree.info().cellVoxelDepth;
+  // The format's limit (a CellTree allows deeper images): one mask level per depth, 24-bit local codes.
+  if (d < 0 || d > 8) return fail(error, "cell %u: voxel depth %d: the cell database holds depths 0..8", cell, d);
   const glm::uvec3 xyz = tree.coord(cell);
   if (get32(p) != cell) return fail(error, "cell %u: payload header names cell %u", cell, get32(p));
   if (p[4] != q || p[5] != d)

@@ -280,7 +280,7 @@ bool voxelize(const VoxelMesh& mesh, const VoxelizeConfig& config, VoxelPyramid&
     lo = i == 0 ? p : glm::min(lo, p);
     hi = i == 0 ? p : glm::max(hi, p);
   }
-  if (config.boxEdge_m > 0.0) {
+  if (config.boxEdge_m > 0.0 || std::isnan(config.boxEdge_m)) {  // NaN: no box, not "fit one"
     if (!std::isfinite(config.boxEdge_m) || !std::isfinite(config.boxMin_m.x) || !std::isfinite(config.boxMin_m.y) ||
         !std::isfinite(config.boxMin_m.z)) {
       error = "voxelize: the box is not finite";

@@ -323,6 +323,64 @@ TEST(CellsDb, DecodeChecksStructure) {
   }
 }
 
+// An octree image of depth d holds at most 8^d voxels, so an index entry (with a valid index crc)
+// claiming more is corrupt: open() must refuse it, naming the entry and V, instead of accepting a
+// tree whose V the selector budgets with and whose payload can never decode.
+TEST(CellsDb, IndexEntryClaimingMoreVoxelsThan8PowDepthIsRefused) {
+  Written w;
+  writeScene(w, "toomany");  // d = 2: at most 64 voxels a cell
+  const auto good = readAll(w.path);
+  CellDbHeader h;
+  std::string err;
+  ASSERT_TRUE(parseCellDbHeader(good, h, err)) << err;
+  ASSERT_EQ(h.voxelDepth, 2u);
+  std::vector<uint8_t> index(good.begin() + static_cast<std::ptrdiff_t>(h.indexOffset),
+                             good.begin() + static_cast<std::ptrdiff_t>(h.indexOffset + h.indexBytes));
+  // The last cell is a leaf of the last level: more voxels keep the tree monotone.
+  uint8_t* e = index.data() + (h.cellCount - 1) * kCellDbEntryBytes;
+  const uint32_t oldS = le32(e + 12);
+  const uint32_t V = 65, S = 16 + 3 * V + 2;  // the smallest S the index allows for V = 65, d = 2
+  putLe32(e + 8, V);
+  putLe32(e + 12, S);
+  h.fileBytes = h.fileBytes - oldS + S;
+  h.payloadBytes = h.fileBytes - h.dataOffset;
+  h.indexCrc32 = cellDbCrc32(index);
+  CellTree t;
+  std::vector<CellDbEntry> entries;
+  EXPECT_FALSE(parseCellDbIndex(h, index, t, entries, err));
+  EXPECT_NE(err.find("index entry " + std::to_string(h.cellCount - 1) + ": V = 65"), std::string::npos) << err;
+  // 8^d itself is fine (d = 0: exactly one voxel).
+  putLe32(e + 8, 64);
+  putLe32(e + 12, 16 + 3 * 64 + 2);
+  h.fileBytes = h.fileBytes - S + (16 + 3 * 64 + 2);
+  h.payloadBytes = h.fileBytes - h.dataOffset;
+  h.indexCrc32 = cellDbCrc32(index);
+  EXPECT_TRUE(parseCellDbIndex(h, index, t, entries, err)) << err;
+}
+
+// decodeCell takes any CellTree (whose depth may be 0..20), but the payload format holds at most
+// 8 levels (a cell's local Morton code is 24 bits, one mask level per depth): a tree of a larger
+// depth must be refused, not decoded past the end of the per-depth arrays.
+TEST(CellsDb, DecodeRefusesATreeDeeperThanTheFormat) {
+  const int d = 10;
+  CellTreeInfo info;
+  info.cellVoxelDepth = d;
+  const uint32_t S = 16 + d + 3;
+  const CellDesc root{kNoCell, 0, 1, S};
+  CellTree t;
+  std::string err;
+  ASSERT_TRUE(t.build(info, std::span<const CellDesc>(&root, 1), err)) << err;
+  std::vector<uint8_t> p(S, 0);
+  p[5] = static_cast<uint8_t>(d);
+  putLe32(p.data() + 12, 1);
+  for (int k = 0; k < d; ++k) p[16 + static_cast<size_t>(k)] = 0x01;  // one octant 0 child per depth
+  p[S - 3] = 10;
+  std::vector<CellPoint> out;
+  EXPECT_FALSE(decodeCell(t, 0, p, out, err));
+  EXPECT_NE(err.find("depth 10"), std::string::npos) << err;
+  EXPECT_TRUE(out.empty());
+}
+
 TEST(CellsDb, HeaderParserRefusesShortInput) {
   std::vector<uint8_t> b(127, 0);
   CellDbHeader h;

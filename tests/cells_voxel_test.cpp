@@ -362,6 +362,22 @@ TEST(CellsVoxel, DegenerateAndEmptyInput) {
   EXPECT_NE(err.find("empty"), std::string::npos) << err;
 }
 
+// An explicit box edge that is NaN is neither "<= 0: fit a box" nor a valid edge: refused as
+// not finite (like an infinite one), never silently replaced by a fitted box.
+TEST(CellsVoxel, NanBoxEdgeIsRefused) {
+  VoxelPyramid p;
+  std::string err;
+  VoxelMesh m;
+  appendQuad(m, {0.1, 0.1, 0.5}, {0.9, 0.1, 0.5}, {0.9, 0.9, 0.5}, {0.1, 0.9, 0.5}, 0xFFFFFFFFu);
+  VoxelizeConfig c = unitBox(4);
+  c.boxEdge_m = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_FALSE(voxelize(m, c, p, err));
+  EXPECT_NE(err.find("the box is not finite"), std::string::npos) << err;
+  c.boxEdge_m = std::numeric_limits<double>::infinity();
+  EXPECT_FALSE(voxelize(m, c, p, err));
+  EXPECT_NE(err.find("the box is not finite"), std::string::npos) << err;
+}
+
 TEST(CellsVoxel, RejectsBadInputNamingTheValue) {
   VoxelPyramid p;
   std::string err;
