@@ -43,6 +43,11 @@ tris = [s["triangles"] for s in d["sweep"]]
 assert tris == sorted(tris, reverse=True), tris  # coarser tolerance, fewer triangles
 for s in d["sweep"]:
     assert s["render_ms"] > 0 and s["rmse"] >= 0 and s["psnr_db"] > 0, s
+# The reference view looks at relief (the flight starts over the DEM's most rugged block): the
+# sweep shows what accuracy costs. Over the sea where the old fixed start looked, 8 px drew the
+# same picture as 0.5 px (RMSE 0.07 against 0.04).
+rmse = [s["rmse"] for s in d["sweep"]]
+assert rmse[-1] >= 1.0 and rmse[-1] > 1.5 * rmse[0], rmse
 assert 0 < d["roam_triangles_at_equal_error"] < d["block_triangles_at_equal_error"], d
 print("terrain_bench_test: 1 passed, 0 failed")
 PY
