@@ -27,9 +27,9 @@
 // movingBound()). No allocation, no clock; recursion depth = tree depth. A box found inside a
 // frustum plane is not tested against it again below (plane masking: same outcome, fewer tests).
 //
-// Bad input: a non-finite camera, time or tolerance, a field of view outside (0, 180) degrees, a
-// non-positive aspect, or not 0 < near < far selects nothing and sets stats.rejected. A negative
-// r is treated as 0.
+// Bad input: a non-finite camera or time, a NaN tolerance, a field of view outside (0, 180)
+// degrees, a non-positive aspect, or not 0 < near < far selects nothing and sets stats.rejected.
+// A negative r is treated as 0; r = +inf accepts any error (the coarsest clusters present).
 #pragma once
 
 #include <cstddef>

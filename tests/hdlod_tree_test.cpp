@@ -409,6 +409,13 @@ TEST(HdlodSelect, BadInputSelectsNothing) {
   EXPECT_EQ(selectHdlod(tree, s, good, std::span<Draw>(out.draws.data(), 1), out.moving, &st), 1u);
   EXPECT_TRUE(st.overflow);
   EXPECT_EQ(st.draws, 2u);
+  // r = +inf accepts any error: not rejected, and no more draws than a finite tolerance.
+  v = good;
+  v.tolerance_rad = std::numeric_limits<double>::infinity();
+  const size_t coarsest = selectHdlod(tree, s, v, out, &st);
+  EXPECT_FALSE(st.rejected);
+  EXPECT_GE(coarsest, 1u);
+  EXPECT_LE(coarsest, selectHdlod(tree, s, good, out, &st));
 }
 
 TEST(HdlodSite, CountsClassesAndBadParameters) {
