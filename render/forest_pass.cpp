@@ -273,6 +273,24 @@ struct Locations {
 };
 
 // The 3D tree models and their program: used by the pass and by the texture baker.
+// The cull state and depth mask as a draw found them, put back when it ends (the pass's
+// contract, render/forest_pass.h): the draws switch culling off for two-sided cards and depth
+// writes off for blended ones, and re-enabled both unconditionally.
+struct CullAndDepthMaskRestore {
+  GLboolean cull = GL_TRUE, depthMask = GL_TRUE;
+  CullAndDepthMaskRestore() {
+    gl.GetBooleanv(GL_CULL_FACE, &cull);
+    gl.GetBooleanv(GL_DEPTH_WRITEMASK, &depthMask);
+  }
+  ~CullAndDepthMaskRestore() {
+    if (cull) gl.Enable(GL_CULL_FACE);
+    else gl.Disable(GL_CULL_FACE);
+    gl.DepthMask(depthMask);
+  }
+  CullAndDepthMaskRestore(const CullAndDepthMaskRestore&) = delete;
+  CullAndDepthMaskRestore& operator=(const CullAndDepthMaskRestore&) = delete;
+};
+
 struct TreeDrawer {
   GlProgram program;
   GlBuffer vertices, indices, instances;
@@ -866,13 +884,16 @@ void ForestPass::drawTrees(Renderer& r, std::span<const lod::ForestInstance> ins
   Impl& m = *impl_;
   if (instances.empty()) return;
   m.trees.loc.set(m.trees.program.id(), viewProjection(r.camera()), r.lighting(), m.desc.farFade);
-  gl.Disable(GL_CULL_FACE);  // leaf cards are single-sided in the models
-  gl.Enable(GL_BLEND);
-  gl.BlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
   ForestDrawStats st;
-  m.trees.draw(instances, models, st);
-  gl.Disable(GL_BLEND);
-  gl.Enable(GL_CULL_FACE);
+  {
+    const CullAndDepthMaskRestore restore;
+    gl.Disable(GL_CULL_FACE);  // leaf cards are single-sided in the models
+    gl.DepthMask(GL_TRUE);     // the opaque trees write depth
+    gl.Enable(GL_BLEND);
+    gl.BlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
+    m.trees.draw(instances, models, st);
+    gl.Disable(GL_BLEND);
+  }
   m.stats.trees += st.trees;
   m.stats.triangles += st.triangles;
   m.stats.drawCalls += st.drawCalls;
@@ -930,6 +951,7 @@ void ForestPass::drawLayers(Renderer& r, const glm::dvec3& origin, std::span<con
   gl.BindTextureUnit(1, m.grTex.id());
   gl.UseProgram(p);
   gl.BindVertexArray(m.layerVao.id());
+  const CullAndDepthMaskRestore restore;
   gl.Enable(GL_BLEND);
   gl.BlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
   gl.DepthMask(GL_FALSE);
@@ -945,8 +967,6 @@ void ForestPass::drawLayers(Renderer& r, const glm::dvec3& origin, std::span<con
       gl.MultiDrawArrays(GL_TRIANGLES, m.layerFirsts.data(), m.layerCounts.data(), static_cast<GLsizei>(m.layerFirsts.size()));
     }
   }
-  gl.Enable(GL_CULL_FACE);
-  gl.DepthMask(GL_TRUE);
   gl.Disable(GL_BLEND);
   gl.BindVertexArray(0);
   const uint64_t tris = static_cast<uint64_t>(count / 3) * static_cast<uint64_t>(n);
@@ -988,14 +1008,15 @@ void ForestPass::drawFins(Renderer& r, std::span<const uint32_t> groups) {
   gl.BindTextureUnit(1, m.grTex.id());
   gl.UseProgram(p);
   gl.BindVertexArray(m.finVao.id());
-  gl.Enable(GL_BLEND);
-  gl.BlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
-  gl.DepthMask(GL_FALSE);
-  gl.Disable(GL_CULL_FACE);  // two-sided
-  gl.MultiDrawArrays(GL_TRIANGLES, m.firsts.data(), m.counts.data(), k);
-  gl.Enable(GL_CULL_FACE);
-  gl.DepthMask(GL_TRUE);
-  gl.Disable(GL_BLEND);
+  {
+    const CullAndDepthMaskRestore restore;
+    gl.Enable(GL_BLEND);
+    gl.BlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
+    gl.DepthMask(GL_FALSE);
+    gl.Disable(GL_CULL_FACE);  // two-sided
+    gl.MultiDrawArrays(GL_TRIANGLES, m.firsts.data(), m.counts.data(), k);
+    gl.Disable(GL_BLEND);
+  }
   gl.BindVertexArray(0);
   m.stats.fins += fins;
   m.stats.triangles += fins * 2;

@@ -23,7 +23,8 @@
 // Order: opaque trees (alpha 1, depth written), the fading trees (alpha < 1, blended, depth
 // tested only: a tree fading out must not hide the layers fading in behind it), then layers,
 // then fins (blended, depth tested only).
-// The pass leaves the FBO, viewport, depth test and cull state as it found them.
+// The pass leaves the FBO, viewport, depth test, depth mask and cull state as it found them
+// (blending off).
 #pragma once
 
 #include <cstdint>

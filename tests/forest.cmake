@@ -4,7 +4,7 @@
 ig_add_test(forest_placement_test forest_placement_test.cpp LIBS ig_lod)
 ig_add_test(forest_kdtree_test forest_kdtree_test.cpp LIBS ig_lod)
 ig_add_test(forest_fins_test forest_fins_test.cpp LIBS ig_lod)
-ig_add_test(forest_gltest forest_gltest.cpp LIBS ig_core ig_render GL)
+ig_add_test(forest_gltest forest_gltest.cpp LIBS ig_core ig_render PkgConfig::EGL GL)
 ig_add_test(forest_service_gltest forest_service_gltest.cpp LIBS ig_core PkgConfig::EGL GL)
 # The real tree models (Scopia pine and cypress, Debian's sweethome3d-furniture), fetched at test
 # time like the DEM (tests/CMakeLists.txt's fetch_data); the benchmark falls back to procedural

@@ -13,6 +13,9 @@
 
 #include <unistd.h>
 
+#include <EGL/egl.h>
+#include <GL/glcorearb.h>
+
 #include "ig/forest_layer.h"
 #include "ig/forest_tool.h"
 #include "lod/heightfield.h"
@@ -484,6 +487,65 @@ TEST(ForestGL, DrawFinsDrawsEachGivenGroupOnce) {
   const std::vector<uint32_t> first(groups.size() + 8, 0u);
   EXPECT_EQ(finsDrawn(first), groups[0].count);
   EXPECT_EQ(finsDrawn(once), all);  // nothing left marked from the calls before
+  EXPECT_EQ(w.renderer.errors(), "");
+}
+
+// The pass leaves the cull state and depth mask as it found them (render/forest_pass.h): a
+// caller that draws with culling off or depth writes off keeps them off. Each draw switched
+// both on at its end, whatever they were before.
+TEST(ForestGL, DrawsLeaveCullStateAndDepthMaskAsFound) {
+  World w;
+  ASSERT_NO_FATAL_FAILURE(w.setUp());
+  std::string error;
+  auto forest = ForestLayer::create(w.config(), w.ground(), error);
+  ASSERT_TRUE(forest) << error;
+  using Cap = void (*)(GLenum);
+  using IsEnabled = GLboolean (*)(GLenum);
+  using Mask = void (*)(GLboolean);
+  using GetBool = void (*)(GLenum, GLboolean*);
+  const auto enable = reinterpret_cast<Cap>(eglGetProcAddress("glEnable"));
+  const auto disable = reinterpret_cast<Cap>(eglGetProcAddress("glDisable"));
+  const auto isEnabled = reinterpret_cast<IsEnabled>(eglGetProcAddress("glIsEnabled"));
+  const auto depthMask = reinterpret_cast<Mask>(eglGetProcAddress("glDepthMask"));
+  const auto getBool = reinterpret_cast<GetBool>(eglGetProcAddress("glGetBooleanv"));
+  ASSERT_TRUE(enable && disable && isEnabled && depthMask && getBool);
+  lod::Camera cam = downCamera(120.0);
+  cam.eye_m = {700.3125, -300.4375, 120.0};  // south of the forest, looking north over it: trees, layers
+  cam.pitch_deg = -8.0;
+  forest->select(cam);
+  ASSERT_FALSE(forest->selectedTrees().empty());
+  std::vector<uint32_t> groups(forest->fins().groups.size());
+  for (size_t i = 0; i < groups.size(); ++i) groups[i] = static_cast<uint32_t>(i);
+  ASSERT_FALSE(groups.empty());
+  render::ForestPass& pass = forest->pass();
+  for (const bool cull : {false, true})
+    for (const bool mask : {false, true}) {
+      w.renderer.beginFrame(cam, w.lighting);
+      w.renderer.drawTerrainMesh(w.origin, w.vertexCount);
+      const auto set = [&] {
+        if (cull) enable(GL_CULL_FACE);
+        else disable(GL_CULL_FACE);
+        depthMask(mask ? GL_TRUE : GL_FALSE);
+      };
+      const auto check = [&](const char* what) {
+        GLboolean m = GL_FALSE;
+        getBool(GL_DEPTH_WRITEMASK, &m);
+        EXPECT_EQ(isEnabled(GL_CULL_FACE) == GL_TRUE, cull) << what << ": cull state changed (was " << cull << ")";
+        EXPECT_EQ(m == GL_TRUE, mask) << what << ": depth mask changed (was " << mask << ")";
+      };
+      set();
+      pass.drawTrees(w.renderer, forest->selectedTrees(), forest->selectedModels());
+      check("drawTrees");
+      set();
+      pass.drawLayers(w.renderer, w.origin, w.vertexCount, forest->layerCount());
+      check("drawLayers");
+      set();
+      pass.drawFins(w.renderer, groups);
+      check("drawFins");
+      enable(GL_CULL_FACE);
+      depthMask(GL_TRUE);
+      w.renderer.endFrame();
+    }
   EXPECT_EQ(w.renderer.errors(), "");
 }
 
