@@ -505,7 +505,8 @@ struct Service::Impl {
   MonotonicClock startClock;                 // stamps host samples until run() hands over its clock
   std::unique_ptr<HostInput> hostInput;      // live link and recorder; only for link sources
   std::optional<lod::EnuFrame> enu;
-  render::Lighting lighting;
+  render::Lighting lighting;       // the scene's sun and fog at full daylight
+  render::Lighting fixedLighting;  // the same dimmed for the scene's fixed sun (daylight())
   SummaryCollector summary{1};
   int64_t overruns = 0, missed = 0;
   int64_t loopStart_ns = 0;
@@ -624,6 +625,18 @@ struct Service::Impl {
     lighting.fogVisibility_m = scene.fog.visibility_m;
     lighting.fogColor = {scene.fog.color[0], scene.fog.color[1], scene.fog.color[2]};
     if (!scene.fog.enabled) lighting.fogColor = {0.52, 0.68, 0.88};  // clear sky
+    fixedLighting = daylight(lighting, scene.sun.elevation_deg);
+  }
+
+  // `full` (daylight) dimmed for a sun at `elevation_deg`: night dims sun, ambient light and sky
+  // together (lod::sunlightFraction), whether the sun is the scene's or the host's time of day.
+  static render::Lighting daylight(const render::Lighting& full, double elevation_deg) {
+    const double day = lod::sunlightFraction(elevation_deg);
+    render::Lighting l = full;
+    l.sunColor = full.sunColor * day;
+    l.ambient = full.ambient * (0.15 + 0.85 * day);
+    l.fogColor = full.fogColor * (0.08 + 0.92 * day);
+    return l;
   }
 
   lod::Camera cameraFor(const io::HostState& h) const {
@@ -698,16 +711,12 @@ struct Service::Impl {
   // The scene's fixed sun, or the sun for the host's date and time of day at the eyepoint
   // (no date: the March equinox). Night dims sun, ambient light and sky together.
   render::Lighting lightingFor(const io::HostState& h) const {
-    if (h.timeOfDay_h < 0.0) return lighting;
+    if (h.timeOfDay_h < 0.0) return fixedLighting;
     const lod::Geodetic g = enu->toGeodetic(h.eyeEnu_m);
     const lod::SunPosition sun = lod::sunPosition(h.dateYmd != 0 ? h.dateYmd : 20260320, h.timeOfDay_h, g.lat_deg, g.lon_deg);
     const double az = sun.azimuth_deg * kDeg, el = sun.elevation_deg * kDeg;
-    const double day = lod::sunlightFraction(sun.elevation_deg);
-    render::Lighting l = lighting;
+    render::Lighting l = daylight(lighting, sun.elevation_deg);
     l.sunDirection = {std::sin(az) * std::cos(el), std::cos(az) * std::cos(el), std::sin(el)};
-    l.sunColor = lighting.sunColor * day;
-    l.ambient = lighting.ambient * (0.15 + 0.85 * day);
-    l.fogColor = lighting.fogColor * (0.08 + 0.92 * day);
     return l;
   }
 

@@ -18,12 +18,16 @@ const char* kTerrainVs = R"(#version 450 core
 layout(location = 0) in vec3 aPosition;   // metres, relative to the chunk origin
 layout(location = 1) in vec3 aNormal;
 uniform mat4 uViewProjection;             // projection * world->camera rotation (no translation)
-uniform vec3 uChunkOffset;                // chunk origin - eye, computed in double on the CPU
+uniform vec3 uChunkOffset;                // chunk origin - eye, computed in double on the CPU, as float
+uniform vec3 uChunkOffsetLow;             // the part of it the float left out (origin - eye - uChunkOffset)
 out vec3 vEyeToPoint;
 out vec3 vNormal;
 out vec3 vLocal;
 void main() {
-  vec3 rel = aPosition + uChunkOffset;
+  // Near the eye aPosition and uChunkOffset nearly cancel, so their sum is exact, and the low part
+  // adds back what rounding the offset to float lost: a mesh whose vertices lie 100 km from its
+  // origin (a DEM tile) is placed to the same fraction of a millimetre as one at its origin.
+  precise vec3 rel = (aPosition + uChunkOffset) + uChunkOffsetLow;
   vEyeToPoint = rel;
   vNormal = aNormal;
   vLocal = aPosition;
@@ -36,7 +40,7 @@ void main() {
 const char* kTerrainFs = R"(#version 450 core
 in vec3 vEyeToPoint;
 in vec3 vNormal;
-in vec3 vLocal;                          // chunk-relative position: precise at any world offset
+in vec3 vLocal;                          // position relative to the chunk (or mesh) origin
 uniform vec3 uSunDirection;
 uniform vec3 uSunColor;
 uniform float uAmbient;
@@ -45,7 +49,7 @@ uniform float uFogDensity;               // per metre; 0 = no fog
 uniform float uHeightScale;
 uniform float uHeightBase;               // height (relative to the origin) at the bottom of the relief
 out vec4 fragColor;
-uniform vec2 uDetailPhase;               // chunk origin mod 1024 m (computed in double)
+uniform vec2 uDetailPhase;               // eye position mod 1024 m (computed in double)
 float hash(vec2 p) { return fract(sin(dot(p, vec2(127.1, 311.7))) * 43758.5453); }
 // Value noise with integer period `period` (cells), so the pattern tiles the world every
 // 1024 m and stays seamless across chunk borders.
@@ -65,7 +69,9 @@ void main() {
   // draws: llvmpipe runs both sides of a branch, and the noise is a third of a frame.
   float dist = length(vEyeToPoint);
 #if TERRAIN_DETAIL >= 1
-  vec2 q = vLocal.xy + uDetailPhase;
+  // World position mod 1024 m from the eye-relative one: precise where the noise shows (within
+  // 400 m of the eye) however far the point lies from its chunk or mesh origin.
+  vec2 q = vEyeToPoint.xy + uDetailPhase;
   float detail = (noise(q * 0.5, 512.0) - 0.5) * (1.0 - smoothstep(60.0, 400.0, dist));
 #if TERRAIN_DETAIL >= 2
   detail = (noise(q * 4.0, 4096.0) - 0.5) * (1.0 - smoothstep(5.0, 40.0, dist)) + detail;
@@ -143,6 +149,7 @@ class TerrainPass {
       const GLuint p = g.program.id();
       g.uViewProjection = gl.GetUniformLocation(p, "uViewProjection");
       g.uChunkOffset = gl.GetUniformLocation(p, "uChunkOffset");
+      g.uChunkOffsetLow = gl.GetUniformLocation(p, "uChunkOffsetLow");
       g.uSunDirection = gl.GetUniformLocation(p, "uSunDirection");
       g.uSunColor = gl.GetUniformLocation(p, "uSunColor");
       g.uAmbient = gl.GetUniformLocation(p, "uAmbient");
@@ -346,22 +353,29 @@ class TerrainPass {
     gl.ProgramUniform1f(p, g.uFogDensity, lighting.fog ? static_cast<float>(3.912 / lighting.fogVisibility_m) : 0.0f);
     gl.ProgramUniform1f(p, g.uHeightScale, heightScale_);
     gl.ProgramUniform1f(p, g.uHeightBase, heightBase_);
+    const glm::vec2 phase(std::fmod(std::fmod(camera.eye_m.x, 1024.0) + 1024.0, 1024.0),
+                          std::fmod(std::fmod(camera.eye_m.y, 1024.0) + 1024.0, 1024.0));
+    gl.ProgramUniform2fv(p, g.uDetailPhase, 1, glm::value_ptr(phase));
     gl.UseProgram(p);
     return p;
   }
 
-  // Camera-relative placement: origin - eye in double, then float (the program begin() bound).
+  // Camera-relative placement: origin - eye in double, sent as a float and the float of what
+  // that float left out (the program begin() bound). The float part is d rounded to 24
+  // significant bits in double (Veltkamp's split), so it converts to float exactly: GCC 12 at -O3
+  // folds the obvious d - double(float(d)) of a vector to 0.
   void setOrigin(GLuint p, const glm::dvec3& origin_m, const lod::Camera& camera) const {
-    const glm::vec3 offset(origin_m - camera.eye_m);
+    const glm::dvec3 d = origin_m - camera.eye_m;
+    const glm::dvec3 c = d * 536870913.0;  // 2^29 + 1: keeps 53 - 29 = 24 bits
+    const glm::dvec3 high = c - (c - d);
+    const glm::vec3 offset(high), low(d - high);
     gl.ProgramUniform3fv(p, current_->uChunkOffset, 1, glm::value_ptr(offset));
-    const glm::vec2 phase(std::fmod(std::fmod(origin_m.x, 1024.0) + 1024.0, 1024.0),
-                          std::fmod(std::fmod(origin_m.y, 1024.0) + 1024.0, 1024.0));
-    gl.ProgramUniform2fv(p, current_->uDetailPhase, 1, glm::value_ptr(phase));
+    gl.ProgramUniform3fv(p, current_->uChunkOffsetLow, 1, glm::value_ptr(low));
   }
 
   struct Program {
     GlProgram program;
-    GLint uViewProjection = -1, uChunkOffset = -1, uSunDirection = -1, uSunColor = -1, uAmbient = -1, uFogColor = -1,
+    GLint uViewProjection = -1, uChunkOffset = -1, uChunkOffsetLow = -1, uSunDirection = -1, uSunColor = -1, uAmbient = -1, uFogColor = -1,
           uFogDensity = -1, uHeightScale = -1, uHeightBase = -1, uDetailPhase = -1;
   };
 

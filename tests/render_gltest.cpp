@@ -11,6 +11,7 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -598,4 +599,111 @@ TEST(ImageError, PsnrOfANearlyIdenticalImageIsNotAboveThatOfAnIdenticalOne) {
   EXPECT_GT(render::rmse(a, b), 0.0);
   EXPECT_LE(render::psnrDb(a, b), render::psnrDb(a, a));
   EXPECT_LE(render::psnrDb(a, b), 99.0);
+}
+
+
+namespace {
+// A height-field patch as a triangle list (two triangles a quad), its vertices moved by `shift`
+// (a whole number of post spacings, exact in float at the sizes used).
+std::vector<lod::TerrainVertex> patchTriangles(const std::vector<float>& heights, int posts, double spacing_m,
+                                               glm::dvec2 shift) {
+  std::vector<lod::TerrainVertex> out;
+  const auto v = [&](int x, int y) {
+    lod::TerrainVertex t = lod::heightFieldVertex(heights, posts, posts, spacing_m, x, y);
+    t.position[0] = static_cast<float>(static_cast<double>(t.position[0]) + shift.x);
+    t.position[1] = static_cast<float>(static_cast<double>(t.position[1]) + shift.y);
+    return t;
+  };
+  for (int y = 0; y + 1 < posts; ++y)
+    for (int x = 0; x + 1 < posts; ++x) {
+      out.push_back(v(x, y)), out.push_back(v(x + 1, y)), out.push_back(v(x + 1, y + 1));
+      out.push_back(v(x, y)), out.push_back(v(x + 1, y + 1)), out.push_back(v(x, y + 1));
+    }
+  return out;
+}
+}  // namespace
+
+// A terrain mesh (ROAM, block LOD) keeps one origin, the DEM's south-west post, so its vertices
+// lie up to a tile's size from it (111 km for an SRTM tile). The eye-to-origin offset was sent as
+// one float (a 7.8 mm step at 120 km): the whole terrain moved in those steps as the eye moved,
+// about 1 px at this zoom (10 degree field of view, 1.5 m above the ground), and the ground
+// detail was computed from float positions of 1e5 m. The same ground drawn from an origin beside
+// it must give the same picture, with and without the detail terms.
+TEST(RenderGL, ATerrainMeshFarFromItsOriginIsPlacedAsNearIt) {
+  constexpr int kW = 160, kH = 120, kPosts = 33;
+  constexpr double kSpacing = 2.0;
+  std::string error;
+  auto ctx = render::createContext(render::ContextKind::Headless, kW, kH, error);
+  ASSERT_TRUE(ctx) << error;
+  render::Renderer renderer;
+  ASSERT_TRUE(renderer.init(kW, kH, error)) << error;
+  lod::HeightfieldDesc hd;
+  hd.postsX = hd.postsY = kPosts;
+  hd.postSpacing_m = kSpacing;
+  hd.heightScale_m = 6.0;
+  std::vector<float> heights(static_cast<size_t>(kPosts) * kPosts);
+  lod::generateHeightfield(hd, heights);
+  ASSERT_TRUE(renderer.addTerrainMesh(static_cast<size_t>(kPosts - 1) * (kPosts - 1) * 6, 6.0, error)) << error;
+  const glm::dvec2 base(120000.0, 120000.0);  // the patch's south-west corner, 170 km from the far origin
+  const auto nearOrigin = patchTriangles(heights, kPosts, kSpacing, {0.0, 0.0});
+  const auto farOrigin = patchTriangles(heights, kPosts, kSpacing, base);
+  // Looking north across the patch's north edge (ground against sky), from an eyepoint 0.45 of a
+  // float step (1/128 m at 120 km) off the float grid in x and y.
+  lod::Camera cam;
+  const double edgeZ = static_cast<double>(heights[static_cast<size_t>(kPosts - 1) * kPosts + 16]);
+  cam.eye_m = {base.x + 32.0 + 0.45 / 128.0, base.y + 7962.45 / 128.0, edgeZ + 1.5};
+  cam.pitch_deg = -40.0;
+  cam.fovY_deg = 10.0;
+  cam.aspect = static_cast<double>(kW) / kH;
+  cam.near_m = 0.1;
+  cam.far_m = 5000.0;
+  const render::Lighting light;
+  auto frame = [&](const glm::dvec3& origin, const std::vector<lod::TerrainVertex>& v, double nearest_m) {
+    renderer.beginFrame(cam, light);
+    std::copy(v.begin(), v.end(), renderer.terrainMeshVertices().begin());
+    renderer.drawTerrainMesh(origin, v.size(), nearest_m);
+    renderer.endFrame();
+    renderer.finish();
+    render::Image img;
+    renderer.readPixels(img);
+    return img;
+  };
+  for (double nearest_m : {0.0, 1e9}) {  // with both detail terms, and without
+    const render::Image a = frame({base.x, base.y, 0.0}, nearOrigin, nearest_m);
+    const render::Image b = frame(glm::dvec3(0.0), farOrigin, nearest_m);
+    EXPECT_LT(render::rmse(a, b), 0.1) << "nearest " << nearest_m << " m";
+    EXPECT_LT(render::fractionDifferent(a, b, 2), 0.0005) << "nearest " << nearest_m << " m";
+    // Not vacuous: the view shows ground and sky.
+    EXPECT_GT(render::rmse(a, flatImage(kW, kH, a.rgba[0], a.rgba[1], a.rgba[2])), 10.0);
+  }
+  EXPECT_EQ(renderer.errors(), "");
+}
+
+// The scene's fixed sun ([sun] elevation_deg, -90 ..= 90) below the horizon: night, as the same
+// sun placed by the host's time of day gives (sun, ambient light and sky dimmed by
+// lod::sunlightFraction). It lit the terrain and sky as at noon, and slopes facing a sun 5
+// degrees below the horizon got direct light.
+TEST(RenderGL, AFixedSunBelowTheHorizonIsNight) {
+  auto render = [](double elevation_deg, std::array<double, 3> color) {
+    ServiceConfig cfg;
+    SceneConfig scene;
+    test::defaultConfigs(cfg, scene);
+    scene.sun.elevation_deg = elevation_deg;
+    scene.sun.color = color;
+    std::string error;
+    auto service = Service::create(cfg, scene, error);
+    EXPECT_TRUE(service) << error;
+    render::Image image;
+    if (service) service->renderOnce(test::defaultHostAt(kGoldenTime_s), &image);
+    return image;
+  };
+  const render::Image night = render(-5.0, {1.0, 0.96, 0.88}), sunless = render(-5.0, {0.0, 0.0, 0.0});
+  ASSERT_EQ(night.width, 320);
+  EXPECT_EQ(render::rmse(night, sunless), 0.0) << "a sun 5 degrees below the horizon lights nothing directly";
+  // The sky (top-left pixel): the fog colour (0.70, 0.78, 0.86) at 8 % for night, not at full.
+  EXPECT_LT(night.rgba[0], 30);
+  EXPECT_LT(night.rgba[2], 30);
+  // A sun high up is unchanged: full daylight sky.
+  const render::Image day = render(35.0, {1.0, 0.96, 0.88});
+  EXPECT_GT(day.rgba[0], 150);
 }
