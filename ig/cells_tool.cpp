@@ -26,12 +26,14 @@ constexpr double kPi = 3.14159265358979323846;
 
 
 // The model as a voxel mesh: turned to z up, scaled, centred on the origin, light clay colour.
-lod::VoxelMesh meshFromModel(const lod::hdlod::Model& model, bool yUp, double size_m) {
+// `origin`: where the model's coordinates are relative to (lod::hdlod::loadModelFile's local
+// origin, so that a scan in absolute coordinates is centred in double, not rounded to float).
+lod::VoxelMesh meshFromModel(const lod::hdlod::Model& model, const glm::dvec3& origin, bool yUp, double size_m) {
   lod::VoxelMesh m;
   m.positions_m.reserve(model.positions.size());
   glm::dvec3 lo(0.0), hi(0.0);
   for (size_t i = 0; i < model.positions.size(); ++i) {
-    const glm::dvec3 p(model.positions[i]);
+    const glm::dvec3 p = origin + glm::dvec3(model.positions[i]);
     const glm::dvec3 q = yUp ? glm::dvec3(p.x, -p.z, p.y) : p;
     m.positions_m.push_back(q);
     lo = i == 0 ? q : glm::min(lo, q);
@@ -151,18 +153,28 @@ bool cellsBuildMesh(const CellsBuildOptions& o, lod::VoxelMesh& mesh, std::strin
     mesh = cellsSphereScene(static_cast<int>(n), o.seed);
     source = o.scene;
   } else {
-    const auto model = lod::hdlod::loadModelFile(o.input, error);
+    glm::dvec3 origin(0.0);
+    const auto model = lod::hdlod::loadModelFile(o.input, error, &origin);
     if (!model) return false;
     if (model->indices.empty()) {
       error = formatted("%s: no triangles", o.input.c_str());
       return false;
     }
-    mesh = meshFromModel(*model, o.yUp, o.size_m);
+    mesh = meshFromModel(*model, origin, o.yUp, o.size_m);
     constexpr uint64_t kMaxTriangles = 50000000;  // ~4 GB of vertices and voxelizer work
     const uint64_t total = uint64_t(mesh.indices.size() / 3) * static_cast<uint64_t>(std::max(o.copies, 1));
     if (total > kMaxTriangles) {
       error = formatted("--copies %d: %llu triangles in all, more than %llu", o.copies,
                         static_cast<unsigned long long>(total), static_cast<unsigned long long>(kMaxTriangles));
+      return false;
+    }
+    // The vertices are copied too, the unused ones included (a scan with few faces): bounded as
+    // three per triangle, which also keeps every copy's indices within 32 bits.
+    constexpr uint64_t kMaxVertices = 3 * kMaxTriangles;
+    const uint64_t vertices = uint64_t{mesh.positions_m.size()} * static_cast<uint64_t>(std::max(o.copies, 1));
+    if (vertices > kMaxVertices) {
+      error = formatted("--copies %d: %llu vertices in all, more than %llu", o.copies,
+                        static_cast<unsigned long long>(vertices), static_cast<unsigned long long>(kMaxVertices));
       return false;
     }
     if (o.copies > 0) mesh = scatter(mesh, o.copies, o.seed);

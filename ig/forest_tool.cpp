@@ -335,25 +335,43 @@ std::vector<lod::TreeMesh> proceduralTrees() {
           lod::makeProceduralTree(lod::ProceduralTree::Cypress, 14.0, 8)};
 }
 
+double forestTextureTile_m(const ForestTexturesOptions& o) {
+  return o.tile_m > 0.0 ? o.tile_m : std::max(24.0, 4.0 * o.spacing_m);
+}
+
 int runForestTextures(const ForestTexturesOptions& o) {
-  if (o.layers < 1 || o.layers > 32 || o.size_px < 8 || o.size_px > 2048 || !(o.tile_m > 0.0) || !(o.spacing_m > 0.0) ||
+  const double tile_m = forestTextureTile_m(o);
+  if (o.layers < 1 || o.layers > 32 || o.size_px < 8 || o.size_px > 2048 || !(tile_m > 0.0) || !std::isfinite(tile_m) ||
+      !(o.spacing_m > 0.0) || !std::isfinite(o.spacing_m) ||
       o.triangles < 8 || o.bakeTriangles < o.triangles) {
     std::fprintf(stderr,
                  "igtool forest-textures: layers = %d, size = %d, tile = %g m, spacing = %g m, triangles = %d, bake "
                  "triangles = %d: need layers 1..32, size 8..2048, tile and spacing > 0, triangles >= 8 and <= bake "
                  "triangles\n",
-                 o.layers, o.size_px, o.tile_m, o.spacing_m, o.triangles, o.bakeTriangles);
+                 o.layers, o.size_px, tile_m, o.spacing_m, o.triangles, o.bakeTriangles);
     return 2;
   }
   // The trees planted in one tile: each is drawn into every layer, and more trees than a layer
   // has pixels add nothing (the count also has to fit an int).
   constexpr double kMaxTreesPerTile = 65536.0;
-  const double trees = o.tile_m * o.tile_m / (o.spacing_m * o.spacing_m);
+  const double trees = tile_m * tile_m / (o.spacing_m * o.spacing_m);
   if (!(trees <= kMaxTreesPerTile)) {
     std::fprintf(stderr,
                  "igtool forest-textures: --tile %g m with --spacing %g m plants %.3g trees in a tile: at most %.0f "
                  "(raise --spacing or lower --tile)\n",
-                 o.tile_m, o.spacing_m, trees, kMaxTreesPerTile);
+                 tile_m, o.spacing_m, trees, kMaxTreesPerTile);
+    return 2;
+  }
+  // A whole number of trees: the layers stand for treesPerTile / tile^2 trees per square metre,
+  // which must be the forest's 1 / spacing^2 (a tile of less than one slot still got one tree).
+  const int treesPerTile = std::max(1, static_cast<int>(std::lround(trees)));
+  const double density = static_cast<double>(treesPerTile) / trees;
+  if (std::abs(density - 1.0) > 0.1) {
+    std::fprintf(stderr,
+                 "igtool forest-textures: --tile %g m with --spacing %g m holds %.3g trees, planted as %d: the layers "
+                 "would stand for a forest %.2f times as dense as the one planted (use --tile %g or more, or leave "
+                 "--tile out)\n",
+                 tile_m, o.spacing_m, trees, treesPerTile, density, 4.0 * o.spacing_m);
     return 2;
   }
   std::string error;
@@ -379,8 +397,8 @@ int runForestTextures(const ForestTexturesOptions& o) {
   render::ForestTextureDesc td;
   td.layers = o.layers;
   td.size_px = o.size_px;
-  td.tile_m = o.tile_m;
-  td.treesPerTile = std::max(1, static_cast<int>(std::lround(o.tile_m * o.tile_m / (o.spacing_m * o.spacing_m))));
+  td.tile_m = tile_m;
+  td.treesPerTile = treesPerTile;
   render::ForestTextures tex;
   if (!render::renderForestTextures(bake, td, tex, error) || !writeForestAssets(o.out, nearLod, tex, error)) {
     std::fprintf(stderr, "igtool forest-textures: %s\n", error.c_str());

@@ -61,14 +61,21 @@ struct ForestTexturesOptions {
   std::string out = "data/forest";
   int layers = 8;
   int size_px = 256;
-  double tile_m = 24.0;
+  double tile_m = 0.0;          // forest tile side; 0: the larger of 24 m and 4 spacing_m (>= 16 trees)
   double spacing_m = 6.0;       // forest placement slot: the tile gets tile^2 / spacing^2 trees
   int triangles = 300;          // near LOD per model
   int bakeTriangles = 20000;    // LOD the textures are rendered from
   bool procedural = false;      // use the procedural models (no download needed)
 };
 
-// igtool forest-textures: 0 on success, 1 on failure (message on stderr), 2 bad options.
+// The tile side forest-textures bakes on: tile_m, or when that is 0 the larger of 24 m and
+// 4 spacing_m (as igd's start-up textures), so that the tile holds at least 16 trees.
+double forestTextureTile_m(const ForestTexturesOptions& options);
+
+// igtool forest-textures: 0 on success, 1 on failure (message on stderr), 2 bad options. The
+// tile is planted with round(tile^2 / spacing^2) trees (at least one); a tile whose count
+// misstates the density 1 / spacing^2 by more than 10 % (a 24 m tile at 40 m spacing planted
+// one tree: layers 2.8x too dense) is refused, naming --tile and --spacing.
 int runForestTextures(const ForestTexturesOptions& options);
 
 }  // namespace ig

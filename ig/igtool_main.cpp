@@ -167,7 +167,7 @@ int main(int argc, char** argv) {
                  "readable PNG or the two sizes differ.");
   compare->add_option("a", imgA, "First PNG")->required();
   compare->add_option("b", imgB, "Second PNG")->required();
-  compare->add_option("--max-rmse", maxRmse, "Largest RMSE that passes")->capture_default_str();
+  compare->add_option("--max-rmse", maxRmse, "Largest RMSE that passes")->capture_default_str()->check(CLI::NonNegativeNumber);
 
   std::vector<std::string> checkFiles;
   CLI::App* check = app.add_subcommand(
@@ -236,7 +236,10 @@ int main(int argc, char** argv) {
   forestTex->add_option("--out", ftOptions.out, "Assets folder to write")->capture_default_str();
   forestTex->add_option("--layers", ftOptions.layers, "Shell layers in T")->capture_default_str()->check(CLI::Range(1, 32));
   forestTex->add_option("--size", ftOptions.size_px, "Texture size per layer in pixels")->capture_default_str()->check(CLI::Range(8, 2048));
-  forestTex->add_option("--tile", ftOptions.tile_m, "Forest tile side in metres")->capture_default_str()->check(CLI::PositiveNumber);
+  forestTex->add_option("--tile", ftOptions.tile_m,
+                         "Forest tile side in metres (default: the larger of 24 and 4 x --spacing, at least 16 trees);\n"
+                         "refused when tile^2 / spacing^2 rounds to a tree count 10 % off the density")
+      ->check(CLI::PositiveNumber);
   forestTex->add_option("--spacing", ftOptions.spacing_m, "Placement slot; the tile gets tile^2 / spacing^2 trees")
       ->capture_default_str()->check(CLI::PositiveNumber);
   forestTex->add_option("--triangles", ftOptions.triangles, "Near LOD triangles per model")->capture_default_str()->check(CLI::Range(8, 10000000));

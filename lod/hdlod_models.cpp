@@ -90,15 +90,21 @@ class PlyBody {
  public:
   PlyBody(const std::string& data, size_t at, int format) : data_(data), at_(at), format_(format) {}
   bool read(PlyType t, double& out) {
+    bad_.clear();
     if (format_ == 0) {
       while (at_ < data_.size() && std::isspace(static_cast<unsigned char>(data_[at_]))) ++at_;
       if (at_ >= data_.size()) return false;
       const char* begin = data_.c_str() + at_;
       char* end = nullptr;
       out = std::strtod(begin, &end);
-      if (end == begin) return false;
+      if (end == begin || !std::isfinite(out)) {
+        size_t e = at_;
+        while (e < data_.size() && e - at_ < 32 && !std::isspace(static_cast<unsigned char>(data_[e]))) ++e;
+        bad_ = data_.substr(at_, e - at_);
+        return false;
+      }
       at_ += static_cast<size_t>(end - begin);
-      return std::isfinite(out);
+      return true;
     }
     const size_t n = plySize(t);
     if (at_ + n > data_.size()) return false;
@@ -116,14 +122,19 @@ class PlyBody {
       case PlyType::F32: { float v; std::memcpy(&v, b, 4); out = static_cast<double>(v); break; }
       case PlyType::F64: { double v; std::memcpy(&v, b, 8); out = v; break; }
     }
-    return std::isfinite(out);
+    if (std::isfinite(out)) return true;
+    bad_ = std::isnan(out) ? "nan" : out > 0 ? "inf" : "-inf";
+    return false;
   }
   size_t remaining() const { return data_.size() - at_; }
+  // Why the last read() failed: "truncated" at the end of the data, else the value as written.
+  std::string why() const { return bad_.empty() ? std::string("truncated") : "not a finite number: '" + bad_ + "'"; }
 
  private:
   const std::string& data_;
   size_t at_;
   int format_;  // 0 ascii, 1 binary little endian, 2 binary big endian
+  std::string bad_;
 };
 
 // ---------------------------------------------------------------- glTF
@@ -199,7 +210,8 @@ bool skipImages(tinygltf::Image*, const int, std::string*, std::string*, int, in
 
 }  // namespace
 
-std::optional<Model> loadPly(const std::string& path, std::string& error) {
+std::optional<Model> loadPly(const std::string& path, std::string& error, glm::dvec3* localOrigin) {
+  if (localOrigin) *localOrigin = glm::dvec3(0.0);
   std::ifstream in(path, std::ios::binary);
   if (!in) {
     error = path + ": cannot open";
@@ -296,7 +308,7 @@ std::optional<Model> loadPly(const std::string& path, std::string& error) {
         if (!p.list) {
           double v = 0;
           if (!body.read(p.type, v)) {
-            error = path + ": element " + e.name + " " + std::to_string(i) + ": property " + p.name + ": truncated or not a number";
+            error = path + ": element " + e.name + " " + std::to_string(i) + ": property " + p.name + ": " + body.why();
             return std::nullopt;
           }
           if (static_cast<int>(k) == xi) xyz[0] = v;
@@ -305,8 +317,14 @@ std::optional<Model> loadPly(const std::string& path, std::string& error) {
           continue;
         }
         double n = 0;
-        if (!body.read(p.countType, n) || n < 0 || n > 1e6) {
-          error = path + ": element " + e.name + " " + std::to_string(i) + ": bad list length";
+        if (!body.read(p.countType, n)) {
+          error = path + ": element " + e.name + " " + std::to_string(i) + ": list length: " + body.why();
+          return std::nullopt;
+        }
+        if (n < 0 || n > 1e6 || n != std::floor(n)) {
+          char written[32];
+          std::snprintf(written, sizeof written, "%.15g", n);
+          error = path + ": element " + e.name + " " + std::to_string(i) + ": bad list length " + written + " (0 .. 1000000)";
           return std::nullopt;
         }
         const bool indices = isFace && (p.name == "vertex_indices" || p.name == "vertex_index");
@@ -314,7 +332,7 @@ std::optional<Model> loadPly(const std::string& path, std::string& error) {
         for (int j = 0; j < static_cast<int>(n); ++j) {
           double v = 0;
           if (!body.read(p.type, v)) {
-            error = path + ": element " + e.name + " " + std::to_string(i) + ": list truncated";
+            error = path + ": element " + e.name + " " + std::to_string(i) + ": list item " + std::to_string(j) + ": " + body.why();
             return std::nullopt;
           }
           if (!indices) continue;
@@ -330,6 +348,9 @@ std::optional<Model> loadPly(const std::string& path, std::string& error) {
         for (size_t j = 2; j < face.size(); ++j) m.indices.insert(m.indices.end(), {face[0], face[j - 1], face[j]});
       }
       if (isVertex) {
+        if (localOrigin && m.positions.empty()) *localOrigin = glm::dvec3(xyz[0], xyz[1], xyz[2]);
+        if (localOrigin)
+          for (int c = 0; c < 3; ++c) xyz[c] -= (*localOrigin)[c];
         if (!finiteAsFloat(xyz[0]) || !finiteAsFloat(xyz[1]) || !finiteAsFloat(xyz[2])) {
           error = path + ": vertex " + std::to_string(i) + ": coordinate out of the float range";
           return std::nullopt;
@@ -341,7 +362,8 @@ std::optional<Model> loadPly(const std::string& path, std::string& error) {
   return finish(std::move(m));
 }
 
-std::optional<Model> loadGltf(const std::string& path, std::string& error) {
+std::optional<Model> loadGltf(const std::string& path, std::string& error, glm::dvec3* localOrigin) {
+  if (localOrigin) *localOrigin = glm::dvec3(0.0);
   tinygltf::TinyGLTF loader;
   loader.SetImageLoader(&skipImages, nullptr);
   tinygltf::Model g;
@@ -422,7 +444,9 @@ std::optional<Model> loadGltf(const std::string& path, std::string& error) {
       for (size_t i = 0; i < pcount; ++i) {
         float p[3];
         std::memcpy(p, pdata + i * pstride, sizeof p);
-        const glm::dvec4 w = world * glm::dvec4(p[0], p[1], p[2], 1.0);
+        glm::dvec4 w = world * glm::dvec4(p[0], p[1], p[2], 1.0);
+        if (localOrigin && m.positions.empty()) *localOrigin = glm::dvec3(w);
+        if (localOrigin) w -= glm::dvec4(*localOrigin, 0.0);
         if (!finiteAsFloat(w.x) || !finiteAsFloat(w.y) || !finiteAsFloat(w.z)) {
           error = path + ": vertex " + std::to_string(i) + " not finite";
           return std::nullopt;
@@ -482,7 +506,8 @@ std::optional<Model> loadGltf(const std::string& path, std::string& error) {
   return finish(std::move(m));
 }
 
-std::optional<Model> loadIfc(const std::string& path, std::string& error) {
+std::optional<Model> loadIfc(const std::string& path, std::string& error, glm::dvec3* localOrigin) {
+  if (localOrigin) *localOrigin = glm::dvec3(0.0);
   {
     // assimp picks its importer by content when the extension does not match, so an OBJ named
     // .ifc would load as OBJ: check the STEP magic first.
@@ -523,7 +548,10 @@ std::optional<Model> loadIfc(const std::string& path, std::string& error) {
         error = path + ": mesh " + std::to_string(i) + ": vertex " + std::to_string(v) + " not finite";
         return std::nullopt;
       }
-      m.positions.emplace_back(p.x, -p.z, p.y);
+      const glm::dvec3 q(static_cast<double>(p.x), -static_cast<double>(p.z), static_cast<double>(p.y));
+      if (localOrigin && m.positions.empty()) *localOrigin = q;
+      const glm::dvec3 r = localOrigin ? q - *localOrigin : q;
+      m.positions.emplace_back(static_cast<float>(r.x), static_cast<float>(r.y), static_cast<float>(r.z));
     }
     for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
       const aiFace& face = mesh->mFaces[f];
@@ -544,11 +572,12 @@ std::optional<Model> loadIfc(const std::string& path, std::string& error) {
   return finish(std::move(m));
 }
 
-std::optional<Model> loadModelFile(const std::string& path, std::string& error) {
-  if (endsWith(path, ".obj")) return loadObj(path, error);
-  if (endsWith(path, ".ply")) return loadPly(path, error);
-  if (endsWith(path, ".gltf") || endsWith(path, ".glb")) return loadGltf(path, error);
-  if (endsWith(path, ".ifc")) return loadIfc(path, error);
+std::optional<Model> loadModelFile(const std::string& path, std::string& error, glm::dvec3* localOrigin) {
+  if (localOrigin) *localOrigin = glm::dvec3(0.0);
+  if (endsWith(path, ".obj")) return loadObj(path, error, localOrigin);
+  if (endsWith(path, ".ply")) return loadPly(path, error, localOrigin);
+  if (endsWith(path, ".gltf") || endsWith(path, ".glb")) return loadGltf(path, error, localOrigin);
+  if (endsWith(path, ".ifc")) return loadIfc(path, error, localOrigin);
   error = path + ": unknown model format (.obj, .ply, .gltf, .glb, .ifc)";
   return std::nullopt;
 }

@@ -220,7 +220,8 @@ Model makeBoxModel(const std::string& name, const glm::dvec3& size_m) {
   return m;
 }
 
-std::optional<Model> loadObj(const std::string& path, std::string& error) {
+std::optional<Model> loadObj(const std::string& path, std::string& error, glm::dvec3* localOrigin) {
+  if (localOrigin) *localOrigin = glm::dvec3(0.0);
   std::ifstream in(path);
   if (!in) {
     error = path + ": cannot open";
@@ -241,9 +242,11 @@ std::optional<Model> loadObj(const std::string& path, std::string& error) {
         error = where + "bad vertex: " + line;
         return std::nullopt;
       }
+      if (localOrigin && m.positions.empty()) *localOrigin = glm::dvec3(x, y, z);
+      if (localOrigin) x -= localOrigin->x, y -= localOrigin->y, z -= localOrigin->z;
       // Stored as float: 1e39 would become infinity.
       constexpr double kFloatMax = static_cast<double>(std::numeric_limits<float>::max());
-      if (std::abs(x) > kFloatMax || std::abs(y) > kFloatMax || std::abs(z) > kFloatMax) {
+      if (!(std::abs(x) <= kFloatMax) || !(std::abs(y) <= kFloatMax) || !(std::abs(z) <= kFloatMax)) {
         error = where + "vertex coordinate out of the float range: " + line;
         return std::nullopt;
       }

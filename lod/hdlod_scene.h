@@ -101,26 +101,32 @@ std::optional<Scene> parseSchedule(const std::string& text, const std::string& n
 // the schedule (`modelDir` relative to the schedule's folder; the folder must exist), then the
 // objects. Names must be non-empty without blanks, '#' or '/'. False + error naming the file.
 bool saveSchedule(const Scene& scene, const std::string& path, const std::string& modelDir, std::string& error);
+// Every loader below reads coordinates in double and stores them as float. With `localOrigin`
+// the loader sets *localOrigin to the file's first vertex (0 without vertices) and stores each
+// vertex relative to it (file coordinate = *localOrigin + position), so a mesh in absolute
+// coordinates (UTM northings ~6e6 m, ECEF ~6.4e6 m, where a float's step is 0.5 m) keeps its
+// detail; without it the coordinates are stored as they are. (IFC: assimp hands over floats.)
+//
 // A minimal Wavefront OBJ reader: `v x y z` and `f a b c ...` (polygons fanned, negative
 // indices, `a/b/c` forms); everything else ignored. Error: "file:line: what: value".
-std::optional<Model> loadObj(const std::string& path, std::string& error);
+std::optional<Model> loadObj(const std::string& path, std::string& error, glm::dvec3* localOrigin = nullptr);
 
 // A PLY reader (lod/hdlod_models.cpp): ascii, binary_little_endian and binary_big_endian;
 // `vertex` x y z of any scalar type, `face` vertex_indices (or vertex_index) lists, polygons
 // fanned; other elements and properties skipped. Error: "file[:line]: what: value".
-std::optional<Model> loadPly(const std::string& path, std::string& error);
+std::optional<Model> loadPly(const std::string& path, std::string& error, glm::dvec3* localOrigin = nullptr);
 // glTF 2.0 through Debian's libtinygltf (.gltf with external or data-URI buffers, .glb): the
 // triangle, strip and fan primitives of every node of the default scene, with the node
 // transforms, converted from glTF's y up to z up ((x, y, z) -> (x, -z, y)); textures ignored.
-std::optional<Model> loadGltf(const std::string& path, std::string& error);
+std::optional<Model> loadGltf(const std::string& path, std::string& error, glm::dvec3* localOrigin = nullptr);
 // IFC (Industry Foundation Classes, STEP text starting 'ISO-10303-21;') through Debian's libassimp:
 // every triangle of the building's geometry with the placements applied, in metres (assimp
 // converts the file's length unit), z up as in the file; lines and points dropped. Errors
 // name the file ("not an IFC (STEP) file", "cannot load IFC: <assimp's reason>", "IFC file
 // without triangles").
-std::optional<Model> loadIfc(const std::string& path, std::string& error);
+std::optional<Model> loadIfc(const std::string& path, std::string& error, glm::dvec3* localOrigin = nullptr);
 // By extension: .obj, .ply, .gltf, .glb, .ifc (case-insensitive).
-std::optional<Model> loadModelFile(const std::string& path, std::string& error);
+std::optional<Model> loadModelFile(const std::string& path, std::string& error, glm::dvec3* localOrigin = nullptr);
 
 // An axis-aligned box model (12 triangles), centred on x and y, standing on z = 0.
 Model makeBoxModel(const std::string& name, const glm::dvec3& size_m);

@@ -60,6 +60,16 @@ bool readPng(const std::string& file, Image& image, std::string& error) {
     error = file + ": cannot read PNG: " + png.message;
     return false;
   }
+  // The header's size is allocated (zero-filled) before a row is decoded: a 60-byte file saying
+  // 32768 x 16384 cost 2 GiB (std::bad_alloc under a memory limit). 2^28 pixels (1 GiB of RGBA)
+  // is far above any image igd reads or writes.
+  constexpr uint64_t kMaxPixels = uint64_t{1} << 28;
+  if (uint64_t{png.width} * uint64_t{png.height} > kMaxPixels) {
+    error = file + ": PNG of " + std::to_string(png.width) + "x" + std::to_string(png.height) + " pixels, more than " +
+            std::to_string(kMaxPixels) + " in all";
+    png_image_free(&png);
+    return false;
+  }
   png.format = PNG_FORMAT_RGBA;
   Image out;
   out.width = static_cast<int>(png.width);

@@ -15,6 +15,7 @@ struct Image {
 };
 
 bool writePng(const std::string& file, const Image& image, std::string& error);
+// Refuses (error naming the file and size) an image of more than 2^28 pixels before allocating.
 bool readPng(const std::string& file, Image& image, std::string& error);
 // Root-mean-square difference over R, G, B of all pixels, in 8-bit levels (0..255).
 // Returns a negative value if the sizes differ.

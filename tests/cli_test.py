@@ -322,6 +322,25 @@ class ConfigErrors(Tmp):
         self.assertMentions(p, "--spacing 0.001", "1e+12 trees")
         self.assertFalse(os.path.exists(os.path.join(self.tmp, "ft")))
 
+    def test_forest_textures_tile_holds_the_spacing(self):
+        # At --spacing 40 the default 24 m tile planted one tree (lround(0.36) -> max(1, 0)): the
+        # layers stood for a forest 2.8x as dense as the one planted. The default tile now follows
+        # the spacing (>= 4 x spacing, as igd's start-up textures); an explicit tile whose whole
+        # tree count misstates the density is refused, naming both values.
+        out = os.path.join(self.tmp, "ft")
+        p = run([IGTOOL, "forest-textures", "--procedural", "--out", out, "--spacing", "40", "--size", "16",
+                 "--layers", "2"], timeout=RUN, cwd=self.tmp)
+        self.assertExit(p, 0)
+        meta = dict(line.split(None, 1) for line in open(os.path.join(out, "forest_textures.txt")) if line.strip())
+        self.assertGreaterEqual(float(meta["tile_m"]), 160.0, meta)
+        for tile, spacing in (("24", "40"), ("24", "30")):
+            with self.subTest(tile=tile, spacing=spacing):
+                p = run([IGTOOL, "forest-textures", "--procedural", "--out", os.path.join(self.tmp, "ft2"),
+                         "--tile", tile, "--spacing", spacing], cwd=self.tmp)
+                self.assertExit(p, 2)
+                self.assertMentions(p, f"--tile {tile}", f"--spacing {spacing}")
+        self.assertFalse(os.path.exists(os.path.join(self.tmp, "ft2")))
+
     def test_igbench_cells_short_path(self):
         # With 3 ... 7 frames the cells bench's budget sweep timed no frame and dereferenced an
         # empty vector (SIGSEGV). The smallest path --help allows must run.
@@ -947,6 +966,79 @@ class Outputs(Tmp):
 # h, i. igbench and igtool
 # ------------------------------------------------------------------------------------------------
 class Tools(Tmp):
+    def test_json_output_with_a_latin1_file_name_parses(self):
+        # File names are bytes: a Latin-1 name went into the --json output raw (byte 0xe9), which
+        # is not UTF-8, so the JSON did not parse. Such bytes are written as U+FFFD.
+        name = os.path.join(os.fsencode(self.tmp), b"t\xe9.obj")
+        with open(name, "wb") as f:
+            f.write(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+        p = subprocess.run([os.fsencode(IGTOOL), b"cells-build", name, b"--cell-levels", b"2", b"--depth", b"1",
+                            b"-o", os.path.join(os.fsencode(self.tmp), b"t.ighc"), b"--json"],
+                           stdin=subprocess.DEVNULL, capture_output=True, timeout=QUICK, cwd=self.tmp)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        obj = json.loads(p.stdout.decode("utf-8"))
+        self.assertTrue(obj["input"].endswith("t\ufffd.obj"), obj["input"])
+
+    def test_cells_build_copies_bounds_the_vertices(self):
+        # --copies bounded the triangles (50 M) but not the vertices: a mesh of 20,000 vertices
+        # and one triangle times 100,000 copies reserved 2e9 vertices (std::bad_alloc, abort; the
+        # 32-bit index base wrapped beyond 4.3e9). It is a named error (exit 2).
+        import resource
+        obj = os.path.join(self.tmp, "sparse.obj")
+        with open(obj, "w") as f:
+            f.write("".join(f"v {i % 100} {i // 100} 0\n" for i in range(20000)) + "f 1 2 101\n")
+
+        def limit():
+            resource.setrlimit(resource.RLIMIT_AS, (1 << 30, 1 << 30))
+
+        p = subprocess.run([IGTOOL, "cells-build", obj, "--copies", "100000", "-o", os.path.join(self.tmp, "c.ighc")],
+                           stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=QUICK, cwd=self.tmp,
+                           preexec_fn=limit)
+        self.assertExit(p, 2)
+        self.assertMentions(p, "--copies 100000", "vertices")
+
+    def test_compare_refuses_a_negative_max_rmse(self):
+        # --max-rmse -1 was taken: two identical images "differed" (exit 1). It is a bad option.
+        import struct
+        import zlib
+
+        def chunk(kind, data):
+            return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+        png = os.path.join(self.tmp, "a.png")
+        with open(png, "wb") as f:
+            f.write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", 2, 2, 8, 2, 0, 0, 0)) +
+                    chunk(b"IDAT", zlib.compress(b"\0" + b"\x80" * 6 + b"\0" + b"\x80" * 6)) + chunk(b"IEND", b""))
+        p = run([IGTOOL, "compare", png, png], cwd=self.tmp)
+        self.assertExit(p, 0)
+        p = run([IGTOOL, "compare", png, png, "--max-rmse", "-1"], cwd=self.tmp)
+        self.assertExit(p, 2)
+        self.assertMentions(p, "--max-rmse", "-1")
+
+    def test_compare_refuses_a_png_too_large_before_allocating(self):
+        # readPng allocated the header's width x height x 4 bytes (zero-filled) before decoding a
+        # row: this 70-byte file saying 32768 x 16384 cost 2 GiB, std::bad_alloc (abort) under a
+        # 1 GiB address-space limit. It is a named input error (exit 2).
+        import resource
+        import struct
+        import zlib
+
+        def chunk(kind, data):
+            return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+        big = os.path.join(self.tmp, "big.png")
+        with open(big, "wb") as f:
+            f.write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", 32768, 16384, 8, 6, 0, 0, 0)) +
+                    chunk(b"IDAT", zlib.compress(b"\0" * 64)))
+
+        def limit():
+            resource.setrlimit(resource.RLIMIT_AS, (1 << 30, 1 << 30))
+
+        p = subprocess.run([IGTOOL, "compare", big, big], stdin=subprocess.DEVNULL, capture_output=True, text=True,
+                           timeout=QUICK, cwd=self.tmp, preexec_fn=limit)
+        self.assertExit(p, 2)
+        self.assertMentions(p, "big.png", "32768x16384")
+
     def test_igbench_frame_json(self):
         config = service_config_copy(self.tmp)
         p = run([IGBENCH, "frame", "--config", config, "--json", "--frames", "20", "--width", "160", "--height", "90"],

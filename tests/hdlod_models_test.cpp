@@ -4,8 +4,11 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -223,4 +226,79 @@ TEST(HdlodModels, CoordinatesBeyondTheFloatRangeAreErrors) {
   const std::string gltf = gltfWith("\"translation\": [10, 0, 0]", "\"translation\": [1e39, 0, 0]");
   EXPECT_FALSE(loadGltf(writeFile("huge.gltf", gltf), error));
   EXPECT_NE(error.find("not finite"), std::string::npos) << error;
+}
+
+// A scan in absolute coordinates (ECEF ~6.4e6 m, where a float's step is 0.5 m) lost its detail
+// when stored as float: with a local origin the loaders subtract the first vertex in double, so
+// centimetre offsets survive (igtool cells-build loads this way).
+TEST(HdlodModels, LocalOriginKeepsDetailFarFromTheOrigin) {
+  constexpr double kFar = 6378137.0;
+  const double want[3][3] = {{kFar, kFar, kFar}, {kFar + 0.012, kFar, kFar}, {kFar, kFar + 0.034, kFar - 0.021}};
+  const auto check = [&](const std::optional<Model>& m, const glm::dvec3& origin, const std::string& error,
+                         const char* what) {
+    ASSERT_TRUE(m) << what << ": " << error;
+    ASSERT_EQ(m->positions.size(), 3u) << what;
+    for (size_t i = 0; i < 3; ++i)
+      for (int k = 0; k < 3; ++k)
+        EXPECT_NEAR(origin[k] + static_cast<double>(m->positions[i][k]), want[i][k], 1e-5) << what << " vertex " << i;
+  };
+  char buf[512];
+  std::snprintf(buf, sizeof buf, "v %.6f %.6f %.6f\nv %.6f %.6f %.6f\nv %.6f %.6f %.6f\nf 1 2 3\n", want[0][0], want[0][1],
+                want[0][2], want[1][0], want[1][1], want[1][2], want[2][0], want[2][1], want[2][2]);
+  const std::string obj = writeFile("far.obj", buf);
+  std::string ply = "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty double x\nproperty double y\n"
+                    "property double z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
+  for (const auto& v : want)
+    for (double c : v) put(ply, c, false);
+  put(ply, uint8_t{3}, false);
+  for (int32_t i = 0; i < 3; ++i) put(ply, i, false);
+  const std::string plyPath = writeFile("far.ply", ply);
+  std::string error;
+  glm::dvec3 origin(1.0);
+  check(loadObj(obj, error, &origin), origin, error, "obj");
+  check(loadPly(plyPath, error, &origin), origin, error, "ply");
+  check(loadModelFile(obj, error, &origin), origin, error, "loadModelFile obj");
+  // Without a local origin the coordinates are stored as they are.
+  const auto plain = loadObj(obj, error);
+  ASSERT_TRUE(plain) << error;
+  EXPECT_EQ(plain->positions[0], glm::vec3(static_cast<float>(kFar)));
+  // glTF: a node translated far from the origin (the triangle's vertices 1 m apart), y up -> z up.
+  const std::string gltf = gltfWith("\"translation\": [10, 0, 0]", "\"translation\": [6378137, 0, -6378137]");
+  const auto g = loadGltf(writeFile("far.gltf", gltf), error, &origin);
+  ASSERT_TRUE(g) << error;
+  ASSERT_EQ(g->positions.size(), 3u);
+  EXPECT_NEAR(origin.x, kFar, 1e-6);
+  EXPECT_NEAR(origin.y, kFar, 1e-6);
+  EXPECT_NEAR(origin.z, 5.0, 1e-6);
+  EXPECT_EQ(g->positions[0], glm::vec3(0, 0, 0));
+  EXPECT_EQ(g->positions[1], glm::vec3(1, 0, 0));
+  EXPECT_EQ(g->positions[2], glm::vec3(0, 0, 1));
+  // An empty model: the origin is 0.
+  ASSERT_TRUE(loadObj(writeFile("empty.obj", ""), error, &origin)) << error;
+  EXPECT_EQ(origin, glm::dvec3(0.0));
+}
+
+// A PLY value that is not a finite number was "truncated or not a number", naming neither: the
+// error names the value as written (ascii) or read (binary), the property and the file.
+TEST(HdlodModels, PlyBadValuesAreNamed) {
+  const std::string head = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                           "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+  std::string error;
+  EXPECT_FALSE(loadPly(writeFile("nanvalue.ply", head + "0 0 0\n1 nan 0\n0 1 0\n3 0 1 2\n"), error));
+  EXPECT_NE(error.find("nanvalue.ply"), std::string::npos) << error;
+  EXPECT_NE(error.find("property y: not a finite number: 'nan'"), std::string::npos) << error;
+  EXPECT_FALSE(loadPly(writeFile("wordvalue.ply", head + "0 0 0\n1 0 0\n0 1 zero\n3 0 1 2\n"), error));
+  EXPECT_NE(error.find("'zero'"), std::string::npos) << error;
+  EXPECT_FALSE(loadPly(writeFile("badlength.ply", head + "0 0 0\n1 0 0\n0 1 0\n-3 0 1 2\n"), error));
+  EXPECT_NE(error.find("bad list length -3"), std::string::npos) << error;
+  std::string bin = "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+                    "property float z\nend_header\n";
+  put(bin, 0.0f, false);
+  put(bin, -std::numeric_limits<float>::infinity(), false);
+  put(bin, 0.0f, false);
+  EXPECT_FALSE(loadPly(writeFile("infvalue.ply", bin), error));
+  EXPECT_NE(error.find("property y: not a finite number: '-inf'"), std::string::npos) << error;
+  // The end of the data is still "truncated".
+  EXPECT_FALSE(loadPly(writeFile("shortvalue.ply", head + "0 0 0\n1 0 0\n0 1"), error));
+  EXPECT_NE(error.find("property z: truncated"), std::string::npos) << error;
 }
