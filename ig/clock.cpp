@@ -15,7 +15,8 @@ void MonotonicClock::sleepUntil_ns(int64_t deadline_ns) {
   timespec ts{};
   ts.tv_sec = static_cast<time_t>(deadline_ns / 1'000'000'000);
   ts.tv_nsec = static_cast<long>(deadline_ns % 1'000'000'000);
-  // Restart after signals; SIGTERM is seen by the loop at the next frame.
+  // Restart after signals; SIGTERM is seen by the loop at the next frame (Service::run sleeps a
+  // long period in pieces of at most a second, so within a second then).
   while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
   }
 }

@@ -35,6 +35,7 @@ int64_t FramePacer::beginFrame() {
   const int64_t slot = nextSlot_;
   const int64_t slotTime = t0_ns_ + slot * period_ns_;
   const int64_t waitStart = prevEnd_ns_ >= 0 ? clock_.now_ns() : 0;
+  if (wait_ && !wait_(slotTime)) return -1;
   if (!freeRun_) clock_.sleepUntil_ns(slotTime);
   frameStart_ns_ = clock_.now_ns();
   mark_ns_ = frameStart_ns_;

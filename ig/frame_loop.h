@@ -10,6 +10,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 
 #include "ig/clock.h"
 
@@ -45,7 +46,16 @@ class FramePacer {
     t0_ns_ = t0_ns;
     prevStart_ns_ = t0_ns;
   }
-  // Sleeps until the next slot and starts the frame; returns its slot number.
+  // What else a frame waits for before it starts: `wait(slotTime_ns)` is called in beginFrame
+  // with the slot's time on the clock, before a paced loop's sleep to it. Host pacing (CIGI
+  // synchronous mode) waits there for the host's next message; a paced loop with a long period
+  // sleeps towards the slot in pieces there (watchdog pings, a stop request). Its time is neither
+  // the frame's work (nor an overrun) nor the frame thread's own time between frames
+  // (between_ms). Returning false starts no frame: beginFrame returns -1. Set before the first
+  // frame.
+  void setWait(std::function<bool(int64_t slotTime_ns)> wait) { wait_ = std::move(wait); }
+  // Waits (above), sleeps until the next slot and starts the frame; returns its slot number, or
+  // -1 when the wait said not to start it.
   int64_t beginFrame();
   // Ends the phase that began at the previous mark (frame start or previous endPhase).
   void endPhase(Phase phase);
@@ -76,6 +86,7 @@ class FramePacer {
   int64_t frameStart_ns_ = 0, prevStart_ns_ = 0, mark_ns_ = 0;
   int64_t prevEnd_ns_ = -1;   // the previous endFrame's time; -1 before the first frame
   FrameTiming timing_;
+  std::function<bool(int64_t)> wait_;  // setWait
   int64_t frames_ = 0, overruns_ = 0, missed_ = 0;
 };
 

@@ -975,6 +975,33 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
   m.loopStart_ns = loopStart_ns;
   pacer.startAt(loopStart_ns);
   if (m.hostInput) m.hostInput->setTimeBase(clock, loopStart_ns);
+  if (hostPaced) {
+    // The wait for the host's next message comes before the frame, not in its input phase: it
+    // is no work, and a frame that waited for the host is no overrun.
+    pacer.setWait([this, &pacer](int64_t) {
+      mailbox_.waitNewer(mailboxSequence_, std::chrono::nanoseconds(pacer.period_ns()));
+      return true;
+    });
+  } else if (!cfg.freeRun) {
+    // A long period (rate_hz goes down to 0.01: 100 s) is slept in pieces of at most a second
+    // (and the watchdog interval): the watchdog is pinged and a stop request (SIGTERM) seen
+    // within a piece, not a period later, after systemd's WatchdogSec or TimeoutStopSec. The
+    // pacer sleeps the last piece.
+    const int64_t piece_ns =
+        notifier.watchdogEnabled() ? std::clamp<int64_t>(notifier.watchdogInterval_ns(), 10'000'000, 1'000'000'000)
+                                   : 1'000'000'000;
+    pacer.setWait([&clock, &stop, &notifier, piece_ns](int64_t slot_ns) {
+      for (int64_t now = clock.now_ns(); slot_ns - now > piece_ns;) {
+        if (stop.load(std::memory_order_relaxed)) return false;
+        clock.sleepUntil_ns(now + piece_ns);
+        const int64_t after = clock.now_ns();
+        notifier.watchdog(after);
+        if (after <= now) break;  // a clock that does not move (tests): the pacer's sleep decides
+        now = after;
+      }
+      return !stop.load(std::memory_order_relaxed);
+    });
+  }
   // The health report exists only where someone reads it: systemd or a status file.
   // A reload that changes the file or the interval keeps the totals (frames, overruns, missed
   // slots): the running reporter is reconfigured, a new one starts from the pacer's counts.
@@ -1159,10 +1186,10 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
     if (cfg.frames > 0 && pacer.frames() >= cfg.frames) break;
     if (m.context->closeRequested()) break;
     const int64_t slot = pacer.beginFrame();
+    if (slot < 0) break;  // stopped while waiting for the slot
 
     // input
     if (m.replay) m.replay->advanceTo(pacer.slotTime_s(slot), mailbox_);
-    if (hostPaced) mailbox_.waitNewer(mailboxSequence_, std::chrono::nanoseconds(pacer.period_ns()));
     io::HostState incoming;
     if (mailbox_.readIfNewer(incoming, mailboxSequence_)) {
       if (hostStateValid(incoming, &why)) {

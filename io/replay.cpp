@@ -212,10 +212,17 @@ const HostSample& sampleAt(const Recording& recording, double t_s) {
 bool ReplaySource::advanceTo(double t_s, LatestValueMailbox<HostState>& mailbox) {
   const auto& samples = recording_.samples;
   if (samples.empty()) return false;
-  if (loop_ && recording_.duration_s() > 0 && t_s - loopBase_s_ > recording_.duration_s()) {
-    loopBase_s_ += recording_.duration_s() * std::floor((t_s - loopBase_s_) / recording_.duration_s());
+  // The pass of a looping replay that t_s falls in, from t_s alone (not from the times given
+  // before, which skip slots after an overrun): pass n > 0 covers (n D, (n + 1) D], so its end
+  // time shows the last sample, as when the replay gets there frame by frame.
+  const double d = recording_.duration_s();
+  const double base = loop_ && d > 0 && t_s > d ? d * (std::ceil(t_s / d) - 1.0) : 0.0;
+  if (base != loopBase_s_ || t_s < lastT_s_) {
+    // Another pass, or time that went back: start over (the scan below finds t_s's sample).
+    loopBase_s_ = base;
     next_ = 0;
   }
+  lastT_s_ = t_s;
   const double local = t_s - loopBase_s_ + kTimeTolerance_s;
   size_t newest = next_;
   while (newest < samples.size() && samples[newest].t_s <= local) ++newest;

@@ -51,7 +51,8 @@ class ReplaySource {
  public:
   ReplaySource(Recording recording, bool loop) : recording_(std::move(recording)), loop_(loop) {}
   // Publishes the current sample for replay time t_s (if it changed). Returns false once a
-  // non-looping replay has passed its last sample.
+  // non-looping replay has passed its last sample. A time before the previous call's (a frame
+  // loop run again from slot 0) replays from the beginning: the sample current at t_s.
   bool advanceTo(double t_s, LatestValueMailbox<HostState>& mailbox);
   bool finished(double t_s) const { return !loop_ && t_s > recording_.duration_s(); }
   const Recording& recording() const { return recording_; }
@@ -60,7 +61,8 @@ class ReplaySource {
   Recording recording_;
   bool loop_;
   size_t next_ = 0;        // first sample not yet published
-  double loopBase_s_ = 0;  // replay time at which the current loop started
+  double loopBase_s_ = 0;  // replay time at which the current pass of a loop started
+  double lastT_s_ = 0;     // the previous call's t_s
 };
 
 // The built-in host recording used by the default scene: a circuit over the default terrain

@@ -162,6 +162,56 @@ TEST(FramePacer, FreeRunNeverSleepsButStillCountsSlowFrames) {
   EXPECT_NEAR(pacer.slotTime_s(9), 9.0 / 60.0, 1e-9);
 }
 
+// Host pacing (CIGI synchronous mode): the loop runs free and waits for the host's next message
+// before each frame. That wait is no work of the frame: a frame that waited most of a period
+// for the host and then worked 3 ms is no overrun, and the wait is not the frame thread's own
+// time between frames either.
+TEST(FramePacer, HostWaitBeforeAFrameIsNeitherWorkNorTimeBetweenFrames) {
+  FakeClock clock;
+  FramePacer pacer(clock, 100.0, true);  // 10 ms period, host-paced: free-run
+  int waits = 0;
+  pacer.setWait([&](int64_t) {
+    ++waits;
+    clock.advance_ns(9 * kMs);  // the host answers 9 ms later
+    return true;
+  });
+  const int64_t t0 = clock.now_ns();
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_EQ(pacer.beginFrame(), i);
+    clock.advance_ns(3 * kMs);
+    const FrameTiming& t = pacer.endFrame();
+    EXPECT_DOUBLE_EQ(t.work_ms, 3.0) << "frame " << i;
+    EXPECT_FALSE(t.overrun) << "frame " << i;
+    EXPECT_EQ(t.start_ns, (i + 1) * 9 * kMs + i * 3 * kMs) << "frame " << i;
+    EXPECT_DOUBLE_EQ(t.between_ms, 0.0) << "frame " << i;
+  }
+  EXPECT_EQ(waits, 3);
+  EXPECT_EQ(clock.now_ns(), t0 + 36 * kMs);
+  EXPECT_EQ(clock.sleeps(), 0);
+  EXPECT_EQ(pacer.overruns(), 0);
+}
+
+// A wait that says "do not start" (a stop request while sleeping towards a long period's slot)
+// starts no frame: beginFrame returns -1, nothing is counted, and the pacer does not sleep on.
+TEST(FramePacer, AWaitThatRefusesStartsNoFrame) {
+  FakeClock clock;
+  FramePacer pacer(clock, 0.1, false);  // 10 s period
+  bool stop = false;
+  pacer.setWait([&](int64_t slot_ns) {
+    if (slot_ns - clock.now_ns() > 1'000 * kMs) clock.sleepUntil_ns(clock.now_ns() + 1'000 * kMs);
+    return !stop;
+  });
+  const int64_t t0 = clock.now_ns();
+  EXPECT_EQ(pacer.beginFrame(), 0);
+  pacer.endFrame();
+  stop = true;
+  EXPECT_EQ(pacer.beginFrame(), -1);
+  EXPECT_EQ(clock.now_ns(), t0 + 1'000 * kMs);  // one piece, not the whole period
+  EXPECT_EQ(pacer.frames(), 1);
+  stop = false;
+  EXPECT_EQ(pacer.beginFrame(), 1);  // the slot is still the next one
+}
+
 TEST(Stats, SummaryPercentilesAndFixedCapacity) {
   SummaryCollector c(100);
   for (int i = 1; i <= 150; ++i) {  // only the last 100 (51..150) are kept

@@ -255,6 +255,41 @@ TEST(HostInputGL, SynchronousHostPacesTheFrames) {
   EXPECT_LT(elapsed_s, 6.0);
 }
 
+// Synchronous host: the loop waits (up to a period) for the host's message *before* each frame
+// (docs/cigi.md). The wait is not the frame's work: counted in it, every frame of a silent host
+// was an overrun (work > period), the governor saw frames as slow as the period and the host was
+// told "the previous frame overran" (IG Status 2). With a silent host every wait lasts a full
+// period: the idle time between the end of one frame and the start of the next is at least a
+// period (the condition variable waits at least its timeout on the monotonic clock).
+TEST(HostInputGL, WaitingForASynchronousHostIsNotFrameWork) {
+  ServiceConfig cfg;
+  SceneConfig scene;
+  test::defaultConfigs(cfg, scene);
+  scene.terrain.reset();  // sky only: short frames
+  cfg.frames = 4;
+  cfg.rate_hz = 20;  // a silent host costs a 50 ms wait per frame
+  TempDir dir("igd_sync_wait_gltest");
+  cfg.statsFile = (dir.path / "stats.csv").string();
+  auto link = std::make_unique<ScriptedLink>([](uint32_t, io::HostState&) { return false; }, true);
+  std::string error;
+  auto service = Service::create(cfg, scene, error, std::move(link));
+  ASSERT_TRUE(service) << error;
+  MonotonicClock clock;
+  std::atomic<bool> stop{false};
+  ASSERT_EQ(service->run(clock, stop), 0);
+  const auto rows = test::readStatsCsv(cfg.statsFile);
+  ASSERT_EQ(rows.size(), 4u);
+  const double period_ms = 50.0;
+  for (size_t f = 1; f < rows.size(); ++f) {
+    const double idle_ms = std::stod(rows[f].at("t_ms")) - std::stod(rows[f - 1].at("t_ms")) -
+                           std::stod(rows[f - 1].at("work_ms"));
+    EXPECT_GE(idle_ms, period_ms - 0.01) << "frame " << f << ": the wait for the host is inside frame " << f - 1
+                                         << " (input_ms " << rows[f - 1].at("input_ms") << ", work_ms "
+                                         << rows[f - 1].at("work_ms") << ", overrun " << rows[f - 1].at("overrun")
+                                         << ")";
+  }
+}
+
 TEST(HostInputGL, RecordFileThatCannotBeWrittenIsNamed) {
   ServiceConfig cfg;
   SceneConfig scene;

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <fstream>
 #include <sstream>
+#include <vector>
 
 #include "io/replay.h"
 
@@ -129,6 +130,64 @@ TEST(Replay, LoopingRestartsAtTheBeginning) {
   EXPECT_TRUE(src.advanceTo(1.6, box));  // 0.6 into the second loop
   ASSERT_TRUE(box.readIfNewer(out, seq));
   EXPECT_EQ(out.hostFrame, 1u);
+}
+
+// The replay is driven by the time it is given: a time before the previous one (Service::run
+// called again restarts its slots, and so the replay time, at 0) publishes the sample current
+// then, looping or not. It published nothing until the time caught up with the previous one:
+// the frames rendered the last sample of the earlier run.
+TEST(Replay, TimeThatGoesBackPublishesTheSampleCurrentThen) {
+  Recording r;
+  std::string e;
+  ASSERT_TRUE(parseRecording(kGood, "rec.txt", r, e));
+  for (const bool loop : {false, true}) {
+    SCOPED_TRACE(loop ? "looping" : "not looping");
+    LatestValueMailbox<HostState> box;
+    ReplaySource src(r, loop);
+    HostState out;
+    uint64_t seq = 0;
+    src.advanceTo(loop ? 2.6 : 1.0, box);  // looping: 0.6 into the third loop
+    ASSERT_TRUE(box.readIfNewer(out, seq));
+    EXPECT_EQ(out.hostFrame, loop ? 1u : 2u);
+    EXPECT_TRUE(src.advanceTo(0.0, box));
+    ASSERT_TRUE(box.readIfNewer(out, seq)) << "nothing published for replay time 0";
+    EXPECT_EQ(out.hostFrame, 0u);
+    EXPECT_TRUE(src.advanceTo(0.5, box));
+    ASSERT_TRUE(box.readIfNewer(out, seq));
+    EXPECT_EQ(out.hostFrame, 1u);
+  }
+}
+
+// A looping replay's sample for a replay time is a function of that time alone, not of the
+// frames before it: a paced run that skipped slots after an overrun renders the same frame for a
+// slot as a free run that rendered every slot (README). Replay time 2.0 of a 1.0 s recording is
+// the end of its second pass (the sample at 1.0), reached step by step; jumped to over skipped
+// slots it showed the start of the third pass (the sample at 0.0).
+TEST(Replay, LoopingSampleDependsOnTheTimeNotOnTheFramesBefore) {
+  Recording r;
+  std::string e;
+  ASSERT_TRUE(parseRecording(kGood, "rec.txt", r, e));
+  auto current = [&](const std::vector<double>& times) {
+    LatestValueMailbox<HostState> box;
+    ReplaySource src(r, true);
+    HostState out;
+    uint64_t seq = 0;
+    for (double t : times) {
+      src.advanceTo(t, box);
+      box.readIfNewer(out, seq);
+    }
+    return out.hostFrame;
+  };
+  for (const double t : {1.0, 1.25, 2.0, 2.5, 3.0, 4.75}) {
+    SCOPED_TRACE(t);
+    std::vector<double> steps;
+    for (double s = 0.0; s < t; s += 0.25) steps.push_back(s);
+    steps.push_back(t);
+    const uint64_t stepped = current(steps);
+    EXPECT_EQ(current({0.0, t}), stepped);
+    EXPECT_EQ(current({t}), stepped);
+    EXPECT_EQ(current({0.0, t - 0.75, t}), stepped);
+  }
 }
 
 TEST(Replay, Version2CarriesTimeOfDayAndDate) {

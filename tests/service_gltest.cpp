@@ -11,6 +11,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -18,6 +19,10 @@
 #include <string>
 #include <vector>
 #include <thread>
+
+#include <sys/socket.h>
+#include <sys/un.h>
+#include <unistd.h>
 
 #include "gl_fixture.h"
 #include "gl_objects.h"
@@ -821,4 +826,87 @@ TEST(ServiceGL, AReloadThatRaisesFramesKeepsTheSummaryOverEveryFrame) {
   EXPECT_EQ(s.frames, 40);
   EXPECT_GE(s.workMs_max, 100.0);
   EXPECT_EQ(s.workMs_p99, s.workMs_max) << "p99 over the last 10 frames only";
+}
+
+namespace {
+// A fake clock that reads systemd's notify socket (the test's own) at every sleep, keeping the
+// longest time between two watchdog pings, and asks the loop to stop while it sleeps towards
+// `stopFrom_ns` or later.
+class NotifyWatchingClock final : public Clock {
+ public:
+  NotifyWatchingClock(int socket, std::atomic<bool>& stop, int64_t stopFrom_ns)
+      : socket_(socket), stop_(stop), stopFrom_ns_(stopFrom_ns) {}
+  int64_t now_ns() const override { return clock_.now_ns(); }
+  void sleepUntil_ns(int64_t deadline_ns) override {
+    drain();
+    if (deadline_ns >= stopFrom_ns_) stop_ = true;
+    clock_.sleepUntil_ns(deadline_ns);
+  }
+  // Pings sent since the last sleep are stamped with the time now (a frame takes no fake time).
+  void drain() {
+    char buf[512];
+    for (ssize_t n; (n = ::recv(socket_, buf, sizeof buf - 1, MSG_DONTWAIT)) > 0;) {
+      buf[n] = '\0';
+      if (std::string(buf).find("WATCHDOG=1") == std::string::npos) continue;
+      const int64_t now = clock_.now_ns();
+      if (lastPing_ns >= 0) maxGap_ns = std::max(maxGap_ns, now - lastPing_ns);
+      lastPing_ns = now;
+      ++pings;
+    }
+  }
+  int64_t lastPing_ns = -1, maxGap_ns = 0;
+  int pings = 0;
+
+ private:
+  FakeClock clock_;
+  int socket_;
+  std::atomic<bool>& stop_;
+  int64_t stopFrom_ns_;
+};
+}  // namespace
+
+// frame.rate_hz goes down to 0.01 Hz (a 100 s period), and igd.service has WatchdogSec=5 and
+// TimeoutStopSec=10. The loop pinged the watchdog once a frame and slept a whole period at once:
+// at 0.1 Hz systemd killed igd for a missed watchdog every run, and a SIGTERM was seen only at
+// the next slot, after systemd had given up and sent SIGKILL (no last stats line, status file
+// left "running"). Slept in pieces, the pings keep within WatchdogSec and a stop request ends
+// the wait without rendering the slot's frame.
+TEST(ServiceGL, ALongPeriodPingsTheWatchdogAndSeesAStopWhileWaiting) {
+  const std::string sock = (std::filesystem::temp_directory_path() / ("igd_notify_" + std::to_string(::getpid()))).string();
+  std::filesystem::remove(sock);
+  const int fd = ::socket(AF_UNIX, SOCK_DGRAM, 0);
+  ASSERT_GE(fd, 0);
+  sockaddr_un addr{};
+  addr.sun_family = AF_UNIX;
+  ASSERT_LT(sock.size(), sizeof addr.sun_path);
+  std::memcpy(addr.sun_path, sock.c_str(), sock.size());
+  ASSERT_EQ(::bind(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr), 0);
+  ServiceConfig cfg;
+  SceneConfig scene;
+  test::defaultConfigs(cfg, scene);
+  scene.terrain.reset();  // sky only
+  cfg.frames = 3;
+  cfg.rate_hz = 0.1;  // 10 s slots
+  std::string error;
+  auto service = Service::create(cfg, scene, error);
+  ASSERT_TRUE(service) << error;
+  std::atomic<bool> stop{false};
+  constexpr int64_t kS = 1'000'000'000;
+  const int64_t t0 = FakeClock().now_ns();
+  NotifyWatchingClock clock(fd, stop, t0 + 15 * kS);  // SIGTERM 15 s in: while waiting for slot 2
+  ::setenv("NOTIFY_SOCKET", sock.c_str(), 1);
+  ::setenv("WATCHDOG_USEC", "5000000", 1);  // igd.service: WatchdogSec=5
+  ::setenv("WATCHDOG_PID", std::to_string(::getpid()).c_str(), 1);
+  const int rc = service->run(clock, stop);
+  ::unsetenv("NOTIFY_SOCKET");
+  ::unsetenv("WATCHDOG_USEC");
+  ::unsetenv("WATCHDOG_PID");
+  clock.drain();
+  ::close(fd);
+  std::filesystem::remove(sock);
+  EXPECT_EQ(rc, 0);
+  EXPECT_GE(clock.pings, 2);
+  EXPECT_LT(clock.maxGap_ns, 5 * kS) << "systemd's watchdog (WatchdogSec=5) would have killed igd";
+  EXPECT_EQ(service->summary().frames, 2) << "the frame of slot 2 was rendered after the stop request";
+  EXPECT_LT(clock.now_ns(), t0 + 20 * kS) << "the stop request was seen only at slot 2";
 }
