@@ -217,6 +217,12 @@ void saveImage(const std::string& dir, const std::string& name, const render::Im
 
 }  // namespace
 
+render::ForestTextureDesc forestBenchTextureDesc(const ForestBenchOptions& o) {
+  render::ForestTextureDesc td = forestTextureDesc(o.treeSpacing_m, o.layers);
+  if (o.quick) td.size_px = 128;
+  return td;
+}
+
 int runForestBench(const ForestBenchOptions& in) {
   ForestBenchOptions o = in;
   if (o.quick) {
@@ -317,16 +323,14 @@ int runForestBench(const ForestBenchOptions& in) {
   fc.layers = o.layers;
   const double slots = extent_m * extent_m / (o.treeSpacing_m * o.treeSpacing_m);
   fc.maxTrees = static_cast<int>(std::clamp(slots, 1024.0, 4194304.0));
-  render::ForestTextureDesc td;
-  td.layers = o.layers;
-  if (o.quick) td.size_px = 128;
-  td.treesPerTile = std::max(1, static_cast<int>(std::lround(td.tile_m * td.tile_m / (o.treeSpacing_m * o.treeSpacing_m))));
+  const render::ForestTextureDesc td = forestBenchTextureDesc(o);
   render::ForestTextures textures;
   const auto tTex = BenchClock::now();
   if (!render::renderForestTextures(bakeModels, td, textures, err)) {
     std::fprintf(stderr, "igbench forest: %s\n", err.c_str());
     return 1;
   }
+  textures.spacing_m = o.treeSpacing_m;
   const double texturesMs = msSince(tTex);
   const auto tBuild = BenchClock::now();
   std::unique_ptr<ForestLayer> forest =

@@ -33,6 +33,8 @@
 #include <cstdint>
 #include <string>
 
+#include "render/forest_pass.h"
+
 namespace ig {
 
 struct ForestBenchOptions {
@@ -59,5 +61,10 @@ struct ForestBenchOptions {
 };
 
 int runForestBench(const ForestBenchOptions& options);
+
+// The textures the benchmark bakes: forestTextureDesc (ig/forest_tool.h) for its tree spacing
+// and layers, as igd's start-up textures (a 24 m tile held one tree at 40 m spacing: layers
+// 2.8x as dense as the trees), 128 px per layer in --quick mode.
+render::ForestTextureDesc forestBenchTextureDesc(const ForestBenchOptions& options);
 
 }  // namespace ig

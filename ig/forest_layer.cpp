@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <utility>
 #include <vector>
 
@@ -155,18 +156,34 @@ std::unique_ptr<ForestLayer> ForestLayer::create(const ForestLayerConfig& c, con
       return nullptr;
     }
     if (models.empty()) models = std::move(m);
-    if (!texturesIn) textures = std::move(t);
+    if (!texturesIn) {
+      // The layers stand for the density they were baked for: assets of another spacing would
+      // draw a forest of the wrong density far away, silently (a training defect), so they are
+      // refused at start-up. Assets that do not record it (older igtool) are used with a warning.
+      const std::string meta = c.assets + "/forest_textures.txt";
+      if (t.spacing_m == 0.0)
+        std::fprintf(stderr,
+                     "forest.assets '%s': warning: no spacing_m recorded (written by an older igtool "
+                     "forest-textures): the layers may not match forest.spacing_m = %g m; rebake with igtool "
+                     "forest-textures --spacing %g\n",
+                     meta.c_str(), c.spacing_m, c.spacing_m);
+      error = forestTexturesSpacingMismatch(t, c.spacing_m, "forest.assets '" + meta + "'");
+      if (!error.empty()) return nullptr;
+      textures = std::move(t);
+    }
+  }
+  if (texturesIn) {
+    error = forestTexturesSpacingMismatch(textures, c.spacing_m, "forest textures");
+    if (!error.empty()) return nullptr;
   }
   if (models.empty()) models = proceduralTrees();
   if (textures.layerCount == 0) {
-    render::ForestTextureDesc td;
-    td.layers = c.layers;
     // The tile holds tile^2 / spacing^2 trees (the forest at full density): at least 16, so that
     // a sparse forest's layers are as sparse as its trees (a 24 m tile holds at least one tree:
     // beyond 34 m spacing the layers stood for a denser forest than the one planted).
-    td.tile_m = std::max(td.tile_m, 4.0 * c.spacing_m);
-    td.treesPerTile = std::max(1, static_cast<int>(std::lround(td.tile_m * td.tile_m / (c.spacing_m * c.spacing_m))));
+    const render::ForestTextureDesc td = forestTextureDesc(c.spacing_m, c.layers);
     if (!render::renderForestTextures(models, td, textures, error)) return nullptr;
+    textures.spacing_m = c.spacing_m;
   }
 
   // Trees and kd-tree.

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <array>
 #include <cctype>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -30,16 +31,30 @@ bool isBark(std::string name) {
 }
 
 // One OBJ face corner "v", "v/vt", "v//vn", "v/vt/vn" -> (v, vn), 1-based, negative = relative.
+// The whole token: anything else ("1abc", "1/2x", "1//", "1/2/3/4") is refused (strtol stopped at
+// the first non-digit and the rest was ignored: "f 1abc 2 3" read as "f 1 2 3").
 bool parseCorner(const std::string& s, long nv, long nn, long& v, long& n) {
-  char* end = nullptr;
-  v = std::strtol(s.c_str(), &end, 10);
+  const auto number = [](const char*& p, long& value) {
+    char* end = nullptr;
+    errno = 0;
+    value = std::strtol(p, &end, 10);
+    if (end == p || errno == ERANGE) return false;
+    p = end;
+    return true;
+  };
+  const char* p = s.c_str();
   n = 0;
-  if (end == s.c_str()) return false;
-  if (*end == '/') {
-    const char* p = end + 1;
-    if (*p != '/') std::strtol(p, &end, 10), p = end;
-    if (*p == '/') n = std::strtol(p + 1, &end, 10);
+  if (!number(p, v)) return false;
+  if (*p == '/') {
+    ++p;
+    long vt = 0;
+    if (*p != '/' && !number(p, vt)) return false;
+    if (*p == '/') {
+      ++p;
+      if (!number(p, n) || n == 0) return false;
+    }
   }
+  if (*p != '\0') return false;
   if (v < 0) v = nv + v + 1;
   if (n < 0) n = nn + n + 1;
   return v >= 1 && v <= nv && n >= 0 && n <= nn;
@@ -259,7 +274,9 @@ bool writeForestAssets(const std::string& dir, const std::vector<lod::TreeMesh>&
     return false;
   std::ofstream f(dir + "/forest_textures.txt");
   f << "layers " << t.layerCount << "\nfin_slices " << t.finSlices << "\ntile_m " << t.tile_m << "\nheight_m "
-    << t.height_m << "\nmodels" << names << "\n";
+    << t.height_m << "\n";
+  if (t.spacing_m > 0.0) f << "spacing_m " << t.spacing_m << "\n";
+  f << "models" << names << "\n";
   if (!f) {
     error = "forest assets '" + dir + "/forest_textures.txt': write failed";
     return false;
@@ -286,7 +303,16 @@ bool readForestAssets(const std::string& dir, std::vector<lod::TreeMesh>& models
     else if (key == "fin_slices") ls >> t.finSlices;
     else if (key == "tile_m") ls >> t.tile_m;
     else if (key == "height_m") ls >> t.height_m;
-    else if (key == "models")
+    else if (key == "spacing_m") {
+      std::string value;
+      ls >> value;
+      char* end = nullptr;
+      t.spacing_m = std::strtod(value.c_str(), &end);
+      if (value.empty() || *end != '\0' || !std::isfinite(t.spacing_m) || t.spacing_m < 0.0) {
+        error = "forest assets '" + meta + "': spacing_m = '" + value + "': must be a finite number >= 0";
+        return false;
+      }
+    }    else if (key == "models")
       for (std::string n; ls >> n;) names.push_back(n);
     else if (!key.empty()) {
       error = "forest assets '" + meta + "': unknown key '" + key + "'";
@@ -337,6 +363,29 @@ std::vector<lod::TreeMesh> proceduralTrees() {
 
 double forestTextureTile_m(const ForestTexturesOptions& o) {
   return o.tile_m > 0.0 ? o.tile_m : std::max(24.0, 4.0 * o.spacing_m);
+}
+
+render::ForestTextureDesc forestTextureDesc(double spacing_m, int layers, double tile_m) {
+  render::ForestTextureDesc td;
+  td.layers = layers;
+  td.tile_m = tile_m > 0.0 ? tile_m : std::max(24.0, 4.0 * spacing_m);
+  const double trees = std::min(td.tile_m * td.tile_m / (spacing_m * spacing_m), 1e9);
+  td.treesPerTile = std::max(1, static_cast<int>(std::lround(trees)));
+  return td;
+}
+
+std::string forestTexturesSpacingMismatch(const render::ForestTextures& t, double spacing_m, const std::string& source) {
+  if (!(t.spacing_m > 0.0) || !(spacing_m > 0.0)) return {};
+  const double ratio = std::max(t.spacing_m, spacing_m) / std::min(t.spacing_m, spacing_m);
+  if (ratio <= 1.1) return {};
+  char buf[512];
+  std::snprintf(buf, sizeof buf,
+                "%s: baked for a tree spacing of %g m, but forest.spacing_m = %g m: the shell layers would stand for "
+                "a forest %.2f times as dense as the trees planted (rebake with igtool forest-textures --spacing %g, "
+                "or set forest.spacing_m = %g)",
+                source.c_str(), t.spacing_m, spacing_m, (spacing_m * spacing_m) / (t.spacing_m * t.spacing_m),
+                spacing_m, t.spacing_m);
+  return buf;
 }
 
 int runForestTextures(const ForestTexturesOptions& o) {
@@ -394,13 +443,15 @@ int runForestTextures(const ForestTexturesOptions& o) {
     std::fprintf(stderr, "igtool forest-textures: %s\n", error.c_str());
     return 1;
   }
-  render::ForestTextureDesc td;
-  td.layers = o.layers;
+  render::ForestTextureDesc td = forestTextureDesc(o.spacing_m, o.layers, tile_m);
   td.size_px = o.size_px;
-  td.tile_m = tile_m;
-  td.treesPerTile = treesPerTile;
   render::ForestTextures tex;
-  if (!render::renderForestTextures(bake, td, tex, error) || !writeForestAssets(o.out, nearLod, tex, error)) {
+  if (!render::renderForestTextures(bake, td, tex, error)) {
+    std::fprintf(stderr, "igtool forest-textures: %s\n", error.c_str());
+    return 1;
+  }
+  tex.spacing_m = o.spacing_m;
+  if (!writeForestAssets(o.out, nearLod, tex, error)) {
     std::fprintf(stderr, "igtool forest-textures: %s\n", error.c_str());
     return 1;
   }

@@ -11,7 +11,9 @@
 //                        z up, metres, foot at the origin, vertex colours ("v x y z r g b")
 //   layers.png           T: n square horizontal slices side by side (lower layers darker)
 //   fins.png             S: vertical slices side by side (top row = tree top)
-//   forest_textures.txt  "layers N", "fin_slices N", "tile_m X", "height_m X", "models a b"
+//   forest_textures.txt  "layers N", "fin_slices N", "tile_m X", "height_m X", "spacing_m X" (the
+//                        tree spacing the tile was planted for; files without it, written before
+//                        it was recorded, read as 0 = unknown), "models a b"
 // The textures are rendered from the high LOD (--bake-triangles) with render/forest_pass.h.
 #pragma once
 
@@ -42,7 +44,8 @@ bool writeTreeObj(const std::string& file, const lod::TreeMesh& mesh, std::strin
 // optimises for the vertex cache and fetch. A mesh already small enough is copied.
 lod::TreeMesh simplifyTree(const lod::TreeMesh& mesh, size_t targetTriangles);
 
-// The forest assets folder (see above).
+// The forest assets folder (see above). The reader refuses a spacing_m that is not a finite
+// number >= 0, naming the file.
 bool writeForestAssets(const std::string& dir, const std::vector<lod::TreeMesh>& models,
                        const render::ForestTextures& textures, std::string& error);
 bool readForestAssets(const std::string& dir, std::vector<lod::TreeMesh>& models, render::ForestTextures& textures,
@@ -71,6 +74,19 @@ struct ForestTexturesOptions {
 // The tile side forest-textures bakes on: tile_m, or when that is 0 the larger of 24 m and
 // 4 spacing_m (as igd's start-up textures), so that the tile holds at least 16 trees.
 double forestTextureTile_m(const ForestTexturesOptions& options);
+
+// The bake of a forest of `spacing_m` slots (> 0): `tile_m` (0: the larger of 24 m and
+// 4 spacing_m, >= 16 trees) planted with round(tile^2 / spacing^2) trees, at least one. igd's
+// start-up textures, igtool forest-textures and igbench forest all bake with it, so that their
+// layers stand for the density of the trees planted (a 24 m tile at 40 m spacing got one tree:
+// layers 2.8x too dense).
+render::ForestTextureDesc forestTextureDesc(double spacing_m, int layers, double tile_m = 0.0);
+
+// How forest textures baked for `textures.spacing_m` fit a forest of `spacing_m`: "" when they
+// match within 10 % (the layers' density within ~20 %) or the textures' spacing is unknown (0),
+// else the refusal, naming `source`, both spacings and the config key forest.spacing_m.
+std::string forestTexturesSpacingMismatch(const render::ForestTextures& textures, double spacing_m,
+                                          const std::string& source);
 
 // igtool forest-textures: 0 on success, 1 on failure (message on stderr), 2 bad options. The
 // tile is planted with round(tile^2 / spacing^2) trees (at least one); a tile whose count

@@ -5,7 +5,9 @@
 #include <algorithm>
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
+#include <limits>
 
 #include "ig/app_common.h"
 #include "ig/json.h"
@@ -185,7 +187,7 @@ int main(int argc, char** argv) {
   demInfo->add_option("--png-offset", demOptions.pngOffset_m, "16-bit PNG: height of value 0 in metres")->capture_default_str();
   demInfo->add_flag("--reject-voids", demReject, "Reject a DEM with voids instead of filling them");
   demInfo->add_option("--max-void-fraction", demOptions.maxVoidFraction, "Reject above this share of voids")
-      ->capture_default_str();
+      ->capture_default_str()->check(CLI::Range(0.0, 1.0));
   std::string convFormat, convIn, convOut, convConfig = "config/igd.toml";
   int convPort = 0;
   int64_t convStaleMs = 0;
@@ -285,6 +287,17 @@ int main(int argc, char** argv) {
 
   if (demInfo->parsed()) {
     if (demReject) demOptions.voids = ig::io::DemVoids::Reject;
+    // Every 16-bit value 0 ... 65535 must give a float height: a scale or offset beyond the float
+    // range made every sample inf, reported as voids (or "no valid sample") instead of the option.
+    constexpr double kFloatMax = static_cast<double>(std::numeric_limits<float>::max());
+    const double top = demOptions.pngOffset_m + demOptions.pngScale_m * 65535.0;
+    if (!(std::abs(demOptions.pngOffset_m) <= kFloatMax && std::abs(top) <= kFloatMax)) {
+      std::fprintf(stderr,
+                   "igtool dem-info: --png-scale %g with --png-offset %g: 16-bit PNG heights up to %g m are beyond "
+                   "the float range (+-%g)\n",
+                   demOptions.pngScale_m, demOptions.pngOffset_m, top, kFloatMax);
+      return 2;
+    }
     ig::io::Dem dem;
     std::string error;
     const auto t0 = std::chrono::steady_clock::now();

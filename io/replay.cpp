@@ -236,13 +236,19 @@ bool ReplaySource::advanceTo(double t_s, LatestValueMailbox<HostState>& mailbox)
 Recording makeDefaultRecording(double rate_hz, double duration_s) {
   constexpr double kPi = 3.14159265358979323846;
   Recording rec;
-  const auto n = static_cast<size_t>(std::floor(duration_s * rate_hz)) + 1;
+  // Samples every 1 / rate from 0, the last one at the duration (the recording is that long:
+  // floor(0.29 x 100) + 1 samples ended at 0.28 s): a whole number of periods (within rounding:
+  // 0.29 x 100 = 28.999999999999996) ends on a period, any other duration with a shorter last step.
+  const double periods = duration_s > 0.0 && rate_hz > 0.0 ? duration_s * rate_hz : 0.0;
+  const double whole = std::round(periods);
+  const auto steps = static_cast<size_t>(std::abs(periods - whole) <= 1e-9 * std::max(1.0, whole) ? whole : std::ceil(periods));
+  const size_t n = steps + 1;
   rec.samples.reserve(n);
   // A left-hand orbit of radius 1800 m around the terrain centre at 75 m/s, starting south-west,
   // with a gentle climb and a descending low pass near the end.
   constexpr double kRadius_m = 1800.0, kSpeed_mps = 75.0;
   for (size_t i = 0; i < n; ++i) {
-    const double t = static_cast<double>(i) / rate_hz;
+    const double t = i == steps && steps > 0 ? duration_s : static_cast<double>(i) / rate_hz;
     const double a = -0.75 * kPi + kSpeed_mps * t / kRadius_m;  // angle from east, CCW
     HostSample s;
     s.t_s = t;

@@ -66,7 +66,9 @@ class ReplaySource {
 };
 
 // The built-in host recording used by the default scene: a circuit over the default terrain
-// (climb-out, a banked turn, a low pass and a descent) with simulation time.
+// (climb-out, a banked turn, a low pass and a descent) with simulation time. Samples every
+// 1 / rate_hz s from 0 s; the last one is at duration_s (duration_s() == duration_s), after a
+// shorter step when the duration is not a whole number of periods.
 Recording makeDefaultRecording(double rate_hz, double duration_s);
 
 }  // namespace ig::io

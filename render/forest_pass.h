@@ -65,6 +65,10 @@ struct ForestTextures {
   int finSlices = 0;
   double tile_m = 0.0;
   double height_m = 0.0;  // H: height of the layer stack and of the fins
+  // The tree spacing (placement slot) the tile was planted for: the layers stand for a forest of
+  // one tree per spacing^2. Set by the caller that chose the density (igtool forest-textures
+  // writes it to forest_textures.txt); 0 = unknown (assets written before it was recorded).
+  double spacing_m = 0.0;
 };
 
 // Renders T and S from `models` with the current GL context (its own FBO; state restored).

@@ -333,6 +333,8 @@ class ConfigErrors(Tmp):
         self.assertExit(p, 0)
         meta = dict(line.split(None, 1) for line in open(os.path.join(out, "forest_textures.txt")) if line.strip())
         self.assertGreaterEqual(float(meta["tile_m"]), 160.0, meta)
+        # The spacing the tile was planted for is recorded (igd refuses assets of another spacing).
+        self.assertEqual(float(meta.get("spacing_m", "nan")), 40.0, meta)
         for tile, spacing in (("24", "40"), ("24", "30")):
             with self.subTest(tile=tile, spacing=spacing):
                 p = run([IGTOOL, "forest-textures", "--procedural", "--out", os.path.join(self.tmp, "ft2"),
@@ -1126,6 +1128,53 @@ class Tools(Tmp):
         p = run([IGD, "--config", service_config_copy(self.tmp), "--replay", out, "--frames", "3", "--free-run",
                  "--width", "64", "--height", "36"], timeout=RUN, cwd=self.tmp)
         self.assertExit(p, 0)
+
+    def test_igtool_make_recording_ends_at_the_duration(self):
+        # --duration is the recording's length: its last sample is at the duration. The count was
+        # floor(duration x rate) + 1, so 0.29 s at 100 Hz (28.999999999999996 periods) ended at
+        # 0.28 s and 0.295 s at 0.29 s.
+        for rate, duration, count in (("100", "0.29", 30), ("100", "0.295", 31), ("10", "0", 1)):
+            with self.subTest(rate=rate, duration=duration):
+                out = os.path.join(self.tmp, "r.rec")
+                p = run([IGTOOL, "make-recording", "--rate", rate, "--duration", duration, "--out", out], cwd=self.tmp)
+                self.assertExit(p, 0)
+                with open(out, encoding="utf-8") as f:
+                    samples = [l for l in f.read().splitlines()[1:] if l.strip() and not l.lstrip().startswith("#")]
+                times = [float(s.split()[0]) for s in samples]
+                self.assertEqual(len(times), count, times)
+                self.assertAlmostEqual(times[-1], float(duration), places=6)
+
+    def test_igtool_dem_info_refuses_a_png_scale_beyond_float_and_a_void_fraction_out_of_range(self):
+        # --png-scale 1e38 made every 16-bit sample inf, reported as voids ("100 % of the samples
+        # are voids") instead of naming the option; --max-void-fraction had no range check. Both
+        # are bad options: exit 2 naming the option and the value, no JSON.
+        import struct
+        import zlib
+
+        def chunk(kind, data):
+            return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xffffffff)
+        png = os.path.join(self.tmp, "dem.png")
+        rows = b"".join(b"\0" + struct.pack(">4H", 100, 200, 300, 400) for _ in range(4))
+        with open(png, "wb") as f:
+            f.write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", 4, 4, 16, 0, 0, 0, 0)) +
+                    chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b""))
+        p = run([IGTOOL, "dem-info", png, "--png-scale", "0.5"], cwd=self.tmp)
+        self.assertExit(p, 0)
+        self.assertEqual(json.loads(p.stdout)["max_m"], 200.0)
+        cases = [
+            (["--png-scale", "1e38"], "--png-scale", "1e+38"),
+            (["--png-scale", "-1e38"], "--png-scale", "-1e+38"),
+            (["--png-offset", "1e39"], "--png-offset", "1e+39"),
+            (["--max-void-fraction", "-0.1"], "--max-void-fraction", "-0.1"),
+            (["--max-void-fraction", "1.5"], "--max-void-fraction", "1.5"),
+        ]
+        for args, option, value in cases:
+            with self.subTest(args=args):
+                p = run([IGTOOL, "dem-info", png] + args, cwd=self.tmp)
+                self.assertExit(p, 2)
+                self.assertMentions(p, option, value)
+                self.assertNotIn("voids", p.stderr)
+                self.assertEqual(p.stdout, "")
 
     def test_igtool_convert_pcap_and_candump(self):
         # A classic pcap (raw IPv4, link type 101) of three CIGI host messages to port 8004,

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <limits>
 
 #include <unistd.h>
@@ -16,6 +17,7 @@
 #include <EGL/egl.h>
 #include <GL/glcorearb.h>
 
+#include "ig/bench_forest.h"
 #include "ig/forest_layer.h"
 #include "ig/forest_tool.h"
 #include "lod/heightfield.h"
@@ -401,6 +403,108 @@ TEST(ForestGL, AssetsRoundTrip) {
   EXPECT_EQ(t2.layers.rgba, t.layers.rgba);
   EXPECT_EQ(t2.fins.rgba, t.fins.rgba);
   EXPECT_NEAR(t2.tile_m, t.tile_m, 1e-9);
+}
+
+// Baked assets record the tree spacing they were planted for, and igd refuses them for a forest
+// of another spacing (the layers would stand for the wrong density, silently: a 40 m forest
+// with assets baked at 6 m drew layers 44x too dense), naming the file, both spacings and
+// forest.spacing_m; within 10 % they are used. A file written before the spacing was recorded
+// is still read (spacing unknown) and used with a warning; a bad spacing value is refused.
+TEST(ForestGL, AssetsRecordTheirSpacingAndAnotherSpacingIsRefused) {
+  World w;
+  ASSERT_NO_FATAL_FAILURE(w.setUp());
+  const std::vector<lod::TreeMesh> models = proceduralTrees();
+  render::ForestTextureDesc d = forestTextureDesc(6.0, 2);
+  d.size_px = 16;
+  render::ForestTextures t;
+  std::string error;
+  ASSERT_TRUE(render::renderForestTextures(models, d, t, error)) << error;
+  t.spacing_m = 6.0;
+  const std::string dir =
+      (std::filesystem::temp_directory_path() / ("forest_assets_spacing_" + std::to_string(getpid()))).string();
+  const std::string meta = dir + "/forest_textures.txt";
+  ASSERT_TRUE(writeForestAssets(dir, models, t, error)) << error;
+  std::vector<lod::TreeMesh> m2;
+  render::ForestTextures t2;
+  ASSERT_TRUE(readForestAssets(dir, m2, t2, error)) << error;
+  EXPECT_DOUBLE_EQ(t2.spacing_m, 6.0);
+  ForestLayerConfig c = w.config();
+  c.assets = dir;
+  c.fins = false;
+  c.spacing_m = 40.0;
+  error.clear();
+  EXPECT_FALSE(ForestLayer::create(c, w.ground(), error));
+  for (const char* needle : {"forest_textures.txt", "6 m", "forest.spacing_m = 40 m", "--spacing 40"})
+    EXPECT_NE(error.find(needle), std::string::npos) << needle << " not in: " << error;
+  c.spacing_m = 6.5;  // 8 % off: used
+  EXPECT_TRUE(ForestLayer::create(c, w.ground(), error)) << error;
+  // An older file: no spacing_m line. Read, used with a warning naming the file and the key.
+  std::string text;
+  {
+    std::ifstream in(meta);
+    for (std::string line; std::getline(in, line);)
+      if (line.rfind("spacing_m", 0) != 0) text += line + "\n";
+  }
+  { std::ofstream(meta) << text; }
+  ASSERT_TRUE(readForestAssets(dir, m2, t2, error)) << error;
+  EXPECT_EQ(t2.spacing_m, 0.0);
+  c.spacing_m = 40.0;
+  testing::internal::CaptureStderr();
+  const bool created = ForestLayer::create(c, w.ground(), error) != nullptr;
+  const std::string warning = testing::internal::GetCapturedStderr();
+  EXPECT_TRUE(created) << error;
+  EXPECT_NE(warning.find(meta), std::string::npos) << warning;
+  EXPECT_NE(warning.find("forest.spacing_m = 40 m"), std::string::npos) << warning;
+  // A spacing that is no number >= 0 is refused, naming the file.
+  for (const char* bad : {"nan", "-6", "6x", "inf"}) {
+    { std::ofstream(meta) << text << "spacing_m " << bad << "\n"; }
+    EXPECT_FALSE(readForestAssets(dir, m2, t2, error)) << bad;
+    EXPECT_NE(error.find(meta), std::string::npos) << error;
+    EXPECT_NE(error.find(std::string("'") + bad + "'"), std::string::npos) << error;
+  }
+  std::filesystem::remove_all(dir);
+  EXPECT_EQ(w.renderer.errors(), "");
+}
+
+// igbench forest bakes its layers on the tile igd's start-up textures use (>= 4 spacings, whole
+// trees within 10 % of the density): it kept a 24 m tile, which at 40 m spacing held one tree
+// (layers 2.8x as dense as the forest it measured).
+TEST(ForestGL, BenchTexturesHoldTheBenchSpacing) {
+  for (const double spacing : {6.0, 40.0, 100.0}) {
+    ForestBenchOptions o;
+    o.treeSpacing_m = spacing;
+    const render::ForestTextureDesc td = forestBenchTextureDesc(o);
+    const render::ForestTextureDesc igd = forestTextureDesc(spacing, o.layers);
+    EXPECT_GE(td.tile_m, 4.0 * spacing) << spacing;
+    EXPECT_EQ(td.tile_m, igd.tile_m) << spacing;
+    EXPECT_EQ(td.treesPerTile, igd.treesPerTile) << spacing;
+    const double density = td.treesPerTile * spacing * spacing / (td.tile_m * td.tile_m);
+    EXPECT_NEAR(density, 1.0, 0.1) << "spacing " << spacing << " m: " << td.treesPerTile << " trees on a "
+                                   << td.tile_m << " m tile";
+  }
+}
+
+// A face corner of a tree OBJ is the whole token: trailing junk ("f 1abc 2 3" read as "f 1 2 3")
+// is refused with the file, the line and the token, like the other model loaders.
+TEST(ForestGL, TreeObjRefusesJunkInFaceCorners) {
+  const std::string file =
+      (std::filesystem::temp_directory_path() / ("forest_tree_" + std::to_string(getpid()) + ".obj")).string();
+  const std::string head = "v 0 0 0\nv 1 0 0\nv 0 0 1\nvn 0 1 0\n";
+  lod::TreeMesh m;
+  std::string error;
+  for (const char* good : {"1 2 3", "1/1 2/2 3/3", "1//1 2//1 3//1", "1/1/1 2/2/1 3/3/1", "-3 -2 -1"}) {
+    { std::ofstream(file) << head << "f " << good << "\n"; }
+    EXPECT_TRUE(loadTreeObj(file, false, {}, m, error)) << good << ": " << error;
+  }
+  for (const char* bad : {"1abc", "1/2x", "1//1junk", "1//", "1/1/1/1", "1.5", "1//0"}) {
+    { std::ofstream(file) << head << "f " << bad << " 2 3\n"; }
+    error.clear();
+    EXPECT_FALSE(loadTreeObj(file, false, {}, m, error)) << bad;
+    EXPECT_NE(error.find(file), std::string::npos) << error;
+    EXPECT_NE(error.find("line 5"), std::string::npos) << error;
+    EXPECT_NE(error.find(std::string("'") + bad + "'"), std::string::npos) << error;
+  }
+  std::filesystem::remove(file);
 }
 
 // ForestPass::drawLayers draws ranges of triangle slots of the terrain mesh buffer that the

@@ -95,6 +95,28 @@ TEST(Replay, CommittedDefaultRecordingIsTheBuiltInOne) {
       << "regenerate with: build/igtool make-recording";
 }
 
+// igtool make-recording --duration D: the recording is D long (its last sample at D), samples
+// every 1 / rate from 0 s. floor(D x rate) + 1 samples ended at 0.28 s for 0.29 s at 100 Hz
+// (0.29 x 100 = 28.999999999999996) and at 0.29 s for 0.295 s.
+TEST(Replay, DefaultRecordingEndsAtItsDuration) {
+  struct Case {
+    double rate_hz, duration_s;
+    size_t samples;
+  };
+  for (const Case c : {Case{100.0, 0.29, 30}, Case{100.0, 0.295, 31}, Case{60.0, 20.0, 1201}, Case{10.0, 1.0, 11},
+                       Case{100.0, 0.0, 1}, Case{7.0, 1.0, 8}}) {
+    const Recording r = makeDefaultRecording(c.rate_hz, c.duration_s);
+    ASSERT_EQ(r.samples.size(), c.samples) << c.rate_hz << " Hz, " << c.duration_s << " s";
+    EXPECT_EQ(r.duration_s(), c.duration_s) << c.rate_hz << " Hz";
+    EXPECT_EQ(r.samples.front().t_s, 0.0);
+    for (size_t i = 1; i < r.samples.size(); ++i) {
+      const double step = r.samples[i].t_s - r.samples[i - 1].t_s;
+      EXPECT_GT(step, 0.0) << i;
+      EXPECT_LE(step, 1.0 / c.rate_hz + 1e-12) << i;
+    }
+  }
+}
+
 TEST(Replay, SourcePublishesNewestSampleBySlotTime) {
   Recording r;
   std::string e;
