@@ -506,7 +506,7 @@ struct Service::Impl {
   std::unique_ptr<HostInput> hostInput;      // live link and recorder; only for link sources
   std::optional<lod::EnuFrame> enu;
   render::Lighting lighting;       // the scene's sun and fog at full daylight
-  render::Lighting fixedLighting;  // the same dimmed for the scene's fixed sun (daylight())
+  render::Lighting fixedLighting;  // the same dimmed for the scene's fixed sun (render::daylight())
   SummaryCollector summary{1};
   int64_t overruns = 0, missed = 0;
   int64_t loopStart_ns = 0;
@@ -625,18 +625,7 @@ struct Service::Impl {
     lighting.fogVisibility_m = scene.fog.visibility_m;
     lighting.fogColor = {scene.fog.color[0], scene.fog.color[1], scene.fog.color[2]};
     if (!scene.fog.enabled) lighting.fogColor = {0.52, 0.68, 0.88};  // clear sky
-    fixedLighting = daylight(lighting, scene.sun.elevation_deg);
-  }
-
-  // `full` (daylight) dimmed for a sun at `elevation_deg`: night dims sun, ambient light and sky
-  // together (lod::sunlightFraction), whether the sun is the scene's or the host's time of day.
-  static render::Lighting daylight(const render::Lighting& full, double elevation_deg) {
-    const double day = lod::sunlightFraction(elevation_deg);
-    render::Lighting l = full;
-    l.sunColor = full.sunColor * day;
-    l.ambient = full.ambient * (0.15 + 0.85 * day);
-    l.fogColor = full.fogColor * (0.08 + 0.92 * day);
-    return l;
+    fixedLighting = render::daylight(lighting, scene.sun.elevation_deg);
   }
 
   lod::Camera cameraFor(const io::HostState& h) const {
@@ -715,7 +704,7 @@ struct Service::Impl {
     const lod::Geodetic g = enu->toGeodetic(h.eyeEnu_m);
     const lod::SunPosition sun = lod::sunPosition(h.dateYmd != 0 ? h.dateYmd : 20260320, h.timeOfDay_h, g.lat_deg, g.lon_deg);
     const double az = sun.azimuth_deg * kDeg, el = sun.elevation_deg * kDeg;
-    render::Lighting l = daylight(lighting, sun.elevation_deg);
+    render::Lighting l = render::daylight(lighting, sun.elevation_deg);
     l.sunDirection = {std::sin(az) * std::cos(el), std::cos(az) * std::cos(el), std::sin(el)};
     return l;
   }

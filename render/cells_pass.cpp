@@ -13,6 +13,7 @@
 #include "lod/view.h"
 #include "render/gl.h"
 #include "render/renderer.h"
+#include "render/split_offset.h"
 
 namespace ig::render {
 namespace {
@@ -22,7 +23,8 @@ layout(location = 0) in vec3 aPosition;   // voxel centre relative to the tree's
 layout(location = 1) in vec4 aColor;      // RGB8 (a: unused, the level's byte)
 layout(location = 2) in uint aLevel;      // voxel level q + d
 uniform mat4 uViewProjection;             // projection * world->camera rotation
-uniform vec3 uRootOffset;                 // rootMin - eye, computed in double
+uniform vec3 uRootOffset;                 // rootMin - eye, computed in double, as a float
+uniform vec3 uRootOffsetLow;              // what the float left out (render/split_offset.h)
 uniform float uRootEdge;                  // m
 uniform float uPxPerM;                    // pointScale * viewport height / (2 tan(fovY / 2))
 uniform vec2 uPointRange;                 // smallest, largest point side (px)
@@ -31,7 +33,7 @@ out vec3 vColor;
 out vec3 vEyeToPoint;
 uniform vec2 uViewport;                   // px
 void main() {
-  vec3 rel = aPosition + uRootOffset;
+  precise vec3 rel = (aPosition + uRootOffset) + uRootOffsetLow;
   vec4 clip = uViewProjection * vec4(rel, 1.0);
   float edge = uRootEdge * exp2(-float(aLevel));
   // Off the view axis a step of one voxel edge in any direction moves the projected centre by
@@ -61,10 +63,11 @@ in vec3 vColor;
 in vec3 vEyeToPoint;
 uniform vec3 uFogColor;
 uniform float uFogDensity;
+uniform float uLight;                     // the time of day's factor on the daylight-baked colour
 out vec4 fragColor;
 void main() {
   float fog = exp(-uFogDensity * length(vEyeToPoint));
-  fragColor = vec4(mix(uFogColor, vColor, fog), 1.0);
+  fragColor = vec4(mix(uFogColor, vColor * uLight, fog), 1.0);
 }
 )";
 
@@ -179,7 +182,7 @@ struct CellsPass::Impl {
   std::vector<uint8_t> isResident;
   std::vector<GLint> firsts;     // per draw (sized to the tree)
   std::vector<GLsizei> counts;
-  GLint uViewport = -1, uVp = -1, uRootOffset = -1, uRootEdge = -1, uPxPerM = -1, uPointRange = -1, uTanHalf = -1, uFogColor = -1, uFogDensity = -1;
+  GLint uViewport = -1, uVp = -1, uRootOffset = -1, uRootOffsetLow = -1, uLight = -1, uRootEdge = -1, uPxPerM = -1, uPointRange = -1, uTanHalf = -1, uFogColor = -1, uFogDensity = -1;
 };
 
 CellsPass::CellsPass() = default;
@@ -216,6 +219,8 @@ bool CellsPass::init(const lod::CellTree& tree, const CellsPassConfig& config, s
   g->uVp = gl.GetUniformLocation(p, "uViewProjection");
   g->uViewport = gl.GetUniformLocation(p, "uViewport");
   g->uRootOffset = gl.GetUniformLocation(p, "uRootOffset");
+  g->uRootOffsetLow = gl.GetUniformLocation(p, "uRootOffsetLow");
+  g->uLight = gl.GetUniformLocation(p, "uLight");
   g->uRootEdge = gl.GetUniformLocation(p, "uRootEdge");
   g->uPxPerM = gl.GetUniformLocation(p, "uPxPerM");
   g->uPointRange = gl.GetUniformLocation(p, "uPointRange");
@@ -349,14 +354,15 @@ void CellsPass::draw(Renderer& renderer, std::span<const lod::CellDraw> cells) {
   const lod::Camera& cam = renderer.camera();
   const glm::mat4 vp(lod::reverseZProjection(cam.fovY_deg, cam.aspect, cam.near_m, cam.far_m) *
                      glm::dmat4(lod::viewRotation(cam)));
-  const glm::vec3 rootOffset(g.tree->info().rootMin_m - cam.eye_m);
+  const SplitOffset rootOffset = splitOffset(g.tree->info().rootMin_m - cam.eye_m);
   const double tanHalf = std::tan(0.5 * cam.fovY_deg * 3.14159265358979323846 / 180.0);
   const double pxPerM = renderer.height() / (2.0 * tanHalf);
   const Lighting& l = renderer.lighting();
   const glm::vec3 fogColor(l.fogColor);
   const GLuint p = g.program.id();
   gl.ProgramUniformMatrix4fv(p, g.uVp, 1, GL_FALSE, glm::value_ptr(vp));
-  gl.ProgramUniform3fv(p, g.uRootOffset, 1, glm::value_ptr(rootOffset));
+  gl.ProgramUniform3fv(p, g.uRootOffset, 1, glm::value_ptr(rootOffset.high));
+  gl.ProgramUniform3fv(p, g.uRootOffsetLow, 1, glm::value_ptr(rootOffset.low));
   gl.ProgramUniform1f(p, g.uRootEdge, static_cast<float>(g.tree->info().rootEdge_m));
   gl.ProgramUniform1f(p, g.uPxPerM, static_cast<float>(pxPerM) * g.config.pointScale);
   const float range[2] = {g.config.minPoint_px, std::max(g.maxPoint_px, g.config.minPoint_px)};
@@ -367,6 +373,10 @@ void CellsPass::draw(Renderer& renderer, std::span<const lod::CellDraw> cells) {
   gl.ProgramUniform2fv(p, g.uViewport, 1, viewport);
   gl.ProgramUniform3fv(p, g.uFogColor, 1, glm::value_ptr(fogColor));
   gl.ProgramUniform1f(p, g.uFogDensity, l.fog ? static_cast<float>(3.912 / l.fogVisibility_m) : 0.0f);
+  // The colours are baked in daylight, 0.3 ambient + 0.7 sun (igtool cells-build): each part
+  // dimmed as the frame's (render::daylight): 1 by day (the image unchanged), 0.045 at night.
+  const double day = std::clamp(l.daylight, 0.0, 1.0);
+  gl.ProgramUniform1f(p, g.uLight, static_cast<float>(0.3 * ambientScale(day) + 0.7 * day));
 
   GLboolean pointSizeWasOn = GL_FALSE;
   gl.GetBooleanv(GL_PROGRAM_POINT_SIZE, &pointSizeWasOn);

@@ -17,11 +17,14 @@
 // point size (GL_POINT_SIZE_RANGE). GL discards a point whose centre is outside the view even where its
 // square reaches into it; the vertex shader moves centres less than half a point outside a side
 // onto the edge, so a surface close to the camera is covered to the frame's border.
-// Unlit: the colour is the voxel's (igtool cells-build bakes sun shading into it), with the
-// renderer's fog; depth-tested and written with the renderer's reverse-Z. Camera-relative:
-// rootMin - eye is computed in double each frame and added in the shader, so a tree 1e7 m from
-// the origin renders as at the origin (positions inside the root cube keep float precision
-// relative to its edge: 1e-7 of it).
+// Lit by the time of day only: the colour is the voxel's (igtool cells-build bakes daylight sun
+// shading into it, 0.3 ambient + 0.7 sun; no normals are stored), its ambient part dimmed as the
+// frame's ambient light and its sun part as the sun (Lighting::daylight: unchanged by day), with
+// the renderer's fog; depth-tested and written with the renderer's reverse-Z. Camera-relative:
+// rootMin - eye is computed in double each frame and sent as a float and its remainder
+// (render/split_offset.h), so a tree 1e7 m from the origin renders as at the origin and a root
+// cube of many km places its splats as finely near its far side (positions inside the root cube
+// keep float precision relative to its edge: 1e-7 of it).
 //
 // Nothing is created before init(): a scene without cells costs nothing. The pass binds its own
 // program and VAO, enables GL_PROGRAM_POINT_SIZE only while drawing, and leaves the FBO,

@@ -15,6 +15,7 @@
 
 #include "render/gl.h"
 #include "render/renderer.h"
+#include "render/split_offset.h"
 
 namespace ig::render {
 namespace {
@@ -28,12 +29,13 @@ layout(location = 3) in vec4 iAxisY;
 layout(location = 4) in vec4 iAxisZ;
 layout(location = 5) in vec4 iColor;
 uniform mat4 uViewProjection;             // projection * world->camera rotation
-uniform vec3 uOriginOffset;               // origin - eye, computed in double
+uniform vec3 uOriginOffset;               // origin - eye, computed in double, as a float
+uniform vec3 uOriginOffsetLow;            // what the float left out (render/split_offset.h)
 out vec3 vNormal;
 out vec3 vColor;
 out vec3 vEyeToPoint;
 void main() {
-  vec3 centre = vec3(iAxisX.w, iAxisY.w, iAxisZ.w) + uOriginOffset;
+  precise vec3 centre = (vec3(iAxisX.w, iAxisY.w, iAxisZ.w) + uOriginOffset) + uOriginOffsetLow;
   vec3 rel = centre + aPosition.x * iAxisX.xyz + aPosition.y * iAxisY.xyz + aPosition.z * iAxisZ.xyz;
   vNormal = aNormal.x * iAxisX.xyz / max(dot(iAxisX.xyz, iAxisX.xyz), 1e-30) +
             aNormal.y * iAxisY.xyz / max(dot(iAxisY.xyz, iAxisY.xyz), 1e-30) +
@@ -134,7 +136,7 @@ struct DynamicPass::Gpu {
   GLuint samplesQuery[2] = {0, 0};
   bool samplesPending[2] = {false, false};
   uint64_t bytes = 0;
-  GLint uVp = -1, uOrigin = -1, uSun = -1, uSunColor = -1, uAmbient = -1, uFogColor = -1, uFogDensity = -1,
+  GLint uVp = -1, uOrigin = -1, uOriginLow = -1, uSun = -1, uSunColor = -1, uAmbient = -1, uFogColor = -1, uFogDensity = -1,
         uWork = -1, uStateTag = -1, qVp = -1, qCentre = -1, qHalf = -1;
   ~Gpu() {
     if (!queries.empty()) gl.DeleteQueries(static_cast<GLsizei>(queries.size()), queries.data());
@@ -173,6 +175,7 @@ bool DynamicPass::init(const DynamicPassConfig& config, std::string& error) {
   const GLuint p = g->program.id(), qp = g->queryProgram.id();
   g->uVp = gl.GetUniformLocation(p, "uViewProjection");
   g->uOrigin = gl.GetUniformLocation(p, "uOriginOffset");
+  g->uOriginLow = gl.GetUniformLocation(p, "uOriginOffsetLow");
   g->uSun = gl.GetUniformLocation(p, "uSunDirection");
   g->uSunColor = gl.GetUniformLocation(p, "uSunColor");
   g->uAmbient = gl.GetUniformLocation(p, "uAmbient");
@@ -627,8 +630,9 @@ void DynamicPass::drawStateChanges(Renderer& r, uint32_t count) {
   const GLuint p = g.program.id();
   const glm::mat4 vp = viewProjection(r.camera());
   gl.ProgramUniformMatrix4fv(p, g.uVp, 1, GL_FALSE, glm::value_ptr(vp));
-  const glm::vec3 origin(config_.origin_m - r.camera().eye_m);
-  gl.ProgramUniform3fv(p, g.uOrigin, 1, glm::value_ptr(origin));
+  const SplitOffset origin = splitOffset(config_.origin_m - r.camera().eye_m);
+  gl.ProgramUniform3fv(p, g.uOrigin, 1, glm::value_ptr(origin.high));
+  gl.ProgramUniform3fv(p, g.uOriginLow, 1, glm::value_ptr(origin.low));
   bindBoxState(p, g.vao.id(), g.commands.id());
   for (uint32_t i = 0; i < count; ++i) {
     gl.ProgramUniform1f(p, g.uStateTag, static_cast<float>(i & 1u));
@@ -793,8 +797,9 @@ void DynamicPass::draw(Renderer& r, uint64_t frame) {
   const Lighting& l = r.lighting();
   const glm::mat4 vp = viewProjection(r.camera());
   gl.ProgramUniformMatrix4fv(p, g.uVp, 1, GL_FALSE, glm::value_ptr(vp));
-  const glm::vec3 origin(config_.origin_m - r.camera().eye_m);
-  gl.ProgramUniform3fv(p, g.uOrigin, 1, glm::value_ptr(origin));
+  const SplitOffset origin = splitOffset(config_.origin_m - r.camera().eye_m);
+  gl.ProgramUniform3fv(p, g.uOrigin, 1, glm::value_ptr(origin.high));
+  gl.ProgramUniform3fv(p, g.uOriginLow, 1, glm::value_ptr(origin.low));
   const glm::vec3 sun(l.sunDirection), sunColor(l.sunColor), fogColor(l.fogColor);
   gl.ProgramUniform3fv(p, g.uSun, 1, glm::value_ptr(sun));
   gl.ProgramUniform3fv(p, g.uSunColor, 1, glm::value_ptr(sunColor));

@@ -16,6 +16,7 @@
 #include "lod/forest.h"
 #include "render/gl.h"
 #include "render/renderer.h"
+#include "render/split_offset.h"
 
 namespace ig::render {
 namespace {
@@ -131,7 +132,8 @@ const char* kLayerVs = R"(#version 450 core
 layout(location = 0) in vec3 aPosition;   // terrain vertex relative to the terrain origin
 layout(location = 1) in vec3 aNormal;
 uniform mat4 uViewProjection;
-uniform vec3 uOffset;                     // terrain origin - eye (double on the CPU)
+uniform vec3 uOffset;                     // terrain origin - eye (double on the CPU) as a float
+uniform vec3 uOffsetLow;                  // what the float left out (render/split_offset.h)
 uniform float uLayerStep;                 // H / n
 uniform int uLayerBase;                   // drawn layer of instance 0 (one draw per layer over ranges)
 uniform int uLayersDrawn;                 // m <= n drawn: layer j stands for slabs [j n / m, (j + 1) n / m)
@@ -149,7 +151,7 @@ void main() {
   // texture bound: T itself when m = n (one slab each), else T's slabs composited per group.
   int j = gl_InstanceID + uLayerBase;
   float top = float(((j + 1) * uLayerCount) / uLayersDrawn);
-  vec3 rel = aPosition + vec3(0.0, 0.0, top * uLayerStep) + uOffset;
+  precise vec3 rel = ((aPosition + uOffset) + uOffsetLow) + vec3(0.0, 0.0, top * uLayerStep);
   vRel = rel;
   vNormal = aNormal;
   vMapUv = aPosition.xy * uMapScale + uMapBias;
@@ -187,7 +189,8 @@ layout(location = 0) in vec3 aPosition;   // relative to the map origin
 layout(location = 1) in vec3 aTangent;
 layout(location = 2) in vec3 aUv;         // along the edge (metres), up (0..1), slice
 uniform mat4 uViewProjection;
-uniform vec3 uOffset;                     // map origin - eye
+uniform vec3 uOffset;                     // map origin - eye as a float
+uniform vec3 uOffsetLow;                  // what the float left out (render/split_offset.h)
 uniform vec2 uMapScale;                   // 1 / map extent
 uniform float uTileScale;
 out vec3 vRel;
@@ -195,11 +198,12 @@ out vec3 vTangent;
 out vec2 vMapUv;
 out vec3 vUv;
 void main() {
-  vRel = aPosition + uOffset;
+  precise vec3 rel = (aPosition + uOffset) + uOffsetLow;
+  vRel = rel;
   vTangent = aTangent;
   vMapUv = aPosition.xy * uMapScale;
   vUv = vec3(aUv.x * uTileScale, aUv.y, aUv.z);
-  gl_Position = uViewProjection * vec4(vRel, 1.0);
+  gl_Position = uViewProjection * vec4(rel, 1.0);
 }
 )";
 
@@ -679,8 +683,8 @@ struct ForestPass::Impl {
   Locations layerLoc, finLoc;
   std::vector<GLint> layerFirsts;  // drawLayers over ranges
   std::vector<GLsizei> layerCounts;
-  GLint lOffset = -1, lLayerStep = -1, lLayerBase = -1, lLayersDrawn = -1, lLayerCount = -1, lMapScale = -1, lMapBias = -1, lTileScale = -1, lTileBias = -1;
-  GLint fOffset = -1, fMapScale = -1, fTileScale = -1;
+  GLint lOffset = -1, lOffsetLow = -1, lLayerStep = -1, lLayerBase = -1, lLayersDrawn = -1, lLayerCount = -1, lMapScale = -1, lMapBias = -1, lTileScale = -1, lTileBias = -1;
+  GLint fOffset = -1, fOffsetLow = -1, fMapScale = -1, fTileScale = -1;
   GlVertexArray layerVao, finVao;
   GLuint layerVaoBuffer = 0;
   GlBuffer finBuffer;
@@ -780,6 +784,7 @@ bool ForestPass::init(const ForestPassDesc& desc, const lod::ForestMap& map, con
   m->layerLoc.find(lp);
   m->finLoc.find(fp);
   m->lOffset = gl.GetUniformLocation(lp, "uOffset");
+  m->lOffsetLow = gl.GetUniformLocation(lp, "uOffsetLow");
   m->lLayerStep = gl.GetUniformLocation(lp, "uLayerStep");
   m->lLayerBase = gl.GetUniformLocation(lp, "uLayerBase");
   m->lLayersDrawn = gl.GetUniformLocation(lp, "uLayersDrawn");
@@ -789,6 +794,7 @@ bool ForestPass::init(const ForestPassDesc& desc, const lod::ForestMap& map, con
   m->lTileScale = gl.GetUniformLocation(lp, "uTileScale");
   m->lTileBias = gl.GetUniformLocation(lp, "uTileBias");
   m->fOffset = gl.GetUniformLocation(fp, "uOffset");
+  m->fOffsetLow = gl.GetUniformLocation(fp, "uOffsetLow");
   m->fMapScale = gl.GetUniformLocation(fp, "uMapScale");
   m->fTileScale = gl.GetUniformLocation(fp, "uTileScale");
 
@@ -934,8 +940,9 @@ void ForestPass::drawLayers(Renderer& r, const glm::dvec3& origin, std::span<con
   const lod::Camera& cam = r.camera();
   const GLuint p = m.layerProgram.id();
   m.layerLoc.set(p, viewProjection(cam), r.lighting(), m.desc.farFade);
-  const glm::vec3 offset(origin - cam.eye_m);
-  gl.ProgramUniform3fv(p, m.lOffset, 1, glm::value_ptr(offset));
+  const SplitOffset offset = splitOffset(origin - cam.eye_m);  // the mesh's origin may be ~100 km away
+  gl.ProgramUniform3fv(p, m.lOffset, 1, glm::value_ptr(offset.high));
+  gl.ProgramUniform3fv(p, m.lOffsetLow, 1, glm::value_ptr(offset.low));
   gl.ProgramUniform1f(p, m.lLayerStep, static_cast<float>(m.height_m / m.layerCount));
   gl.ProgramUniform1i(p, m.lLayersDrawn, n);
   gl.ProgramUniform1i(p, m.lLayerCount, m.layerCount);
@@ -999,8 +1006,9 @@ void ForestPass::drawFins(Renderer& r, std::span<const uint32_t> groups) {
   const lod::Camera& cam = r.camera();
   const GLuint p = m.finProgram.id();
   m.finLoc.set(p, viewProjection(cam), r.lighting(), m.desc.farFade);
-  const glm::vec3 offset(glm::dvec3(m.mapOrigin, 0.0) - cam.eye_m);
-  gl.ProgramUniform3fv(p, m.fOffset, 1, glm::value_ptr(offset));
+  const SplitOffset offset = splitOffset(glm::dvec3(m.mapOrigin, 0.0) - cam.eye_m);  // a large map's may be far
+  gl.ProgramUniform3fv(p, m.fOffset, 1, glm::value_ptr(offset.high));
+  gl.ProgramUniform3fv(p, m.fOffsetLow, 1, glm::value_ptr(offset.low));
   const glm::vec2 mapScale(1.0 / m.mapExtent.x, 1.0 / m.mapExtent.y);
   gl.ProgramUniform2fv(p, m.fMapScale, 1, glm::value_ptr(mapScale));
   gl.ProgramUniform1f(p, m.fTileScale, static_cast<float>(1.0 / m.tile_m));

@@ -9,7 +9,9 @@
 #include <glm/gtc/type_ptr.hpp>
 #include <glm/mat4x4.hpp>
 
+#include "lod/sun.h"
 #include "render/gl.h"
+#include "render/split_offset.h"
 
 namespace ig::render {
 namespace {
@@ -361,16 +363,11 @@ class TerrainPass {
   }
 
   // Camera-relative placement: origin - eye in double, sent as a float and the float of what
-  // that float left out (the program begin() bound). The float part is d rounded to 24
-  // significant bits in double (Veltkamp's split), so it converts to float exactly: GCC 12 at -O3
-  // folds the obvious d - double(float(d)) of a vector to 0.
+  // that float left out (render/split_offset.h; the program begin() bound).
   void setOrigin(GLuint p, const glm::dvec3& origin_m, const lod::Camera& camera) const {
-    const glm::dvec3 d = origin_m - camera.eye_m;
-    const glm::dvec3 c = d * 536870913.0;  // 2^29 + 1: keeps 53 - 29 = 24 bits
-    const glm::dvec3 high = c - (c - d);
-    const glm::vec3 offset(high), low(d - high);
-    gl.ProgramUniform3fv(p, current_->uChunkOffset, 1, glm::value_ptr(offset));
-    gl.ProgramUniform3fv(p, current_->uChunkOffsetLow, 1, glm::value_ptr(low));
+    const SplitOffset o = splitOffset(origin_m - camera.eye_m);
+    gl.ProgramUniform3fv(p, current_->uChunkOffset, 1, glm::value_ptr(o.high));
+    gl.ProgramUniform3fv(p, current_->uChunkOffsetLow, 1, glm::value_ptr(o.low));
   }
 
   struct Program {
@@ -551,5 +548,15 @@ uint64_t Renderer::bufferBytes() const {
 }
 
 std::string Renderer::errors() const { return glErrors(); }
+
+Lighting daylight(const Lighting& full, double elevation_deg) {
+  const double day = lod::sunlightFraction(elevation_deg);
+  Lighting l = full;
+  l.sunColor = full.sunColor * day;
+  l.ambient = full.ambient * ambientScale(day);
+  l.fogColor = full.fogColor * (0.08 + 0.92 * day);
+  l.daylight = day;
+  return l;
+}
 
 }  // namespace ig::render

@@ -25,7 +25,16 @@ struct Lighting {
   bool fog = true;
   double fogVisibility_m = 20000.0;
   glm::dvec3 fogColor{0.7, 0.78, 0.86};    // also the sky/background colour
+  double daylight = 1.0;                   // lod::sunlightFraction of the sun's elevation (daylight()):
+                                           // 1 by day, 0 at night; colours baked in daylight dim by it
 };
+
+// `full` (daylight) dimmed for a sun at `elevation_deg`: night dims sun, ambient light and sky
+// together (lod::sunlightFraction = `day`): sun colour * day, ambient * ambientScale(day), fog and
+// sky colour * (0.08 + 0.92 day); `daylight` = day. Whether the sun is a scene's or a host's time
+// of day.
+Lighting daylight(const Lighting& full, double elevation_deg);
+inline double ambientScale(double day) { return 0.15 + 0.85 * day; }
 
 struct RenderStats {
   uint64_t triangles = 0;

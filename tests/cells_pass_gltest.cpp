@@ -50,21 +50,24 @@ render::Lighting light() {
 struct QuadDb {
   lod::CellDbFile db;
   std::string path;
-  explicit QuadDb(const glm::dvec3& origin) {
+  // The quad at `origin` + (16.5 .. 47.5); the root cube at `rootMin` with `levels` voxel levels
+  // over `rootEdge` (default: a 64 m root at `origin`, 1 m voxels).
+  explicit QuadDb(const glm::dvec3& origin) : QuadDb(origin, origin, 64.0, 6) {}
+  QuadDb(const glm::dvec3& origin, const glm::dvec3& rootMin, double rootEdge, int levels) {
     lod::VoxelMesh m;
     lod::appendQuad(m, origin + glm::dvec3(kQuadLo, kPlaneY, kQuadLo), origin + glm::dvec3(kQuadHi, kPlaneY, kQuadLo),
                     origin + glm::dvec3(kQuadHi, kPlaneY, kQuadHi), origin + glm::dvec3(kQuadLo, kPlaneY, kQuadHi),
                     0xFF3060E0u);
     lod::VoxelizeConfig vc;
-    vc.levels = 6;  // 1 m voxels in a 64 m root
-    vc.boxMin_m = origin;
-    vc.boxEdge_m = 64.0;
+    vc.levels = levels;
+    vc.boxMin_m = rootMin;
+    vc.boxEdge_m = rootEdge;
     lod::VoxelPyramid p;
     std::string err;
     EXPECT_TRUE(lod::voxelize(m, vc, p, err)) << err;
     static int serial = 0;
     path = testing::TempDir() + "/cells_pass_" + std::to_string(::getpid()) + "_" + std::to_string(serial++) + ".ighc";
-    EXPECT_TRUE(lod::writeCellDb(path, p, lod::CellBuildConfig{5, 2}, nullptr, err)) << err;
+    EXPECT_TRUE(lod::writeCellDb(path, p, lod::CellBuildConfig{levels - 1, 2}, nullptr, err)) << err;
     EXPECT_TRUE(db.open(path, err)) << err;
   }
   ~QuadDb() { std::remove(path.c_str()); }
@@ -376,6 +379,87 @@ TEST(CellsPassGl, HugeCoordinatesRenderTheSame) {
   const render::Image ib = renderCells(gl, &pb, facing(60.0, far), b.level(pb, 4));
   EXPECT_LT(render::rmse(ia, ib), 0.5);
   EXPECT_EQ(coverage(ib, facing(60.0), 2.0).holes, 0);
+}
+
+// A root cube of 64 km (a large scan's) and the quad 60 km from its SW corner, the eye 2.5 m from
+// the quad: rootMin - eye was sent as one float (3.9 mm steps at 60 km), so that the splats moved
+// in those steps as the eye moved. The same quad in a 64 m root beside it must give the same
+// coverage, from an eyepoint 0.45 of a float step off the float grid, looking at a corner of the
+// quad in a 5 degree field of view (a float step is ~3 px there).
+TEST(CellsPassGl, AQuadFarFromItsRootMinIsPlacedAsNearIt) {
+  Gl gl;
+  const glm::dvec3 base(59968.0, 59968.0, 0.0);  // 937 * 64 m: the same 1 m voxel grid in both roots
+  QuadDb nearRoot(base), farRoot(base, glm::dvec3(0.0), 65536.0, 16);
+  ASSERT_EQ(farRoot.tree().info().rootEdge_m, 65536.0);
+  render::CellsPass pa, pb;
+  std::string err;
+  ASSERT_TRUE(pa.init(nearRoot.tree(), render::CellsPassConfig{}, err)) << err;
+  ASSERT_TRUE(pb.init(farRoot.tree(), render::CellsPassConfig{}, err)) << err;
+  lod::Camera cam = facing(2.5, base);
+  cam.eye_m += glm::dvec3(kQuadLo - 32.0 + 0.45 / 256.0, 0.45 / 256.0, kQuadLo - 32.0 + 0.45 / 256.0);
+  cam.fovY_deg = 5.0;
+  const render::Image ia = renderCells(gl, &pa, cam, nearRoot.level(pa, 4));
+  const render::Image ib = renderCells(gl, &pb, cam, farRoot.level(pb, 14));
+  EXPECT_GT(pa.lastStats().drawnPoints, 900u);
+  EXPECT_EQ(pa.lastStats().drawnPoints, pb.lastStats().drawnPoints);
+  // The same pixels covered (the two databases' voxel colours differ by a level or two).
+  int bg = 0, differ = 0;
+  for (int y = 0; y < kH; ++y)
+    for (int x = 0; x < kW; ++x) {
+      bg += isBackground(ia, x, y) ? 1 : 0;
+      differ += isBackground(ia, x, y) != isBackground(ib, x, y) ? 1 : 0;
+    }
+  EXPECT_EQ(differ, 0) << "pixels covered in one image only";
+  // Not vacuous: the corner voxel's splat (at the largest point size) against the background.
+  EXPECT_GT(bg, kW * kH / 10);
+  EXPECT_LT(bg, kW * kH * 9 / 10);
+}
+
+// The time of day: the cells' colours are baked in daylight (igtool cells-build: 0.3 ambient +
+// 0.7 sun), and the pass drew them so at night too (fog only), bright voxels in a dark scene. At
+// night (the sun 30 degrees below the horizon, render::daylight as the service dims the frame)
+// they must be darker by about the terrain's factor (a horizontal surface under the noon light
+// here: ambient * 0.15 against ambient + (1 - ambient) * sun = 1); by day the image is unchanged.
+TEST(CellsPassGl, CellsAreDimmedAtNightLikeTheTerrain) {
+  Gl gl;
+  QuadDb q(glm::dvec3(0.0));
+  render::CellsPass pass;
+  std::string err;
+  ASSERT_TRUE(pass.init(q.tree(), render::CellsPassConfig{}, err)) << err;
+  const auto draws = q.level(pass, 4);
+  const lod::Camera cam = facing(60.0);
+  const auto render = [&](const render::Lighting& l) {
+    gl.renderer.beginFrame(cam, l);
+    pass.draw(gl.renderer, draws);
+    gl.renderer.endFrame();
+    gl.renderer.finish();
+    render::Image img;
+    gl.renderer.readPixels(img);
+    EXPECT_EQ(gl.renderer.errors(), "");
+    return img;
+  };
+  const render::Image plain = render(light());
+  const render::Image noon = render(render::daylight(light(), 60.0));
+  const render::Image night = render(render::daylight(light(), -30.0));
+  EXPECT_EQ(noon.rgba, plain.rgba) << "daylight changed the image";
+  double sumNoon = 0.0, sumNight = 0.0;
+  int covered = 0;
+  for (int y = 0; y < kH; ++y)
+    for (int x = 0; x < kW; ++x) {
+      if (isBackground(noon, x, y)) continue;
+      ++covered;
+      for (size_t k = 0; k < 3; ++k) {
+        const size_t i = (static_cast<size_t>(y) * kW + static_cast<size_t>(x)) * 4 + k;
+        sumNoon += noon.rgba[i];
+        sumNight += night.rgba[i];
+      }
+    }
+  ASSERT_GT(covered, 1000);
+  const render::Lighting full = light(), dark = render::daylight(light(), -30.0);
+  const double terrain = dark.ambient / (full.ambient + (1.0 - full.ambient) * full.sunColor.x);
+  const double cells = sumNight / sumNoon;
+  EXPECT_GT(cells, 0.5 * terrain);
+  EXPECT_LT(cells, 2.0 * terrain) << "cells at night: " << cells << " of noon, the terrain " << terrain;
 }
 
 }  // namespace

@@ -200,6 +200,44 @@ TEST_F(DynamicGl, SameImageOneThousandKilometresFromTheOrigin) {
   EXPECT_LT(render::fractionDifferent(images[0], images[2], 2), 0.002);
 }
 
+// The pass's origin (DynamicPassConfig::origin_m) 170 km from the boxes and the eye (bounds of
+// 262 km about it): origin - eye was sent as one float, so that every box moved in its 7.8 mm
+// steps as the eye moved. The same boxes drawn with the origin beside them must give the same
+// picture, from an eyepoint 0.45 of a float step (1/128 m at 120 km) off the float grid and with
+// boxes 3 .. 6 m away in a 5 degree field of view (a float step is a pixel there).
+TEST_F(DynamicGl, BoxesFarFromTheOriginArePlacedAsNearIt) {
+  const glm::dvec3 base(120000.0, 120000.0, 0.0);
+  std::vector<render::Image> images;
+  for (const glm::dvec3 origin : {base, glm::dvec3(0.0)}) {
+    render::DynamicPassConfig c;
+    c.maxObjects = 256;
+    c.bounds = {origin - glm::dvec3(131072.0), origin + glm::dvec3(131072.0)};
+    c.octreeDepth = 6;
+    c.maxQueries = 64;
+    c.origin_m = origin;
+    render::DynamicPass p;
+    std::string error;
+    ASSERT_TRUE(p.init(c, error)) << error;
+    // Box centres on the 1/128 m grid: floats relative to either origin.
+    for (int i = 0; i < 48; ++i) {
+      const glm::dvec3 at(0.0625 * (i % 8) - 0.25, 3.0 + 0.0625 * i, 0.0625 * ((i * 5) % 7) - 0.1875);
+      ASSERT_NE(p.add({base + at, glm::dvec3(0.015625), 0.0, 0xff000000u | (0x3f1fu * static_cast<uint32_t>(i + 1))}),
+                render::DynamicPass::kNone);
+    }
+    p.setStrategy(DynamicStrategy::PerCommand);
+    cam_.eye_m = base + glm::dvec3(0.45 / 128.0, 0.45 / 128.0, 0.45 / 128.0);
+    cam_.fovY_deg = 5.0;
+    images.push_back(frame(p, 1));
+  }
+  cam_ = lod::Camera{};
+  EXPECT_LT(render::rmse(images[0], images[1]), 0.1);
+  EXPECT_LT(render::fractionDifferent(images[0], images[1], 2), 0.0005);
+  // Not vacuous: boxes and background.
+  render::Image flat = images[0];
+  for (size_t i = 4; i < flat.rgba.size(); ++i) flat.rgba[i] = flat.rgba[i % 4];
+  EXPECT_GT(render::rmse(images[0], flat), 10.0);
+}
+
 // A failed init (here: bounds that are not finite) leaves the pass as it was. It replaced the
 // configuration first: the pass kept its buffers for 64 objects but placed the node commands
 // and instance blocks after 4,096, beyond them (GL_INVALID_OPERATION, nothing drawn; writes

@@ -965,3 +965,119 @@ TEST(ForestGL, SameForestTenThousandKilometresFromTheOrigin) {
     EXPECT_LT(render::fractionDifferent(images[0][i], images[1][i], 2), 0.002) << "camera " << i;
   }
 }
+
+namespace {
+
+// The shell layers and fins over a flat 64 m patch whose south-west corner is at `base`, drawn
+// with the terrain mesh's origin and the map's origin either beside the patch or 170 km from it
+// (at 0: a DEM tile's mesh origin is its SW post, a forest map's its SW corner); one image a view.
+render::Image layersAndFins(const glm::dvec2& base, bool farOrigins) {
+  constexpr int kPatchPosts = 33;
+  constexpr double kPatchSpacing = 2.0;
+  std::string error;
+  auto ctx = render::createContext(render::ContextKind::Headless, kW, kH, error);
+  EXPECT_TRUE(ctx) << error;
+  if (!ctx) return {};
+  render::Renderer renderer;
+  EXPECT_TRUE(renderer.init(kW, kH, error)) << error;
+  // Textures tiled every 32 m (a power of two: the tile coordinates are exact for either origin).
+  const std::vector<lod::TreeMesh> models = proceduralTrees();
+  render::ForestTextureDesc td;
+  td.layers = 4;
+  td.size_px = 64;
+  td.tile_m = 32.0;
+  render::ForestTextures t;
+  EXPECT_TRUE(render::renderForestTextures(models, td, t, error)) << error;
+  // A uniform map of 128 x 128 cells of 1024 m, its SW corner at 0 (far) or 1024 m SW of the patch.
+  lod::ForestMap map;
+  map.width = map.height = 128;
+  map.cell_m = 1024.0;
+  map.origin_m = farOrigins ? glm::dvec2(0.0) : base - glm::dvec2(1024.0);
+  map.density.assign(128 * 128, 1.0f);
+  map.gr.assign(128 * 128, 0xFF6A8C5Au);
+  const glm::dvec3 terrainOrigin = farOrigins ? glm::dvec3(0.0) : glm::dvec3(base, 0.0);
+  // Fins: 1 m pieces of an east-west line 1 m inside the north edge, one group.
+  lod::FinSet fins;
+  for (int i = 0; i < 24; ++i) {
+    lod::Fin f;
+    f.a_m = {base.x + 20.0 + i, base.y + 63.0, 0.0};
+    f.b_m = f.a_m + glm::dvec3(1.0, 0.0, 0.0);
+    f.phi_deg = 90.0f;
+    fins.fins.push_back(f);
+  }
+  lod::FinGroup g;
+  g.bounds = {glm::dvec3(base.x + 20.0, base.y + 63.0, 0.0), glm::dvec3(base.x + 44.0, base.y + 63.0, t.height_m)};
+  g.centre_m = 0.5 * (g.bounds.min + g.bounds.max);
+  g.radius_m = 0.5 * glm::length(g.bounds.max - g.bounds.min);
+  g.count = 24;
+  fins.groups.push_back(g);
+  render::ForestPassDesc pd;
+  pd.farFade = {0.5, 1.0, 6000.0, 8000.0};
+  pd.nearFade = {0.6, 0.9};
+  render::ForestPass pass;
+  EXPECT_TRUE(pass.init(pd, map, t, models, &fins, error)) << error;
+  // The flat patch: vertices relative to the terrain origin.
+  const std::vector<float> heights(static_cast<size_t>(kPatchPosts) * kPatchPosts, 0.0f);
+  const size_t vertexCount = static_cast<size_t>(kPatchPosts - 1) * (kPatchPosts - 1) * 6;
+  EXPECT_TRUE(renderer.addTerrainMesh(vertexCount, 1.0, error)) << error;
+  const glm::vec3 shift(glm::dvec3(base, 0.0) - terrainOrigin);
+  auto dst = renderer.terrainMeshVertices();
+  size_t n = 0;
+  const auto v = [&](int x, int y) {
+    lod::TerrainVertex tv = lod::heightFieldVertex(heights, kPatchPosts, kPatchPosts, kPatchSpacing, x, y);
+    for (int k = 0; k < 3; ++k) tv.position[k] += shift[k];
+    return tv;
+  };
+  for (int y = 0; y + 1 < kPatchPosts; ++y)
+    for (int x = 0; x + 1 < kPatchPosts; ++x) {
+      dst[n++] = v(x, y), dst[n++] = v(x + 1, y), dst[n++] = v(x + 1, y + 1);
+      dst[n++] = v(x, y), dst[n++] = v(x + 1, y + 1), dst[n++] = v(x, y + 1);
+    }
+  // An eyepoint 0.45 of a float step (1/128 m at 120 km) off the float grid, 0.4 H above the
+  // ground, looking down 45 degrees at the lowest layer's edge along the patch's north border 3 m
+  // away (layers against the background) in an 8 degree field of view.
+  lod::Camera cam;
+  const double off = 0.45 / 128.0;
+  cam.eye_m = {base.x + 32.0 + off, base.y + 64.0 - 0.15 * t.height_m + off, 0.4 * t.height_m + off};
+  cam.pitch_deg = -45.0;
+  cam.fovY_deg = 8.0;
+  cam.aspect = static_cast<double>(kW) / kH;
+  cam.near_m = 0.1;
+  cam.far_m = 5000.0;
+  renderer.beginFrame(cam, render::Lighting{});
+  renderer.drawTerrainMesh(terrainOrigin, vertexCount);
+  pass.drawLayers(renderer, terrainOrigin, vertexCount, 4);
+  const uint32_t group = 0;
+  pass.drawFins(renderer, std::span(&group, 1));
+  const render::ForestDrawStats st = pass.takeStats();
+  EXPECT_EQ(st.layers, 4u);
+  EXPECT_EQ(st.fins, 24u);
+  renderer.endFrame();
+  renderer.finish();
+  render::Image img;
+  renderer.readPixels(img);
+  EXPECT_EQ(renderer.errors(), "");
+  return img;
+}
+
+}  // namespace
+
+// The layers are drawn over the terrain mesh, whose vertices lie up to a DEM tile's size from
+// their origin (its SW post): the origin - eye offset was sent as one float (7.8 mm steps at
+// 120 km), so that the layers moved in those steps as the eye moved and came apart from the
+// terrain, which is placed to a fraction of a millimetre (seen here with the layers faded in from
+// 0.5 m). The same layers drawn from an origin beside them must give the same picture. (The fins,
+// relative to the map's SW corner, are drawn the same way; their texture is too soft for a float
+// step to show.)
+TEST(ForestGL, LayersFarFromTheirOriginArePlacedAsNearIt) {
+  const glm::dvec2 base(120000.0, 120000.0);
+  const render::Image nearImage = layersAndFins(base, false), farImage = layersAndFins(base, true);
+  ASSERT_EQ(nearImage.width, kW);
+  ASSERT_EQ(farImage.width, kW);
+  EXPECT_LT(render::rmse(nearImage, farImage), 0.1);
+  EXPECT_LT(render::fractionDifferent(nearImage, farImage, 2), 0.0005);
+  // Not vacuous: the view shows the layers and the background beyond them.
+  render::Image flat = nearImage;
+  for (size_t i = 4; i < flat.rgba.size(); ++i) flat.rgba[i] = flat.rgba[i % 4];
+  EXPECT_GT(render::rmse(nearImage, flat), 3.0);
+}
