@@ -1,5 +1,6 @@
 #include "ig/frame_loop.h"
 
+#include <algorithm>
 #include <cassert>
 #include <cmath>
 
@@ -33,7 +34,7 @@ int64_t FramePacer::beginFrame() {
     prevStart_ns_ = t0_ns_;
   }
   const int64_t slot = nextSlot_;
-  const int64_t slotTime = t0_ns_ + slot * period_ns_;
+  const int64_t slotTime = t0_ns_ + slotTime_ns(slot);
   const int64_t waitStart = prevEnd_ns_ >= 0 ? clock_.now_ns() : 0;
   if (wait_ && !wait_(slotTime)) return -1;
   if (!freeRun_) clock_.sleepUntil_ns(slotTime);
@@ -61,7 +62,7 @@ const FrameTiming& FramePacer::endFrame() {
   prevEnd_ns_ = end;
   ++frames_;
   int64_t next = timing_.frame + 1;
-  const int64_t nextSlotTime = t0_ns_ + next * period_ns_;
+  const int64_t nextSlotTime = t0_ns_ + slotTime_ns(next);
   if (budget_ns_ > 0) {
     timing_.overrun = end - frameStart_ns_ > budget_ns_;
   } else {
@@ -71,7 +72,11 @@ const FrameTiming& FramePacer::endFrame() {
     if (end > nextSlotTime) {
       // First slot that has not started yet (one starting exactly at `end` has not, as for the
       // next slot above): skip the ones we ran past.
-      const int64_t firstFuture = (end - t0_ns_ - 1) / period_ns_ + 1;
+      const int64_t since = end - t0_ns_;
+      int64_t firstFuture = std::max(  // within a slot or so; exact below
+          next, static_cast<int64_t>(std::ceil(static_cast<long double>(since) * static_cast<long double>(rate_hz_) / 1e9L)));
+      while (firstFuture > next && slotTime_ns(firstFuture - 1) >= since) --firstFuture;
+      while (slotTime_ns(firstFuture) < since) ++firstFuture;
       timing_.missedSlots = firstFuture - next;
       next = firstFuture;
     }

@@ -508,8 +508,13 @@ struct Service::Impl {
   render::Lighting lighting;       // the scene's sun and fog at full daylight
   render::Lighting fixedLighting;  // the same dimmed for the scene's fixed sun (render::daylight())
   SummaryCollector summary{1};
-  int64_t overruns = 0, missed = 0;
+  int64_t overruns = 0, missed = 0;  // of every run() so far, as the summary's frames
   int64_t loopStart_ns = 0;
+  // The geomorphing time of the next run()'s slot 0: the time after the previous run's last frame,
+  // so that a run after another goes on from there (slot times restart at 0; morphs started near
+  // the end of a run would otherwise stand still at their start heights until the new run's time
+  // caught up with theirs).
+  double morphTimeBase_s = 0.0;
   std::unique_ptr<SnapshotWriter> snapshots;  // only while the config asks for snapshots
   bool snapshotsAtStartup = false;            // the start-up config asked for them (folder made)
   int generation = 1;                         // config generation: +1 per applied reload
@@ -960,6 +965,17 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
   // rate is the fallback when the host is silent (wait at most one period per frame).
   const bool hostPaced = link != nullptr && link->synchronous();
   FramePacer pacer(clock, cfg.rate_hz, cfg.freeRun || hostPaced, cfg.budgetFrame_ms);
+  const double morphTimeBase_s = m.morphTimeBase_s;
+  // The summary counts every run's frames: its overruns and missed slots too, also on a
+  // return from the middle of the loop.
+  struct AddCounts {
+    Impl& m;
+    const FramePacer& pacer;
+    ~AddCounts() {
+      m.overruns += pacer.overruns();
+      m.missed += pacer.missedSlots();
+    }
+  } addCounts{m, pacer};
   const int64_t loopStart_ns = clock.now_ns();
   m.loopStart_ns = loopStart_ns;
   pacer.startAt(loopStart_ns);
@@ -1211,7 +1227,8 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
 
     // lod
     const lod::Camera cam = m.cameraFor(host_);
-    m.select(cam, &clock, pacer.slotTime_s(slot), host_.simTime_s);
+    m.select(cam, &clock, morphTimeBase_s + pacer.slotTime_s(slot), host_.simTime_s);
+    m.morphTimeBase_s = morphTimeBase_s + pacer.slotTime_s(slot + 1);
     pacer.endPhase(Phase::Lod);
 
     // submit
@@ -1360,8 +1377,6 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
                  static_cast<long long>(g.ignored));
   }
   if (m.cells) std::fprintf(stderr, "igd: %s\n", m.cells->summaryLine().c_str());
-  m.overruns = pacer.overruns();
-  m.missed = pacer.missedSlots();
   const std::string glErr = m.renderer.errors();
   if (!glErr.empty()) {
     std::fprintf(stderr, "igd: GL errors during the run: %s\n", glErr.c_str());

@@ -82,6 +82,7 @@ class Service {
   FrameRecord renderOnce(const io::HostState& host, render::Image* image);
 
   const ServiceInfo& info() const { return info_; }
+  // Of every run() so far (frames, percentiles, overruns and missed slots alike).
   RunSummary summary() const;
   io::LatestValueMailbox<io::HostState>& mailbox() { return mailbox_; }
   uint64_t hostRejected() const { return hostRejected_; }

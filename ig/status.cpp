@@ -1,6 +1,7 @@
 #include "ig/status.h"
 
 #include <algorithm>
+#include <bit>
 #include <cerrno>
 #include <cmath>
 #include <cstdarg>
@@ -59,14 +60,47 @@ void StatusReporter::reconfigure(std::string file, double interval_s, double rat
   file_ = std::move(file);
   tmpFile_ = file_.empty() ? std::string() : file_ + ".tmp";
   interval_ns_ = static_cast<int64_t>(std::max(interval_s, 0.01) * 1e9);
-  const auto perInterval = static_cast<size_t>(std::ceil(std::max(interval_s, 0.01) * std::max(rate_hz, 1.0)));
-  work_ms_.reserve(4 * perInterval + 16);
-  scratch_.reserve(work_ms_.capacity());
+  // Room for the frames of 4 intervals at the rate, at most kExactFrames (1000 Hz x 3600 s
+  // reserved 230 MB); the histogram takes every frame beyond.
+  const double perInterval = std::ceil(std::max(interval_s, 0.01) * std::max(rate_hz, 1.0));
+  work_ms_.reserve(static_cast<size_t>(std::min(4.0 * perInterval + 16.0, static_cast<double>(kExactFrames))));
+  histogram_.resize(kHistogramBins, 0u);
   fileError_.clear();
+}
+
+size_t StatusReporter::histogramBin(double work_ms) {
+  const double us = std::round(work_ms * 1e3);
+  constexpr double kTop = static_cast<double>(uint64_t{1} << (kSubBits + kMaxShift + 1)) - 1.0;
+  const auto x = static_cast<uint64_t>(!(us > 0.0) ? 0.0 : std::min(us, kTop));  // NaN: 0
+  if (x < 2 * kSubBuckets) return static_cast<size_t>(x);
+  const int shift = static_cast<int>(std::bit_width(x)) - 1 - kSubBits;
+  return static_cast<size_t>(static_cast<uint64_t>(shift + 1) * kSubBuckets + (x >> shift) - kSubBuckets);
+}
+
+double StatusReporter::histogramValue_ms(size_t bin) {
+  // The lowest value of the bin.
+  if (bin < 2 * kSubBuckets) return static_cast<double>(bin) * 1e-3;
+  const auto shift = static_cast<int>(bin / kSubBuckets) - 1;
+  const uint64_t sub = bin % kSubBuckets + kSubBuckets;
+  return static_cast<double>(sub << shift) * 1e-3;
+}
+
+// Nearest rank, as percentileInPlace, over the histogram of every frame of the interval.
+double StatusReporter::histogramPercentile(double p) const {
+  if (frames_ <= 0) return 0.0;
+  const auto n = static_cast<double>(frames_);
+  const auto k = static_cast<uint64_t>(std::min(n - 1.0, std::ceil(p * n) - 1.0));
+  uint64_t seen = 0;
+  for (size_t b = 0; b < histogram_.size(); ++b) {
+    seen += histogram_[b];
+    if (seen > k) return std::min(histogramValue_ms(b), workMax_ms_);
+  }
+  return workMax_ms_;
 }
 
 void StatusReporter::addFrame(const FrameTiming& t, uint64_t triangles) {
   if (work_ms_.size() < work_ms_.capacity()) work_ms_.push_back(t.work_ms);
+  ++histogram_[histogramBin(t.work_ms)];
   workMax_ms_ = std::max(workMax_ms_, t.work_ms);
   for (int p = 0; p < kPhaseCount; ++p) phaseMax_ms_[static_cast<size_t>(p)] =
       std::max(phaseMax_ms_[static_cast<size_t>(p)], t.phase_ms[static_cast<size_t>(p)]);
@@ -84,10 +118,12 @@ void StatusReporter::addFrame(const FrameTiming& t, uint64_t triangles) {
 
 const std::string& StatusReporter::report(int64_t now_ns, const StatusContext& ctx) {
   const double seconds = static_cast<double>(now_ns - lastReport_ns_) * 1e-9;
-  scratch_.assign(work_ms_.begin(), work_ms_.end());
-  const size_t n = scratch_.size();
-  const double p50 = percentileInPlace(scratch_, n, 0.50);
-  const double p99 = percentileInPlace(scratch_, n, 0.99);
+  // Exact over the frames kept when they are all of the interval's, else from the histogram
+  // of every frame (reordering work_ms_ is harmless: it is cleared below).
+  const size_t n = work_ms_.size();
+  const bool exact = static_cast<int64_t>(n) >= frames_;
+  const double p50 = exact ? percentileInPlace(work_ms_, n, 0.50) : histogramPercentile(0.50);
+  const double p99 = exact ? percentileInPlace(work_ms_, n, 0.99) : histogramPercentile(0.99);
   // Of every frame of the interval: a loop faster than the rate (free-run, a host pacing the
   // frames) runs more frames than work_ms_ keeps.
   const double mx = frames_ > 0 ? workMax_ms_ : 0.0;
@@ -197,6 +233,7 @@ const std::string& StatusReporter::report(int64_t now_ns, const StatusContext& c
   // New interval.
   lastReport_ns_ = now_ns;
   work_ms_.clear();
+  std::fill(histogram_.begin(), histogram_.end(), 0u);
   phaseMax_ms_.fill(0.0);
   workMax_ms_ = 0.0;
   overruns_ = missed_ = frames_ = 0;

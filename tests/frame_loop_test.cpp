@@ -42,6 +42,34 @@ TEST(FramePacer, FramesStartOnAbsoluteSlotsWithoutDrift) {
   EXPECT_EQ(pacer.overruns(), 0);
 }
 
+// Slots are k / rate, not k times a period rounded to the nanosecond: at 600 Hz that period
+// (1666667 ns) put the slots 0.33 ns a frame late, 17 ms after a day, while the replay and the
+// geomorphing clock (slotTime_s) and the live recording's stamps count k / rate.
+TEST(FramePacer, SlotTimesDoNotAccumulateThePeriodsRounding) {
+  for (const double rate : {60.0, 600.0, 90.0}) {
+    SCOPED_TRACE(rate);
+    FakeClock clock;
+    FramePacer pacer(clock, rate, false);
+    const int64_t t0 = clock.now_ns();
+    const int64_t day = std::llround(86400.0 * rate);  // 5,184,000 frames at 60 Hz
+    EXPECT_NEAR(static_cast<double>(pacer.slotTime_ns(day)), 86400e9, 1.0);
+    ASSERT_EQ(pacer.beginFrame(), 0);
+    // A frame that ends just before the slot a day later: the loop skips to that slot and
+    // starts it at its time.
+    clock.advance_ns(86'400'000'000'000 - 1);
+    const FrameTiming& t = pacer.endFrame();
+    EXPECT_EQ(t.missedSlots, day - 1);
+    ASSERT_EQ(pacer.beginFrame(), day);
+    EXPECT_EQ(clock.now_ns() - t0, 86'400'000'000'000)
+        << "the slot a day later starts " << (clock.now_ns() - t0 - 86'400'000'000'000) << " ns late";
+    // And frame by frame from there.
+    clock.advance_ns(1000);
+    pacer.endFrame();
+    ASSERT_EQ(pacer.beginFrame(), day + 1);
+    EXPECT_NEAR(static_cast<double>(clock.now_ns() - t0), 86400e9 + 1e9 / rate, 1.0);
+  }
+}
+
 TEST(FramePacer, PhaseTimesAddUpToWork) {
   FakeClock clock;
   FramePacer pacer(clock, 60.0, false);

@@ -282,6 +282,56 @@ TEST(Status, WorkMaxCoversEveryFrameOfTheInterval) {
   EXPECT_NE(r.json().find("\"work_ms_max\":4.000"), std::string::npos) << r.json();
 }
 
+// [service] status_interval_s = 3600 at frame.rate_hz = 1000 (both allowed): the reporter kept
+// every frame's work time of 4 intervals, twice (230 MB, locked with lock_memory). Its memory is
+// bounded now, and the interval's percentiles still cover every frame of it.
+TEST(Status, MemoryIsBoundedAtTheHighestRateAndLongestInterval) {
+  ig::StatusReporter r("", 3600.0, 1000.0);
+  EXPECT_LT(r.reservedBytes(), size_t{2} << 20);
+  r.reconfigure("", 3600.0, 1000.0);
+  EXPECT_LT(r.reservedBytes(), size_t{2} << 20);
+}
+
+// More frames in an interval than the reporter keeps exactly: p50 and p99 are those of every
+// frame of the interval (before, those of the first frames kept: the slow second half of the
+// interval was missing from both).
+TEST(Status, PercentilesCoverEveryFrameBeyondTheFramesKept) {
+  ig::StatusReporter r("", 1.0, 10.0);  // keeps about 4 x 10 frames exactly
+  r.start(0);
+  // 96 frames of 5 ms, then 300 of 12 ms and 4 of 250 ms (the 1 % above the p99).
+  int64_t frame = 0;
+  auto add = [&](int n, double ms) {
+    for (int i = 0; i < n; ++i) {
+      ig::FrameTiming t;
+      t.frame = frame++;
+      t.work_ms = ms;
+      r.addFrame(t, 100);
+    }
+  };
+  add(96, 5.0);
+  add(300, 12.0);
+  add(4, 250.0);
+  r.report(1'000'000'000, ig::StatusContext{});
+  EXPECT_NE(r.json().find("\"frames\":400,"), std::string::npos) << r.json();
+  EXPECT_NE(r.json().find("\"work_ms_p50\":12.000,\"work_ms_p99\":12.000,\"work_ms_max\":250.000"), std::string::npos)
+      << r.json();
+  add(392, 3.0);
+  add(8, 40.0);  // 2 %: the p99
+  r.report(2'000'000'000, ig::StatusContext{});
+  EXPECT_NE(r.json().find("\"work_ms_p50\":3.000,\"work_ms_p99\":40.000,\"work_ms_max\":40.000"), std::string::npos)
+      << r.json();
+  // Within 0.1 % for values that do not fall on the histogram's bins.
+  add(1000, 7.654321);
+  r.report(3'000'000'000, ig::StatusContext{});
+  const size_t at = r.json().find("\"work_ms_p50\":");
+  ASSERT_NE(at, std::string::npos);
+  EXPECT_NEAR(std::stod(r.json().substr(at + 14)), 7.654321, 7.654321e-3) << r.json();
+  // An interval within the frames kept is exact.
+  add(10, 7.654321);
+  r.report(4'000'000'000, ig::StatusContext{});
+  EXPECT_NE(r.json().find("\"work_ms_p50\":7.654,"), std::string::npos) << r.json();
+}
+
 // service.watchdog_interval_s accepts any value in 0 ..= 3600: a tiny one (below a nanosecond)
 // must ping at every call, not switch the watchdog off (systemd would then kill igd after
 // WatchdogSec).

@@ -910,3 +910,42 @@ TEST(ServiceGL, ALongPeriodPingsTheWatchdogAndSeesAStopWhileWaiting) {
   EXPECT_EQ(service->summary().frames, 2) << "the frame of slot 2 was rendered after the stop request";
   EXPECT_LT(clock.now_ns(), t0 + 20 * kS) << "the stop request was seen only at slot 2";
 }
+
+namespace {
+// A clock whose every reading is 50 ms after the previous one: at 30 Hz every frame overruns
+// and skips slots.
+class SlowWorkClock final : public Clock {
+ public:
+  int64_t now_ns() const override { return now_ += 50'000'000; }
+  void sleepUntil_ns(int64_t deadline_ns) override { now_ = std::max(now_, deadline_ns); }
+
+ private:
+  mutable int64_t now_ = 1'000'000'000;
+};
+}  // namespace
+
+// Service::summary() after several run() calls: its frames (and percentiles) are of every run,
+// so its overruns and missed slots must be too (they were the last run's only).
+TEST(ServiceGL, SummaryCountsTheOverrunsAndMissedSlotsOfEveryRun) {
+  ServiceConfig cfg;
+  SceneConfig scene;
+  test::defaultConfigs(cfg, scene);
+  scene.terrain.reset();
+  cfg.frames = 3;
+  cfg.rate_hz = 30;
+  std::string error;
+  auto service = Service::create(cfg, scene, error);
+  ASSERT_TRUE(service) << error;
+  std::atomic<bool> stop{false};
+  SlowWorkClock clock;
+  ASSERT_EQ(service->run(clock, stop), 0);
+  const RunSummary first = service->summary();
+  ASSERT_EQ(first.frames, 3);
+  ASSERT_EQ(first.overruns, 3);
+  ASSERT_GT(first.missedSlots, 0);
+  ASSERT_EQ(service->run(clock, stop), 0);
+  const RunSummary both = service->summary();
+  EXPECT_EQ(both.frames, 6);
+  EXPECT_EQ(both.overruns, 6);
+  EXPECT_GT(both.missedSlots, first.missedSlots);
+}

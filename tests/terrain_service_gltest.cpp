@@ -219,3 +219,67 @@ TEST(TerrainService, AClimbMorphsOutAndEndsConverged) {
   const double before = std::stod(with.stats[after - 1].at("triangles")), end = std::stod(with.stats[done].at("triangles"));
   EXPECT_LT(end, 0.85 * before) << "drawn triangles before the climb " << before << ", after " << end;
 }
+
+namespace {
+// A fake clock that calls `hook(n)` before the n-th frame of the service's life (counted from 0
+// over every run: one sleep a frame).
+class HookClock final : public Clock {
+ public:
+  explicit HookClock(std::function<void(int64_t)> hook) : hook_(std::move(hook)) {}
+  int64_t now_ns() const override { return clock_.now_ns(); }
+  void sleepUntil_ns(int64_t deadline_ns) override {
+    clock_.sleepUntil_ns(deadline_ns);
+    hook_(sleeps_++);
+  }
+
+ private:
+  FakeClock clock_;
+  std::function<void(int64_t)> hook_;
+  int64_t sleeps_ = 0;
+};
+}  // namespace
+
+// A second run() (tests run the service again; the replay restarts for it) starts its slot times
+// at 0 again. The geomorphs started in the last frame of the first run (a descent: many splits)
+// held start times near its end, so in the second run they stood still at their start heights
+// (rewritten every frame) until its time caught up: morph_s after the start they must be done.
+TEST(TerrainService, MorphsOfAFirstRunEndInASecondRun) {
+  const int64_t frames = 24;
+  ServiceConfig cfg;
+  SceneConfig unused;
+  test::defaultConfigs(cfg, unused);
+  const auto dir = std::filesystem::temp_directory_path() / ("igd_terrain_gltest_rerun_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  cfg.frames = frames;
+  cfg.rate_hz = 30;
+  cfg.statsFile = (dir / "stats.csv").string();
+  std::string error;
+  auto service = Service::create(cfg, roamScene(kMorph_s, TerrainLayerConfig::RoamMode::Deferred, 1.0), error);
+  ASSERT_TRUE(service) << error;
+  auto at = [](const glm::dvec3& eye_m) {
+    io::HostState s = test::defaultHostAt(0.0);
+    s.eyeEnu_m = eye_m;
+    s.heading_deg = 0.0;
+    s.pitch_deg = -30.0;
+    s.roll_deg = 0.0;
+    return s;
+  };
+  service->mailbox().publish(at({0, -2500, 1500}));
+  HookClock clock([&](int64_t frame) {
+    if (frame == frames - 1) service->mailbox().publish(at(kLow.eye_m));  // the first run's last frame
+  });
+  std::atomic<bool> stop{false};
+  ASSERT_EQ(service->run(clock, stop), 0);
+  const std::vector<std::map<std::string, std::string>> first = test::readStatsCsv(cfg.statsFile);
+  ASSERT_EQ(first.size(), static_cast<size_t>(frames));
+  ASSERT_GT(std::stod(first.back().at("uploads")), 0.0) << "the descent must change the mesh";
+  ASSERT_EQ(service->run(clock, stop), 0);
+  const std::vector<std::map<std::string, std::string>> second = test::readStatsCsv(cfg.statsFile);
+  ASSERT_EQ(second.size(), static_cast<size_t>(frames));
+  EXPECT_GT(std::stod(second[0].at("uploads")), 0.0) << "the morphs go on in the second run";
+  // morph_s = 9 frames: from frame 12 on the still eye's mesh is done.
+  for (size_t f = 12; f < second.size(); ++f)
+    EXPECT_EQ(second[f].at("uploads"), "0") << "frame " << f << " of the second run: morphs still running";
+  service.reset();
+  std::filesystem::remove_all(dir);
+}
