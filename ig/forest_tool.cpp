@@ -295,21 +295,42 @@ bool readForestAssets(const std::string& dir, std::vector<lod::TreeMesh>& models
   t = {};
   std::vector<std::string> names;
   std::string line;
+  int lineNo = 0;
   while (std::getline(f, line)) {
+    ++lineNo;
     std::istringstream ls(line);
     std::string key;
     ls >> key;
-    if (key == "layers") ls >> t.layerCount;
-    else if (key == "fin_slices") ls >> t.finSlices;
-    else if (key == "tile_m") ls >> t.tile_m;
-    else if (key == "height_m") ls >> t.height_m;
-    else if (key == "spacing_m") {
-      std::string value;
+    // One whole number after each key, nothing after it ('tile_m 24abc', 'layers 4 5': refused).
+    auto one = [&](auto& out) {
+      std::string value, extra;
+      ls >> value;
+      const bool trailing = static_cast<bool>(ls >> extra);
+      std::istringstream vs(value);
+      vs >> out;
+      if (value.empty() || trailing || !vs || vs.peek() != std::char_traits<char>::eof()) {
+        error = "forest assets '" + meta + "': line " + std::to_string(lineNo) + ": " + key + " = '" + value +
+                (trailing ? " " + extra : std::string()) + "': not a single number";
+        return false;
+      }
+      return true;
+    };
+    if (key == "layers") {
+      if (!one(t.layerCount)) return false;
+    } else if (key == "fin_slices") {
+      if (!one(t.finSlices)) return false;
+    } else if (key == "tile_m") {
+      if (!one(t.tile_m)) return false;
+    } else if (key == "height_m") {
+      if (!one(t.height_m)) return false;
+    } else if (key == "spacing_m") {
+      std::string value, extra;
       ls >> value;
       char* end = nullptr;
       t.spacing_m = std::strtod(value.c_str(), &end);
-      if (value.empty() || *end != '\0' || !std::isfinite(t.spacing_m) || t.spacing_m < 0.0) {
-        error = "forest assets '" + meta + "': spacing_m = '" + value + "': must be a finite number >= 0";
+      if (value.empty() || *end != '\0' || !std::isfinite(t.spacing_m) || t.spacing_m < 0.0 || ls >> extra) {
+        error = "forest assets '" + meta + "': line " + std::to_string(lineNo) + ": spacing_m = '" + value +
+                (extra.empty() ? std::string() : " " + extra) + "': must be a finite number >= 0";
         return false;
       }
     }    else if (key == "models")

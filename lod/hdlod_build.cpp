@@ -39,7 +39,31 @@ struct Event {
   double weight;
   int count;  // change in the members present (value > 0)
   int full;   // change in the members wholly present (value 1)
+  uint32_t member;
+  double value;  // the member's value from t on
 };
+
+// Whether sum(weights[i] * values[i]) >= total / 2, exactly: the sign of
+// sum(weights[i] * (2 values[i] - 1)) (exact terms for values 0 and 1) summed without rounding
+// (Shewchuk's non-overlapping partials; the largest one carries the sign).
+bool atLeastHalf(std::span<const double> weights, std::span<const double> values, std::vector<double>& partials) {
+  partials.clear();
+  for (size_t i = 0; i < weights.size(); ++i) {
+    double x = weights[i] * (2.0 * values[i] - 1.0);
+    size_t kept = 0;
+    for (double y : partials) {
+      if (std::abs(x) < std::abs(y)) std::swap(x, y);
+      const double hi = x + y, lo = y - (hi - x);
+      if (lo != 0.0) partials[kept++] = lo;
+      x = hi;
+    }
+    partials.resize(kept);
+    partials.push_back(x);
+  }
+  for (size_t i = partials.size(); i-- > 0;)
+    if (partials[i] != 0.0) return partials[i] > 0.0;
+  return true;
+}
 
 // f(t) = sum of weight x value / total over the members' step functions (leaves: value 1 =
 // present); with `any`, f = 1 while any member is present (value > 0: a group over merged
@@ -57,7 +81,7 @@ void presenceOf(const HdlodTree& tree, std::span<const uint32_t> leaves, std::sp
       const double v = tree.stepValues[c.stepBegin + k];
       if (v != prev)
         events.push_back({tree.stepTimes[c.stepBegin + k], weights[i] * (v - prev), (v > 0.0) - (prev > 0.0),
-                          (v == 1.0) - (prev == 1.0)});
+                          (v == 1.0) - (prev == 1.0), static_cast<uint32_t>(i), v});
       prev = v;
     }
   }
@@ -68,16 +92,26 @@ void presenceOf(const HdlodTree& tree, std::span<const uint32_t> leaves, std::sp
   double w = 0.0;
   int count = 0, full = 0;
   size_t e = 0;
+  // The members' values now, for the exact side of 1/2 (the running sum w drifts with rounding:
+  // weights 0.1, 0.2, 0.3 in, 0.3 out left f = 0.4999999999999999 for 0.1 + 0.2 present, and the
+  // cluster was skipped).
+  std::vector<double> current(leaves.size(), 0.0), partials;
   auto value = [&] {
     if (count <= 0) return 0.0;
     if (any || full >= n) return 1.0;
-    return std::clamp(w / total, 0.0, 1.0);
+    const double f = std::clamp(w / total, 0.0, 1.0);
+    if (std::abs(f - 0.5) > 1e-6) return f;
+    return atLeastHalf(weights, current, partials) ? std::max(f, 0.5) : std::min(f, std::nextafter(0.5, 0.0));
+  };
+  auto apply = [&](const Event& ev) {
+    w += ev.weight;
+    count += ev.count;
+    full += ev.full;
+    current[ev.member] = ev.value;
   };
   // Segment starting at 0 includes every event at 0.
   while (e < events.size() && events[e].t <= 0.0) {
-    w += events[e].weight;
-    count += events[e].count;
-    full += events[e].full;
+    apply(events[e]);
     ++e;
   }
   times.push_back(0.0);
@@ -85,9 +119,7 @@ void presenceOf(const HdlodTree& tree, std::span<const uint32_t> leaves, std::sp
   while (e < events.size()) {
     const double t = events[e].t;
     while (e < events.size() && events[e].t == t) {
-      w += events[e].weight;
-      count += events[e].count;
-      full += events[e].full;
+      apply(events[e]);
       ++e;
     }
     const double v = value();

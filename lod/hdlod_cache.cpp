@@ -22,7 +22,7 @@ constexpr char kMagic[8] = {'I', 'G', 'H', 'D', 'L', 'O', 'D', '\0'};
 constexpr size_t kHeaderBytes = 64;
 // Bump when the builder changes what it makes from the same scene and config (the key then
 // changes, and old caches read as stale).
-constexpr uint64_t kBuildRevision = 8;  // 8: model versions measured on their drawn triangles (dominated ones dropped); back samples spread over drawn triangles
+constexpr uint64_t kBuildRevision = 9;  // 9: presence exactly on its side of 1/2 (8: model versions measured on their drawn triangles, back samples spread over drawn triangles)
 
 struct Header {
   char magic[8];

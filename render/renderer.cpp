@@ -489,7 +489,22 @@ void Renderer::drawTerrainMesh(const glm::dvec3& origin_m, std::span<const lod::
 }
 
 void Renderer::beginFrame(const lod::Camera& camera, const Lighting& lighting) {
-  camera_ = camera;
+  const auto finite = [](double v) { return std::isfinite(v); };
+  const lod::Camera& c = camera;
+  if (finite(c.eye_m.x) && finite(c.eye_m.y) && finite(c.eye_m.z) && finite(c.heading_deg) && finite(c.pitch_deg) &&
+      finite(c.roll_deg) && c.fovY_deg > 0.0 && c.fovY_deg < 180.0 && c.aspect > 0.0 && finite(c.aspect) &&
+      c.near_m > 0.0 && c.far_m > c.near_m && finite(c.far_m)) {
+    camera_ = camera;
+  } else {
+    char text[384];
+    std::snprintf(text, sizeof text,
+                  "beginFrame: camera refused (eye %g %g %g, heading %g, pitch %g, roll %g deg, fov %g deg, aspect %g, "
+                  "near %g m, far %g m: need finite values, fov in (0, 180), aspect > 0, 0 < near < far): "
+                  "the last good camera is drawn",
+                  c.eye_m.x, c.eye_m.y, c.eye_m.z, c.heading_deg, c.pitch_deg, c.roll_deg, c.fovY_deg, c.aspect, c.near_m,
+                  c.far_m);
+    cameraError_ = text;
+  }
   lighting_ = lighting;
   stats_ = {};
   stats_.passes = passCount();
@@ -547,7 +562,14 @@ uint64_t Renderer::bufferBytes() const {
   return (terrain_ ? terrain_->bytes() : 0) + (terrainMesh_ ? terrainMesh_->bytes() : 0);
 }
 
-std::string Renderer::errors() const { return glErrors(); }
+std::string Renderer::errors() const {
+  std::string e = glErrors();
+  if (!cameraError_.empty()) {
+    e = e.empty() ? cameraError_ : cameraError_ + "; " + e;
+    cameraError_.clear();
+  }
+  return e;
+}
 
 Lighting daylight(const Lighting& full, double elevation_deg) {
   const double day = lod::sunlightFraction(elevation_deg);

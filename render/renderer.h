@@ -77,6 +77,9 @@ class Renderer {
   std::span<lod::TerrainVertex> terrainMeshVertices() const;
 
   // One frame: begin (clear), draw the selected items of each pass, end.
+  // A camera with a NaN / infinite eye, angle or aspect, a field of view outside (0, 180) deg,
+  // near <= 0 or far <= near (or infinite) is refused: the frame keeps the last good camera (the
+  // default Camera before any) and errors() reports it, naming the values.
   void beginFrame(const lod::Camera& camera, const Lighting& lighting);
   void drawTerrain(std::span<const uint32_t> chunkIndices);
   // Draws the first `vertexCount` vertices of the mapped buffer (3 a triangle, positions
@@ -119,7 +122,7 @@ class Renderer {
   // Bytes of GPU buffers owned by passes (0 when the scene has no layers).
   uint64_t bufferBytes() const;
   uint32_t passCount() const { return (terrain_ ? 1u : 0u) + (terrainMesh_ ? 1u : 0u); }
-  // Pending GL errors, "" if none.
+  // Pending GL errors and refused cameras (beginFrame), "" if none; reading clears them.
   std::string errors() const;
 
  private:
@@ -131,6 +134,7 @@ class Renderer {
   bool resolved_ = true;
   void resolve();
   lod::Camera camera_;
+  mutable std::string cameraError_;  // the last refused camera, until errors() reads it
   Lighting lighting_;
   RenderStats stats_;
 };

@@ -466,6 +466,57 @@ TEST(ForestGL, AssetsRecordTheirSpacingAndAnotherSpacingIsRefused) {
   EXPECT_EQ(w.renderer.errors(), "");
 }
 
+// Every value of forest_textures.txt is one number and nothing else: 'tile_m 24abc' read as 24 m
+// and 'layers 3 5' as 3 layers were accepted silently. Refused, naming the file, the line and the
+// value. (Hand-made textures: no GL needed.)
+TEST(ForestGL, AssetsWithTrailingJunkAfterAValueAreRefused) {
+  const std::vector<lod::TreeMesh> models = proceduralTrees();
+  render::ForestTextures t;
+  t.layerCount = 2;
+  t.finSlices = 1;
+  t.tile_m = 24.0;
+  t.height_m = 18.0;
+  t.spacing_m = 6.0;
+  t.layers = {16, 8, std::vector<uint8_t>(16 * 8 * 4, 200)};
+  t.fins = {8, 8, std::vector<uint8_t>(8 * 8 * 4, 200)};
+  const std::string dir =
+      (std::filesystem::temp_directory_path() / ("forest_assets_junk_" + std::to_string(getpid()))).string();
+  const std::string meta = dir + "/forest_textures.txt";
+  std::string error;
+  ASSERT_TRUE(writeForestAssets(dir, models, t, error)) << error;
+  std::vector<std::string> lines;
+  {
+    std::ifstream in(meta);
+    for (std::string line; std::getline(in, line);) lines.push_back(line);
+  }
+  std::vector<lod::TreeMesh> m2;
+  render::ForestTextures t2;
+  ASSERT_TRUE(readForestAssets(dir, m2, t2, error)) << error;
+  const std::pair<const char*, const char*> cases[] = {{"tile_m", "24abc"},   {"layers", "2 5"},  {"fin_slices", "1x"},
+                                                       {"height_m", "18 m"}, {"layers", "2.5"}, {"spacing_m", "6 7"},
+                                                       {"tile_m", ""}};
+  for (const auto& [key, bad] : cases) {
+    std::string text;
+    size_t lineNo = 0;
+    for (size_t i = 0; i < lines.size(); ++i) {
+      if (lines[i].rfind(std::string(key) + " ", 0) == 0) {
+        text += std::string(key) + " " + bad + "\n";
+        lineNo = i + 1;
+      } else {
+        text += lines[i] + "\n";
+      }
+    }
+    ASSERT_GT(lineNo, 0u) << key;
+    { std::ofstream(meta) << text; }
+    error.clear();
+    EXPECT_FALSE(readForestAssets(dir, m2, t2, error)) << key << " " << bad;
+    EXPECT_NE(error.find(meta), std::string::npos) << error;
+    EXPECT_NE(error.find("line " + std::to_string(lineNo)), std::string::npos) << error;
+    EXPECT_NE(error.find(std::string("'") + bad + "'"), std::string::npos) << error;
+  }
+  std::filesystem::remove_all(dir);
+}
+
 // igbench forest bakes its layers on the tile igd's start-up textures use (>= 4 spacings, whole
 // trees within 10 % of the density): it kept a 24 m tile, which at 40 m spacing held one tree
 // (layers 2.8x as dense as the forest it measured).

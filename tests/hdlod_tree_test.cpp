@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -156,6 +157,45 @@ TEST(HdlodSelect, HalfPresentClusterIsSkippedMostlyPresentIsDrawn) {
   // r = 0: exactly the present objects.
   EXPECT_EQ(selectHdlod(tree, s, viewOf({0, 0, 0}, 1000, 2, 0.0), out, &st), 1u);
   EXPECT_EQ(out.draws[0].cluster, tree.objectCluster[0]);
+}
+
+// f_c >= 0.5 decides exactly: weights 0.1, 0.2, 0.3 (box diagonals), any two of which outweigh
+// the third (0.1 + 0.2 > 0.3 for the doubles). The running sum of the members' rises and falls
+// drifted: 0.2, 0.3, 0.1 in, then 0.3 out left f = 0.4999999999999999 with 0.1 + 0.2 present, and
+// the good-enough cluster was skipped. Every order in and out: drawn iff two or three present.
+TEST(HdlodSelect, PresenceFractionAtHalfIsExactForUnequalWeights) {
+  const double T = 10, w[3] = {0.1, 0.2, 0.3};
+  int order[3] = {0, 1, 2};
+  std::vector<std::array<int, 3>> orders;
+  do orders.push_back({order[0], order[1], order[2]});
+  while (std::next_permutation(order, order + 3));
+  for (const auto& in : orders)
+    for (const auto& out : orders) {
+      Scene s;
+      s.duration_s = T;
+      for (int i = 0; i < 3; ++i) {
+        Model m = makeBoxModel("m" + std::to_string(i), {w[i], 0, 0});
+        m.box = Aabb{glm::dvec3(-0.5 * w[i], 0, 0), glm::dvec3(0.5 * w[i], 0, 0)};  // diagonal exactly w[i]
+        s.models.push_back(m);
+      }
+      double appear[3], leave[3];
+      for (int k = 0; k < 3; ++k) {
+        appear[in[static_cast<size_t>(k)]] = 1.0 + k;
+        leave[out[static_cast<size_t>(k)]] = 5.0 + k;
+      }
+      for (uint32_t i = 0; i < 3; ++i) s.objects.push_back(placed("o" + std::to_string(i), i, {0, 0, 0}, {{appear[i], leave[i]}}));
+      const HdlodTree tree = buildHdlod(s);
+      for (uint32_t i = 0; i < 3; ++i) ASSERT_EQ(tree.clusters[tree.objectCluster[i]].size_m, w[i]);
+      DrawList list(tree);
+      for (const double t : {1.5, 2.5, 3.5, 5.5, 6.5}) {
+        int present = 0;
+        for (int i = 0; i < 3; ++i) present += appear[i] <= t && t < leave[i];
+        SelectStats st;
+        const size_t n = selectHdlod(tree, s, viewOf({0, 0, 0}, 1000, t, 1.0), list, &st);
+        EXPECT_EQ(n, present >= 2 ? 1u : 0u) << "in " << in[0] << in[1] << in[2] << " out " << out[0] << out[1] << out[2]
+                                             << " t " << t << " present " << present;
+      }
+    }
 }
 
 TEST(HdlodBuild, ZeroTriangleAndDegenerateObjects) {

@@ -17,7 +17,9 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <glm/gtc/type_ptr.hpp>
@@ -676,6 +678,88 @@ TEST(RenderGL, ATerrainMeshFarFromItsOriginIsPlacedAsNearIt) {
     // Not vacuous: the view shows ground and sky.
     EXPECT_GT(render::rmse(a, flatImage(kW, kH, a.rgba[0], a.rgba[1], a.rgba[2])), 10.0);
   }
+  EXPECT_EQ(renderer.errors(), "");
+}
+
+// beginFrame refuses a camera with NaN / infinite values, a field of view outside (0, 180) deg,
+// near <= 0 or far <= near (igtool render, benchmarks and tests call the renderer without the
+// frame loop's host filter): it went straight into the uniforms. The frame keeps the last good
+// camera (the same picture) and errors() names the refused camera, once.
+TEST(RenderGL, ABadCameraIsRefusedAndTheLastGoodOneIsDrawn) {
+  constexpr int kW = 64, kH = 48, kPosts = 17;
+  constexpr double kSpacing = 2.0;
+  std::string error;
+  auto ctx = render::createContext(render::ContextKind::Headless, kW, kH, error);
+  ASSERT_TRUE(ctx) << error;
+  render::Renderer renderer;
+  ASSERT_TRUE(renderer.init(kW, kH, error)) << error;
+  lod::HeightfieldDesc hd;
+  hd.postsX = hd.postsY = kPosts;
+  hd.postSpacing_m = kSpacing;
+  hd.heightScale_m = 6.0;
+  std::vector<float> heights(static_cast<size_t>(kPosts) * kPosts);
+  lod::generateHeightfield(hd, heights);
+  ASSERT_TRUE(renderer.addTerrainMesh(static_cast<size_t>(kPosts - 1) * (kPosts - 1) * 6, 6.0, error)) << error;
+  const auto tris = patchTriangles(heights, kPosts, kSpacing, {0.0, 0.0});
+  lod::Camera good;
+  good.eye_m = {16.0, -10.0, 12.0};
+  good.pitch_deg = -30.0;
+  good.fovY_deg = 60.0;
+  good.aspect = static_cast<double>(kW) / kH;
+  good.near_m = 0.1;
+  good.far_m = 5000.0;
+  const render::Lighting light;
+  auto frame = [&](const lod::Camera& cam) {
+    renderer.beginFrame(cam, light);
+    renderer.drawTerrainMesh(glm::dvec3(0.0), tris);
+    renderer.endFrame();
+    renderer.finish();
+    render::Image img;
+    renderer.readPixels(img);
+    return img;
+  };
+  const render::Image want = frame(good);
+  ASSERT_EQ(renderer.errors(), "");
+  ASSERT_GT(render::rmse(want, flatImage(kW, kH, want.rgba[0], want.rgba[1], want.rgba[2])), 10.0);  // ground and sky
+  const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
+  std::vector<std::pair<const char*, lod::Camera>> bad;
+  auto add = [&](const char* what, auto change) {
+    lod::Camera c = good;
+    change(c);
+    bad.emplace_back(what, c);
+  };
+  add("nan eye", [&](lod::Camera& c) { c.eye_m.x = nan; });
+  add("inf eye", [&](lod::Camera& c) { c.eye_m.z = inf; });
+  add("nan heading", [&](lod::Camera& c) { c.heading_deg = nan; });
+  add("inf pitch", [&](lod::Camera& c) { c.pitch_deg = -inf; });
+  add("nan roll", [&](lod::Camera& c) { c.roll_deg = nan; });
+  add("nan fov", [&](lod::Camera& c) { c.fovY_deg = nan; });
+  add("fov 0", [&](lod::Camera& c) { c.fovY_deg = 0.0; });
+  add("fov 180", [&](lod::Camera& c) { c.fovY_deg = 180.0; });
+  add("nan aspect", [&](lod::Camera& c) { c.aspect = nan; });
+  add("near 0", [&](lod::Camera& c) { c.near_m = 0.0; });
+  add("near < 0", [&](lod::Camera& c) { c.near_m = -1.0; });
+  add("far = near", [&](lod::Camera& c) { c.far_m = c.near_m; });
+  add("far < near", [&](lod::Camera& c) { c.far_m = 0.05; });
+  add("inf far", [&](lod::Camera& c) { c.far_m = inf; });
+  add("nan near", [&](lod::Camera& c) { c.near_m = nan; });
+  for (const auto& [what, cam] : bad) {
+    const render::Image got = frame(cam);
+    const lod::Camera& used = renderer.camera();
+    EXPECT_EQ(used.eye_m, good.eye_m) << what;
+    EXPECT_EQ(used.fovY_deg, good.fovY_deg) << what;
+    EXPECT_EQ(used.near_m, good.near_m) << what;
+    EXPECT_EQ(used.far_m, good.far_m) << what;
+    EXPECT_EQ(got.rgba, want.rgba) << what;
+    const std::string e = renderer.errors();
+    EXPECT_NE(e.find("camera refused"), std::string::npos) << what << ": '" << e << "'";
+    EXPECT_EQ(renderer.errors(), "") << what;  // reported once
+  }
+  // A good camera after them is used.
+  lod::Camera moved = good;
+  moved.heading_deg = 20.0;
+  frame(moved);
+  EXPECT_EQ(renderer.camera().heading_deg, 20.0);
   EXPECT_EQ(renderer.errors(), "");
 }
 
