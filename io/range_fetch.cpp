@@ -627,15 +627,18 @@ struct RangeFetcher::Impl {
 
   // Drops the connection; the requests on it go back to the front of the queue.
   //  charge: count a failed attempt for each; delay: backoff before reconnecting.
-  void dropConnection(const std::string& reason, bool charge, bool delay) {
+  //  chargeFrontOnly (with charge): only the first request in flight (the one whose response
+  //  had begun) is charged; the others, without a byte of their response, are resent uncharged.
+  void dropConnection(const std::string& reason, bool charge, bool delay, bool chargeFrontOnly = false) {
     closeSocket();
     int64_t now = nowNs();
     reconnectAt_ns = delay ? now + int64_t{nextBackoff()} * 1000000 : now;
     while (!inflight.empty()) {
       Wire w = std::move(inflight.back());
       inflight.pop_back();
+      const bool chargeThis = charge && (!chargeFrontOnly || inflight.empty());
       for (auto it = w.parts.rbegin(); it != w.parts.rend(); ++it) {
-        if (charge)
+        if (chargeThis)
           failAttempt(std::move(*it), reason, 0, true);
         else
           pending.push_front(std::move(*it));
@@ -903,10 +906,17 @@ struct RangeFetcher::Impl {
         closeSocket();
         return;
       }
-      // A keep-alive connection the server closed between responses is retried at once; one
-      // that dies mid-response or before any response waits for the backoff.
+      // A keep-alive connection the server closed between responses (a stale keep-alive: its
+      // idle timeout ran out as requests went out) is retried at once, and the requests on it,
+      // none of which got a byte of its response, are resent without counting a failed attempt
+      // (the connection answered before, so each such drop completes at least one request: no
+      // endless loop). One that dies mid-response charges the request whose response had begun
+      // (only it); one that dies before any response charges all and waits for the backoff.
       bool quick = !midResponse && responsesOnConn > 0;
-      dropConnection(why + (midResponse ? " mid-response" : ""), true, !quick);
+      if (quick)
+        dropConnection(why, false, false);
+      else
+        dropConnection(why + (midResponse ? " mid-response" : ""), true, true, midResponse);
       return;
     }
   }
@@ -921,6 +931,12 @@ struct RangeFetcher::Impl {
       }
       if (n < 0 && errno == EINTR) continue;
       if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) return;
+      // On a connection that answered before, a send that fails (EPIPE, ECONNRESET) is a stale
+      // keep-alive: the requests not answered yet got no byte of a response; resent uncharged.
+      if (responsesOnConn > 0 && !headParsed && recvOff == recvBuf.size()) {
+        dropConnection(std::string("send: ") + std::strerror(errno), false, false);
+        return;
+      }
       dropConnection(std::string("send: ") + std::strerror(errno), true, true);
       return;
     }

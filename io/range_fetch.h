@@ -30,7 +30,10 @@
 // the requests on it are retried after an exponential backoff (retryMin_ms doubling to
 // retryMax_ms; reset by the next good response). A connection the server closes after saying
 // "Connection: close" is reopened at once and its unanswered requests resent without counting a
-// retry. A crc mismatch (zlib crc32 of the bytes) drops the data and fetches the range again
+// retry; so is a keep-alive connection that answered before and is closed (or reset) by the
+// server before a byte of the next response (a stale keep-alive: its idle timeout ran out as
+// requests went out; they are resent on a fresh connection, not charged to maxAttempts). A
+// connection closed mid-response charges only the request whose response had begun. A crc mismatch (zlib crc32 of the bytes) drops the data and fetches the range again
 // (counted in `corrupt`) up to maxCorruptAttempts times. A request gives up (ok = false) after
 // maxAttempts failed attempts (0 = never).
 //

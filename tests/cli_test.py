@@ -356,6 +356,26 @@ class ConfigErrors(Tmp):
                 self.assertExit(p, code)
         self.assertEqual(json.loads(p.stdout)["frames"], low)
 
+    def test_igbench_cells_settle_is_null_when_never_settled(self):
+        # frames_to_settle_after_teleport / seconds_to_settle_after_teleport: frames (seconds) until
+        # a frame after the teleport with nothing requested, blocked or in flight. A path too short
+        # to settle (the default path never does: the viewer keeps moving) reported -1 / -1.0, read
+        # as a measurement; it is null (docs/cells.md). One that settles reports the frames.
+        for frames, settled in ((30, False), (60, True)):
+            with self.subTest(frames=frames):
+                p = run([IGBENCH, "cells", "--spheres", "100", "--levels", "7", "--frames", str(frames), "--no-mesh",
+                         "--json", "--repeats", "1", "--deadline-ms", "0"], cwd=self.tmp)
+                self.assertExit(p, 0)
+                d = json.loads(p.stdout)
+                f, s = d["frames_to_settle_after_teleport"], d["seconds_to_settle_after_teleport"]
+                if settled:
+                    self.assertIsInstance(f, int, d)
+                    self.assertTrue(0 <= f < frames - d["teleport_frame"], f)
+                    self.assertAlmostEqual(s, f / 60.0, places=3)
+                else:
+                    self.assertIsNone(f, "never settled, reported as a number")
+                    self.assertIsNone(s, "never settled, reported as a number")
+
 
 # ------------------------------------------------------------------------------------------------
 # b, c. start-up failures

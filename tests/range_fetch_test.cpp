@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -633,4 +634,117 @@ TEST(RangeFetch, NginxOfAKilledTestProcessIsStopped) {
   EXPECT_EQ(left, 0) << "nginx of " << rundir << " outlived its test process";
   std::string out;  // whatever the outcome, leave nothing behind
   run(std::string(IG_SOURCE_DIR) + "/scripts/cells-server stop --dir '" + rundir + "' 2>&1", out);
+}
+
+namespace {
+// A keep-alive HTTP server on 127.0.0.1 that, on each connection, answers `answered` GETs (206,
+// keep-alive, no "Connection: close") and then closes the connection when the next request head
+// arrives, without a byte of its response: what a server does whose keep-alive timeout runs out
+// just as requests are pipelined on the idle connection (a stale keep-alive).
+struct ClosingKeepAliveServer {
+  std::vector<uint8_t> data;
+  int answered = 1;
+  int listenFd = -1;
+  uint16_t port = 0;
+  std::atomic<int> connections{0};
+  std::atomic<bool> quit{false};
+  std::thread thread;
+
+  ClosingKeepAliveServer(std::vector<uint8_t> d, int perConnection) : data(std::move(d)), answered(perConnection) {
+    listenFd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    a.sin_port = 0;
+    if (::bind(listenFd, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0 || ::listen(listenFd, 8) != 0) return;
+    socklen_t len = sizeof a;
+    ::getsockname(listenFd, reinterpret_cast<sockaddr*>(&a), &len);
+    port = ntohs(a.sin_port);
+    thread = std::thread([this] { serve(); });
+  }
+  ~ClosingKeepAliveServer() {
+    quit.store(true);
+    ::shutdown(listenFd, SHUT_RDWR);
+    if (thread.joinable()) thread.join();
+    ::close(listenFd);
+  }
+  std::string url() const { return "http://127.0.0.1:" + std::to_string(port) + "/cells.db"; }
+
+  void serve() {
+    while (!quit.load()) {
+      int c = ::accept(listenFd, nullptr, nullptr);
+      if (c < 0) return;
+      ++connections;
+      timeval tv{0, 200000};
+      ::setsockopt(c, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+      std::string buf;
+      int served = 0;
+      bool open = true;
+      while (open && !quit.load()) {
+        size_t end = buf.find("\r\n\r\n");
+        if (end == std::string::npos) {
+          char tmp[4096];
+          ssize_t n = ::recv(c, tmp, sizeof tmp, 0);
+          if (n == 0) break;
+          if (n < 0) continue;  // timeout: look at quit
+          buf.append(tmp, static_cast<size_t>(n));
+          continue;
+        }
+        std::string req = buf.substr(0, end);
+        buf.erase(0, end + 4);
+        if (served == answered) break;  // stale: close with the request unanswered
+        size_t r = req.find("Range: bytes=");
+        uint64_t first = 0, last = 0;
+        if (r == std::string::npos ||
+            std::sscanf(req.c_str() + r, "Range: bytes=%llu-%llu", reinterpret_cast<unsigned long long*>(&first),
+                        reinterpret_cast<unsigned long long*>(&last)) != 2)
+          break;
+        last = std::min<uint64_t>(last, data.size() - 1);
+        std::string head = "HTTP/1.1 206 Partial Content\r\nContent-Range: bytes " + std::to_string(first) + "-" +
+                           std::to_string(last) + "/" + std::to_string(data.size()) +
+                           "\r\nContent-Length: " + std::to_string(last - first + 1) + "\r\n\r\n";
+        std::string out = head + std::string(reinterpret_cast<const char*>(data.data()) + first, last - first + 1);
+        size_t off = 0;
+        while (off < out.size()) {
+          ssize_t n = ::send(c, out.data() + off, out.size() - off, MSG_NOSIGNAL);
+          if (n <= 0) {
+            open = false;
+            break;
+          }
+          off += static_cast<size_t>(n);
+        }
+        ++served;
+      }
+      ::close(c);
+    }
+  }
+};
+}  // namespace
+
+// A keep-alive connection the server closes before a byte of the response to a pipelined request
+// arrived (a stale keep-alive: the server's idle timeout ran out as the requests went out) is not
+// a failed attempt of those requests: they are sent again on a fresh connection. With
+// maxAttempts = 1 each of them failed ("gave up after 1 attempts") without ever being answered.
+TEST(RangeFetch, StaleKeepAliveIsNotAFailedAttempt) {
+  std::vector<uint8_t> data(64 << 10);
+  std::mt19937 rng(11);
+  for (auto& b : data) b = static_cast<uint8_t>(rng());
+  ClosingKeepAliveServer srv(data, 1);
+  ASSERT_NE(srv.port, 0);
+  RangeFetcherOptions o = fastOptions();
+  o.maxAttempts = 1;
+  o.maxCoalesce_bytes = 0;
+  std::string err;
+  auto f = RangeFetcher::open(srv.url(), o, err);
+  ASSERT_TRUE(f) << err;
+  std::vector<RangeRequest> reqs;
+  for (uint32_t i = 0; i < 4; ++i) {
+    uint64_t off = 1000 + i * 5000;
+    reqs.push_back({i, off, 700, crcOf(data.data() + off, 700), true});
+  }
+  ASSERT_TRUE(f->submit(reqs, err)) << err;
+  auto res = waitResults(*f, reqs.size(), 5.0);
+  expectBytes(res, reqs, data);
+  EXPECT_EQ(f->stats().failed, 0u);
+  EXPECT_GE(srv.connections.load(), 4) << "the requests were not pipelined on one connection";
 }
