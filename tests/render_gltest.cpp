@@ -623,6 +623,32 @@ std::vector<lod::TerrainVertex> patchTriangles(const std::vector<float>& heights
     }
   return out;
 }
+
+// A headless context and renderer of w x h with room for a posts x posts height-field patch
+// (2 m spacing, 6 m of relief) and its heights: the set-up of the patch tests below.
+struct PatchScene {
+  static constexpr double kSpacing = 2.0;
+  std::unique_ptr<render::GlContext> ctx;
+  render::Renderer renderer;
+  std::vector<float> heights;
+  int posts = 0;
+  // Call with ASSERT_NO_FATAL_FAILURE.
+  void setUp(int w, int h, int postsPerSide) {
+    posts = postsPerSide;
+    std::string error;
+    ctx = render::createContext(render::ContextKind::Headless, w, h, error);
+    ASSERT_TRUE(ctx) << error;
+    ASSERT_TRUE(renderer.init(w, h, error)) << error;
+    lod::HeightfieldDesc hd;
+    hd.postsX = hd.postsY = posts;
+    hd.postSpacing_m = kSpacing;
+    hd.heightScale_m = 6.0;
+    heights.resize(static_cast<size_t>(posts) * static_cast<size_t>(posts));
+    lod::generateHeightfield(hd, heights);
+    ASSERT_TRUE(renderer.addTerrainMesh(static_cast<size_t>(posts - 1) * static_cast<size_t>(posts - 1) * 6, 6.0, error))
+        << error;
+  }
+};
 }  // namespace
 
 // A terrain mesh (ROAM, block LOD) keeps one origin, the DEM's south-west post, so its vertices
@@ -633,19 +659,11 @@ std::vector<lod::TerrainVertex> patchTriangles(const std::vector<float>& heights
 // it must give the same picture, with and without the detail terms.
 TEST(RenderGL, ATerrainMeshFarFromItsOriginIsPlacedAsNearIt) {
   constexpr int kW = 160, kH = 120, kPosts = 33;
-  constexpr double kSpacing = 2.0;
-  std::string error;
-  auto ctx = render::createContext(render::ContextKind::Headless, kW, kH, error);
-  ASSERT_TRUE(ctx) << error;
-  render::Renderer renderer;
-  ASSERT_TRUE(renderer.init(kW, kH, error)) << error;
-  lod::HeightfieldDesc hd;
-  hd.postsX = hd.postsY = kPosts;
-  hd.postSpacing_m = kSpacing;
-  hd.heightScale_m = 6.0;
-  std::vector<float> heights(static_cast<size_t>(kPosts) * kPosts);
-  lod::generateHeightfield(hd, heights);
-  ASSERT_TRUE(renderer.addTerrainMesh(static_cast<size_t>(kPosts - 1) * (kPosts - 1) * 6, 6.0, error)) << error;
+  constexpr double kSpacing = PatchScene::kSpacing;
+  PatchScene scene;
+  ASSERT_NO_FATAL_FAILURE(scene.setUp(kW, kH, kPosts));
+  render::Renderer& renderer = scene.renderer;
+  const std::vector<float>& heights = scene.heights;
   const glm::dvec2 base(120000.0, 120000.0);  // the patch's south-west corner, 170 km from the far origin
   const auto nearOrigin = patchTriangles(heights, kPosts, kSpacing, {0.0, 0.0});
   const auto farOrigin = patchTriangles(heights, kPosts, kSpacing, base);
@@ -687,19 +705,11 @@ TEST(RenderGL, ATerrainMeshFarFromItsOriginIsPlacedAsNearIt) {
 // camera (the same picture) and errors() names the refused camera, once.
 TEST(RenderGL, ABadCameraIsRefusedAndTheLastGoodOneIsDrawn) {
   constexpr int kW = 64, kH = 48, kPosts = 17;
-  constexpr double kSpacing = 2.0;
-  std::string error;
-  auto ctx = render::createContext(render::ContextKind::Headless, kW, kH, error);
-  ASSERT_TRUE(ctx) << error;
-  render::Renderer renderer;
-  ASSERT_TRUE(renderer.init(kW, kH, error)) << error;
-  lod::HeightfieldDesc hd;
-  hd.postsX = hd.postsY = kPosts;
-  hd.postSpacing_m = kSpacing;
-  hd.heightScale_m = 6.0;
-  std::vector<float> heights(static_cast<size_t>(kPosts) * kPosts);
-  lod::generateHeightfield(hd, heights);
-  ASSERT_TRUE(renderer.addTerrainMesh(static_cast<size_t>(kPosts - 1) * (kPosts - 1) * 6, 6.0, error)) << error;
+  constexpr double kSpacing = PatchScene::kSpacing;
+  PatchScene scene;
+  ASSERT_NO_FATAL_FAILURE(scene.setUp(kW, kH, kPosts));
+  render::Renderer& renderer = scene.renderer;
+  const std::vector<float>& heights = scene.heights;
   const auto tris = patchTriangles(heights, kPosts, kSpacing, {0.0, 0.0});
   lod::Camera good;
   good.eye_m = {16.0, -10.0, 12.0};
