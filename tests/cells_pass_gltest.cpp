@@ -103,8 +103,9 @@ lod::Camera facing(double distance_m, const glm::dvec3& origin = glm::dvec3(0.0)
   return cam;
 }
 
-render::Image renderCells(Gl& gl, render::CellsPass* pass, const lod::Camera& cam, std::span<const lod::CellDraw> draws) {
-  gl.renderer.beginFrame(cam, light());
+render::Image renderCells(Gl& gl, render::CellsPass* pass, const lod::Camera& cam, std::span<const lod::CellDraw> draws,
+                          const render::Lighting& lighting = light()) {
+  gl.renderer.beginFrame(cam, lighting);
   if (pass) pass->draw(gl.renderer, draws);
   gl.renderer.endFrame();
   gl.renderer.finish();
@@ -428,16 +429,7 @@ TEST(CellsPassGl, CellsAreDimmedAtNightLikeTheTerrain) {
   ASSERT_TRUE(pass.init(q.tree(), render::CellsPassConfig{}, err)) << err;
   const auto draws = q.level(pass, 4);
   const lod::Camera cam = facing(60.0);
-  const auto render = [&](const render::Lighting& l) {
-    gl.renderer.beginFrame(cam, l);
-    pass.draw(gl.renderer, draws);
-    gl.renderer.endFrame();
-    gl.renderer.finish();
-    render::Image img;
-    gl.renderer.readPixels(img);
-    EXPECT_EQ(gl.renderer.errors(), "");
-    return img;
-  };
+  const auto render = [&](const render::Lighting& l) { return renderCells(gl, &pass, cam, draws, l); };
   const render::Image plain = render(light());
   const render::Image noon = render(render::daylight(light(), 60.0));
   const render::Image night = render(render::daylight(light(), -30.0));
