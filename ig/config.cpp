@@ -465,8 +465,8 @@ bool parseService(const std::string& text, const std::string& name, const std::s
   r.get(frame, "frames", cfg.frames, IntRange{0});
   r.get(frame, "free_run", cfg.freeRun);
 
-  const Table output = r.table(root, "output", {"mode", "width_px", "height_px", "msaa", "snapshot_dir",
-                                                "snapshot_every", "snapshot_frames"});
+  const Table output = r.table(root, "output", {"mode", "width_px", "height_px", "msaa", "fullscreen", "monitor",
+                                                "snapshot_dir", "snapshot_every", "snapshot_frames"});
   r.getEnum(output, "mode", cfg.output,
             {{"headless", OutputMode::Headless}, {"window", OutputMode::Window}, {"osmesa", OutputMode::OSMesa}});
   r.get(output, "width_px", cfg.width_px, IntRange{16, 16384});
@@ -476,6 +476,8 @@ bool parseService(const std::string& text, const std::string& name, const std::s
     if (const toml::node* node = r.find(output, "msaa"))
       r.fail(*node, "output.msaa", cat("samples per pixel must be 1, 2, 4 or 8, not ", std::to_string(cfg.msaa)));
   }
+  r.get(output, "fullscreen", cfg.fullscreen);
+  r.get(output, "monitor", cfg.monitor, IntRange{0, 63});
   r.get(output, "snapshot_dir", cfg.snapshotDir, false);
   r.get(output, "snapshot_every", cfg.snapshotEvery, IntRange{0});
   r.get(output, "snapshot_frames", cfg.snapshotFrames, IntRange{0});

@@ -73,6 +73,8 @@ struct ServiceConfig {
   int width_px = 1280;
   int height_px = 720;
   int msaa = 1;                              // samples per pixel: 1 (off), 2, 4 or 8
+  bool fullscreen = false;                   // window mode: full screen on `monitor`
+  int monitor = 0;                           // window mode: index of the X server's monitor
   std::string snapshotDir = "out/snapshots"; // resolved against the config file's folder
   int64_t snapshotEvery = 0;                 // write a PNG every N frames, 0 = never
   std::vector<int64_t> snapshotFrames;       // and at these frame numbers

@@ -65,6 +65,8 @@ ReloadPlan planReload(const ServiceConfig& runC, const SceneConfig& runS, const 
   check(runC, newC, &ServiceConfig::width_px, "output.width_px", r);
   check(runC, newC, &ServiceConfig::height_px, "output.height_px", r);
   check(runC, newC, &ServiceConfig::msaa, "output.msaa", r);
+  check(runC, newC, &ServiceConfig::fullscreen, "output.fullscreen", r);
+  check(runC, newC, &ServiceConfig::monitor, "output.monitor", r);
   check(runC, newC, &ServiceConfig::snapshotDir, "output.snapshot_dir", r);
   check(runC, newC, &ServiceConfig::statsFile, "stats.file", r);
   check(runC, newC, &ServiceConfig::statsFormat, "stats.format", r);

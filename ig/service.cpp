@@ -771,7 +771,8 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
     m.replay = std::make_unique<io::ReplaySource>(std::move(rec), config.replayLoop);
   }
 
-  m.context = render::createContext(contextKind(config.output), config.width_px, config.height_px, error);
+  m.context = render::createContext(contextKind(config.output), config.width_px, config.height_px, error,
+                                    render::WindowOptions{config.fullscreen, config.monitor});
   if (!m.context) return nullptr;
   if (!m.renderer.init(config.width_px, config.height_px, error, config.msaa)) return nullptr;
   s->info_.context = m.context->description();

@@ -221,28 +221,62 @@ class GlfwWindowContext final : public GlContext {
     if (window_) glfwDestroyWindow(window_);
     if (initialised_) releaseGlfw();
   }
-  bool init(int width_px, int height_px, std::string& error) {
+  bool init(int width_px, int height_px, const WindowOptions& options, std::string& error) {
     if (!acquireGlfw()) {
       error = "window: glfwInit failed (no X display? set DISPLAY or run under Xvfb)";
       return false;
     }
     initialised_ = true;
+    int monitors = 0;
+    GLFWmonitor** list = glfwGetMonitors(&monitors);
+    if (options.monitor < 0 || options.monitor >= monitors || list == nullptr) {
+      error = "window: output.monitor = " + std::to_string(options.monitor) + ", but the X server has " +
+              std::to_string(monitors) + " monitor" + (monitors == 1 ? "" : "s") +
+              (monitors > 0 ? " (0 ..= " + std::to_string(monitors - 1) + ")" : "");
+      return false;
+    }
+    GLFWmonitor* monitor = list[options.monitor];
+    glfwDefaultWindowHints();  // hints are global: nothing of an earlier window's carries over
+    const GLFWvidmode* mode = glfwGetVideoMode(monitor);
+    if (mode == nullptr) {
+      error = "window: monitor " + std::to_string(options.monitor) + " reports no video mode";
+      return false;
+    }
     glfwWindowHint(GLFW_CONTEXT_CREATION_API, GLFW_EGL_CONTEXT_API);
     glfwWindowHint(GLFW_CLIENT_API, GLFW_OPENGL_API);
     glfwWindowHint(GLFW_CONTEXT_VERSION_MAJOR, 4);
     glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, 5);
     glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
     glfwWindowHint(GLFW_RESIZABLE, GLFW_FALSE);
-    window_ = glfwCreateWindow(width_px, height_px, "igd", nullptr, nullptr);
+    std::string where;
+    if (options.fullscreen) {
+      // The monitor's own mode: no mode switch (a cabin display keeps its timing).
+      glfwWindowHint(GLFW_RED_BITS, mode->redBits);
+      glfwWindowHint(GLFW_GREEN_BITS, mode->greenBits);
+      glfwWindowHint(GLFW_BLUE_BITS, mode->blueBits);
+      glfwWindowHint(GLFW_REFRESH_RATE, mode->refreshRate);
+      window_ = glfwCreateWindow(mode->width, mode->height, "igd", monitor, nullptr);
+      where = "full screen " + std::to_string(mode->width) + "x" + std::to_string(mode->height) + " on monitor " +
+              std::to_string(options.monitor);
+    } else {
+      window_ = glfwCreateWindow(width_px, height_px, "igd", nullptr, nullptr);
+      int x = 0, y = 0;
+      glfwGetMonitorPos(monitor, &x, &y);
+      if (window_) glfwSetWindowPos(window_, x, y);
+      where = std::to_string(width_px) + "x" + std::to_string(height_px) + " on monitor " +
+              std::to_string(options.monitor);
+    }
+    const char* name = glfwGetMonitorName(monitor);
+    if (name != nullptr) where += std::string(" (") + name + ")";
     if (!window_) {
-      error = "window: glfwCreateWindow(" + std::to_string(width_px) + "x" + std::to_string(height_px) +
-              ", GL 4.5 core via EGL) failed";
+      error = "window: glfwCreateWindow(" + where + ", GL 4.5 core via EGL) failed";
       return false;
     }
+    if (options.fullscreen) glfwSetInputMode(window_, GLFW_CURSOR, GLFW_CURSOR_HIDDEN);
     glfwMakeContextCurrent(window_);
     glfwSwapInterval(0);  // the frame loop paces itself with absolute deadlines
     if (!loadGl(glfwProc, error)) return false;
-    description_ = "GLFW window (EGL): " + glDescription();
+    description_ = "GLFW window " + where + " (EGL): " + glDescription();
     return true;
   }
   bool hasWindow() const override { return true; }
@@ -254,6 +288,7 @@ class GlfwWindowContext final : public GlContext {
     glfwPollEvents();
   }
   bool closeRequested() const override { return glfwWindowShouldClose(window_) != 0; }
+  void windowSize(int& width_px, int& height_px) const override { glfwGetFramebufferSize(window_, &width_px, &height_px); }
 
  private:
   bool initialised_ = false;
@@ -262,7 +297,8 @@ class GlfwWindowContext final : public GlContext {
 
 }  // namespace
 
-std::unique_ptr<GlContext> createContext(ContextKind kind, int width_px, int height_px, std::string& error) {
+std::unique_ptr<GlContext> createContext(ContextKind kind, int width_px, int height_px, std::string& error,
+                                         const WindowOptions& window) {
   switch (kind) {
     case ContextKind::Headless: {
       auto c = std::make_unique<EglHeadlessContext>();
@@ -276,7 +312,7 @@ std::unique_ptr<GlContext> createContext(ContextKind kind, int width_px, int hei
     }
     case ContextKind::Window: {
       auto c = std::make_unique<GlfwWindowContext>();
-      if (c->init(width_px, height_px, error)) return c;
+      if (c->init(width_px, height_px, window, error)) return c;
       return nullptr;
     }
   }

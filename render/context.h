@@ -14,6 +14,18 @@ namespace ig::render {
 
 enum class ContextKind { Headless, Window, OSMesa };
 
+// Where a Window context's window goes (ignored by the other kinds). Cabin displays: one igd per
+// display, each full screen on its own monitor.
+struct WindowOptions {
+  // Full screen on `monitor` at that monitor's current video mode (no mode switch, no
+  // decorations, cursor hidden): the rendered image is scaled to the monitor's size. false: a
+  // window of the rendered size, placed at the monitor's top-left corner.
+  bool fullscreen = false;
+  // Index into the X server's monitors (GLFW's order: the primary monitor first). A monitor the
+  // server does not have is an error that names how many it has.
+  int monitor = 0;
+};
+
 class GlContext {
  public:
   virtual ~GlContext() = default;
@@ -24,6 +36,9 @@ class GlContext {
   virtual void present(unsigned fbo, int width_px, int height_px) { (void)fbo, (void)width_px, (void)height_px; }
   // True once the user closed the window.
   virtual bool closeRequested() const { return false; }
+  // The window's framebuffer size in pixels (what present() scales the frame to); 0 x 0 without
+  // a window.
+  virtual void windowSize(int& width_px, int& height_px) const { width_px = height_px = 0; }
 
  protected:
   std::string description_;
@@ -31,6 +46,7 @@ class GlContext {
 
 // Creates the context, makes it current on this thread and loads the GL entry points.
 // Returns nullptr with a message naming what failed.
-std::unique_ptr<GlContext> createContext(ContextKind kind, int width_px, int height_px, std::string& error);
+std::unique_ptr<GlContext> createContext(ContextKind kind, int width_px, int height_px, std::string& error,
+                                         const WindowOptions& window = {});
 
 }  // namespace ig::render

@@ -967,14 +967,21 @@ class Outputs(Tmp):
                 proc.wait(timeout=5)
 
     def test_window_mode_on_xvfb(self):
+        # Full screen on the X server's one monitor (a cabin display): the 320 x 180 picture is
+        # shown at the monitor's 640 x 480.
         config = service_config_copy(self.tmp)
+        with open(config, encoding="utf-8") as f:
+            text = f.read()
+        self.assertEqual(text.count("\nfullscreen = false\n"), 1)
+        with open(config, "w", encoding="utf-8") as f:
+            f.write(text.replace("\nfullscreen = false\n", "\nfullscreen = true\n"))
         display = self.start_xvfb()
         env = dict(os.environ, DISPLAY=display)
         env.pop("WAYLAND_DISPLAY", None)
         p = run([IGD, "--config", config, "--output", "window", "--frames", "20", "--width", "320", "--height", "180",
                  "--free-run"], timeout=RUN, env=env, cwd=self.tmp)
         self.assertExit(p, 0)
-        self.assertMentions(p, "GLFW window", "20 frames")
+        self.assertMentions(p, "GLFW window full screen 640x480 on monitor 0", "20 frames")
 
     def test_osmesa(self):
         config = service_config_copy(self.tmp)

@@ -348,6 +348,12 @@ TEST(ConfigErrors, OutOfRangeNamesTheRange) {
   EXPECT_EQ(e.key, "output.msaa");
   EXPECT_NE(e.message.find("[1, 8]"), std::string::npos) << e.message;
 
+  e = serviceError(std::string(kMinimalService) + "[output]\nmonitor = -1\n");
+  EXPECT_EQ(e.key, "output.monitor");
+  EXPECT_EQ(e.value, "-1");
+  e = serviceError(std::string(kMinimalService) + "[output]\nfullscreen = 1\n");
+  EXPECT_EQ(e.key, "output.fullscreen");
+
   e = serviceError(std::string(kMinimalService) + "[budget]\ntriangles = 999\n");
   EXPECT_EQ(e.key, "budget.triangles");
   EXPECT_NE(e.message.find(">= 1000"), std::string::npos) << e.message;

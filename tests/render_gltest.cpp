@@ -558,6 +558,41 @@ TEST(RenderGL, DestroyingOneWindowContextKeepsAnotherWorking) {
   EXPECT_EQ(renderer.errors(), "");
 }
 
+// A cabin display: full screen on a monitor at its own video mode, the rendered frame scaled to
+// it. Xvfb's one screen (320 x 240) is its one monitor; asking for a second is an error that says
+// how many there are.
+TEST(RenderGL, FullScreenWindowCoversTheMonitorAndAMissingMonitorIsNamed) {
+  const OwnXServer x;
+  ASSERT_FALSE(x.display.empty()) << x.error;
+  ::setenv("DISPLAY", x.display.c_str(), 1);
+  ::unsetenv("WAYLAND_DISPLAY");
+  std::string error;
+  EXPECT_FALSE(render::createContext(render::ContextKind::Window, 64, 48, error, render::WindowOptions{true, 1}));
+  EXPECT_NE(error.find("output.monitor = 1, but the X server has 1 monitor (0 ..= 0)"), std::string::npos) << error;
+  error.clear();
+  auto full = render::createContext(render::ContextKind::Window, 64, 48, error, render::WindowOptions{true, 0});
+  ASSERT_TRUE(full) << error;
+  EXPECT_NE(full->description().find("full screen 320x240 on monitor 0"), std::string::npos) << full->description();
+  int w = 0, h = 0;
+  full->windowSize(w, h);
+  EXPECT_EQ(w, 320);
+  EXPECT_EQ(h, 240);
+  render::Renderer renderer;
+  ASSERT_TRUE(renderer.init(64, 48, error)) << error;
+  renderer.beginFrame(lod::Camera{}, render::Lighting{});
+  renderer.endFrame();
+  full->present(renderer.framebuffer(), 64, 48);
+  EXPECT_FALSE(full->closeRequested());
+  EXPECT_EQ(renderer.errors(), "");
+  full.reset();
+  // Windowed: the rendered size, not the monitor's.
+  auto windowed = render::createContext(render::ContextKind::Window, 64, 48, error);
+  ASSERT_TRUE(windowed) << error;
+  windowed->windowSize(w, h);
+  EXPECT_EQ(w, 64);
+  EXPECT_EQ(h, 48);
+}
+
 // The image error of the LOD benchmarks (render/image.h) on hand-made images, no GL.
 namespace {
 render::Image flatImage(int w, int h, uint8_t r, uint8_t g, uint8_t b) {

@@ -61,6 +61,8 @@ TEST(Reload, ReloadableKeysAreTakenOthersKept) {
   next.c.width_px = 640;          // needs a restart
   next.c.rate_hz = 50.0;          // needs a restart
   next.c.msaa = 4;                // needs a restart (named, not "other keys")
+  next.c.fullscreen = true;       // needs a restart (the window is made at start-up)
+  next.c.monitor = 1;             // needs a restart
   next.s.terrain->seed = 99;      // terrain data: needs a restart
   ig::ServiceConfig mc;
   ig::SceneConfig ms;
@@ -73,6 +75,9 @@ TEST(Reload, ReloadableKeysAreTakenOthersKept) {
   EXPECT_TRUE(has(p.needRestart, "output.width_px"));
   EXPECT_TRUE(has(p.needRestart, "frame.rate_hz"));
   EXPECT_TRUE(has(p.needRestart, "output.msaa"));
+  EXPECT_TRUE(has(p.needRestart, "output.fullscreen"));
+  EXPECT_TRUE(has(p.needRestart, "output.monitor"));
+  EXPECT_FALSE(mc.fullscreen);
   EXPECT_EQ(mc.msaa, run.c.msaa);
   EXPECT_TRUE(has(p.needRestart, "scene.terrain (data, lod, size or placement)"));
   EXPECT_EQ(mc.snapshotEvery, 10);

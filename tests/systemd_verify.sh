@@ -67,6 +67,24 @@ if [ "$rc" -ne 0 ] || [ -n "$out" ]; then
 fi
 echo "systemd_verify: igd.service verifies cleanly (ExecStart=$igd)"
 
+# --- the template unit of a cabin's display channels (scripts/channel-unit), as instance "left" ----
+template=$(bash "$here/../scripts/channel-unit") || fail "scripts/channel-unit failed"
+channel="$tmp/igd@left.service"
+printf '%s\n' "$template" | sed "s#^ExecStart=$installed_bin #ExecStart=$igd #" >"$channel" || fail "sed failed"
+# Each channel has its own config, stats, snapshots, status file and state/log/runtime folders.
+for want in "--config /etc/igd/%i.toml " "--stats /var/log/igd/%i/frame_stats.csv " \
+            "--snapshot-dir /var/lib/igd/%i/snapshots " "--status-file /run/igd/%i/status.json" \
+            "WorkingDirectory=/var/lib/igd/%i" "StateDirectory=igd/%i" "LogsDirectory=igd/%i" "RuntimeDirectory=igd/%i"; do
+  grep -qF -- "$want" "$channel" || fail "scripts/channel-unit: the template lacks '$want'"
+done
+verify_unit "$channel"
+if [ "$rc" -ne 0 ] || [ -n "$out" ]; then
+  echo "systemd-analyze verify igd@left.service (exit status $rc) said:" >&2
+  printf '%s\n' "$out" >&2
+  fail "the channel template from scripts/channel-unit does not verify cleanly"
+fi
+echo "systemd_verify: igd@left.service (scripts/channel-unit) verifies cleanly"
+
 # --- the check must be able to fail ----------------------------------------------------------------
 # broken_copy NAME WHAT EXPECT SED-SCRIPT: a copy of the verified unit edited by SED-SCRIPT must make
 # verify complain (output or non-zero exit), and the complaint must mention EXPECT.
