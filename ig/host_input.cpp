@@ -164,7 +164,7 @@ std::string HostInput::countersLine() const {
                 static_cast<unsigned long long>(c.received), static_cast<unsigned long long>(c.accepted),
                 static_cast<unsigned long long>(c.malformed), static_cast<unsigned long long>(c.outOfRange),
                 static_cast<unsigned long long>(c.late), static_cast<unsigned long long>(c.dropped));
-  return buf;
+  return buf + link_->extraCounters();
 }
 
 }  // namespace ig

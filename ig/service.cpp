@@ -498,6 +498,9 @@ struct Service::Impl {
   render::Renderer renderer;
   std::unique_ptr<TerrainLayer> terrain;          // lod = "grid"
   std::unique_ptr<TerrainMeshLayer> terrainMesh;  // lod = "roam" | "block"
+  // The terrain's full-resolution heights (either layer's), for the host link's HAT/HOT answers.
+  lod::HeightGrid ground;
+  bool hasGround = false;
   std::unique_ptr<ForestLayer> forest;            // [forest]: on the terrain mesh
   std::unique_ptr<HdlodLayer> hdlod;              // [hdlod]: 4D scene
   std::unique_ptr<CellsLayer> cells;              // [cells]: streamed hierarchical cells
@@ -790,6 +793,15 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
     t.gpu = m.renderer.terrainMeshVertices();
     s->info_.layers.push_back(scene.terrain->lod == TerrainLayerConfig::Lod::Roam ? "terrain (roam)" : "terrain (block)");
     s->info_.terrainTriangles = 2ull * static_cast<uint64_t>(t.width - 1) * static_cast<uint64_t>(t.height - 1);
+  }
+  if (m.terrain) {
+    const lod::TerrainGridDesc& d = m.terrain->grid.desc();
+    m.ground = {m.terrain->grid.heights(), d.heights.postsX, d.heights.postsY, d.heights.postSpacing_m, d.offset_m};
+    m.hasGround = true;
+  } else if (m.terrainMesh) {
+    const TerrainMeshLayer& t = *m.terrainMesh;
+    m.ground = {t.heights_m, t.width, t.height, t.spacing_m, t.origin_m};
+    m.hasGround = true;
   }
   if (scene.terrain) {
     s->info_.terrainBuild_ms =
@@ -1222,6 +1234,8 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
       fs.time_s = static_cast<double>(clock.now_ns() - loopStart_ns) * 1e-9;
       fs.hostLost = lost;
       fs.overrun = prevOverrun;
+      fs.host = &host_;
+      fs.terrain = m.hasGround ? &m.ground : nullptr;
       link->frameStarted(fs);
     }
     pacer.endPhase(Phase::Input);

@@ -75,7 +75,10 @@ size_t fixedSize(uint8_t id) {
     case PacketId::celestialSphereControl: return kCelestialSphereControlSize;
     case PacketId::viewControl: return kViewControlSize;
     case PacketId::viewDefinition: return kViewDefinitionSize;
+    case PacketId::hatHotRequest: return kHatHotRequestSize;
     case PacketId::startOfFrame: return kStartOfFrameSize;
+    case PacketId::hatHotResponse: return kHatHotResponseSize;
+    case PacketId::hatHotExtendedResponse: return kHatHotExtendedResponseSize;
   }
   return 0;
 }
@@ -202,6 +205,20 @@ ViewDefinition readViewDefinition(const Cursor& c) {
   return p;
 }
 
+HatHotRequest readHatHotRequest(const Cursor& c) {
+  HatHotRequest p;
+  p.hatHotId = c.u16(2);
+  const uint8_t b4 = c.u8(4);
+  p.requestType = b4 & 0x03;
+  p.entityCoordinates = (b4 & 0x04) != 0;
+  p.updatePeriod = c.u8(5);
+  p.entityId = c.u16(6);
+  p.lat_deg = c.f64(8);
+  p.lon_deg = c.f64(16);
+  p.alt_m = c.f64(24);
+  return p;
+}
+
 template <class T>
 bool inRange(T value, double lo, double hi) {
   const double v = static_cast<double>(value);
@@ -233,7 +250,8 @@ CigiStatus decodeHostMessage(std::span<const std::byte> bytes, HostMessage& out,
   out.igControl = readIgControl(Cursor{bytes.data(), swap});
   out.entityCount = out.viewControlCount = out.viewDefinitionCount = 0;
   out.hasCelestial = false;
-  out.unknownPackets = out.omittedPackets = 0;
+  out.hatHotCount = 0;
+  out.hatHotOmitted = out.unknownPackets = out.omittedPackets = 0;
   for (size_t at = kIgControlSize; at < bytes.size();) {
     const Cursor c{bytes.data() + at, swap};
     const uint8_t id = c.u8(0);
@@ -267,6 +285,14 @@ CigiStatus decodeHostMessage(std::span<const std::byte> bytes, HostMessage& out,
       case PacketId::celestialSphereControl:
         out.celestial = readCelestial(c);
         out.hasCelestial = true;
+        break;
+      case PacketId::hatHotRequest:
+        if (out.hatHotCount == HostMessage::kMaxHatHotRequests) {
+          ++out.omittedPackets;
+          ++out.hatHotOmitted;
+          break;
+        }
+        out.hatHotRequests[out.hatHotCount++] = readHatHotRequest(c);
         break;
       default:
         ++out.unknownPackets;
@@ -379,6 +405,86 @@ size_t encode(const StartOfFrame& p, ByteOrder order, std::span<std::byte> out) 
   w.u32(12, p.timestamp_10us);
   w.u32(16, p.lastHostFrame);
   return kStartOfFrameSize;
+}
+
+size_t encode(const HatHotRequest& p, ByteOrder order, std::span<std::byte> out) {
+  const Writer w = begin(out, PacketId::hatHotRequest, kHatHotRequestSize, order);
+  w.u16(2, p.hatHotId);
+  w.u8(4, static_cast<uint8_t>((p.requestType & 0x03) | (p.entityCoordinates ? 0x04 : 0)));
+  w.u8(5, p.updatePeriod);
+  w.u16(6, p.entityId);
+  w.f64(8, p.lat_deg);
+  w.f64(16, p.lon_deg);
+  w.f64(24, p.alt_m);
+  return kHatHotRequestSize;
+}
+
+size_t encode(const HatHotResponse& p, ByteOrder order, std::span<std::byte> out) {
+  const Writer w = begin(out, PacketId::hatHotResponse, kHatHotResponseSize, order);
+  w.u16(2, p.hatHotId);
+  w.u8(4, static_cast<uint8_t>((p.valid ? 0x01 : 0) | (p.hot ? 0x02 : 0) | ((p.hostFrameLsn & 0x0f) << 4)));
+  w.f64(8, p.height_m);
+  return kHatHotResponseSize;
+}
+
+size_t encode(const HatHotExtendedResponse& p, ByteOrder order, std::span<std::byte> out) {
+  const Writer w = begin(out, PacketId::hatHotExtendedResponse, kHatHotExtendedResponseSize, order);
+  w.u16(2, p.hatHotId);
+  w.u8(4, static_cast<uint8_t>((p.valid ? 0x01 : 0) | ((p.hostFrameLsn & 0x0f) << 4)));
+  w.f64(8, p.hat_m);
+  w.f64(16, p.hot_m);
+  w.u32(24, p.materialCode);
+  w.f32(28, p.normalAzimuth_deg);
+  w.f32(32, p.normalElevation_deg);
+  return kHatHotExtendedResponseSize;
+}
+
+bool decodePacket(std::span<const std::byte> packet, ByteOrder order, HatHotResponse& out) {
+  if (packet.size() < kHatHotResponseSize || std::to_integer<uint8_t>(packet[0]) != static_cast<uint8_t>(PacketId::hatHotResponse) ||
+      std::to_integer<uint8_t>(packet[1]) != kHatHotResponseSize)
+    return false;
+  const Cursor c{packet.data(), swapFor(order)};
+  out.hatHotId = c.u16(2);
+  const uint8_t b4 = c.u8(4);
+  out.valid = (b4 & 0x01) != 0;
+  out.hot = (b4 & 0x02) != 0;
+  out.hostFrameLsn = static_cast<uint8_t>(b4 >> 4);
+  out.height_m = c.f64(8);
+  return true;
+}
+
+bool decodePacket(std::span<const std::byte> packet, ByteOrder order, HatHotExtendedResponse& out) {
+  if (packet.size() < kHatHotExtendedResponseSize ||
+      std::to_integer<uint8_t>(packet[0]) != static_cast<uint8_t>(PacketId::hatHotExtendedResponse) ||
+      std::to_integer<uint8_t>(packet[1]) != kHatHotExtendedResponseSize)
+    return false;
+  const Cursor c{packet.data(), swapFor(order)};
+  out.hatHotId = c.u16(2);
+  const uint8_t b4 = c.u8(4);
+  out.valid = (b4 & 0x01) != 0;
+  out.hostFrameLsn = static_cast<uint8_t>(b4 >> 4);
+  out.hat_m = c.f64(8);
+  out.hot_m = c.f64(16);
+  out.materialCode = c.u32(24);
+  out.normalAzimuth_deg = c.f32(28);
+  out.normalElevation_deg = c.f32(32);
+  return true;
+}
+
+uint32_t validateHatHotRequest(const HatHotRequest& p) {
+  uint32_t bad = 0;
+  if (p.requestType > HatHotRequest::kExtended) bad |= kHatHotType;
+  if (p.entityCoordinates) {
+    constexpr double kMaxOffset_m = 1.0e5;
+    if (!inRange(p.lat_deg, -kMaxOffset_m, kMaxOffset_m)) bad |= kHatHotLatX;
+    if (!inRange(p.lon_deg, -kMaxOffset_m, kMaxOffset_m)) bad |= kHatHotLonY;
+    if (!inRange(p.alt_m, -kMaxOffset_m, kMaxOffset_m)) bad |= kHatHotAltZ;
+  } else {
+    if (!inRange(p.lat_deg, -90.0, 90.0)) bad |= kHatHotLatX;
+    if (!inRange(p.lon_deg, -180.0, 180.0)) bad |= kHatHotLonY;
+    if (p.requestType != HatHotRequest::kHot && !inRange(p.alt_m, -1.0e4, 1.0e6)) bad |= kHatHotAltZ;
+  }
+  return bad;
 }
 
 uint32_t validateEntity(const EntityControl& p) {

@@ -12,7 +12,8 @@
 // the ICD and Wireshark's CIGI dissector (tests/cigi_tshark_test.py checks that).
 //
 // Decoded packets: IG Control (1), Entity Control (2), Celestial Sphere Control (9), View
-// Control (16), View Definition (21). Every other packet id is skipped by its size byte. A
+// Control (16), View Definition (21), HAT/HOT Request (24). Encoded besides: Start of Frame
+// (101), HAT/HOT Response (102), HAT/HOT Extended Response (103). Every other packet id is skipped by its size byte. A
 // known id with a size other than its fixed size, a size below 2, or a packet running past the
 // end of the datagram makes the whole message malformed.
 #pragma once
@@ -34,7 +35,10 @@ enum class PacketId : uint8_t {
   celestialSphereControl = 9,
   viewControl = 16,
   viewDefinition = 21,
+  hatHotRequest = 24,
   startOfFrame = 101,
+  hatHotResponse = 102,
+  hatHotExtendedResponse = 103,
 };
 
 // Fixed sizes (bytes, header included) of the packets igd decodes or encodes.
@@ -44,6 +48,9 @@ constexpr size_t kCelestialSphereControlSize = 16;
 constexpr size_t kViewControlSize = 32;
 constexpr size_t kViewDefinitionSize = 32;
 constexpr size_t kStartOfFrameSize = 24;
+constexpr size_t kHatHotRequestSize = 32;
+constexpr size_t kHatHotResponseSize = 16;
+constexpr size_t kHatHotExtendedResponseSize = 40;
 
 enum class ByteOrder : uint8_t { big, little };
 // This machine's order: what an encoder writes with ByteOrder native.
@@ -171,6 +178,56 @@ struct StartOfFrame {
   uint32_t lastHostFrame = 0;
 };
 
+// HAT/HOT Request (id 24, 32 bytes), host -> IG: the height of terrain (HOT) under a point,
+// and the point's height above it (HAT = altitude - HOT).
+//  0 id  1 size  2-3 HAT/HOT ID
+//  4 bits: 0-1 request type (0 HAT, 1 HOT, 2 extended), 2 coordinate system (0 geodetic,
+//    1 entity), 3-7 reserved
+//  5 update period (u8, IG frames; 0 = answer once)  6-7 entity id (entity coordinates only)
+//  8-15 latitude (float64, deg) or x offset (m)  16-23 longitude (deg) or y offset (m)
+//  24-31 altitude (m, ignored for HOT) or z offset (m)
+struct HatHotRequest {
+  enum Type : uint8_t { kHat = 0, kHot = 1, kExtended = 2 };  // 3 is undefined
+  uint16_t hatHotId = 0;
+  uint8_t requestType = kHot;     // 2 bits as received: a Type, or 3 (answered Valid = false)
+  bool entityCoordinates = false; // true: x/y/z are offsets in the entity's body axes (x forward,
+                                  //   y right, z down, metres) from the entity's reference point
+  uint8_t updatePeriod = 0;       // 0: answer once; n: answer every n-th IG frame until cancelled
+  uint16_t entityId = 0;
+  double lat_deg = 0;             // or x offset (m)
+  double lon_deg = 0;             // or y offset (m)
+  double alt_m = 0;               // or z offset (m)
+};
+
+// HAT/HOT Response (id 102, 16 bytes), IG -> host: the answer to a HAT or HOT request.
+//  0 id  1 size  2-3 HAT/HOT ID
+//  4 bits: 0 valid, 1 response type (0 HAT, 1 HOT), 2-3 reserved, 4-7 host frame number LSN
+//  5-7 reserved  8-15 height (float64, m): HAT or HOT
+struct HatHotResponse {
+  uint16_t hatHotId = 0;
+  bool valid = false;
+  bool hot = false;               // false: height is the HAT; true: the HOT
+  uint8_t hostFrameLsn = 0;       // low 4 bits of the last host frame number received
+  double height_m = 0;
+};
+
+// HAT/HOT Extended Response (id 103, 40 bytes), IG -> host: the answer to an extended request.
+//  0 id  1 size  2-3 HAT/HOT ID
+//  4 bits: 0 valid, 1-3 reserved, 4-7 host frame number LSN  5-7 reserved
+//  8-15 HAT (float64, m)  16-23 HOT (float64, m)  24-27 material code (u32)
+//  28-31 normal vector azimuth (float32, deg from true north, clockwise, [-180, 180])
+//  32-35 normal vector elevation (float32, deg above the local horizontal, [-90, 90])  36-39 reserved
+struct HatHotExtendedResponse {
+  uint16_t hatHotId = 0;
+  bool valid = false;
+  uint8_t hostFrameLsn = 0;
+  double hat_m = 0;
+  double hot_m = 0;
+  uint32_t materialCode = 0;
+  float normalAzimuth_deg = 0;
+  float normalElevation_deg = 90;
+};
+
 enum class CigiStatus : uint8_t {
   ok,
   empty,              // zero bytes
@@ -198,6 +255,11 @@ struct HostMessage {
   size_t viewDefinitionCount = 0;
   bool hasCelestial = false;             // the last Celestial Sphere Control of the message
   CelestialSphereControl celestial;
+  // HAT/HOT Requests in message order (all kept, whatever the filter), up to capacity.
+  static constexpr size_t kMaxHatHotRequests = 32;
+  std::array<HatHotRequest, kMaxHatHotRequests> hatHotRequests;
+  size_t hatHotCount = 0;
+  uint32_t hatHotOmitted = 0;            // HAT/HOT Requests beyond capacity (also in omittedPackets)
   uint32_t unknownPackets = 0;           // packets skipped by their size (other ids)
   uint32_t omittedPackets = 0;           // known packets not kept: filtered out or over capacity
 };
@@ -225,6 +287,14 @@ size_t encode(const CelestialSphereControl& p, ByteOrder order, std::span<std::b
 size_t encode(const ViewControl& p, ByteOrder order, std::span<std::byte> out);
 size_t encode(const ViewDefinition& p, ByteOrder order, std::span<std::byte> out);
 size_t encode(const StartOfFrame& p, ByteOrder order, std::span<std::byte> out);
+size_t encode(const HatHotRequest& p, ByteOrder order, std::span<std::byte> out);
+size_t encode(const HatHotResponse& p, ByteOrder order, std::span<std::byte> out);
+size_t encode(const HatHotExtendedResponse& p, ByteOrder order, std::span<std::byte> out);
+
+// Reads one HAT/HOT response packet (id and size checked; false otherwise) in the given byte
+// order (the order of the message's Start of Frame). For hosts and tests.
+bool decodePacket(std::span<const std::byte> packet, ByteOrder order, HatHotResponse& out);
+bool decodePacket(std::span<const std::byte> packet, ByteOrder order, HatHotExtendedResponse& out);
 
 // Field validation, one bit per field that is NaN, infinite or out of range (0 = all good).
 // Ranges: docs/cigi.md.
@@ -240,6 +310,11 @@ uint32_t validateViewDefinition(const ViewDefinition& p);
 // kCelestialTime: hour >= 24 or minute >= 60; kCelestialDate: not a real MMDDYYYY date.
 enum CelestialField : uint32_t { kCelestialTime = 1, kCelestialDate = 2, kCelestialStars = 4 };
 uint32_t validateCelestial(const CelestialSphereControl& p);
+// kHatHotType: request type 3. Geodetic: latitude in [-90, 90], longitude in [-180, 180],
+// altitude in [-1e4, 1e6] m (not checked for HOT, which ignores it). Entity: each offset finite
+// with abs <= 1e5 m. NaN and infinities always fail.
+enum HatHotField : uint32_t { kHatHotType = 1, kHatHotLatX = 2, kHatHotLonY = 4, kHatHotAltZ = 8 };
+uint32_t validateHatHotRequest(const HatHotRequest& p);
 
 // MMDDYYYY -> YYYYMMDD (no validation).
 inline int32_t dateToYmd(uint32_t mmddyyyy) {

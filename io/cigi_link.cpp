@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <cassert>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -172,6 +173,7 @@ CigiAssembler::Result CigiAssembler::apply(std::span<const std::byte> datagram, 
   for (size_t i = 0; i < msg_.viewControlCount; ++i) applyView(msg_.viewControls[i], counters);
   for (size_t i = 0; i < msg_.viewDefinitionCount; ++i) applyViewDefinition(msg_.viewDefinitions[i], counters);
   if (msg_.hasCelestial) applyCelestial(msg_.celestial, counters);
+  checkHatHot(counters);
 
   counters.accepted.fetch_add(1, std::memory_order_relaxed);
   if (!hasPosition()) return Result::accepted;
@@ -244,6 +246,16 @@ void CigiAssembler::applyCelestial(const cigi::CelestialSphereControl& c, LinkCo
   if (!(bad & cigi::kCelestialDate)) state_.dateYmd = cigi::dateToYmd(c.date_mmddyyyy);
 }
 
+void CigiAssembler::checkHatHot(LinkCounters& counters) {
+  for (size_t i = 0; i < msg_.hatHotCount; ++i) {
+    const cigi::HatHotRequest& r = msg_.hatHotRequests[i];
+    uint32_t bad = cigi::validateHatHotRequest(r);
+    if (r.entityCoordinates && r.entityId != config_.entityId) bad |= kHatHotUnknownEntity;
+    hatHotBad_[i] = bad;
+    counters.outOfRange.fetch_add(static_cast<uint64_t>(std::popcount(bad)), std::memory_order_relaxed);
+  }
+}
+
 void CigiAssembler::computeEye() {
   const EyePose pose = cigiEyePose({lat_deg_, lon_deg_, alt_m_}, yaw_deg_, pitch_deg_, roll_deg_,
                                    {viewOffset_m_[0], viewOffset_m_[1], viewOffset_m_[2]}, viewYaw_deg_,
@@ -264,6 +276,123 @@ void CigiAssembler::computeEye() {
   state_.fovY_deg = top_deg_ - bottom_deg_;
   state_.near_m = near_m_;
   state_.far_m = far_m_;
+  state_.hasOwnship = true;
+  state_.ownshipLat_deg = lat_deg_;
+  state_.ownshipLon_deg = lon_deg_;
+  state_.ownshipAlt_m = alt_m_;
+  state_.ownshipYaw_deg = yaw_deg_;
+  state_.ownshipPitch_deg = pitch_deg_;
+  state_.ownshipRoll_deg = roll_deg_;
+}
+
+// ---------------------------------------------------------------------------------------------
+// HAT/HOT
+
+HatHotAnswer computeHatHot(const cigi::HatHotRequest& r, const lod::EnuFrame& enu, double originHeight_m,
+                           const lod::HeightGrid* terrain, const HostState* host) {
+  HatHotAnswer a;
+  if (!terrain) return a;
+  lod::Geodetic point{r.lat_deg, r.lon_deg, r.alt_m};
+  bool hasAltitude = r.requestType != cigi::HatHotRequest::kHot;
+  if (r.entityCoordinates) {
+    if (!host || !host->hasOwnship) return a;
+    const lod::Geodetic own{host->ownshipLat_deg, host->ownshipLon_deg, host->ownshipAlt_m};
+    const glm::dmat3 body = lod::nedToEcef(own.lat_deg, own.lon_deg) *
+                            lod::bodyToNed(host->ownshipYaw_deg, host->ownshipPitch_deg, host->ownshipRoll_deg);
+    point = lod::ecefToGeodetic(lod::geodeticToEcef(own) + body * glm::dvec3(r.lat_deg, r.lon_deg, r.alt_m));
+    hasAltitude = true;
+  }
+  // The terrain is drawn in the ENU plane: find the grid point under (lat, lon) at a guessed
+  // height, take the surface there back to geodetic; then again at the height found (the ENU up
+  // axis leans from the local vertical by distance / earth radius, so the guess matters a little).
+  double guess_m = hasAltitude ? point.height_m : originHeight_m;
+  lod::GroundSample ground;
+  glm::dvec3 surface{0.0};
+  for (int pass = 0; pass < 2; ++pass) {
+    const glm::dvec3 p = enu.fromGeodetic({point.lat_deg, point.lon_deg, guess_m});
+    if (!lod::sampleGround(*terrain, p.x, p.y, ground)) return a;
+    surface = {p.x, p.y, ground.height_m};
+    guess_m = enu.toGeodetic(surface).height_m;
+  }
+  if (!std::isfinite(guess_m)) return a;
+  a.valid = true;
+  a.hot_m = guess_m;
+  a.hat_m = hasAltitude ? point.height_m - a.hot_m : 0.0;
+  // The normal in the local north-east-down frame at the point.
+  const glm::dvec3 nEcef = enu.toEcef(surface + ground.normal) - enu.toEcef(surface);
+  const glm::dvec3 nNed = glm::transpose(lod::nedToEcef(point.lat_deg, point.lon_deg)) * nEcef;
+  const double len = glm::length(nNed);
+  constexpr double kDeg = 180.0 / 3.14159265358979323846;
+  a.normalAzimuth_deg = static_cast<float>(std::atan2(nNed.y, nNed.x) * kDeg);
+  a.normalElevation_deg = static_cast<float>(std::asin(std::clamp(-nNed.z / len, -1.0, 1.0)) * kDeg);
+  return a;
+}
+
+CigiHatHotResponder::CigiHatHotResponder(const lod::Geodetic& origin) : enu_(origin), originHeight_m_(origin.height_m) {}
+
+bool CigiHatHotResponder::push(const HatHotJob& job) {
+  if (pendingCount_ == kMaxPending) return false;
+  pending_[(pendingHead_ + pendingCount_) % kMaxPending] = job;
+  ++pendingCount_;
+  return true;
+}
+
+void CigiHatHotResponder::add(const HatHotJob& job, uint32_t igFrame) {
+  const cigi::HatHotRequest& r = job.request;
+  size_t same = periodicCount_;
+  for (size_t i = 0; i < periodicCount_; ++i)
+    if (periodic_[i].job.request.hatHotId == r.hatHotId) same = i;
+  if (r.updatePeriod == 0 || job.bad != 0) {
+    if (r.updatePeriod == 0 && same < periodicCount_) periodic_[same] = periodic_[--periodicCount_];  // cancel
+  } else if (same < periodicCount_) {
+    periodic_[same] = {job, igFrame + r.updatePeriod};
+  } else if (periodicCount_ < kMaxPeriodic) {
+    periodic_[periodicCount_++] = {job, igFrame + r.updatePeriod};
+  } else {
+    countRefused(1);  // no room to hold it: answered this once
+  }
+  if (!push(job)) countRefused(1);
+}
+
+size_t CigiHatHotResponder::answer(uint32_t igFrame, uint32_t lastHostFrame, const lod::HeightGrid* terrain,
+                                   const HostState* host, cigi::ByteOrder order, std::span<std::byte> out) {
+  assert(out.size() >= kMaxBytesPerFrame && "CigiHatHotResponder::answer: output span too small");
+  for (size_t i = 0; i < periodicCount_; ++i) {
+    Periodic& p = periodic_[i];
+    // Due (serial arithmetic: IG frame numbers wrap); a full queue leaves it due for the next frame.
+    if (static_cast<int32_t>(igFrame - p.nextDue) >= 0 && push(p.job)) p.nextDue = igFrame + p.job.request.updatePeriod;
+  }
+  const uint8_t lsn = static_cast<uint8_t>(lastHostFrame & 0x0f);
+  size_t bytes = 0, n = 0;
+  for (; n < kMaxAnswersPerFrame && pendingCount_ > 0; ++n) {
+    const HatHotJob job = pending_[pendingHead_];
+    pendingHead_ = (pendingHead_ + 1) % kMaxPending;
+    --pendingCount_;
+    const cigi::HatHotRequest& r = job.request;
+    const HatHotAnswer a = job.bad == 0 ? computeHatHot(r, enu_, originHeight_m_, terrain, host) : HatHotAnswer{};
+    if (r.requestType == cigi::HatHotRequest::kExtended) {
+      cigi::HatHotExtendedResponse x;
+      x.hatHotId = r.hatHotId;
+      x.valid = a.valid;
+      x.hostFrameLsn = lsn;
+      x.hat_m = a.hat_m;
+      x.hot_m = a.hot_m;
+      x.normalAzimuth_deg = a.normalAzimuth_deg;
+      x.normalElevation_deg = a.normalElevation_deg;
+      bytes += cigi::encode(x, order, out.subspan(bytes));
+    } else {
+      cigi::HatHotResponse x;
+      x.hatHotId = r.hatHotId;
+      x.valid = a.valid;
+      x.hot = r.requestType == cigi::HatHotRequest::kHot;
+      x.hostFrameLsn = lsn;
+      x.height_m = x.hot ? a.hot_m : a.hat_m;
+      bytes += cigi::encode(x, order, out.subspan(bytes));
+    }
+  }
+  answered_.fetch_add(n, std::memory_order_relaxed);
+  if (pendingCount_ > 0) deferred_.fetch_add(pendingCount_, std::memory_order_relaxed);
+  return bytes;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -274,7 +403,8 @@ CigiLink::CigiLink(const CigiLinkConfig& config, const lod::Geodetic& origin)
       assembler_(std::make_unique<CigiAssembler>(
           CigiAssemblerConfig{static_cast<uint16_t>(config.entity_id), static_cast<uint16_t>(config.view_id),
                               config.database},
-          origin)) {}
+          origin)),
+      responder_(origin) {}
 
 CigiLink::~CigiLink() { stop(); }
 
@@ -374,6 +504,21 @@ void CigiLink::handleDatagram(const void* data, size_t size, int flags, sockaddr
   lastHostFrame_.store(assembler_->lastHostFrame(), std::memory_order_relaxed);
   hostMode_.store(static_cast<int>(assembler_->hostIgMode()), std::memory_order_relaxed);
   database_.store(assembler_->database(), std::memory_order_relaxed);
+  // HAT/HOT requests go to the frame loop, which answers them after its Start of Frame.
+  const CigiAssembler::HatHotJobs jobs = assembler_->hatHotJobs();
+  if (!jobs.requests.empty() || assembler_->lastMessage().hatHotOmitted > 0) {
+    hatHotRequests_.fetch_add(jobs.requests.size() + assembler_->lastMessage().hatHotOmitted, std::memory_order_relaxed);
+    responder_.countRefused(assembler_->lastMessage().hatHotOmitted);
+    for (size_t i = 0; i < jobs.requests.size(); ++i) {
+      const size_t tail = hatHotTail_.load(std::memory_order_relaxed);
+      if (tail - hatHotHead_.load(std::memory_order_acquire) == kHatHotQueue) {
+        responder_.countRefused(jobs.requests.size() - i);
+        break;
+      }
+      hatHotRing_[tail % kHatHotQueue] = {jobs.requests[i], jobs.bad[i]};
+      hatHotTail_.store(tail + 1, std::memory_order_release);
+    }
+  }
   if (result == CigiAssembler::Result::published) {
     sink_->publish(assembler_->state());
     publishedSinceFrame_.fetch_add(1, std::memory_order_relaxed);
@@ -397,15 +542,29 @@ void CigiLink::frameStarted(const FrameStart& frame) {
   const double ticks = std::max(0.0, frame.time_s) * 1e5;
   sof.timestamp_10us = static_cast<uint32_t>(static_cast<uint64_t>(std::fmod(ticks, 4294967296.0)));
   sof.lastHostFrame = lastHostFrame_.load(std::memory_order_relaxed);
-  std::byte buf[cigi::kStartOfFrameSize];
-  const size_t n = cigi::encode(sof, cigi::nativeByteOrder(), buf);
+  size_t n = cigi::encode(sof, cigi::nativeByteOrder(), tx_);
+  // HAT/HOT responses follow in the same datagram. Nothing to do (the common case): two loads.
+  const size_t tail = hatHotTail_.load(std::memory_order_acquire);
+  size_t head = hatHotHead_.load(std::memory_order_relaxed);
+  if (head != tail || !responder_.idle()) {
+    for (; head != tail; ++head) responder_.add(hatHotRing_[head % kHatHotQueue], frame.igFrame);
+    hatHotHead_.store(head, std::memory_order_release);
+    n += responder_.answer(frame.igFrame, sof.lastHostFrame, frame.terrain, frame.host, cigi::nativeByteOrder(),
+                           std::span(tx_).subspan(n));
+  }
   const sockaddr_in to = unpackAddress(reply);
-  if (sendto(fd_, buf, n, MSG_DONTWAIT | MSG_NOSIGNAL, reinterpret_cast<const sockaddr*>(&to), sizeof to) ==
+  if (sendto(fd_, tx_.data(), n, MSG_DONTWAIT | MSG_NOSIGNAL, reinterpret_cast<const sockaddr*>(&to), sizeof to) ==
       static_cast<ssize_t>(n)) {
     sofSent_.fetch_add(1, std::memory_order_relaxed);
   } else {
     sendErrors_.fetch_add(1, std::memory_order_relaxed);
   }
+}
+
+std::string CigiLink::extraCounters() const {
+  if (hatHotRequests() == 0) return {};
+  return " hat_hot_requests " + std::to_string(hatHotRequests()) + " hat_hot_answered " + std::to_string(hatHotAnswered()) +
+         " hat_hot_refused " + std::to_string(hatHotRefused()) + " hat_hot_deferred " + std::to_string(hatHotDeferred());
 }
 
 std::unique_ptr<CigiLink> makeCigiLink(const CigiLinkConfig& config, const lod::Geodetic& origin) {

@@ -1,6 +1,7 @@
 // CIGI 3.3 host link over UDP: igd is the IG. The host sends one message (datagram) per host
 // frame: IG Control first, then Entity Control for the ownship, optionally View Control, View
-// Definition and Celestial Sphere Control. igd answers every frame with a Start of Frame.
+// Definition, Celestial Sphere Control and HAT/HOT Requests. igd answers every frame with a
+// Start of Frame, followed in the same datagram by the HAT/HOT responses due that frame.
 //
 // Two parts:
 //  - CigiAssembler: pure (no sockets, no clock). Turns decoded messages into HostState: the
@@ -10,6 +11,8 @@
 //  - CigiLink: the UDP transport. One receive thread (poll() with a 50 ms timeout so stop()
 //    joins promptly); frameStarted() sends the Start of Frame from the frame loop's thread with
 //    a non-blocking sendto (errors counted, never thrown, never blocking).
+//  - CigiHatHotResponder: pure. The frame loop's side of HAT/HOT: one-shot and periodic
+//    requests, answered from the scene's full-resolution terrain, a bounded number per frame.
 //
 // Conventions (docs/cigi.md has the full list):
 //  - Entity attitude: CIGI body axes x forward, y right, z down; yaw = heading clockwise from
@@ -22,6 +25,7 @@
 //  - Entity altitude is read as height above the WGS-84 ellipsoid (igd has no geoid model).
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <memory>
@@ -38,6 +42,7 @@
 #include "io/host_state.h"
 #include "io/link.h"
 #include "lod/geo.h"
+#include "lod/heightfield.h"
 
 namespace ig::io {
 
@@ -98,6 +103,17 @@ class CigiAssembler {
   // for (0 until it asks).
   int8_t database() const { return database_; }
   const cigi::HostMessage& lastMessage() const { return msg_; }
+  // The last applied message's HAT/HOT requests, each with its rejected fields (counted in
+  // outOfRange; such a request is answered Valid = false).
+  struct HatHotJobs {
+    std::span<const cigi::HatHotRequest> requests;
+    std::span<const uint32_t> bad;  // cigi::HatHotField bits | kHatHotUnknownEntity
+  };
+  HatHotJobs hatHotJobs() const {
+    return {std::span(msg_.hatHotRequests.data(), msg_.hatHotCount), std::span(hatHotBad_.data(), msg_.hatHotCount)};
+  }
+  // A request in entity coordinates for another entity than the ownship (igd knows only it).
+  static constexpr uint32_t kHatHotUnknownEntity = 1u << 8;
 
  private:
   bool isLate(const cigi::IgControl& ig);
@@ -105,6 +121,7 @@ class CigiAssembler {
   void applyView(const cigi::ViewControl& v, LinkCounters& counters);
   void applyViewDefinition(const cigi::ViewDefinition& d, LinkCounters& counters);
   void applyCelestial(const cigi::CelestialSphereControl& c, LinkCounters& counters);
+  void checkHatHot(LinkCounters& counters);
   void computeEye();
 
   CigiAssemblerConfig config_;
@@ -129,6 +146,7 @@ class CigiAssembler {
   double viewOffset_m_[3] = {0, 0, 0};        // body x forward, y right, z down
   double viewRoll_deg_ = 0, viewPitch_deg_ = 0, viewYaw_deg_ = 0;
   double near_m_, far_m_, top_deg_, bottom_deg_;
+  std::array<uint32_t, cigi::HostMessage::kMaxHatHotRequests> hatHotBad_{};
 };
 
 // Eye position and attitude from an entity pose and a view offset (pure; used by the
@@ -139,6 +157,81 @@ struct EyePose {
 };
 EyePose cigiEyePose(const lod::Geodetic& entity, double yaw_deg, double pitch_deg, double roll_deg,
                     const glm::dvec3& offsetBody_m, double viewYaw_deg, double viewPitch_deg, double viewRoll_deg);
+
+// ---------------------------------------------------------------------------------------------
+// HAT/HOT (docs/cigi.md "HAT/HOT"): what the frame loop answers.
+
+// One request handed from the receive thread to the frame loop.
+struct HatHotJob {
+  cigi::HatHotRequest request;
+  uint32_t bad = 0;  // rejected fields (CigiAssembler::hatHotJobs): answered Valid = false
+};
+
+struct HatHotAnswer {
+  bool valid = false;
+  double hat_m = 0.0;               // altitude - HOT
+  double hot_m = 0.0;               // terrain height above the WGS-84 ellipsoid
+  float normalAzimuth_deg = 0.0f;   // surface normal: from true north, clockwise, [-180, 180]
+  float normalElevation_deg = 90.0f;  // above the local horizontal
+};
+
+// The answer to one valid request (pure). The point: geodetic lat/lon(/alt), or the offset in
+// the ownship's body axes from the ownship (`host`'s ownship fields; invalid without them). The
+// terrain is the scene's local ENU plane at `enu`: the point goes to ENU through ECEF, the grid
+// is sampled there (lod::sampleGround, bilinear) and the surface point goes back to geodetic,
+// twice (the second pass at the terrain's height, so the answer does not depend on the
+// requested altitude). Invalid: no terrain, a point outside it, a non-finite result.
+HatHotAnswer computeHatHot(const cigi::HatHotRequest& request, const lod::EnuFrame& enu, double originHeight_m,
+                           const lod::HeightGrid* terrain, const HostState* host);
+
+// The frame loop's HAT/HOT state: periodic requests and the queue of answers still to send.
+// Fixed capacity, no allocation after construction, frame thread only (counters readable from
+// any thread).
+class CigiHatHotResponder {
+ public:
+  static constexpr size_t kMaxPeriodic = 64;         // periodic requests held at once
+  static constexpr size_t kMaxPending = 256;         // answers waiting for a frame
+  static constexpr size_t kMaxAnswersPerFrame = 32;  // 24 + 32 x 40 bytes: one 1,304-byte datagram
+  static constexpr size_t kMaxBytesPerFrame = kMaxAnswersPerFrame * cigi::kHatHotExtendedResponseSize;
+
+  explicit CigiHatHotResponder(const lod::Geodetic& origin);
+
+  // A new request, received before IG frame `igFrame`. Period 0: answered once, and it cancels
+  // the periodic request with the same HAT/HOT ID. Period n (valid request): answered now and
+  // every n-th IG frame after, replacing a periodic request with the same ID; with kMaxPeriodic
+  // held already it is refused (counted) and answered once. A full queue refuses (counted,
+  // not answered).
+  void add(const HatHotJob& job, uint32_t igFrame);
+
+  // This frame's responses, at most kMaxAnswersPerFrame (the rest wait for the next frame,
+  // counted in deferred), encoded into `out` (>= kMaxBytesPerFrame bytes). Returns the bytes.
+  size_t answer(uint32_t igFrame, uint32_t lastHostFrame, const lod::HeightGrid* terrain, const HostState* host,
+                cigi::ByteOrder order, std::span<std::byte> out);
+
+  // Nothing held: no periodic request and nothing queued.
+  bool idle() const { return periodicCount_ == 0 && pendingCount_ == 0; }
+  size_t periodicCount() const { return periodicCount_; }
+  size_t pendingCount() const { return pendingCount_; }
+  uint64_t answered() const { return answered_.load(std::memory_order_relaxed); }
+  uint64_t refused() const { return refused_.load(std::memory_order_relaxed); }
+  uint64_t deferred() const { return deferred_.load(std::memory_order_relaxed); }
+  void countRefused(uint64_t n) { refused_.fetch_add(n, std::memory_order_relaxed); }
+
+ private:
+  struct Periodic {
+    HatHotJob job;
+    uint32_t nextDue = 0;  // IG frame
+  };
+  bool push(const HatHotJob& job);
+
+  lod::EnuFrame enu_;
+  double originHeight_m_;
+  std::array<Periodic, kMaxPeriodic> periodic_{};
+  size_t periodicCount_ = 0;
+  std::array<HatHotJob, kMaxPending> pending_{};  // ring
+  size_t pendingHead_ = 0, pendingCount_ = 0;
+  std::atomic<uint64_t> answered_{0}, refused_{0}, deferred_{0};
+};
 
 class CigiLink final : public HostLink {
  public:
@@ -161,6 +254,16 @@ class CigiLink final : public HostLink {
   int hostIgMode() const { return hostMode_.load(std::memory_order_relaxed); }
   uint64_t startOfFramesSent() const { return sofSent_.load(std::memory_order_relaxed); }
   uint64_t sendErrors() const { return sendErrors_.load(std::memory_order_relaxed); }
+  // HAT/HOT requests received (valid or not), answers sent, refused (over a capacity), deferred
+  // (answers left for a later frame, summed over frames).
+  uint64_t hatHotRequests() const { return hatHotRequests_.load(std::memory_order_relaxed); }
+  uint64_t hatHotAnswered() const { return responder_.answered(); }
+  uint64_t hatHotRefused() const { return responder_.refused(); }
+  uint64_t hatHotDeferred() const { return responder_.deferred(); }
+  std::string extraCounters() const override;
+
+  // Receive thread -> frame loop: HAT/HOT requests (single producer, single consumer).
+  static constexpr size_t kHatHotQueue = 256;
 
  private:
   void run();
@@ -182,6 +285,12 @@ class CigiLink final : public HostLink {
   std::atomic<uint32_t> publishedSinceFrame_{0};
   std::atomic<uint64_t> sofSent_{0};
   std::atomic<uint64_t> sendErrors_{0};
+  // HAT/HOT: a ring written by the receive thread (tail) and read by the frame loop (head).
+  std::array<HatHotJob, kHatHotQueue> hatHotRing_{};
+  std::atomic<size_t> hatHotHead_{0}, hatHotTail_{0};
+  std::atomic<uint64_t> hatHotRequests_{0};
+  CigiHatHotResponder responder_;  // frame loop only
+  std::array<std::byte, cigi::kStartOfFrameSize + CigiHatHotResponder::kMaxBytesPerFrame> tx_{};
 };
 
 std::unique_ptr<CigiLink> makeCigiLink(const CigiLinkConfig& config, const lod::Geodetic& origin);

@@ -25,6 +25,12 @@ struct HostState {
   // given by the host: the scene's own sun applies.
   double timeOfDay_h = -1.0;         // UTC hours, 0 <= h < 24
   int32_t dateYmd = 0;               // UTC date as YYYYMMDD, e.g. 20260621
+  // The ownship the eye follows, as the CIGI host gave it (Entity Control): WGS-84 position and
+  // attitude in its local level frame (yaw clockwise from true north). HAT/HOT requests in
+  // entity coordinates are relative to it. hasOwnship is false for other sources.
+  bool hasOwnship = false;
+  double ownshipLat_deg = 0.0, ownshipLon_deg = 0.0, ownshipAlt_m = 0.0;
+  double ownshipYaw_deg = 0.0, ownshipPitch_deg = 0.0, ownshipRoll_deg = 0.0;
 };
 
 }  // namespace ig::io

@@ -21,6 +21,10 @@
 
 #include "io/host_state.h"
 
+namespace ig::lod {
+struct HeightGrid;
+}
+
 namespace ig::io {
 
 // Counters per link. Written by the link's thread, read by the service for logs, status and
@@ -76,6 +80,8 @@ struct FrameStart {
   double time_s = 0.0;         // IG time: seconds since the frame loop started (monotonic)
   bool hostLost = false;       // no valid host input for longer than [host] link_timeout_s
   bool overrun = false;        // the previous frame overran its budget
+  const HostState* host = nullptr;            // the host sample this frame renders (nullptr: none yet)
+  const lod::HeightGrid* terrain = nullptr;   // the scene's full-resolution terrain; nullptr: none
 };
 
 // Link receive threads run at nice +5: under a packet flood the render threads keep the CPU
@@ -101,6 +107,9 @@ class HostLink {
   // new host sample before each frame, up to one frame period.
   virtual bool synchronous() const { return false; }
   const LinkCounters& counters() const { return counters_; }
+  // Link-specific counters for the exit line, e.g. " hat_hot_requests 3 ..." (with a leading
+  // space); "" when there is nothing to add.
+  virtual std::string extraCounters() const { return {}; }
 
  protected:
   LinkCounters counters_;

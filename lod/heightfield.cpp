@@ -80,4 +80,27 @@ size_t generateHeightfield(const HeightfieldDesc& desc, std::span<float> heights
   return count;
 }
 
+bool sampleGround(const HeightGrid& g, double east_m, double north_m, GroundSample& out) {
+  if (g.width < 2 || g.height < 2 || !(g.spacing_m > 0.0) ||
+      g.heights_m.size() < static_cast<size_t>(g.width) * static_cast<size_t>(g.height))
+    return false;
+  const double fx = (east_m - g.origin_m.x) / g.spacing_m, fy = (north_m - g.origin_m.y) / g.spacing_m;
+  // Written so that NaN fails too.
+  if (!(fx >= 0.0 && fx <= g.width - 1.0 && fy >= 0.0 && fy <= g.height - 1.0)) return false;
+  const int x0 = std::min(static_cast<int>(fx), g.width - 2), y0 = std::min(static_cast<int>(fy), g.height - 2);
+  const double tx = fx - x0, ty = fy - y0;
+  auto h = [&](int x, int y) {
+    return static_cast<double>(g.heights_m[static_cast<size_t>(y) * static_cast<size_t>(g.width) + static_cast<size_t>(x)]);
+  };
+  const double h00 = h(x0, y0), h10 = h(x0 + 1, y0), h01 = h(x0, y0 + 1), h11 = h(x0 + 1, y0 + 1);
+  const double a = h00 + (h10 - h00) * tx, b = h01 + (h11 - h01) * tx;
+  out.height_m = g.origin_m.z + a + (b - a) * ty;
+  // Gradient of the bilinear patch, per metre.
+  const double dzdx = ((h10 - h00) * (1.0 - ty) + (h11 - h01) * ty) / g.spacing_m;
+  const double dzdy = ((h01 - h00) * (1.0 - tx) + (h11 - h10) * tx) / g.spacing_m;
+  const double len = std::sqrt(dzdx * dzdx + dzdy * dzdy + 1.0);
+  out.normal = glm::dvec3(-dzdx / len, -dzdy / len, 1.0 / len);
+  return true;
+}
+
 }  // namespace ig::lod

@@ -58,6 +58,8 @@ class TerrainGrid {
   // Height at ENU (x, y) by bilinear interpolation; terrain offset z added. Outside: clamps.
   double heightAt(double east_m, double north_m) const;
   const TerrainGridDesc& desc() const { return desc_; }
+  // The full-resolution posts, row-major (row = north), postsX * postsY, offset z not added.
+  std::span<const float> heights() const { return heights_m_; }
 
   // Writes the indices (into chunks()) of the chunks to draw for this view, nearest first,
   // within `maxTriangles`. `out` must have room for chunks().size() entries; returns the

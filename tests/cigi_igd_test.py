@@ -8,6 +8,13 @@ while the host sends; igd's Start of Frame packets count up, echo host frames an
 Operate; the exit line counts the datagrams (one deliberately malformed); the record_file holds
 the accepted samples.
 
+HAT/HOT on the scene's terrain (a 65 x 65 post 16-bit PNG DEM written here, so Python knows every
+height): a HOT and an extended request inside it answer the HOT Python computes (bilinear on the
+posts, through the same WGS-84 <-> ENU geodesy), a point outside and a NaN latitude answer
+Valid = false (the NaN counted in out_of_range), a HAT/HOT packet with a bad size makes its
+message malformed (counted) and igd keeps running and answering; a periodic request is answered
+every 2nd frame until cancelled.
+
 usage: cigi_igd_test.py <igd> <source dir>
 """
 import csv
@@ -19,7 +26,9 @@ import subprocess
 import sys
 import tempfile
 
+import struct
 import time
+import zlib
 
 sys.dont_write_bytecode = True  # no __pycache__ in the source tree
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -30,6 +39,63 @@ FAILURES = []
 ORIGIN = (46.5, 7.9, 0.0)  # config/scenes/default.toml [origin]
 RATE_HZ = 30
 FRAMES = 75
+# The DEM: 65 x 65 posts 30 m apart, its south-west post at ENU (-960, -960); height =
+# 100 m + 0.1 m x value (png_offset_m, png_scale_m).
+DEM_N, DEM_SPACING, DEM_SW = 65, 30.0, -960.0
+
+
+def dem_value(x, y):
+    """The 16-bit value of post (x east, y north)."""
+    return (7 * x * x + 13 * y + 3 * x * y) % 3001
+
+
+def write_dem_scene(tmp):
+    def chunk(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+    rows = b"".join(b"\0" + b"".join(struct.pack(">H", dem_value(x, DEM_N - 1 - r)) for x in range(DEM_N))
+                    for r in range(DEM_N))  # the first PNG row is the northernmost
+    with open(os.path.join(tmp, "dem.png"), "wb") as f:
+        f.write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", DEM_N, DEM_N, 16, 0, 0, 0, 0)) +
+                chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b""))
+    path = os.path.join(tmp, "scene.toml")
+    with open(path, "w") as f:
+        f.write(f"""name = "hat-hot"
+[origin]
+lat_deg = {ORIGIN[0]}
+lon_deg = {ORIGIN[1]}
+height_m = {ORIGIN[2]}
+[terrain]
+source = "dem"
+file = "dem.png"
+spacing_m = {DEM_SPACING}
+png_scale_m = 0.1
+png_offset_m = 100.0
+lod = "block"
+offset_m = [{DEM_SW}, {DEM_SW}, 0]
+""")
+    return path
+
+
+def dem_height(e, n):
+    """Bilinear ENU height of the DEM at (east, north); None outside."""
+    fx, fy = (e - DEM_SW) / DEM_SPACING, (n - DEM_SW) / DEM_SPACING
+    if not (0 <= fx <= DEM_N - 1 and 0 <= fy <= DEM_N - 1):
+        return None
+    x0, y0 = min(int(fx), DEM_N - 2), min(int(fy), DEM_N - 2)
+    tx, ty = fx - x0, fy - y0
+    h = lambda x, y: cs_f32(100.0 + 0.1 * dem_value(x, y))  # noqa: E731 (igd keeps float heights)
+    a = h(x0, y0) + (h(x0 + 1, y0) - h(x0, y0)) * tx
+    b = h(x0, y0 + 1) + (h(x0 + 1, y0 + 1) - h(x0, y0 + 1)) * tx
+    return a + (b - a) * ty
+
+
+def expected_hot(lat, lon):
+    """Height above the ellipsoid of the DEM surface under (lat, lon), iterated on its height."""
+    h = ORIGIN[2]
+    for _ in range(6):
+        e, n, _ = cs.enu_of_geodetic(ORIGIN, lat, lon, h)
+        h = cs.geodetic_of_enu(ORIGIN, e, n, dem_height(e, n))[2]
+    return h
 
 
 def check(cond, what):
@@ -67,36 +133,62 @@ port = {port}
 host_address = "127.0.0.1"
 host_port = {host_port}
 entity_id = 0
-view_id = 0""", src, RATE_HZ, FRAMES, 3.0, rec)
+view_id = 0""", src, RATE_HZ, FRAMES, 3.0, rec, write_dem_scene(tmp))
     proc = subprocess.Popen([igd, "--config", cfg], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     sofs = []
+    answers = []  # (the datagram's Start of Frame last host frame, HAT/HOT answer)
     frame = 1
     t0 = time.monotonic()
     sent_malformed = False
+    # HAT/HOT points: (lat, lon) of ENU points inside the DEM and one outside it.
+    p_hot = cs.geodetic_of_enu(ORIGIN, 123.4, -234.5, 0.0)[:2]
+    p_ext = cs.geodetic_of_enu(ORIGIN, -456.7, 345.6, 0.0)[:2]
+    p_out = cs.geodetic_of_enu(ORIGIN, 1500.0, 0.0, 0.0)[:2]
+    hat_frame = cancel_frame = None
     while proc.poll() is None and time.monotonic() - t0 < 120:
         roll, pitch, yaw, lat, lon, alt = entity_for(frame)
-        msg = (cs.ig_control(">" if frame % 2 else "<", frame, int(round(frame * 1e5 / RATE_HZ))) +
-               cs.entity_control(">" if frame % 2 else "<", 0, roll, pitch, yaw, lat, lon, alt) +
-               cs.celestial(">" if frame % 2 else "<", 10, 30, 6, 21, 2026))
+        o = ">" if frame % 2 else "<"
+        msg = (cs.ig_control(o, frame, int(round(frame * 1e5 / RATE_HZ))) +
+               cs.entity_control(o, 0, roll, pitch, yaw, lat, lon, alt) +
+               cs.celestial(o, 10, 30, 6, 21, 2026))
+        if sent_malformed and hat_frame is None:
+            hat_frame = frame
+            msg += (cs.hat_hot_request(o, 1, 1, p_hot[0], p_hot[1], 0.0) +
+                    cs.hat_hot_request(o, 2, 2, p_ext[0], p_ext[1], 900.0) +
+                    cs.hat_hot_request(o, 3, 1, p_out[0], p_out[1], 0.0) +
+                    cs.hat_hot_request(o, 4, 1, float("nan"), p_hot[1], 0.0) +
+                    cs.hat_hot_request(o, 5, 1, p_hot[0], p_hot[1], 0.0, update_period=2))
+        elif hat_frame is not None and cancel_frame is None and frame == hat_frame + 12:
+            cancel_frame = frame
+            msg += cs.hat_hot_request(o, 5, 1, p_hot[0], p_hot[1], 0.0)
         try:
             tx.sendto(msg, ("127.0.0.1", port))
             if sofs and not sent_malformed:  # igd is listening: its Start of Frame arrived
                 tx.sendto(msg[:30], ("127.0.0.1", port))  # truncated inside Entity Control
+                # A HAT/HOT Request with a size byte of 30 (not 32): the whole message is malformed.
+                bad = bytearray(cs.ig_control(o, frame, int(round(frame * 1e5 / RATE_HZ))) +
+                                cs.hat_hot_request(o, 6, 1, p_hot[0], p_hot[1], 0.0))
+                bad[25] = 30
+                tx.sendto(bytes(bad[:24 + 30]), ("127.0.0.1", port))
                 sent_malformed = True
         except OSError:
             pass  # igd not bound yet (ECONNREFUSED is not reported for unconnected UDP anyway)
         frame += 1
         while True:
             try:
-                sofs.append(cs.decode_start_of_frame(rx.recv(65536)))
+                data = rx.recv(65536)
+                sofs.append(cs.decode_start_of_frame(data))
+                answers.extend((sofs[-1]["last_host_frame"], a) for a in cs.decode_hat_hot_responses(data))
             except BlockingIOError:
                 break
         time.sleep(1.0 / RATE_HZ)
     out, err = proc.communicate(timeout=60)
     while True:
         try:
-            sofs.append(cs.decode_start_of_frame(rx.recv(65536)))
+            data = rx.recv(65536)
+            sofs.append(cs.decode_start_of_frame(data))
+            answers.extend((sofs[-1]["last_host_frame"], a) for a in cs.decode_hat_hot_responses(data))
         except BlockingIOError:
             break
     check(proc.returncode == 0, "igd exit status %s: %s" % (proc.returncode, err[-2000:]))
@@ -136,8 +228,39 @@ view_id = 0""", src, RATE_HZ, FRAMES, 3.0, rec)
     check(m is not None, "no 'igd: link cigi:' line in stderr: %s" % err[-2000:])
     if m:
         received, accepted, malformed, out_of_range, late_n, _ = map(int, m.groups())
-        check(malformed == 1 and out_of_range == 0 and late_n == 0, "link counters: %s" % m.group(0))
+        check(malformed == 2 and out_of_range == 1 and late_n == 0, "link counters: %s" % m.group(0))
         check(received == accepted + malformed and accepted >= FRAMES // 2, "link counters: %s" % m.group(0))
+
+    # HAT/HOT answers.
+    by_id = {}
+    for lhf, a in answers:
+        by_id.setdefault(a["id"], []).append((lhf, a))
+    check(hat_frame is not None and cancel_frame is not None, "HAT/HOT requests were sent")
+    check(sorted(by_id) == [1, 2, 3, 4, 5], "HAT/HOT answers for ids %r, expected 1..5 (6 was malformed)" % sorted(by_id))
+    for i in (1, 2, 3, 4):
+        check(len(by_id.get(i, [])) == 1, "one-shot request %d answered %d times" % (i, len(by_id.get(i, []))))
+    if by_id.get(1):
+        a = by_id[1][0][1]
+        want = expected_hot(*p_hot)
+        check(a["valid"] == 1 and a["hot"] == 1 and abs(a["height"] - want) < 1e-3,
+              "HOT inside the DEM: %r, expected valid HOT %.4f" % (a, want))
+    if by_id.get(2):
+        a = by_id[2][0][1]
+        want = expected_hot(*p_ext)
+        check(a["ext"] and a["valid"] == 1 and abs(a["hot"] - want) < 1e-3 and abs(a["hat"] - (900.0 - a["hot"])) < 1e-6
+              and 0.0 < a["elevation"] <= 90.0, "extended inside the DEM: %r, expected HOT %.4f" % (a, want))
+    for i in (3, 4):
+        if by_id.get(i):
+            check(by_id[i][0][1]["valid"] == 0, "request %d (outside / NaN) answered Valid = false: %r" % (i, by_id[i][0][1]))
+    periodic = by_id.get(5, [])
+    before = [a for lhf, a in periodic if cancel_frame and lhf < cancel_frame]
+    after = [a for lhf, a in periodic if cancel_frame and lhf > cancel_frame]
+    check(len(before) >= 3 and all(a["valid"] == 1 for _, a in periodic),
+          "periodic request: %d answers before the cancel, all valid" % len(before))
+    check(len(after) <= 1, "periodic request: %d answers after the cancel (at most its own one-shot)" % len(after))
+    m = re.search(r"hat_hot_requests (\d+) hat_hot_answered (\d+) hat_hot_refused (\d+)", err)
+    check(m is not None and int(m.group(1)) == 6 and int(m.group(2)) == len(answers) and int(m.group(3)) == 0,
+          "exit line HAT/HOT counters: %s (answers received: %d)" % (m.group(0) if m else err[-500:], len(answers)))
 
     # The recording of accepted samples.
     with open(rec) as f:

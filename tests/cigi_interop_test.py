@@ -10,6 +10,9 @@
 3. Debian's tshark CIGI dissector decodes the capture: every host message Python sent and every
    Start of Frame igd sent, with the field values matching.
 4. The capture goes through igd's pcap converter: the same samples as the live link.
+5. HAT/HOT: a HOT and an extended request (sent with the last message) are answered after a
+   Start of Frame from the probe's synthetic terrain (a known plane): the HOT Python computes
+   independently, both in Python's decoding and in tshark's.
 
 usage: cigi_interop_test.py <cigi_probe>
 """
@@ -230,11 +233,21 @@ def main():
          ig_fields(o, 99, 99000, 0, [(0, (1.0, 1.0, 1.0, 1.0, 1.0, 1.0))]))
     del late
 
-    # 7: back to normal (little-endian).
+    # 7: back to normal (little-endian), with two HAT/HOT requests: a HOT and an extended one.
     o = "<"
     ent7 = (1.0, 2.0, 3.0, ORIGIN[0] + 0.002, ORIGIN[1] - 0.004, 333.0)
-    msg = cs.ig_control(o, 104, 113333) + cs.entity_control(o, 0, *ent7)
-    send(msg, ig_fields(o, 104, 113333, 0, [(0, ent7)]), expect(104, 113333, ent7, view2, vdef2, sky2))
+    hot_point = (ORIGIN[0] + 0.004, ORIGIN[1] - 0.009)  # about 445 m north, 540 m west
+    ext_point = (ORIGIN[0] - 0.006, ORIGIN[1] + 0.012, 950.0)
+    msg = (cs.ig_control(o, 104, 113333) + cs.entity_control(o, 0, *ent7) +
+           cs.hat_hot_request(o, 21, 1, hot_point[0], hot_point[1], 0.0) +
+           cs.hat_hot_request(o, 22, 2, *ext_point))
+    fields7 = ig_fields(o, 104, 113333, 0, [(0, ent7)])
+    fields7.update({"cigi.hat_hot_request.hat_hot_id": [21, 22], "cigi.hat_hot_request.type": [1, 2],
+                    "cigi.hat_hot_request.coordinate_system": [0, 0], "cigi.hat_hot_request.update_period": [0, 0],
+                    "cigi.hat_hot_request.lat_xoff": [hot_point[0], ext_point[0]],
+                    "cigi.hat_hot_request.lon_yoff": [hot_point[1], ext_point[1]],
+                    "cigi.hat_hot_request.alt_zoff": [0.0, ext_point[2]]})
+    send(msg, fields7, expect(104, 113333, ent7, view2, vdef2, sky2))
 
     # Start of Frame after the host appeared: Operate, status 0, echoes host frame 104, database 6.
     deadline = time.monotonic() + 20
@@ -248,6 +261,12 @@ def main():
     check(last is not None and last["last_host_frame"] == 104, "Start of Frame echoing host frame 104: %r" % last)
     check(last["mode"] == 1 and last["status"] == 0, "Operate / status 0 after the host appeared: %r" % last)
     check(last["database"] == 6, "Start of Frame database = the host's request (6): %r" % last)
+    # The answers follow a Start of Frame in the same datagram, within a few frames.
+    answers = [(d, a) for d, _ in sofs for a in cs.decode_hat_hot_responses(d)]
+    while len(answers) < 2 and time.monotonic() < deadline:
+        data = rx.recv(65536)
+        sofs.append((data, cs.decode_start_of_frame(data)))
+        answers += [(data, a) for a in cs.decode_hat_hot_responses(data)]
 
     link.stdin.close()
     rest = link.stdout.read().splitlines()
@@ -275,6 +294,7 @@ def main():
 
     # tshark: the host messages Python sent ...
     host_fields = list(sent[0][1].keys()) + [k for k in sent[1][1].keys() if k not in sent[0][1]]
+    host_fields += [k for k in fields7 if k.startswith("cigi.hat_hot_request")]
     host_fields = list(dict.fromkeys(host_fields))
     rows = tshark(cap, port, host_port, "udp.dstport == %d && cigi.ig_control" % port, host_fields)
     want = [f for _, f in sent if f is not None]
@@ -289,8 +309,10 @@ def main():
                   "cigi.sof.last_host_frame_number"]
     rows = tshark(cap, port, host_port, "udp.dstport == %d && cigi.sof" % host_port, sof_fields)
     check(len(rows) == len(sofs), "tshark decoded %d Start of Frame packets, Python received %d" % (len(rows), len(sofs)))
-    for row, (_, s) in zip(rows, sofs):
-        w = {"cigi.packet_id": 101, "cigi.packet_size": 24, "cigi.version": 3, "cigi.byte_swap": "0x0080",
+    for row, (data, s) in zip(rows, sofs):
+        hat_hot = cs.decode_hat_hot_responses(data)  # the responses after it, if any
+        w = {"cigi.packet_id": [101] + [103 if a["ext"] else 102 for a in hat_hot],
+             "cigi.packet_size": [24] + [40 if a["ext"] else 16 for a in hat_hot], "cigi.version": 3, "cigi.byte_swap": "0x0080",
              "cigi.sof.db_number": s["database"], "cigi.sof.ig_status": s["status"], "cigi.sof.ig_mode": s["mode"],
              "cigi.sof.timestamp_valid": 1, "cigi.sof.earth_reference_model": 0, "cigi.sof.minor_version": 3,
              "cigi.sof.ig_frame_number": s["ig_frame"], "cigi.sof.timestamp": s["timestamp"],
@@ -299,6 +321,47 @@ def main():
             check(field_matches(row[k], v), "tshark Start of Frame %d: %s = %r, expected %r" % (s["ig_frame"], k, row[k], v))
     check(any(s["mode"] == 0 and s["status"] == 1 for _, s in sofs) and any(s["mode"] == 1 and s["status"] == 0 for _, s in sofs),
           "both Standby/host-lost and Operate/normal Start of Frame packets were captured")
+
+    # HAT/HOT: exactly the two answers, with the HOT of the probe's plane at the points.
+    check([a["id"] for _, a in answers] == [21, 22], "HAT/HOT answers: %r" % answers)
+    want_hot = {21: hot_of_plane(*hot_point), 22: hot_of_plane(ext_point[0], ext_point[1])}
+    for data, a in answers:
+        lsn = cs.decode_start_of_frame(data)["last_host_frame"] & 15
+        hot = a["hot"] if a["ext"] else a["height"]
+        check(a["valid"] == 1 and a["lsn"] == lsn and abs(hot - want_hot[a["id"]]) < 1e-4,
+              "HAT/HOT answer %d: %r, expected HOT %.6f" % (a["id"], a, want_hot[a["id"]]))
+        if a["ext"]:
+            check(abs(a["hat"] - (ext_point[2] - a["hot"])) < 1e-9 and a["material"] == 0, "extended answer: %r" % a)
+            # The plane's normal (ENU slope 0.03 east, -0.02 north) in the local north-east-down
+            # frame at the point (whose vertical leans from the ENU up axis by distance / radius).
+            az, el = normal_az_el(ext_point[0], ext_point[1], (-0.03, 0.02, 1.0))
+            check(abs(a["azimuth"] - az) < 0.001 and abs(a["elevation"] - el) < 0.001,
+                  "extended answer normal: %r, expected azimuth %.4f elevation %.4f" % (a, az, el))
+        else:
+            check(a["hot"] == 1, "HOT answer has Response Type HOT: %r" % a)
+    rows = tshark(cap, port, host_port, "udp.dstport == %d && cigi.hat_hot_response" % host_port,
+                  ["cigi.hat_hot_response.hat_hot_id", "cigi.hat_hot_response.valid", "cigi.hat_hot_response.type",
+                   "cigi.hat_hot_response.height", "cigi.hat_hot_response.host_frame_number_lsn"])
+    got = [a for _, a in answers if not a["ext"]]
+    check(len(rows) == len(got) == 1, "tshark decoded %d HAT/HOT Responses, Python %d" % (len(rows), len(got)))
+    for row, a in zip(rows, got):
+        w = {"cigi.hat_hot_response.hat_hot_id": a["id"], "cigi.hat_hot_response.valid": 1,
+             "cigi.hat_hot_response.type": 1, "cigi.hat_hot_response.height": want_hot[21],
+             "cigi.hat_hot_response.host_frame_number_lsn": a["lsn"]}
+        for k, v in w.items():
+            check(field_matches(row[k], v), "tshark HAT/HOT Response: %s = %r, expected %r" % (k, row[k], v))
+    ext_fields = ["cigi.hat_hot_ext_response.hat_hot_id", "cigi.hat_hot_ext_response.valid", "cigi.hat_hot_ext_response.hat",
+                  "cigi.hat_hot_ext_response.hot", "cigi.hat_hot_ext_response.material_code",
+                  "cigi.hat_hot_ext_response.normal_vector_azimuth", "cigi.hat_hot_ext_response.normal_vector_elevation",
+                  "cigi.hat_hot_ext_response.host_frame_number_lsn"]
+    rows = tshark(cap, port, host_port, "udp.dstport == %d && cigi.hat_hot_ext_response" % host_port, ext_fields)
+    got = [a for _, a in answers if a["ext"]]
+    check(len(rows) == len(got) == 1, "tshark decoded %d HAT/HOT Extended Responses, Python %d" % (len(rows), len(got)))
+    for row, a in zip(rows, got):
+        w = dict(zip(ext_fields, [a["id"], 1, ext_point[2] - want_hot[22], want_hot[22], 0, a["azimuth"], a["elevation"],
+                                  a["lsn"]]))
+        for k, v in w.items():
+            check(field_matches(row[k], v), "tshark HAT/HOT Extended Response: %s = %r, expected %r" % (k, row[k], v))
 
     # The capture through igd's pcap converter: the same samples as the live link.
     out = subprocess.run([probe, "pcap", cap, str(port), "%r,%r,%r" % ORIGIN], capture_output=True, text=True, timeout=60)
@@ -330,6 +393,35 @@ def ecef_of_enu(enu):
     o = cs.geodetic_to_ecef(*ORIGIN)
     n, e, d = cs.ned_axes(ORIGIN[0], ORIGIN[1])
     return tuple(o[k] + enu[0] * e[k] + enu[1] * n[k] - enu[2] * d[k] for k in range(3))
+
+
+def enu_of_geodetic(lat, lon, h):
+    p, o = cs.geodetic_to_ecef(lat, lon, h), cs.geodetic_to_ecef(*ORIGIN)
+    n, e, d = cs.ned_axes(ORIGIN[0], ORIGIN[1])
+    r = [p[k] - o[k] for k in range(3)]
+    dot = lambda a, b: sum(x * y for x, y in zip(a, b))  # noqa: E731
+    return dot(r, e), dot(r, n), -dot(r, d)
+
+
+def normal_az_el(lat, lon, n_enu):
+    """Azimuth (from true north, clockwise) and elevation of an ENU direction at (lat, lon)."""
+    on, oe, od = cs.ned_axes(ORIGIN[0], ORIGIN[1])
+    ecef = [n_enu[0] * oe[k] + n_enu[1] * on[k] - n_enu[2] * od[k] for k in range(3)]
+    pn, pe, pd = cs.ned_axes(lat, lon)
+    dot = lambda a, b: sum(x * y for x, y in zip(a, b))  # noqa: E731
+    north, east, down = dot(ecef, pn), dot(ecef, pe), dot(ecef, pd)
+    return math.degrees(math.atan2(east, north)), math.degrees(math.asin(-down / math.sqrt(dot(ecef, ecef))))
+
+
+def hot_of_plane(lat, lon):
+    """The height above the ellipsoid of tests/cigi_probe.cpp's terrain (the ENU plane
+    z = 30 + 0.03 east - 0.02 north) under (lat, lon): the surface point straight under the
+    geodetic point, found by iterating on its height."""
+    h = ORIGIN[2]
+    for _ in range(6):
+        e, n, _ = enu_of_geodetic(lat, lon, h)
+        h = ecef_to_lat_lon_h(*ecef_of_enu((e, n, 30.0 + 0.03 * e - 0.02 * n)))[2]
+    return h
 
 
 def ecef_to_lat_lon_h(x, y, z):

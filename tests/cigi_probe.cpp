@@ -4,7 +4,9 @@
 //   cigi_probe link <host_port> <lat,lon,h>   bind 127.0.0.1 on a free port, print "PORT <p>",
 //       send Start of Frame to 127.0.0.1:<host_port> every 10 ms (host lost -> Standby until the
 //       first sample), print "SAMPLE ..." per published sample; exit when stdin closes
-//       (or after 60 s), printing "COUNTERS ...".
+//       (or after 60 s), printing "COUNTERS ...". HAT/HOT requests are answered from a
+//       synthetic terrain: 41 x 41 posts 100 m apart around the origin, the plane
+//       z = 30 + 0.03 east - 0.02 north (ENU metres; tests/cigi_interop_test.py knows it).
 //   cigi_probe pcap <file> <port> <lat,lon,h>  convert a capture; print SAMPLE lines and COUNTERS.
 //
 // SAMPLE t_s host_frame sim_time_s east_m north_m up_m lat_deg lon_deg height_m heading_deg
@@ -17,6 +19,7 @@
 #include <cstdlib>
 #include <mutex>
 #include <string>
+#include <vector>
 
 #include "io/cigi_link.h"
 #include "io/pcap.h"
@@ -78,8 +81,13 @@ int runLink(int hostPort, const ig::lod::Geodetic& origin) {
   }
   std::printf("PORT %u\n", link->localPort());
   std::fflush(stdout);
+  std::vector<float> heights;
+  for (int y = 0; y < 41; ++y)
+    for (int x = 0; x < 41; ++x) heights.push_back(static_cast<float>(30.0 + 0.03 * (-2000.0 + 100.0 * x) - 0.02 * (-2000.0 + 100.0 * y)));
+  const ig::lod::HeightGrid terrain{heights, 41, 41, 100.0, {-2000.0, -2000.0, 0.0}};
   const auto t0 = std::chrono::steady_clock::now();
   FrameStart f;
+  f.terrain = &terrain;
   for (;;) {
     const double t = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     if (t > 60.0) break;
@@ -95,6 +103,7 @@ int runLink(int hostPort, const ig::lod::Geodetic& origin) {
   }
   link->stop();
   printCounters(snapshot(link->counters()), link->startOfFramesSent(), link->sendErrors());
+  std::printf("HATHOT%s\n", link->extraCounters().c_str());
   return 0;
 }
 

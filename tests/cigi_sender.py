@@ -23,6 +23,7 @@ MAGIC = 0x8000
 
 # Packet ids and sizes (ICD 3.3, section 4.1).
 IG_CONTROL, ENTITY_CONTROL, CELESTIAL, VIEW_CONTROL, VIEW_DEFINITION, START_OF_FRAME = 1, 2, 9, 16, 21, 101
+HAT_HOT_REQUEST, HAT_HOT_RESPONSE, HAT_HOT_EXT_RESPONSE = 24, 102, 103
 
 
 def ig_control(order, host_frame, timestamp_ticks=0, timestamp_valid=True, database=0, ig_mode=1,
@@ -69,6 +70,41 @@ def celestial(order, hour, minute, month, day, year, valid=True, star_intensity=
     flags = 0x02 | (0x10 if valid else 0)
     date = month * 1000000 + day * 10000 + year
     return struct.pack(order + "BBBBBBBBIf", CELESTIAL, 16, hour, minute, flags, 0, 0, 0, date, star_intensity)
+
+
+def hat_hot_request(order, hat_hot_id, request_type, lat_x, lon_y, alt_z, update_period=0, entity=False,
+                    entity_id=0):
+    """HAT/HOT Request, 32 bytes (ICD 3.3, 4.1.24):
+    0 id | 1 size | 2-3 HAT/HOT ID | 4 request type (0-1: 0 HAT, 1 HOT, 2 extended), coordinate system (2: 1 entity)
+    5 update period (frames, 0 = once) | 6-7 entity id
+    8-15 latitude / x offset f64 | 16-23 longitude / y offset f64 | 24-31 altitude / z offset f64"""
+    flags = (request_type & 3) | (4 if entity else 0)
+    return struct.pack(order + "BBHBBHddd", HAT_HOT_REQUEST, 32, hat_hot_id, flags, update_period, entity_id,
+                       lat_x, lon_y, alt_z)
+
+
+def decode_hat_hot_responses(data):
+    """The HAT/HOT responses after an IG message's Start of Frame (in its byte order):
+    HAT/HOT Response, 16 bytes (ICD 3.3, 4.2.2): 0 id | 1 size | 2-3 HAT/HOT ID
+      4 valid (0), response type (1: 0 HAT, 1 HOT), host frame LSN (4-7) | 5-7 reserved | 8-15 height f64
+    HAT/HOT Extended Response, 40 bytes (4.2.3): 0 id | 1 size | 2-3 HAT/HOT ID
+      4 valid (0), host frame LSN (4-7) | 5-7 reserved | 8-15 HAT f64 | 16-23 HOT f64 | 24-27 material code u32
+      28-31 normal azimuth f32 | 32-35 normal elevation f32 | 36-39 reserved"""
+    order = decode_start_of_frame(data)["order"]
+    out = []
+    at = 24
+    while at + 2 <= len(data):
+        pid, size = data[at], data[at + 1]
+        if pid == HAT_HOT_RESPONSE and size == 16:
+            _, _, hid, flags, height = struct.unpack(order + "BBHB3xd", data[at:at + 16])
+            out.append({"ext": False, "id": hid, "valid": flags & 1, "hot": (flags >> 1) & 1, "lsn": flags >> 4,
+                        "height": height})
+        elif pid == HAT_HOT_EXT_RESPONSE and size == 40:
+            _, _, hid, flags, hat, hot, material, az, el = struct.unpack(order + "BBHB3xddIff4x", data[at:at + 40])
+            out.append({"ext": True, "id": hid, "valid": flags & 1, "lsn": flags >> 4, "hat": hat, "hot": hot,
+                        "material": material, "azimuth": az, "elevation": el})
+        at += max(size, 2)
+    return out
 
 
 def unknown_packet(packet_id, size):
@@ -127,6 +163,30 @@ def body_axes_ned(yaw, pitch, roll):
 
 def combine(basis, v):
     return tuple(sum(basis[i][k] * v[i] for i in range(3)) for k in range(3))
+
+
+def enu_of_geodetic(origin, lat, lon, h):
+    """(east, north, up) of a geodetic point in the ENU frame at `origin` (lat, lon, h)."""
+    p, o = geodetic_to_ecef(lat, lon, h), geodetic_to_ecef(*origin)
+    n, e, d = ned_axes(origin[0], origin[1])
+    r = [p[k] - o[k] for k in range(3)]
+    return (sum(r[k] * e[k] for k in range(3)), sum(r[k] * n[k] for k in range(3)), -sum(r[k] * d[k] for k in range(3)))
+
+
+def geodetic_of_enu(origin, east, north, up):
+    """(lat, lon, h) of an ENU point of the frame at `origin` (iterative latitude, < 1e-12 deg)."""
+    o = geodetic_to_ecef(*origin)
+    n, e, d = ned_axes(origin[0], origin[1])
+    x, y, z = (o[k] + east * e[k] + north * n[k] - up * d[k] for k in range(3))
+    lon = math.atan2(y, x)
+    p = math.hypot(x, y)
+    lat = math.atan2(z, p * (1 - E2))
+    for _ in range(10):
+        nn = A / math.sqrt(1 - E2 * math.sin(lat) ** 2)
+        h = p / math.cos(lat) - nn
+        lat = math.atan2(z, p * (1 - E2 * nn / (nn + h)))
+    nn = A / math.sqrt(1 - E2 * math.sin(lat) ** 2)
+    return math.degrees(lat), math.degrees(lon), p / math.cos(lat) - nn
 
 
 def expected_eye(origin, lat, lon, alt, yaw, pitch, roll, offset=(0, 0, 0), view_ypr=(0, 0, 0)):

@@ -10,12 +10,14 @@
 #include <fstream>
 #include <limits>
 #include <memory>
+#include <numbers>
 #include <string>
 #include <vector>
 
 #include "io/cigi.h"
 #include "io/cigi_link.h"
 #include "io/pcap.h"
+#include "lod/terrain_grid.h"
 
 using namespace ig::io;
 using namespace ig::io::cigi;
@@ -235,6 +237,133 @@ TEST(CigiCodec, StartOfFrameRoundTripAndLayout) {
     for (size_t n = 0; n < b.size(); ++n)
       EXPECT_NE(decodeStartOfFrame(std::span(b.data(), n), d), CigiStatus::ok) << n;
   }
+}
+
+TEST(CigiCodec, HatHotRequestAndResponsesRoundTripAndLayout) {
+  HatHotRequest q;
+  q.hatHotId = 0x1234;
+  q.requestType = HatHotRequest::kExtended;
+  q.entityCoordinates = true;
+  q.updatePeriod = 9;
+  q.entityId = 0x0506;
+  q.lat_deg = 57.5;
+  q.lon_deg = -11.25;
+  q.alt_m = 1234.5;
+  HatHotResponse r;
+  r.hatHotId = 0x0708;
+  r.valid = true;
+  r.hot = true;
+  r.hostFrameLsn = 0xa;
+  r.height_m = 123.25;
+  HatHotExtendedResponse x;
+  x.hatHotId = 0x4321;
+  x.valid = true;
+  x.hostFrameLsn = 5;
+  x.hat_m = 11.5;
+  x.hot_m = 22.75;
+  x.materialCode = 9;
+  x.normalAzimuth_deg = 45.5f;
+  x.normalElevation_deg = 80.25f;
+  for (ByteOrder order : {ByteOrder::big, ByteOrder::little}) {
+    const bool be = order == ByteOrder::big;
+    Bytes b;
+    append(b, Sample().ig, order);
+    append(b, q, order);
+    ASSERT_EQ(b.size(), 24u + 32u);
+    // Request at 24: id 24, size 32, ID, type 2 | entity (bit 2), period 9, entity id, lat at +8.
+    EXPECT_EQ(at(b, 24), 24);
+    EXPECT_EQ(at(b, 25), 32);
+    EXPECT_EQ(at(b, 26), be ? 0x12 : 0x34);
+    EXPECT_EQ(at(b, 28), 0x02 | 0x04);
+    EXPECT_EQ(at(b, 29), 9);
+    EXPECT_EQ(at(b, 30), be ? 0x05 : 0x06);
+    EXPECT_EQ(at(b, be ? 32 : 39), 0x40);  // 57.5 = 0x404CC00000000000
+    EXPECT_EQ(at(b, be ? 33 : 38), 0x4c);
+    ASSERT_EQ(decode(b), CigiStatus::ok);
+    ASSERT_EQ(scratch().hatHotCount, 1u);
+    const HatHotRequest& d = scratch().hatHotRequests[0];
+    EXPECT_EQ(d.hatHotId, 0x1234);
+    EXPECT_EQ(d.requestType, HatHotRequest::kExtended);
+    EXPECT_TRUE(d.entityCoordinates);
+    EXPECT_EQ(d.updatePeriod, 9);
+    EXPECT_EQ(d.entityId, 0x0506);
+    EXPECT_EQ(d.lat_deg, 57.5);
+    EXPECT_EQ(d.lon_deg, -11.25);
+    EXPECT_EQ(d.alt_m, 1234.5);
+
+    Bytes rb;
+    append(rb, r, order);
+    ASSERT_EQ(rb.size(), 16u);
+    EXPECT_EQ(at(rb, 0), 102);
+    EXPECT_EQ(at(rb, 1), 16);
+    EXPECT_EQ(at(rb, 2), be ? 0x07 : 0x08);
+    EXPECT_EQ(at(rb, 4), 0x01 | 0x02 | 0xa0);
+    EXPECT_EQ(at(rb, be ? 8 : 15), 0x40);  // 123.25 = 0x405ED00000000000
+    EXPECT_EQ(at(rb, be ? 9 : 14), 0x5e);
+    HatHotResponse rd;
+    ASSERT_TRUE(decodePacket(rb, order, rd));
+    EXPECT_EQ(rd.hatHotId, r.hatHotId);
+    EXPECT_TRUE(rd.valid && rd.hot);
+    EXPECT_EQ(rd.hostFrameLsn, 0xa);
+    EXPECT_EQ(rd.height_m, 123.25);
+
+    Bytes xb;
+    append(xb, x, order);
+    ASSERT_EQ(xb.size(), 40u);
+    EXPECT_EQ(at(xb, 0), 103);
+    EXPECT_EQ(at(xb, 1), 40);
+    EXPECT_EQ(at(xb, 4), 0x01 | 0x50);
+    EXPECT_EQ(at(xb, be ? 8 : 15), 0x40);   // HAT 11.5 = 0x4027000000000000
+    EXPECT_EQ(at(xb, be ? 9 : 14), 0x27);
+    EXPECT_EQ(at(xb, be ? 16 : 23), 0x40);  // HOT 22.75 = 0x4036C00000000000
+    EXPECT_EQ(at(xb, be ? 17 : 22), 0x36);
+    EXPECT_EQ(at(xb, be ? 27 : 24), 9);     // material code
+    EXPECT_EQ(at(xb, be ? 28 : 31), 0x42);  // azimuth 45.5f = 0x42360000
+    EXPECT_EQ(at(xb, be ? 29 : 30), 0x36);
+    EXPECT_EQ(at(xb, be ? 32 : 35), 0x42);  // elevation 80.25f = 0x42A08000
+    EXPECT_EQ(at(xb, be ? 33 : 34), 0xa0);
+    HatHotExtendedResponse xd;
+    ASSERT_TRUE(decodePacket(xb, order, xd));
+    EXPECT_EQ(xd.hatHotId, x.hatHotId);
+    EXPECT_TRUE(xd.valid);
+    EXPECT_EQ(xd.hostFrameLsn, 5);
+    EXPECT_EQ(xd.hat_m, 11.5);
+    EXPECT_EQ(xd.hot_m, 22.75);
+    EXPECT_EQ(xd.materialCode, 9u);
+    EXPECT_EQ(xd.normalAzimuth_deg, 45.5f);
+    EXPECT_EQ(xd.normalElevation_deg, 80.25f);
+    EXPECT_FALSE(decodePacket(rb, order, xd));  // wrong id
+    EXPECT_FALSE(decodePacket(std::span(xb.data(), 39), order, xd));
+  }
+  // A wrong size for the known id is malformed; more than capacity are counted, not kept.
+  Bytes bad;
+  append(bad, Sample().ig, ByteOrder::big);
+  appendUnknown(bad, 24, 30);
+  EXPECT_EQ(decode(bad), CigiStatus::badPacketSize);
+  Bytes many;
+  append(many, Sample().ig, ByteOrder::big);
+  for (size_t i = 0; i <= HostMessage::kMaxHatHotRequests; ++i) append(many, q, ByteOrder::big);
+  ASSERT_EQ(decode(many), CigiStatus::ok);
+  EXPECT_EQ(scratch().hatHotCount, HostMessage::kMaxHatHotRequests);
+  EXPECT_EQ(scratch().hatHotOmitted, 1u);
+  // Validation: type 3, NaN / out-of-range latitude and longitude; HOT ignores the altitude.
+  HatHotRequest g;
+  g.lat_deg = 46.5;
+  g.lon_deg = 7.9;
+  g.alt_m = kNaN;
+  EXPECT_EQ(validateHatHotRequest(g), 0u);  // HOT
+  g.requestType = HatHotRequest::kHat;
+  EXPECT_EQ(validateHatHotRequest(g), uint32_t{kHatHotAltZ});
+  g.alt_m = 100.0;
+  g.requestType = 3;
+  g.lat_deg = 90.5;
+  g.lon_deg = kNaN;
+  EXPECT_EQ(validateHatHotRequest(g), uint32_t{kHatHotType | kHatHotLatX | kHatHotLonY});
+  g.requestType = HatHotRequest::kHot;
+  g.entityCoordinates = true;
+  g.lat_deg = 2.0e5;
+  g.lon_deg = 0.0;
+  EXPECT_EQ(validateHatHotRequest(g), uint32_t{kHatHotLatX});
 }
 
 TEST(CigiCodec, EveryTruncationInsideAPacketIsRejected) {
@@ -862,3 +991,166 @@ TEST(CigiPcap, ErrorsNameTheFile) {
   std::remove(odd.c_str());
   std::remove(none.c_str());
 }
+
+// ---------------------------------------------------------------------------------------------
+// HAT/HOT answers from a terrain (the frame loop's side).
+
+namespace {
+
+// A 21 x 21 post plane around the origin, 100 m apart: z = 50 + 0.02 east + 0.01 north (ENU
+// metres). Bilinear interpolation reproduces a plane exactly, so the expected HOT is known.
+struct Plane {
+  std::vector<float> heights;
+  ig::lod::HeightGrid grid;
+  Plane() {
+    for (int y = 0; y < 21; ++y)
+      for (int x = 0; x < 21; ++x) heights.push_back(static_cast<float>(z(-1000.0 + 100.0 * x, -1000.0 + 100.0 * y)));
+    grid = {heights, 21, 21, 100.0, {-1000.0, -1000.0, 0.0}};
+  }
+  static double z(double e, double n) { return 50.0 + 0.02 * e + 0.01 * n; }
+};
+
+HatHotRequest geodeticRequest(uint16_t id, uint8_t type, double east_m, double north_m, double alt_m, uint8_t period = 0) {
+  const ig::lod::Geodetic g = ig::lod::EnuFrame(kOrigin).toGeodetic({east_m, north_m, 0.0});
+  HatHotRequest r;
+  r.hatHotId = id;
+  r.requestType = type;
+  r.updatePeriod = period;
+  r.lat_deg = g.lat_deg;
+  r.lon_deg = g.lon_deg;
+  r.alt_m = alt_m;
+  return r;
+}
+
+// The responses of one frame, decoded.
+struct Answers {
+  std::vector<HatHotResponse> basic;
+  std::vector<HatHotExtendedResponse> extended;
+};
+Answers answerFrame(CigiHatHotResponder& r, uint32_t igFrame, const ig::lod::HeightGrid* terrain,
+                    const HostState* host = nullptr) {
+  Bytes buf(CigiHatHotResponder::kMaxBytesPerFrame);
+  const size_t n = r.answer(igFrame, 0x1237, terrain, host, ByteOrder::little, buf);
+  Answers a;
+  for (size_t at = 0; at < n; at += std::to_integer<uint8_t>(buf[at + 1])) {
+    const std::span<const std::byte> p(buf.data() + at, n - at);
+    if (std::to_integer<uint8_t>(buf[at]) == 102) {
+      EXPECT_TRUE(decodePacket(p, ByteOrder::little, a.basic.emplace_back()));
+      EXPECT_EQ(a.basic.back().hostFrameLsn, 7);
+    } else {
+      EXPECT_TRUE(decodePacket(p, ByteOrder::little, a.extended.emplace_back()));
+    }
+  }
+  return a;
+}
+
+}  // namespace
+
+TEST(CigiHatHot, AnswersFromTheFullResolutionTerrain) {
+  const Plane plane;
+  CigiHatHotResponder r(kOrigin);
+  // HOT and HAT 224 m from the origin: the ENU plane's drop below the ellipsoid there is 4 mm.
+  r.add({geodeticRequest(1, HatHotRequest::kHot, 100.0, 200.0, 0.0), 0}, 5);
+  r.add({geodeticRequest(2, HatHotRequest::kHat, 100.0, 200.0, 900.0), 0}, 5);
+  r.add({geodeticRequest(3, HatHotRequest::kExtended, -350.0, 420.0, 700.0), 0}, 5);
+  r.add({geodeticRequest(4, HatHotRequest::kHot, 1500.0, 0.0, 0.0), 0}, 5);  // outside the terrain
+  r.add({geodeticRequest(5, HatHotRequest::kHot, 0.0, 0.0, 0.0), kHatHotLatX}, 5);  // rejected field
+  Answers a = answerFrame(r, 5, &plane.grid);
+  ASSERT_EQ(a.basic.size(), 4u);
+  ASSERT_EQ(a.extended.size(), 1u);
+  const double hot1 = kOrigin.height_m + Plane::z(100.0, 200.0);
+  EXPECT_TRUE(a.basic[0].valid && a.basic[0].hot);
+  EXPECT_NEAR(a.basic[0].height_m, hot1, 0.01);
+  EXPECT_TRUE(a.basic[1].valid && !a.basic[1].hot);
+  EXPECT_NEAR(a.basic[1].height_m, 900.0 - hot1, 0.01);
+  const HatHotExtendedResponse& x = a.extended[0];
+  const double hot3 = kOrigin.height_m + Plane::z(-350.0, 420.0);
+  EXPECT_TRUE(x.valid);
+  EXPECT_NEAR(x.hot_m, hot3, 0.05);  // 547 m out: the ENU plane lies 23 mm above the ellipsoid
+  EXPECT_NEAR(x.hat_m, 700.0 - x.hot_m, 1e-9);
+  // The normal leans down-slope, towards -east and -north, against the LOCAL vertical there,
+  // which leans from the ENU up axis by (east, north) / earth radius: 0.22 deg of azimuth on
+  // this gentle slope (without it the azimuth would be -116.565 deg).
+  constexpr double kR = 6371000.0, kDeg = 180.0 / std::numbers::pi;
+  const double nEast = -0.02 - (-350.0 / kR), nNorth = -0.01 - 420.0 / kR;
+  EXPECT_NEAR(x.normalAzimuth_deg, std::atan2(nEast, nNorth) * kDeg, 0.01);
+  EXPECT_NEAR(x.normalElevation_deg, 90.0 - std::atan(std::hypot(nEast, nNorth)) * kDeg, 0.001);
+  EXPECT_EQ(a.basic[2].hatHotId, 4);
+  EXPECT_FALSE(a.basic[2].valid);
+  EXPECT_EQ(a.basic[3].hatHotId, 5);
+  EXPECT_FALSE(a.basic[3].valid);
+  // No terrain: Valid = false.
+  r.add({geodeticRequest(6, HatHotRequest::kHot, 0.0, 0.0, 0.0), 0}, 6);
+  a = answerFrame(r, 6, nullptr);
+  ASSERT_EQ(a.basic.size(), 1u);
+  EXPECT_FALSE(a.basic[0].valid);
+  // Entity coordinates: 300 m ahead and 100 m right of an ownship at the origin heading east.
+  HostState host;
+  HatHotRequest e;
+  e.hatHotId = 7;
+  e.requestType = HatHotRequest::kHat;
+  e.entityCoordinates = true;
+  e.lat_deg = 300.0;
+  e.lon_deg = 100.0;
+  e.alt_m = 0.0;
+  r.add({e, 0}, 7);
+  a = answerFrame(r, 7, &plane.grid, &host);  // no ownship known: invalid
+  ASSERT_EQ(a.basic.size(), 1u);
+  EXPECT_FALSE(a.basic[0].valid);
+  host.hasOwnship = true;
+  host.ownshipLat_deg = kOrigin.lat_deg;
+  host.ownshipLon_deg = kOrigin.lon_deg;
+  host.ownshipAlt_m = kOrigin.height_m + 500.0;
+  host.ownshipYaw_deg = 90.0;
+  r.add({e, 0}, 8);
+  a = answerFrame(r, 8, &plane.grid, &host);
+  ASSERT_EQ(a.basic.size(), 1u);
+  EXPECT_TRUE(a.basic[0].valid);
+  EXPECT_NEAR(a.basic[0].height_m, 500.0 - Plane::z(300.0, -100.0), 0.03);
+  EXPECT_EQ(r.answered(), 8u);
+  EXPECT_TRUE(r.idle());
+}
+
+TEST(CigiHatHot, GroundSamplesTheGridLayersPostsLikeItsHeightAt) {
+  // The service hands the "grid" layer's posts to the link as a HeightGrid: the same heights
+  // as TerrainGrid::heightAt inside, nothing outside.
+  ig::lod::TerrainGridDesc d;
+  d.heights.postsX = d.heights.postsY = 33;
+  d.heights.postSpacing_m = 25.0;
+  d.offset_m = {-400.0, -300.0, 12.0};
+  d.chunkQuads = 16;
+  const ig::lod::TerrainGrid grid(d);
+  const ig::lod::HeightGrid g{grid.heights(), 33, 33, 25.0, d.offset_m};
+  ig::lod::GroundSample s;
+  for (const auto& [e, n] : {std::pair{-400.0, -300.0}, {-123.4, 56.7}, {399.0, 499.0}, {400.0, 500.0}}) {
+    ASSERT_TRUE(ig::lod::sampleGround(g, e, n, s)) << e << " " << n;
+    EXPECT_NEAR(s.height_m, grid.heightAt(e, n), 1e-9) << e << " " << n;
+  }
+  EXPECT_FALSE(ig::lod::sampleGround(g, 400.1, 0.0, s));
+  EXPECT_FALSE(ig::lod::sampleGround(g, 0.0, -300.1, s));
+  EXPECT_FALSE(ig::lod::sampleGround(g, kNaN, 0.0, s));
+}
+
+TEST(CigiHatHot, PeriodicRequestsCancelAndBoundedWorkPerFrame) {
+  const Plane plane;
+  CigiHatHotResponder r(kOrigin);
+  r.add({geodeticRequest(9, HatHotRequest::kHot, 0.0, 0.0, 0.0, 3), 0}, 10);  // every 3rd frame
+  std::vector<uint32_t> answeredAt;
+  for (uint32_t f = 10; f < 20; ++f) {
+    if (f == 15) r.add({geodeticRequest(9, HatHotRequest::kHot, 0.0, 0.0, 0.0, 0), 0}, f);  // cancel (answered once)
+    if (!answerFrame(r, f, &plane.grid).basic.empty()) answeredAt.push_back(f);
+  }
+  EXPECT_EQ(answeredAt, (std::vector<uint32_t>{10, 13, 15}));
+  EXPECT_TRUE(r.idle());
+  // 40 one-shot requests: 32 answered this frame, 8 the next (counted as deferred).
+  for (uint16_t i = 0; i < 40; ++i) r.add({geodeticRequest(i, HatHotRequest::kHot, 0.0, 0.0, 0.0), 0}, 20);
+  EXPECT_EQ(answerFrame(r, 20, &plane.grid).basic.size(), CigiHatHotResponder::kMaxAnswersPerFrame);
+  EXPECT_EQ(r.deferred(), 8u);
+  EXPECT_EQ(answerFrame(r, 21, &plane.grid).basic.size(), 8u);
+  // More periodic requests than the table holds: the extra one is refused (answered once).
+  for (uint16_t i = 0; i <= CigiHatHotResponder::kMaxPeriodic; ++i)
+    r.add({geodeticRequest(static_cast<uint16_t>(100 + i), HatHotRequest::kHot, 0.0, 0.0, 0.0, 200), 0}, 22);
+  EXPECT_EQ(r.periodicCount(), CigiHatHotResponder::kMaxPeriodic);
+  EXPECT_EQ(r.refused(), 1u);
+}
+

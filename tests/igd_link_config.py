@@ -1,15 +1,17 @@
 """Writes the igd service config the end-to-end host-link tests run with: a tiny paced headless
-output, a stats CSV, the default scene, and one live host link.
+output, a stats CSV, the default scene (or another), and one live host link.
 
 write_link_config(tmp, source, link_table, link_body, src, rate_hz, frames, link_timeout_s,
-                  record_file="") -> path of tmp/igd.toml, stats in tmp/stats.csv
+                  record_file="", scene="") -> path of tmp/igd.toml, stats in tmp/stats.csv
 """
 import os
 
 
 def write_link_config(tmp, source, link_table, link_body, src, rate_hz, frames, link_timeout_s,
-                      record_file=""):
+                      record_file="", scene=""):
+    """scene: the scene file ("" = config/scenes/default.toml)."""
     path = os.path.join(tmp, "igd.toml")
+    scene = scene or os.path.join(src, 'config/scenes/default.toml')
     record = f'record_file = "{record_file}"\n' if record_file else ""
     with open(path, "w") as f:
         f.write(f"""[frame]
@@ -30,6 +32,6 @@ link_timeout_s = {link_timeout_s}
 {record}[host.{link_table}]
 {link_body}
 [scene]
-file = "{os.path.join(src, 'config/scenes/default.toml')}"
+file = "{scene}"
 """)
     return path
