@@ -996,7 +996,17 @@ size_t Roam::DueQueue::popDue(uint64_t limit_cm, std::vector<DueEntry>& out, siz
 size_t Roam::DueQueue::countDue(uint64_t limit_cm, size_t max) const {
   const uint64_t limitBucket = limit_cm / kBucket_cm;
   size_t n = 0;
-  for (uint64_t b = cursor_; b <= limitBucket && b < cursor_ + kBuckets && n <= max; ++b) n += ring_[b % kBuckets].size();
+  // Whole buckets behind the limit's own bucket (every bucket once the eye jumped past the
+  // horizon, as popDue drains them), then only the entries of the limit's bucket that are due:
+  // the rest of that bucket is not due yet and must not count (a finished update reported them
+  // as pending).
+  uint64_t b = cursor_;
+  for (; b < limitBucket && b < cursor_ + kBuckets && n <= max; ++b) n += ring_[b % kBuckets].size();
+  if (b == limitBucket && b < cursor_ + kBuckets)
+    for (const DueEntry& e : ring_[b % kBuckets]) {
+      if (n > max) break;
+      n += e.due_cm <= limit_cm ? 1 : 0;
+    }
   return n;
 }
 

@@ -377,8 +377,9 @@ class Roam {
     // Moves the entries due at `limit_cm` into `out`, at most `max` of them (more: returns
     // max + 1 and leaves the rest queued); returns how many.
     size_t popDue(uint64_t limit_cm, std::vector<DueEntry>& out, size_t max);
-    // Entries (stale ones included) in the buckets up to the one holding limit_cm; stops
-    // counting above max. Touches only the bucket sizes.
+    // Entries (stale ones included) due at limit_cm, as popDue would take them: the buckets
+    // before the one holding limit_cm whole, and that bucket's entries due by limit_cm; stops
+    // counting above max. Touches the bucket sizes and the limit's own bucket.
     size_t countDue(uint64_t limit_cm, size_t max) const;
 
    private:

@@ -619,6 +619,8 @@ TEST(Roam, DeferredVisitBudgetIsRespectedAndConverges) {
     EXPECT_LE(st.visits, v.maxVisits + maxOp) << "update " << updates;
     if (!st.finished) {
       EXPECT_TRUE(std::isinf(st.maxErrorPx));
+    } else {
+      EXPECT_EQ(st.pending, 0u) << "finished, yet work is reported left over";
     }
     if (updates % 7 == 0) {
       std::string why;
@@ -640,6 +642,9 @@ TEST(Roam, DeferredVisitBudgetIsRespectedAndConverges) {
     const RoamStats st = roam.update(v, RoamMode::Deferred);
     EXPECT_FALSE(st.restarted);
     EXPECT_LE(st.visits, v.maxVisits + maxOp);
+    if (st.finished) {
+      EXPECT_EQ(st.pending, 0u) << "fly-on update " << i;
+    }
   }
   // Teleport: restart from the base (valid at once), then converge.
   v.camera.eye_m = {300, 300, 1000};
