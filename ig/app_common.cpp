@@ -43,6 +43,10 @@ bool loadConfigs(const std::string& serviceFile, const Overrides& o, ServiceConf
     if (*o.height_px < 16 || *o.height_px > 16384) return bad("--height", std::to_string(*o.height_px), "must be in [16, 16384]");
     s.height_px = *o.height_px;
   }
+  // A [channel] frustum was checked against the file's output size; a new size must fit it too.
+  if ((o.width_px || o.height_px) && !channelAspectMismatch(s).empty())
+    return bad(o.width_px ? "--width" : "--height", std::to_string(o.width_px ? s.width_px : s.height_px),
+               s.path + ": [channel] " + channelAspectMismatch(s));
   if (o.statsFile) s.statsFile = *o.statsFile;
   if (o.statusFile) s.statusFile = *o.statusFile;
   if (o.statsFormat) {

@@ -122,7 +122,7 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
     std::fprintf(stderr, "igbench perfmodel: %s\n", error.c_str());
     return 3;
   }
-  const glm::dmat4 vp = lod::reverseZProjection(cam.fovY_deg, cam.aspect, cam.near_m, cam.far_m) *
+  const glm::dmat4 vp = lod::projection(cam) *
                         glm::dmat4(lod::viewRotation(cam));
   const double screen = static_cast<double>(o.width_px) * o.height_px;
 

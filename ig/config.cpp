@@ -5,6 +5,7 @@
 #include "ig/host_links.h"
 
 #include <cerrno>
+#include <cstdio>
 #include <charconv>
 #include <cmath>
 #include <filesystem>
@@ -50,6 +51,22 @@ const char* toString(HostSource source) {
     case HostSource::ModbusRtu: return "modbus-rtu";
   }
   return "?";
+}
+
+std::string channelAspectMismatch(const ServiceConfig& config) {
+  if (!config.channel.frustum) return "";
+  lod::Camera cam;
+  const lod::WindowAngles& w = *config.channel.frustum;
+  if (!lod::setWindow(cam, w)) return "the frustum is not a window (each edge in (-90, 90), left < right, bottom < top)";
+  const double output = static_cast<double>(config.width_px) / static_cast<double>(config.height_px);
+  if (std::abs(cam.aspect / output - 1.0) <= kChannelAspectTolerance) return "";
+  char text[320];
+  std::snprintf(text, sizeof text,
+                "the frustum's aspect ratio (tan(right) - tan(left)) / (tan(top) - tan(bottom)) = %.4f differs from "
+                "output.width_px / output.height_px = %d / %d = %.4f by more than 1 %% (the picture would be "
+                "stretched): fix the frustum or the output size",
+                cam.aspect, config.width_px, config.height_px, output);
+  return text;
 }
 
 std::string ConfigError::what() const {
@@ -113,6 +130,7 @@ struct Range {
 constexpr Range closed(double lo, double hi) { return {lo, hi, false, false}; }
 constexpr Range openClosed(double lo, double hi) { return {lo, hi, true, false}; }
 constexpr Range atLeast(double lo) { return {lo, kInf, false, false}; }
+constexpr Range openRange(double lo, double hi) { return {lo, hi, true, true}; }
 
 // Allowed closed interval for an integer value.
 struct IntRange {
@@ -457,7 +475,7 @@ bool parseService(const std::string& text, const std::string& name, const std::s
   ServiceConfig cfg;
   cfg.path = name;
   Reader r(text, name);
-  const Table root = r.parse({"frame", "output", "stats", "host", "scene", "budget", "governor", "service"});
+  const Table root = r.parse({"frame", "output", "stats", "host", "scene", "channel", "budget", "governor", "service"});
 
   const Table frame = r.table(root, "frame", {"rate_hz", "frames", "free_run"});
   // At least 0.01 Hz: the period (and every deadline derived from it) must fit int64 nanoseconds.
@@ -559,6 +577,45 @@ bool parseService(const std::string& text, const std::string& name, const std::s
   const Table scene = r.table(root, "scene", {"file"});
   r.get(scene, "file", cfg.sceneFile, false);
   r.require(scene, "file", "path of the scene file ([scene] file = \"scenes/default.toml\")");
+
+  const Table channel = r.table(root, "channel", {"yaw_deg", "pitch_deg", "roll_deg", "left_deg", "right_deg",
+                                                  "bottom_deg", "top_deg"});
+  ChannelSettings& ch = cfg.channel;
+  r.get(channel, "yaw_deg", ch.yaw_deg, closed(-180.0, 180.0));
+  r.get(channel, "pitch_deg", ch.pitch_deg, closed(-90.0, 90.0));
+  r.get(channel, "roll_deg", ch.roll_deg, closed(-180.0, 180.0));
+  {
+    constexpr const char* kEdges[] = {"left_deg", "right_deg", "bottom_deg", "top_deg"};
+    lod::WindowAngles w;
+    double* edges[] = {&w.left_deg, &w.right_deg, &w.bottom_deg, &w.top_deg};
+    int given = 0;
+    for (size_t i = 0; i < 4; ++i) {
+      if (r.find(channel, kEdges[i]) == nullptr) continue;
+      ++given;
+      r.get(channel, kEdges[i], *edges[i], openRange(-90.0, 90.0));
+    }
+    if (r.ok() && given > 0 && given < 4) {
+      for (const char* key : kEdges) {
+        if (r.find(channel, key) != nullptr) continue;
+        r.fail(channel.line_, channel.keyOf(key), "",
+               "missing: the channel frustum needs all four of left_deg, right_deg, bottom_deg, top_deg (or none)");
+        break;
+      }
+    }
+    if (r.ok() && given == 4) {
+      const char* bad = !(w.left_deg < w.right_deg) ? "right_deg" : !(w.bottom_deg < w.top_deg) ? "top_deg" : nullptr;
+      if (bad != nullptr) {
+        const bool lr = bad[0] == 'r';
+        r.fail(*r.find(channel, bad), channel.keyOf(bad),
+               cat("must be greater than ", channel.keyOf(lr ? "left_deg" : "bottom_deg"), " (",
+                   formatNumber(lr ? w.left_deg : w.bottom_deg), ")"));
+      } else {
+        ch.frustum = w;
+        if (const std::string why = channelAspectMismatch(cfg); !why.empty())
+          r.fail(channel.line_, channel.path_, "", why);
+      }
+    }
+  }
 
   const Table budget = r.table(root, "budget", {"frame_ms", "triangles"});
   r.get(budget, "frame_ms", cfg.budgetFrame_ms, closed(0.0, 100000.0));

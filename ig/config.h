@@ -12,6 +12,7 @@
 #include "io/can_map.h"
 #include "io/cigi_link.h"
 #include "io/modbus_link.h"
+#include "lod/view.h"
 
 namespace ig {
 
@@ -61,6 +62,19 @@ struct GovernorSettings {
   bool operator==(const GovernorSettings&) const = default;
 };
 
+// [channel]: this igd's display channel, one of several in a cabin (one igd per channel, all fed
+// by the same host). The camera's attitude is the host eyepoint's composed with the offset:
+// lod::composeAttitude({heading, pitch, roll}, {yaw_deg, pitch_deg, roll_deg}). The frustum,
+// when given, wins over the host's field of view (CIGI View Definition, Modbus/CAN/replay fovy):
+// it is the cabin's geometry; the host's near/far clip planes still apply.
+struct ChannelSettings {
+  double yaw_deg = 0.0;    // right positive, [-180, 180]
+  double pitch_deg = 0.0;  // up positive, [-90, 90]
+  double roll_deg = 0.0;   // right side down positive, [-180, 180]
+  std::optional<lod::WindowAngles> frustum;  // left/right/bottom/top_deg; absent = the host's
+  bool operator==(const ChannelSettings&) const = default;
+};
+
 // Service config (config/igd.toml): how the service runs, independent of what it draws.
 struct ServiceConfig {
   std::string path;                          // file this was loaded from ("" = defaults)
@@ -94,6 +108,8 @@ struct ServiceConfig {
   io::ModbusLinkConfig modbus;               // [host.modbus] when source = "modbus-tcp" / "modbus-rtu"
   // [scene]
   std::string sceneFile;
+  // [channel]
+  ChannelSettings channel;
   // [budget]
   double budgetFrame_ms = 0.0;               // work budget per frame, 0 = the whole period
   int64_t budgetTriangles = 2'000'000;       // triangles per frame for all layers together
@@ -225,6 +241,12 @@ struct SceneConfig {
 };
 
 // Parse + validate. On failure returns false, fills `error`, leaves `out` untouched.
+// The channel frustum's aspect ratio, (tan(right) - tan(left)) / (tan(top) - tan(bottom)), must
+// match the output's width_px / height_px within kChannelAspectTolerance (relative), or the picture
+// would be stretched. Returns "" when it does (or there is no frustum), else the reason.
+constexpr double kChannelAspectTolerance = 0.01;
+std::string channelAspectMismatch(const ServiceConfig& config);
+
 bool loadServiceConfig(const std::string& file, ServiceConfig& out, ConfigError& error);
 bool loadSceneConfig(const std::string& file, SceneConfig& out, ConfigError& error);
 // Same, from text (tests); `name` is used as the file name in errors and `baseDir` to resolve

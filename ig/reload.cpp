@@ -58,6 +58,14 @@ ReloadPlan planReload(const ServiceConfig& runC, const SceneConfig& runS, const 
     std::erase(a, std::string("output.snapshot_frames"));
     r.emplace_back("output.snapshot_every/snapshot_frames (snapshots were off at start-up)");
   }
+  // The channel's offset and frustum apply from the next frame (a projector realigned without a
+  // restart), unless its frustum only fits an output size that itself needs a restart.
+  take(mergedC, newC, &ServiceConfig::channel, "channel", a);
+  if (!channelAspectMismatch(mergedC).empty()) {
+    mergedC.channel = runC.channel;
+    std::erase(a, std::string("channel"));
+    r.emplace_back("channel (its frustum fits only the new output size)");
+  }
   // The rest need a restart.
   check(runC, newC, &ServiceConfig::rate_hz, "frame.rate_hz", r);
   check(runC, newC, &ServiceConfig::freeRun, "frame.free_run", r);

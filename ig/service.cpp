@@ -472,20 +472,51 @@ static bool createTerrainMesh(const TerrainLayerConfig& t, const ServiceConfig& 
   return true;
 }
 
+lod::Camera cameraFor(const io::HostState& h, const ChannelSettings& channel, int width_px, int height_px) {
+  lod::Camera c;
+  c.eye_m = h.eyeEnu_m;
+  c.heading_deg = h.heading_deg;
+  c.pitch_deg = h.pitch_deg;
+  c.roll_deg = h.roll_deg;
+  if (channel.yaw_deg != 0.0 || channel.pitch_deg != 0.0 || channel.roll_deg != 0.0) {
+    const lod::Attitude a = lod::composeAttitude({h.heading_deg, h.pitch_deg, h.roll_deg},
+                                                 {channel.yaw_deg, channel.pitch_deg, channel.roll_deg});
+    c.heading_deg = a.heading_deg;
+    c.pitch_deg = a.pitch_deg;
+    c.roll_deg = a.roll_deg;
+  }
+  c.near_m = h.near_m;
+  c.far_m = h.far_m;
+  c.fovY_deg = h.fovY_deg;
+  c.aspect = static_cast<double>(width_px) / static_cast<double>(height_px);
+  // The channel's frustum is the cabin's geometry: it wins over the host's field of view.
+  if (channel.frustum && lod::setWindow(c, *channel.frustum)) return c;
+  c.shiftX = h.windowShiftX;
+  c.shiftY = h.windowShiftY;
+  if (h.windowWidth_tan > 0.0) c.aspect = h.windowWidth_tan / (2.0 * std::tan(0.5 * h.fovY_deg * kDeg));
+  return c;
+}
+
 bool hostStateValid(const io::HostState& s, std::string* why) {
   auto bad = [&](const char* what, double v) {
     if (why) *why = std::string(what) + " = " + std::to_string(v);
     return false;
   };
   const double values[] = {s.simTime_s, s.eyeEnu_m.x, s.eyeEnu_m.y, s.eyeEnu_m.z, s.heading_deg,
-                           s.pitch_deg, s.roll_deg, s.fovY_deg, s.near_m, s.far_m};
+                           s.pitch_deg, s.roll_deg, s.fovY_deg, s.near_m, s.far_m,
+                           s.windowShiftX, s.windowShiftY, s.windowWidth_tan};
   const char* names[] = {"sim_time_s", "east_m", "north_m", "up_m", "heading_deg",
-                         "pitch_deg", "roll_deg", "fovy_deg", "near_m", "far_m"};
+                         "pitch_deg", "roll_deg", "fovy_deg", "near_m", "far_m",
+                         "window_shift_x", "window_shift_y", "window_width_tan"};
   for (size_t i = 0; i < std::size(values); ++i)
     if (!std::isfinite(values[i])) return bad(names[i], values[i]);
   if (!(s.fovY_deg > 0.0 && s.fovY_deg < 180.0)) return bad("fovy_deg", s.fovY_deg);
   if (!(s.near_m > 0.0)) return bad("near_m", s.near_m);
   if (!(s.far_m > s.near_m)) return bad("far_m", s.far_m);
+  if (!(std::abs(s.windowShiftX) <= lod::kMaxWindowShift)) return bad("window_shift_x", s.windowShiftX);
+  if (!(std::abs(s.windowShiftY) <= lod::kMaxWindowShift)) return bad("window_shift_y", s.windowShiftY);
+  if (!(s.windowWidth_tan >= 0.0 && s.windowWidth_tan <= 2.0 * lod::kMaxWindowShift))
+    return bad("window_width_tan", s.windowWidth_tan);
   // Time of day: negative = none (the scene's sun), else UTC hours below 24 (io/host_state.h).
   if (std::isinf(s.timeOfDay_h) || !(s.timeOfDay_h < 24.0)) return bad("tod_h", s.timeOfDay_h);
   return true;
@@ -637,16 +668,7 @@ struct Service::Impl {
   }
 
   lod::Camera cameraFor(const io::HostState& h) const {
-    lod::Camera c;
-    c.eye_m = h.eyeEnu_m;
-    c.heading_deg = h.heading_deg;
-    c.pitch_deg = h.pitch_deg;
-    c.roll_deg = h.roll_deg;
-    c.fovY_deg = h.fovY_deg;
-    c.near_m = h.near_m;
-    c.far_m = h.far_m;
-    c.aspect = static_cast<double>(config.width_px) / static_cast<double>(config.height_px);
-    return c;
+    return ig::cameraFor(h, config.channel, config.width_px, config.height_px);
   }
 
   // lod phase: every layer the scene has selects what to draw. `clock` (the frame loop's)

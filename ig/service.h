@@ -47,6 +47,12 @@ struct ServiceInfo {
 // The terrain grid a scene's [terrain] table describes.
 lod::TerrainGridDesc terrainGridDesc(const TerrainLayerConfig& terrain);
 
+// The camera for a host sample on this display channel: the host's eyepoint and clip planes; its
+// attitude composed with the channel's offset (lod::composeAttitude); the channel's frustum when
+// it has one, else the host's field of view and window (HostState::windowShiftX ...) with the
+// output's aspect ratio unless the host gave the window's width.
+lod::Camera cameraFor(const io::HostState& host, const ChannelSettings& channel, int width_px, int height_px);
+
 // Why a host sample was rejected (kept the previous one).
 bool hostStateValid(const io::HostState& s, std::string* why = nullptr);
 

@@ -228,13 +228,29 @@ void CigiAssembler::applyViewDefinition(const cigi::ViewDefinition& d, LinkCount
   const bool topOk = (d.enable & cigi::ViewDefinition::kTop) && !(bad & cigi::kViewTop);
   const bool bottomOk = (d.enable & cigi::ViewDefinition::kBottom) && !(bad & cigi::kViewBottom);
   const double top = topOk ? static_cast<double>(d.top_deg) : top_deg_, bottom = bottomOk ? static_cast<double>(d.bottom_deg) : bottom_deg_;
-  if ((topOk || bottomOk) && !(top - bottom > 0.0 && top - bottom < 180.0)) {
+  // An edge at +-90 deg has no finite tangent: the window needs -90 < bottom < top < 90.
+  if ((topOk || bottomOk) && !(bottom < top && bottom > -90.0 && top < 90.0)) {
     ++pairsRejected;
   } else {
     top_deg_ = top;
     bottom_deg_ = bottom;
   }
-  // Left and right are validated but not used: the output's aspect ratio sets the width.
+  // Left and right set the window's width and horizontal centre (an asymmetric frustum). Before
+  // the first pair a lone left or right stands with its mirror image (the window was centred).
+  const bool leftOk = (d.enable & cigi::ViewDefinition::kLeft) && !(bad & cigi::kViewLeft);
+  const bool rightOk = (d.enable & cigi::ViewDefinition::kRight) && !(bad & cigi::kViewRight);
+  if (leftOk || rightOk) {
+    const double givenL = static_cast<double>(d.left_deg), givenR = static_cast<double>(d.right_deg);
+    const double left = leftOk ? givenL : hasLeftRight_ ? left_deg_ : -givenR;
+    const double right = rightOk ? givenR : hasLeftRight_ ? right_deg_ : -givenL;
+    if (!(left < right && left > -90.0 && right < 90.0)) {
+      ++pairsRejected;
+    } else {
+      left_deg_ = left;
+      right_deg_ = right;
+      hasLeftRight_ = true;
+    }
+  }
   counters.outOfRange.fetch_add(static_cast<uint64_t>(std::popcount(bad) + pairsRejected), std::memory_order_relaxed);
 }
 
@@ -273,7 +289,16 @@ void CigiAssembler::computeEye() {
   state_.heading_deg = att.heading_deg;
   state_.pitch_deg = att.pitch_deg;
   state_.roll_deg = att.roll_deg;
-  state_.fovY_deg = top_deg_ - bottom_deg_;
+  // The window in tangent units (lod::Camera's convention): a symmetric one keeps fovy = top - bottom exactly.
+  constexpr double kRad = 3.14159265358979323846 / 180.0;
+  const double t = std::tan(top_deg_ * kRad), b = std::tan(bottom_deg_ * kRad);
+  state_.fovY_deg = top_deg_ == -bottom_deg_ ? top_deg_ - bottom_deg_ : 2.0 * std::atan(0.5 * (t - b)) / kRad;
+  state_.windowShiftY = top_deg_ == -bottom_deg_ ? 0.0 : 0.5 * (t + b);
+  if (hasLeftRight_) {
+    const double l = std::tan(left_deg_ * kRad), r = std::tan(right_deg_ * kRad);
+    state_.windowShiftX = left_deg_ == -right_deg_ ? 0.0 : 0.5 * (r + l);
+    state_.windowWidth_tan = r - l;
+  }
   state_.near_m = near_m_;
   state_.far_m = far_m_;
   state_.hasOwnship = true;

@@ -147,6 +147,10 @@ class CigiAssembler {
   double viewRoll_deg_ = 0, viewPitch_deg_ = 0, viewYaw_deg_ = 0;
   double near_m_, far_m_, top_deg_, bottom_deg_;
   std::array<uint32_t, cigi::HostMessage::kMaxHatHotRequests> hatHotBad_{};
+  // Left/right edges; before the host's first left/right the window is as wide as the output's
+  // aspect ratio and centred (HostState::windowWidth_tan = 0).
+  double left_deg_ = 0, right_deg_ = 0;
+  bool hasLeftRight_ = false;
 };
 
 // Eye position and attitude from an entity pose and a view offset (pure; used by the

@@ -18,7 +18,13 @@ struct HostState {
   double heading_deg = 0.0;          // clockwise from north
   double pitch_deg = 0.0;            // nose up positive
   double roll_deg = 0.0;             // right wing down positive
-  double fovY_deg = 45.0;            // vertical field of view
+  double fovY_deg = 45.0;            // vertical field of view: the window's height, 2 tan(fovy/2) = tan(top) - tan(bottom)
+  // Off-axis window (CIGI View Definition's left/right/bottom/top; lod::Camera's shiftX/shiftY):
+  // the window's centre right of and above the view axis, in tangent units, and its width
+  // tan(right) - tan(left). 0, 0, 0 = a symmetric window as wide as the output's aspect ratio.
+  double windowShiftX = 0.0;
+  double windowShiftY = 0.0;
+  double windowWidth_tan = 0.0;      // 0 = from the output's width / height
   double near_m = 0.1;               // near clip plane
   double far_m = 100000.0;           // far clip plane
   // Date and time for the sun (CIGI Celestial Sphere Control). Negative time / zero date = not

@@ -121,7 +121,8 @@ BlockLodStats BlockLod::update(const RoamView& view) {
   // A camera that is not finite cannot cull or measure distances: every block, coarsest. An
   // infinite tolerance is a valid view (any error goes: coarsest), which still culls; a NaN
   // tolerance takes the coarsest level too.
-  const bool finite = std::isfinite(eye.x) && std::isfinite(eye.y) && std::isfinite(eye.z) && std::isfinite(cam.fovY_deg);
+  const bool finite = std::isfinite(eye.x) && std::isfinite(eye.y) && std::isfinite(eye.z) && std::isfinite(cam.fovY_deg) &&
+                      validWindowShift(cam);
   const bool refine = finite && !std::isnan(view.tolerance_px);
   Camera rel = cam;
   rel.eye_m = eye;

@@ -206,7 +206,7 @@ bool validCellView(const CellView& v) {
   const Camera& c = v.camera;
   return finite3(c.eye_m) && std::isfinite(c.heading_deg) && std::isfinite(c.pitch_deg) && std::isfinite(c.roll_deg) &&
          c.fovY_deg > 0.0 && c.fovY_deg < 180.0 && c.aspect > 0.0 && std::isfinite(c.aspect) && c.near_m > 0.0 &&
-         c.far_m > c.near_m && std::isfinite(c.far_m) && v.viewportHeight_px > 0.0 && std::isfinite(v.viewportHeight_px) &&
+         c.far_m > c.near_m && std::isfinite(c.far_m) && validWindowShift(c) && v.viewportHeight_px > 0.0 && std::isfinite(v.viewportHeight_px) &&
          v.minVoxel_px >= 0.0 && std::isfinite(v.minVoxel_px);
 }
 

@@ -181,7 +181,7 @@ struct CellEval {
 };
 CellEval evaluateCell(const CellTree& tree, uint32_t cell, const CellView& view);
 // Whether select() accepts the view (finite eye, 0 < fovY < 180, aspect > 0, 0 < near < far,
-// viewport > 0, minVoxel_px >= 0).
+// window shift within lod::kMaxWindowShift (not NaN), viewport > 0, minVoxel_px >= 0).
 bool validCellView(const CellView& view);
 
 class CellSelector {

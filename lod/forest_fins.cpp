@@ -227,7 +227,7 @@ size_t selectFinGroups(std::span<const FinGroup> groups, const Camera& cam, cons
   size_t n = 0;
   const bool ok = finite(cam.eye_m) && std::isfinite(cam.heading_deg + cam.pitch_deg + cam.roll_deg + cam.fovY_deg +
                                                      cam.aspect + cam.near_m + cam.far_m) &&
-                  cam.near_m > 0.0 && cam.far_m > cam.near_m && out.size() >= groups.size();
+                  cam.near_m > 0.0 && cam.far_m > cam.near_m && validWindowShift(cam) && out.size() >= groups.size();
   if (ok) {
     const Frustum fr = makeFrustum(cam);
     for (size_t i = 0; i < groups.size(); ++i) {

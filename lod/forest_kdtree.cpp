@@ -198,7 +198,7 @@ size_t ForestKdTree::select(const Camera& cam, const NearFade& fade, std::span<F
   const bool camOk = finite(cam.eye_m) && std::isfinite(cam.heading_deg + cam.pitch_deg + cam.roll_deg + cam.fovY_deg +
                                                         cam.aspect + cam.near_m + cam.far_m);
   if (!camOk || !(range > 0.0) || !std::isfinite(range) || nodes_.empty() || !(cam.far_m > cam.near_m) ||
-      !(cam.near_m > 0.0) || !(cam.fovY_deg > 0.0 && cam.fovY_deg < 180.0) || !(cam.aspect > 0.0)) {
+      !(cam.near_m > 0.0) || !(cam.fovY_deg > 0.0 && cam.fovY_deg < 180.0) || !(cam.aspect > 0.0) || !validWindowShift(cam)) {
     if (stats) *stats = st;
     return 0;
   }

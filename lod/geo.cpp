@@ -87,9 +87,7 @@ glm::dvec3 EnuFrame::toEcef(const glm::dvec3& enu_m) const {
   return originEcef_m_ + east_ * enu_m.x + north_ * enu_m.y + up_ * enu_m.z;
 }
 
-Attitude EnuFrame::attitudeFromEcef(const glm::dvec3& forwardEcef, const glm::dvec3& rightEcef) const {
-  const glm::dvec3 f{glm::dot(forwardEcef, east_), glm::dot(forwardEcef, north_), glm::dot(forwardEcef, up_)};
-  const glm::dvec3 r{glm::dot(rightEcef, east_), glm::dot(rightEcef, north_), glm::dot(rightEcef, up_)};
+Attitude attitudeFromEnu(const glm::dvec3& f, const glm::dvec3& r) {
   const double pitch = std::asin(std::clamp(f.z, -1.0, 1.0));
   double heading = std::atan2(f.x, f.y);
   if (std::hypot(f.x, f.y) < 1e-9) heading = std::atan2(-r.y, r.x);  // straight up/down: from the right axis
@@ -100,6 +98,19 @@ Attitude EnuFrame::attitudeFromEcef(const glm::dvec3& forwardEcef, const glm::dv
   if (heading_deg < 0.0) heading_deg += 360.0;
   if (heading_deg >= 360.0) heading_deg -= 360.0;
   return {heading_deg, pitch / kDeg, roll / kDeg};
+}
+
+Attitude composeAttitude(const Attitude& parent, const Attitude& child) {
+  const glm::dmat3 m = bodyToNed(parent.heading_deg, parent.pitch_deg, parent.roll_deg) *
+                       bodyToNed(child.heading_deg, child.pitch_deg, child.roll_deg);
+  const auto enu = [](const glm::dvec3& ned) { return glm::dvec3(ned.y, ned.x, -ned.z); };
+  return attitudeFromEnu(enu(m[0]), enu(m[1]));
+}
+
+Attitude EnuFrame::attitudeFromEcef(const glm::dvec3& forwardEcef, const glm::dvec3& rightEcef) const {
+  const glm::dvec3 f{glm::dot(forwardEcef, east_), glm::dot(forwardEcef, north_), glm::dot(forwardEcef, up_)};
+  const glm::dvec3 r{glm::dot(rightEcef, east_), glm::dot(rightEcef, north_), glm::dot(rightEcef, up_)};
+  return attitudeFromEnu(f, r);
 }
 
 Attitude EnuFrame::attitudeFromGeodetic(double lat_deg, double lon_deg, const Attitude& local) const {

@@ -32,6 +32,15 @@ glm::dmat3 nedToEcef(double lat_deg, double lon_deg);
 // (yaw = heading, pitch, roll; degrees).
 glm::dmat3 bodyToNed(double yaw_deg, double pitch_deg, double roll_deg);
 
+// The attitude whose forward and right axes are `forward` and `right` (unit, in ENU). Straight
+// up or down (pitch +-90) the heading is taken from the right axis and the roll is 0, so the
+// result still turns the camera exactly as the two axes say.
+Attitude attitudeFromEnu(const glm::dvec3& forward, const glm::dvec3& right);
+// A child rotation applied after a parent one, in the parent's body axes, both in the same local
+// level frame: body axes = bodyToNed(parent) * bodyToNed(child). A display channel's fixed
+// offset (yaw -60 deg = the left window) turns with the eyepoint this way.
+Attitude composeAttitude(const Attitude& parent, const Attitude& child);
+
 // Local tangent plane anchored at `origin`: x east, y north, z up (metres).
 class EnuFrame {
  public:

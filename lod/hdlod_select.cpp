@@ -22,7 +22,7 @@ bool validView(const SelectView& v) {
   const Camera& c = v.camera;
   return finite3(c.eye_m) && std::isfinite(c.heading_deg) && std::isfinite(c.pitch_deg) && std::isfinite(c.roll_deg) &&
          c.fovY_deg > 0.0 && c.fovY_deg < 180.0 && c.aspect > 0.0 && std::isfinite(c.aspect) && c.near_m > 0.0 &&
-         c.far_m > c.near_m && std::isfinite(c.far_m) && std::isfinite(v.time_s) && !std::isnan(v.tolerance_rad);
+         c.far_m > c.near_m && std::isfinite(c.far_m) && validWindowShift(c) && std::isfinite(v.time_s) && !std::isnan(v.tolerance_rad);
 }
 
 // Step functions longer than kScanSteps are searched through a table of `bucketsFor(n)` + 1

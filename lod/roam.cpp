@@ -482,7 +482,8 @@ Roam::ViewState Roam::makeViewState(const RoamView& view) const {
   vs.scale = view.viewportHeight_px / (2.0 * std::tan(0.5 * c.fovY_deg * kDeg));
   vs.valid = finite3(c.eye_m) && std::isfinite(c.heading_deg) && std::isfinite(c.pitch_deg) && std::isfinite(c.roll_deg) &&
              std::isfinite(vs.scale) && vs.scale > 0.0 && std::isfinite(c.aspect) && c.aspect > 0.0 &&
-             std::isfinite(c.near_m) && std::isfinite(c.far_m) && c.near_m > 0.0 && c.far_m > c.near_m;
+             std::isfinite(c.near_m) && std::isfinite(c.far_m) && c.near_m > 0.0 && c.far_m > c.near_m &&
+             validWindowShift(c);
   if (vs.valid) {
     vs.frustum = makeFrustum(c);
     for (const auto& p : vs.frustum.planes) vs.valid = vs.valid && std::isfinite(p.x + p.y + p.z + p.w);

@@ -39,6 +39,33 @@ glm::dmat4 reverseZProjection(double fovY_deg, double aspect, double near_m, dou
   return m;
 }
 
+glm::dmat4 projection(const Camera& cam) {
+  glm::dmat4 m = reverseZProjection(cam.fovY_deg, cam.aspect, cam.near_m, cam.far_m);
+  // x_ndc = (x / -z - shiftX) / halfWidth: the third column adds the shift times w = -z.
+  const double halfH = std::tan(0.5 * cam.fovY_deg * kDeg), halfW = halfH * cam.aspect;
+  m[2][0] = cam.shiftX / halfW;
+  m[2][1] = cam.shiftY / halfH;
+  return m;
+}
+
+bool validWindowShift(const Camera& cam) {
+  return std::abs(cam.shiftX) <= kMaxWindowShift && std::abs(cam.shiftY) <= kMaxWindowShift;
+}
+
+bool setWindow(Camera& cam, const WindowAngles& w) {
+  const double a[] = {w.left_deg, w.right_deg, w.bottom_deg, w.top_deg};
+  for (double v : a)
+    if (!(v > -90.0 && v < 90.0)) return false;  // NaN too
+  if (!(w.left_deg < w.right_deg && w.bottom_deg < w.top_deg)) return false;
+  const double l = std::tan(w.left_deg * kDeg), r = std::tan(w.right_deg * kDeg);
+  const double b = std::tan(w.bottom_deg * kDeg), t = std::tan(w.top_deg * kDeg);
+  cam.fovY_deg = 2.0 * std::atan(0.5 * (t - b)) / kDeg;
+  cam.aspect = (r - l) / (t - b);
+  cam.shiftX = 0.5 * (r + l);
+  cam.shiftY = 0.5 * (t + b);
+  return true;
+}
+
 double reverseZDepth(double near_m, double far_m, double d_m) {
   return (near_m * far_m / (far_m - near_m) - near_m / (far_m - near_m) * d_m) / d_m;
 }
@@ -46,7 +73,7 @@ double reverseZDepth(double near_m, double far_m, double d_m) {
 Frustum makeFrustum(const Camera& cam) {
   // Planes from the combined clip matrix (Gribb-Hartmann), with zero-to-one depth.
   const glm::dmat4 view(viewRotation(cam));
-  const glm::dmat4 m = reverseZProjection(cam.fovY_deg, cam.aspect, cam.near_m, cam.far_m) * view;
+  const glm::dmat4 m = projection(cam) * view;
   auto row = [&](int i) { return glm::dvec4(m[0][i], m[1][i], m[2][i], m[3][i]); };
   Frustum fr;
   fr.planes[0] = row(3) + row(0);

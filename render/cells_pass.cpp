@@ -29,6 +29,7 @@ uniform float uRootEdge;                  // m
 uniform float uPxPerM;                    // pointScale * viewport height / (2 tan(fovY / 2))
 uniform vec2 uPointRange;                 // smallest, largest point side (px)
 uniform vec2 uTanHalf;                    // tan of the half field of view across, up
+uniform vec2 uWindowShift;                // the window centre's tangents (lod::Camera shiftX, shiftY)
 out vec3 vColor;
 out vec3 vEyeToPoint;
 uniform vec2 uViewport;                   // px
@@ -40,7 +41,7 @@ void main() {
   // up to sqrt(1 + t^2) times the face-on footprint along an axis (t: the centre's offset / depth
   // along it), so neighbouring voxels of a surface seen obliquely towards the frame's sides are
   // that far apart: the side grows with it (1 at the centre, 1.24 at the side of a 45 deg 16:9 view).
-  vec2 t = clip.w > 0.0 ? clip.xy / clip.w * uTanHalf : vec2(0.0);
+  vec2 t = clip.w > 0.0 ? clip.xy / clip.w * uTanHalf + uWindowShift : vec2(0.0);
   float offAxis = sqrt(1.0 + max(t.x * t.x, t.y * t.y));
   float size = clamp(edge * uPxPerM * offAxis / max(clip.w, 1e-6), uPointRange.x, uPointRange.y);
   // A point whose centre is outside the view is discarded even where its square reaches into
@@ -182,7 +183,7 @@ struct CellsPass::Impl {
   std::vector<uint8_t> isResident;
   std::vector<GLint> firsts;     // per draw (sized to the tree)
   std::vector<GLsizei> counts;
-  GLint uViewport = -1, uVp = -1, uRootOffset = -1, uRootOffsetLow = -1, uLight = -1, uRootEdge = -1, uPxPerM = -1, uPointRange = -1, uTanHalf = -1, uFogColor = -1, uFogDensity = -1;
+  GLint uViewport = -1, uVp = -1, uRootOffset = -1, uRootOffsetLow = -1, uLight = -1, uRootEdge = -1, uPxPerM = -1, uPointRange = -1, uTanHalf = -1, uWindowShift = -1, uFogColor = -1, uFogDensity = -1;
 };
 
 CellsPass::CellsPass() = default;
@@ -225,6 +226,7 @@ bool CellsPass::init(const lod::CellTree& tree, const CellsPassConfig& config, s
   g->uPxPerM = gl.GetUniformLocation(p, "uPxPerM");
   g->uPointRange = gl.GetUniformLocation(p, "uPointRange");
   g->uTanHalf = gl.GetUniformLocation(p, "uTanHalf");
+  g->uWindowShift = gl.GetUniformLocation(p, "uWindowShift");
   g->uFogColor = gl.GetUniformLocation(p, "uFogColor");
   g->uFogDensity = gl.GetUniformLocation(p, "uFogDensity");
   GLint range[2] = {1, 64};
@@ -352,7 +354,7 @@ void CellsPass::draw(Renderer& renderer, std::span<const lod::CellDraw> cells) {
   if (k == 0) return;
 
   const lod::Camera& cam = renderer.camera();
-  const glm::mat4 vp(lod::reverseZProjection(cam.fovY_deg, cam.aspect, cam.near_m, cam.far_m) *
+  const glm::mat4 vp(lod::projection(cam) *
                      glm::dmat4(lod::viewRotation(cam)));
   const SplitOffset rootOffset = splitOffset(g.tree->info().rootMin_m - cam.eye_m);
   const double tanHalf = std::tan(0.5 * cam.fovY_deg * 3.14159265358979323846 / 180.0);
@@ -369,6 +371,8 @@ void CellsPass::draw(Renderer& renderer, std::span<const lod::CellDraw> cells) {
   gl.ProgramUniform2fv(p, g.uPointRange, 1, range);
   const float tanHalfXY[2] = {static_cast<float>(tanHalf * cam.aspect), static_cast<float>(tanHalf)};
   gl.ProgramUniform2fv(p, g.uTanHalf, 1, tanHalfXY);
+  const float windowShift[2] = {static_cast<float>(cam.shiftX), static_cast<float>(cam.shiftY)};
+  gl.ProgramUniform2fv(p, g.uWindowShift, 1, windowShift);
   const float viewport[2] = {static_cast<float>(renderer.width()), static_cast<float>(renderer.height())};
   gl.ProgramUniform2fv(p, g.uViewport, 1, viewport);
   gl.ProgramUniform3fv(p, g.uFogColor, 1, glm::value_ptr(fogColor));

@@ -91,7 +91,7 @@ constexpr GLsizei kBoxIndices = 36;
 constexpr uint32_t kBoxTriangles = 12;
 
 glm::mat4 viewProjection(const lod::Camera& c) {
-  return glm::mat4(lod::reverseZProjection(c.fovY_deg, c.aspect, c.near_m, c.far_m) * glm::dmat4(lod::viewRotation(c)));
+  return glm::mat4(lod::projection(c) * glm::dmat4(lod::viewRotation(c)));
 }
 
 bool validObject(const DynamicObject& o) {
@@ -510,7 +510,7 @@ void DynamicPass::issueQueries(Renderer& r, uint64_t frame, uint32_t q, double b
   // A test's cost: the query and box draw (occlusionTest_ns, calibrated on small nodes) and the
   // box's depth-only fragments; the estimator's nodes are the large ones near the root.
   const lod::Camera& cam = r.camera();
-  const glm::dmat4 vpd = lod::reverseZProjection(cam.fovY_deg, cam.aspect, cam.near_m, cam.far_m) * glm::dmat4(lod::viewRotation(cam));
+  const glm::dmat4 vpd = lod::projection(cam) * glm::dmat4(lod::viewRotation(cam));
   const lod::PerfConstants& k = config_.constants;
   double spent_ns = 0.0;
   gl.ProgramUniformMatrix4fv(qp, g.qVp, 1, GL_FALSE, glm::value_ptr(vp));

@@ -248,7 +248,7 @@ struct ModelRange {
 };
 
 glm::mat4 viewProjection(const lod::Camera& c) {
-  return glm::mat4(lod::reverseZProjection(c.fovY_deg, c.aspect, c.near_m, c.far_m) * glm::dmat4(lod::viewRotation(c)));
+  return glm::mat4(lod::projection(c) * glm::dmat4(lod::viewRotation(c)));
 }
 
 struct Locations {

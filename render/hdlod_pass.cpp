@@ -463,7 +463,7 @@ void HdlodPass::draw(Renderer& renderer, std::span<const hd::Draw> draws) {
   const lod::Camera& camera = renderer.camera();
   const Lighting& lighting = renderer.lighting();
   const GLuint p = m.program.id();
-  const glm::mat4 viewProjection(lod::reverseZProjection(camera.fovY_deg, camera.aspect, camera.near_m, camera.far_m) *
+  const glm::mat4 viewProjection(lod::projection(camera) *
                                  glm::dmat4(lod::viewRotation(camera)));
   gl.ProgramUniformMatrix4fv(p, m.uViewProjection, 1, GL_FALSE, glm::value_ptr(viewProjection));
   const glm::vec3 sun(lighting.sunDirection), sunColor(lighting.sunColor), fogColor(lighting.fogColor);

@@ -372,7 +372,7 @@ bool measure(const CalibrationOptions& o, lod::PerfConstants& c, std::string& er
   // GL_SAMPLES_PASSED. Same boxes, same triangles: the difference of the two sizes is their edges
   // and fragments, the difference to the layer alone also their triangles.
   constexpr double kSmallHalf_m = 0.05, kMidHalf_m = 0.11;
-  const glm::dmat4 vp = lod::reverseZProjection(b.camera.fovY_deg, b.camera.aspect, b.camera.near_m, b.camera.far_m) *
+  const glm::dmat4 vp = lod::projection(b.camera) *
                         glm::dmat4(lod::viewRotation(b.camera));
   // Sum over `boxes` of sqrt(projected area in px), weighted as lod::PassLoad::edgePx, and
   // their share that reaches the rasterizer (lod::PassLoad::rasterShare) in `share`.

@@ -342,7 +342,7 @@ class TerrainPass {
     const Program& g = programs_[detail];
     const GLuint p = g.program.id();
     current_ = &g;
-    const glm::mat4 viewProjection(lod::reverseZProjection(camera.fovY_deg, camera.aspect, camera.near_m, camera.far_m) *
+    const glm::mat4 viewProjection(lod::projection(camera) *
                                    glm::dmat4(lod::viewRotation(camera)));
     gl.ProgramUniformMatrix4fv(p, g.uViewProjection, 1, GL_FALSE, glm::value_ptr(viewProjection));
     const glm::vec3 sun = toFloat(lighting.sunDirection), sunColor = toFloat(lighting.sunColor);
@@ -493,16 +493,17 @@ void Renderer::beginFrame(const lod::Camera& camera, const Lighting& lighting) {
   const lod::Camera& c = camera;
   if (finite(c.eye_m.x) && finite(c.eye_m.y) && finite(c.eye_m.z) && finite(c.heading_deg) && finite(c.pitch_deg) &&
       finite(c.roll_deg) && c.fovY_deg > 0.0 && c.fovY_deg < 180.0 && c.aspect > 0.0 && finite(c.aspect) &&
-      c.near_m > 0.0 && c.far_m > c.near_m && finite(c.far_m)) {
+      c.near_m > 0.0 && c.far_m > c.near_m && finite(c.far_m) && lod::validWindowShift(c)) {
     camera_ = camera;
   } else {
     char text[384];
     std::snprintf(text, sizeof text,
                   "beginFrame: camera refused (eye %g %g %g, heading %g, pitch %g, roll %g deg, fov %g deg, aspect %g, "
-                  "near %g m, far %g m: need finite values, fov in (0, 180), aspect > 0, 0 < near < far): "
+                  "near %g m, far %g m, window shift %g %g: need finite values, fov in (0, 180), aspect > 0, 0 < near < far, "
+                  "|shift| <= 500): "
                   "the last good camera is drawn",
                   c.eye_m.x, c.eye_m.y, c.eye_m.z, c.heading_deg, c.pitch_deg, c.roll_deg, c.fovY_deg, c.aspect, c.near_m,
-                  c.far_m);
+                  c.far_m, c.shiftX, c.shiftY);
     cameraError_ = text;
   }
   lighting_ = lighting;

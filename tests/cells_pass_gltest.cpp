@@ -117,7 +117,7 @@ render::Image renderCells(Gl& gl, render::CellsPass* pass, const lod::Camera& ca
 
 // Pixel rectangle (x0, y0, x1, y1; y down, as Image rows) of the square [lo, hi]^2 in x-z at the plane.
 glm::dvec4 projectRect(const lod::Camera& cam, double lo, double hi) {
-  const glm::dmat4 vp = lod::reverseZProjection(cam.fovY_deg, cam.aspect, cam.near_m, cam.far_m) *
+  const glm::dmat4 vp = lod::projection(cam) *
                         glm::dmat4(lod::viewRotation(cam));
   glm::dvec4 r(1e9, 1e9, -1e9, -1e9);
   for (int i = 0; i < 4; ++i) {
@@ -345,7 +345,7 @@ TEST(CellsPassGl, ObliqueQuadNearTheFrameSideHasNoHoles) {
     cam.heading_deg = -36.0 * side;
     cam.eye_m = glm::dvec3(32.0 + 3.7 * side, -39.0, 32.0);
     const render::Image img = renderCells(gl, &pass, cam, finest);
-    const glm::dmat4 inv = glm::inverse(lod::reverseZProjection(cam.fovY_deg, cam.aspect, cam.near_m, cam.far_m) *
+    const glm::dmat4 inv = glm::inverse(lod::projection(cam) *
                                         glm::dmat4(lod::viewRotation(cam)));
     int inside = 0, holes = 0, holesOuter = 0;
     for (int y = 0; y < kH; ++y) {

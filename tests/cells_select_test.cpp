@@ -480,7 +480,10 @@ TEST(CellSelect, NanAndBadViewsChangeNothing) {
   v.camera.far_m = 1000.0;
   CellSelector sel(t);
   const Frame a = runSelect(sel, t, v);
-  for (int bad = 0; bad < 7; ++bad) {
+  CellView offAxis = v;  // an off-axis window (a display channel's) is a valid view
+  offAxis.camera.shiftX = 0.4;
+  EXPECT_TRUE(validCellView(offAxis));
+  for (int bad = 0; bad < 8; ++bad) {
     CellView b = v;
     const double nan = std::numeric_limits<double>::quiet_NaN();
     switch (bad) {
@@ -491,6 +494,7 @@ TEST(CellSelect, NanAndBadViewsChangeNothing) {
       case 4: b.camera.far_m = b.camera.near_m; break;
       case 5: b.viewportHeight_px = nan; break;
       case 6: b.minVoxel_px = -1.0; break;
+      case 7: b.camera.shiftY = nan; break;
     }
     const Frame f = runSelect(sel, t, b);
     EXPECT_FALSE(f.stats.valid) << bad;

@@ -163,9 +163,12 @@ def main():
                                        tuple(f32(x) for x in view[:3]), tuple(f32(x) for x in (view[5], view[4], view[3])))
         g = ecef_to_lat_lon_h(*ecef_of_enu(enu))
         near, far, top, bottom = vdef
+        # igd keeps the window's height in tangents (docs/cigi.md): fovy = top - bottom only when symmetric.
+        t, b = f32(top), f32(bottom)
+        fovy = t - b if t == -b else 2.0 * math.degrees(math.atan(0.5 * (math.tan(math.radians(t)) - math.tan(math.radians(b)))))
         return {"host_frame": frame, "sim_time_s": ticks * 1e-5, "east_m": enu[0], "north_m": enu[1], "up_m": enu[2],
                 "lat_deg": g[0], "lon_deg": g[1], "height_m": g[2], "heading_deg": h, "pitch_deg": p, "roll_deg": r,
-                "fovy_deg": f32(top) - f32(bottom), "near_m": f32(near), "far_m": f32(far),
+                "fovy_deg": fovy, "near_m": f32(near), "far_m": f32(far),
                 "time_of_day_h": sky[0] + sky[1] / 60.0, "date_ymd": sky[4] * 10000 + sky[2] * 100 + sky[3]}
 
     def ig_fields(order, frame, ticks, db, ent_list, view=None, vdef=None, sky=None):

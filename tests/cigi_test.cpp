@@ -18,6 +18,7 @@
 #include "io/cigi_link.h"
 #include "io/pcap.h"
 #include "lod/terrain_grid.h"
+#include "lod/view.h"
 
 using namespace ig::io;
 using namespace ig::io::cigi;
@@ -704,7 +705,13 @@ TEST(CigiAssembler, ViewDefinitionAndCelestialSphere) {
   LinkCounters c;
   Host h;
   ASSERT_EQ(a.apply(h.message(ByteOrder::big, false, true, true), c), CigiAssembler::Result::published);
-  EXPECT_DOUBLE_EQ(a.state().fovY_deg, 45.0);
+  // top 25, bottom -20, left -40, right 40: an asymmetric window, in lod::Camera's tangent units.
+  constexpr double kRad = M_PI / 180.0;
+  const double t = std::tan(25.0 * kRad), b = std::tan(-20.0 * kRad);
+  EXPECT_NEAR(2.0 * std::tan(0.5 * a.state().fovY_deg * kRad), t - b, 1e-12);
+  EXPECT_NEAR(a.state().windowShiftY, 0.5 * (t + b), 1e-12);
+  EXPECT_DOUBLE_EQ(a.state().windowShiftX, 0.0);
+  EXPECT_NEAR(a.state().windowWidth_tan, 2.0 * std::tan(40.0 * kRad), 1e-12);
   EXPECT_DOUBLE_EQ(a.state().near_m, 0.5);
   EXPECT_DOUBLE_EQ(a.state().far_m, 40000.0);
   EXPECT_DOUBLE_EQ(a.state().timeOfDay_h, 14.5);
@@ -715,6 +722,41 @@ TEST(CigiAssembler, ViewDefinitionAndCelestialSphere) {
   ASSERT_EQ(a.apply(h.message(ByteOrder::big, false, false, true), c), CigiAssembler::Result::published);
   EXPECT_DOUBLE_EQ(a.state().timeOfDay_h, 14.5);
   EXPECT_EQ(c.outOfRange.load(), 0u);
+}
+
+// View Definition's left/right make the window off-axis (a side channel of a cabin); the camera
+// built from it projects the left and right edges to NDC -1 and +1. A reversed pair is rejected
+// and the last good window kept.
+TEST(CigiAssembler, ViewDefinitionLeftRightMakeAnOffAxisWindow) {
+  CigiAssembler a({}, kOrigin);
+  LinkCounters c;
+  Host h;
+  h.s.def.left_deg = -10.0f;
+  h.s.def.right_deg = 50.0f;
+  h.s.def.top_deg = 20.0f;
+  h.s.def.bottom_deg = -20.0f;
+  ASSERT_EQ(a.apply(h.message(ByteOrder::big, false, true), c), CigiAssembler::Result::published);
+  const HostState st = a.state();
+  EXPECT_DOUBLE_EQ(st.fovY_deg, 40.0);  // symmetric vertically: exactly top - bottom
+  EXPECT_DOUBLE_EQ(st.windowShiftY, 0.0);
+  EXPECT_GT(st.windowShiftX, 0.3);      // centred right of the view axis
+  ig::lod::Camera cam;
+  cam.fovY_deg = st.fovY_deg;
+  cam.aspect = st.windowWidth_tan / (2.0 * std::tan(20.0 * M_PI / 180.0));
+  cam.shiftX = st.windowShiftX;
+  cam.shiftY = st.windowShiftY;
+  const glm::dmat4 p = ig::lod::projection(cam);
+  for (double edge : {-10.0, 50.0}) {
+    const glm::dvec4 clip = p * glm::dvec4(std::tan(edge * M_PI / 180.0), 0.0, -1.0, 1.0);
+    EXPECT_NEAR(clip.x / clip.w, edge < 0.0 ? -1.0 : 1.0, 1e-6) << edge;
+  }
+  EXPECT_EQ(c.outOfRange.load(), 0u);
+  h.s.def.left_deg = 30.0f;  // right of the right edge
+  h.s.def.right_deg = 20.0f;
+  ASSERT_EQ(a.apply(h.message(ByteOrder::big, false, true), c), CigiAssembler::Result::published);
+  EXPECT_EQ(a.state().windowShiftX, st.windowShiftX);
+  EXPECT_EQ(a.state().windowWidth_tan, st.windowWidth_tan);
+  EXPECT_EQ(c.outOfRange.load(), 1u);
 }
 
 TEST(CigiAssembler, NothingPublishedBeforeTheOwnshipPosition) {

@@ -277,7 +277,7 @@ TEST(ConfigErrors, UnknownTable) {
   EXPECT_EQ(e.value, "");  // a [table] header has no value text
   EXPECT_EQ(e.what().rfind("svc.toml:6: graphics: unknown table (known keys: ", 0), 0u) << e.what();
   EXPECT_NE(e.message.find("unknown table"), std::string::npos) << e.message;
-  EXPECT_NE(e.message.find("frame, output, stats, host, scene, budget, governor, service"), std::string::npos)
+  EXPECT_NE(e.message.find("frame, output, stats, host, scene, channel, budget, governor, service"), std::string::npos)
       << e.message;
 }
 
@@ -1042,6 +1042,8 @@ TEST(ConfigGovernor, CellsVoxelBudgetBounds) {
 }  // namespace ig
 
 #include "ig/reload.h"
+#include "ig/service.h"
+#include "lod/view.h"
 
 namespace ig {
 namespace {
@@ -1107,6 +1109,98 @@ TEST(ConfigCells, BadValuesAreRefusedNamingTheKey) {
     }
     EXPECT_NE(e.what().find(c.key), std::string::npos) << e.what();
   }
+}
+
+// [channel]: the offset and the frustum parse; a bad value, a partial or reversed frustum and a
+// frustum whose aspect ratio does not fit the output are refused naming the key and the value;
+// a reload applies the channel, unless its frustum fits only a new output size.
+TEST(ConfigChannel, KeysParseBadValuesAreNamedAndReloadApplies) {
+  const std::string out = "[output]\nwidth_px = 800\nheight_px = 600\n";
+  // (tan(36.5) + tan(10)) / (tan(20) + tan(18)) = 0.9163 / 0.6889 = 1.330: fits 800 x 600 (1.333).
+  const std::string frustum = "left_deg = -10\nright_deg = 36.5\nbottom_deg = -18\ntop_deg = 20\n";
+  const ServiceConfig cfg = parseServiceOk(std::string(kMinimalService) + out + "[channel]\nyaw_deg = -60\n" +
+                                           "pitch_deg = 5\nroll_deg = 1.5\n" + frustum);
+  EXPECT_EQ(cfg.channel.yaw_deg, -60.0);
+  EXPECT_EQ(cfg.channel.pitch_deg, 5.0);
+  EXPECT_EQ(cfg.channel.roll_deg, 1.5);
+  ASSERT_TRUE(cfg.channel.frustum.has_value());
+  EXPECT_EQ(cfg.channel.frustum->right_deg, 36.5);
+  EXPECT_FALSE(parseServiceOk(kMinimalService).channel.frustum.has_value());
+
+  ConfigError e = serviceError(std::string(kMinimalService) + "[channel]\nyaw_deg = 270\n");
+  EXPECT_EQ(e.key, "channel.yaw_deg");
+  EXPECT_EQ(e.value, "270");
+  e = serviceError(std::string(kMinimalService) + "[channel]\npitch_deg = nan\n");
+  EXPECT_EQ(e.key, "channel.pitch_deg");
+  e = serviceError(std::string(kMinimalService) + "[channel]\nleft_deg = -90\nright_deg = 10\nbottom_deg = -5\ntop_deg = 5\n");
+  EXPECT_EQ(e.key, "channel.left_deg");
+  EXPECT_EQ(e.value, "-90");
+  EXPECT_NE(e.message.find("(-90, 90)"), std::string::npos) << e.what();
+  e = serviceError(std::string(kMinimalService) + "[channel]\nleft_deg = -10\nright_deg = 10\nbottom_deg = -5\n");
+  EXPECT_EQ(e.key, "channel.top_deg");
+  EXPECT_NE(e.message.find("all four"), std::string::npos) << e.what();
+  e = serviceError(std::string(kMinimalService) + "[channel]\nleft_deg = 10\nright_deg = -10\nbottom_deg = -5\ntop_deg = 5\n");
+  EXPECT_EQ(e.key, "channel.right_deg");
+  EXPECT_EQ(e.value, "-10");
+  EXPECT_NE(e.message.find("channel.left_deg (10)"), std::string::npos) << e.what();
+  e = serviceError(std::string(kMinimalService) + out + "[channel]\nleft_deg = -10\nright_deg = 10\nbottom_deg = -10\ntop_deg = 10\n");
+  EXPECT_EQ(e.key, "channel");
+  EXPECT_NE(e.message.find("800 / 600"), std::string::npos) << e.what();
+
+  // Reload: the channel applies; with a new output size (a restart) its new frustum waits too.
+  ServiceConfig next = cfg;
+  next.channel.yaw_deg = 60.0;
+  ServiceConfig mc;
+  SceneConfig ms;
+  const SceneConfig scene;
+  ReloadPlan p = planReload(cfg, scene, next, scene, mc, ms);
+  EXPECT_EQ(mc.channel.yaw_deg, 60.0);
+  EXPECT_EQ(joinKeys(p.applied), "channel");
+  next.width_px = 600;
+  next.channel.frustum->right_deg = 20.0;
+  p = planReload(cfg, scene, next, scene, mc, ms);
+  EXPECT_EQ(mc.channel, cfg.channel);
+  EXPECT_NE(joinKeys(p.needRestart).find("channel (its frustum fits only the new output size)"), std::string::npos)
+      << joinKeys(p.needRestart);
+}
+
+// The channel's offset turns the camera after the host's attitude, and its frustum wins over the
+// host's field of view (the host's clip planes still apply).
+TEST(ConfigChannel, TheOffsetTurnsTheCameraAndTheFrustumWins) {
+  io::HostState host;
+  host.fovY_deg = 30.0;
+  host.near_m = 2.0;
+  ChannelSettings ch;
+  ch.yaw_deg = 90.0;
+  lod::Camera c = cameraFor(host, ch, 800, 600);  // host heading 0 (north): the channel looks east
+  EXPECT_NEAR(c.heading_deg, 90.0, 1e-9);
+  EXPECT_NEAR(c.pitch_deg, 0.0, 1e-9);
+  EXPECT_NEAR(c.roll_deg, 0.0, 1e-9);
+  EXPECT_EQ(c.fovY_deg, 30.0);
+  host.heading_deg = 30.0;
+  host.pitch_deg = 10.0;  // nose up: a side channel sees the horizon tilted, not raised
+  ch.yaw_deg = -90.0;
+  c = cameraFor(host, ch, 800, 600);
+  EXPECT_NEAR(c.heading_deg, 300.0, 1e-9);
+  EXPECT_NEAR(c.pitch_deg, 0.0, 1e-9);
+  EXPECT_NEAR(c.roll_deg, -10.0, 1e-9);
+  // Straight up: the eyepoint pitched up 60 and the channel 30 more.
+  host.heading_deg = 0.0;
+  host.pitch_deg = 60.0;
+  ch = {};
+  ch.pitch_deg = 30.0;
+  c = cameraFor(host, ch, 800, 600);
+  EXPECT_NEAR(c.pitch_deg, 90.0, 1e-6);
+  const glm::dmat3 r = lod::viewRotation(c);  // its camera still looks up with its top to the south
+  EXPECT_NEAR((r * glm::dvec3(0, 0, 1)).z, -1.0, 1e-9);
+  EXPECT_NEAR((r * glm::dvec3(0, -1, 0)).y, 1.0, 1e-6);
+  // The frustum wins over the host's fov.
+  ch = {};
+  ch.frustum = lod::WindowAngles{-30.0, 30.0, -10.0, 30.0};
+  c = cameraFor(host, ch, 800, 600);
+  EXPECT_NE(c.fovY_deg, 30.0);
+  EXPECT_GT(c.shiftY, 0.1);
+  EXPECT_EQ(c.near_m, 2.0);
 }
 
 TEST(ConfigCells, ReloadAppliesTheBudgetsAndNamesTheRest) {

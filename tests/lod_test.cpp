@@ -105,6 +105,68 @@ TEST(View, FrustumCullsBehindAndKeepsCameraInsideBox) {
   EXPECT_DOUBLE_EQ(distanceToBox(ahead, {0, 0, 0}), 100.0);
 }
 
+// An off-axis window (a display channel's): its four corners project to NDC -1 / +1, and the
+// symmetric window gives back today's projection exactly.
+TEST(View, OffAxisWindowCornersProjectToNdcEdges) {
+  constexpr double kRad = M_PI / 180.0;
+  Camera c;
+  const WindowAngles w{-10.0, 50.0, -5.0, 20.0};
+  ASSERT_TRUE(setWindow(c, w));
+  EXPECT_NEAR(2.0 * std::tan(0.5 * c.fovY_deg * kRad), std::tan(20.0 * kRad) - std::tan(-5.0 * kRad), 1e-12);
+  const glm::dmat4 p = projection(c);
+  const double xs[2] = {std::tan(w.left_deg * kRad), std::tan(w.right_deg * kRad)};
+  const double ys[2] = {std::tan(w.bottom_deg * kRad), std::tan(w.top_deg * kRad)};
+  for (int i = 0; i < 2; ++i) {
+    for (int j = 0; j < 2; ++j) {
+      const glm::dvec4 clip = p * glm::dvec4(xs[i] * 30.0, ys[j] * 30.0, -30.0, 1.0);  // 30 m away
+      EXPECT_NEAR(clip.x / clip.w, i == 0 ? -1.0 : 1.0, 1e-12) << i << j;
+      EXPECT_NEAR(clip.y / clip.w, j == 0 ? -1.0 : 1.0, 1e-12) << i << j;
+      EXPECT_NEAR(clip.z / clip.w, reverseZDepth(c.near_m, c.far_m, 30.0), 1e-12);
+    }
+  }
+  Camera sym;
+  ASSERT_TRUE(setWindow(sym, {-40.0, 40.0, -25.0, 25.0}));
+  EXPECT_DOUBLE_EQ(sym.shiftX, 0.0);
+  EXPECT_NEAR(sym.fovY_deg, 50.0, 1e-12);
+  EXPECT_EQ(projection(sym), reverseZProjection(sym.fovY_deg, sym.aspect, sym.near_m, sym.far_m));
+  // Bad windows leave the camera alone.
+  Camera bad = sym;
+  EXPECT_FALSE(setWindow(bad, {10.0, -10.0, -5.0, 5.0}));
+  EXPECT_FALSE(setWindow(bad, {-10.0, 10.0, -5.0, std::nan("")}));
+  EXPECT_FALSE(setWindow(bad, {-90.0, 10.0, -5.0, 5.0}));
+  EXPECT_EQ(bad.fovY_deg, sym.fovY_deg);
+  bad.shiftX = std::nan("");
+  EXPECT_FALSE(validWindowShift(bad));
+  bad.shiftX = 2.0 * kMaxWindowShift;
+  EXPECT_FALSE(validWindowShift(bad));
+  EXPECT_TRUE(validWindowShift(sym));
+}
+
+// makeFrustum follows the shift: a point just inside each edge of an off-axis window is inside,
+// just outside it is outside (with the shift ignored the right edge would sit at +30 deg).
+TEST(View, OffAxisFrustumPlanesFollowTheWindow) {
+  constexpr double kRad = M_PI / 180.0;
+  Camera c;  // heading 0: looking north (+y), camera right = east (+x), up = +z
+  const WindowAngles w{-10.0, 50.0, -5.0, 20.0};
+  ASSERT_TRUE(setWindow(c, w));
+  const Frustum fr = makeFrustum(c);
+  auto at = [&](double right_deg, double up_deg) {  // 100 m ahead, in these directions
+    return glm::dvec3(std::tan(right_deg * kRad) * 100.0, 100.0, std::tan(up_deg * kRad) * 100.0);
+  };
+  auto inside = [&](const glm::dvec3& q) { return fr.intersects({q, q}); };
+  const double e = 0.05;  // degrees
+  const double midX = 20.0, midY = 7.5;
+  EXPECT_TRUE(inside(at(w.left_deg + e, midY)));
+  EXPECT_FALSE(inside(at(w.left_deg - e, midY)));
+  EXPECT_TRUE(inside(at(w.right_deg - e, midY)));
+  EXPECT_FALSE(inside(at(w.right_deg + e, midY)));
+  EXPECT_TRUE(inside(at(midX, w.bottom_deg + e)));
+  EXPECT_FALSE(inside(at(midX, w.bottom_deg - e)));
+  EXPECT_TRUE(inside(at(midX, w.top_deg - e)));
+  EXPECT_FALSE(inside(at(midX, w.top_deg + e)));
+  EXPECT_FALSE(inside(at(-20.0, midY)));  // inside a symmetric window of the same size
+}
+
 TEST(Heightfield, DeterministicPerSeedAndInRange) {
   HeightfieldDesc d;
   d.postsX = d.postsY = 65;

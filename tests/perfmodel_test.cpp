@@ -291,7 +291,7 @@ TEST(PerfModel, ProjectedBoxArea) {
   cam.aspect = 1.0;
   cam.near_m = 0.1;
   cam.far_m = 1000.0;
-  const glm::dmat4 vp = reverseZProjection(cam.fovY_deg, cam.aspect, cam.near_m, cam.far_m) * glm::dmat4(viewRotation(cam));
+  const glm::dmat4 vp = projection(cam) * glm::dmat4(viewRotation(cam));
   const auto box = [](glm::dvec3 c, glm::dvec3 h) {
     std::array<glm::dvec3, 8> p;
     for (int i = 0; i < 8; ++i)
