@@ -1,17 +1,24 @@
 // libFuzzer target for the CIGI decoders: host messages (both byte orders), Start of Frame, the
-// assembler (field validation, late / restart logic, eye computation) and the pcap reader.
-// Property checked beyond "no crash, no UB, no leak": a message that decodes re-decodes to the
-// same IG Control after re-encoding it in the other byte order.
+// assembler (field validation, late / restart logic, eye computation), the HAT/HOT answers to
+// the requests it accepted (computeHatHot and the responder's queue, on a small terrain grid)
+// and the pcap reader.
+// Properties checked beyond "no crash, no UB, no leak": a message that decodes re-decodes to the
+// same IG Control after re-encoding it in the other byte order; a valid HAT/HOT answer is
+// finite with its normal's elevation in [0, 90] degrees; a frame's answers fit their buffer.
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
+#include <cmath>
 #include <cstring>
 #include <memory>
 #include <span>
+#include <vector>
 
 #include "io/cigi.h"
 #include "io/cigi_link.h"
 #include "io/pcap.h"
+#include "lod/geo.h"
+#include "lod/heightfield.h"
 
 using namespace ig::io;
 
@@ -37,7 +44,38 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   cigi::StartOfFrame sof;
   (void)cigi::decodeStartOfFrame(bytes, sof);
   // The assembler keeps state across inputs, like a long-running link.
-  (void)assembler->apply(bytes, counters);
+  const CigiAssembler::Result applied = assembler->apply(bytes, counters);
+
+  // HAT/HOT: the accepted message's requests answered over a 1 km grid of sloped terrain around
+  // the origin, as the frame loop answers them (the responder keeps its queue across inputs).
+  static const ig::lod::Geodetic origin{45.0, 7.0, 0.0};
+  static const ig::lod::EnuFrame enu(origin);
+  static const std::vector<float> heights = [] {
+    std::vector<float> h(33 * 33);
+    for (size_t i = 0; i < h.size(); ++i) h[i] = 100.0f + 3.0f * static_cast<float>(i % 33) - 2.0f * static_cast<float>(i / 33);
+    return h;
+  }();
+  static const ig::lod::HeightGrid grid{heights, 33, 33, 31.25, glm::dvec3(-500.0, -500.0, 0.0)};
+  static auto responder = std::make_unique<CigiHatHotResponder>(origin);
+  static uint32_t igFrame = 0;
+  static std::byte answers[CigiHatHotResponder::kMaxBytesPerFrame];
+  if (applied == CigiAssembler::Result::accepted || applied == CigiAssembler::Result::published) {
+    const HostState* host = assembler->hasPosition() ? &assembler->state() : nullptr;
+    const CigiAssembler::HatHotJobs jobs = assembler->hatHotJobs();
+    for (size_t i = 0; i < jobs.requests.size(); ++i) {
+      if (jobs.bad[i] == 0) {
+        const HatHotAnswer a = computeHatHot(jobs.requests[i], enu, origin.height_m, &grid, host);
+        if (a.valid && (!std::isfinite(a.hat_m) || !std::isfinite(a.hot_m) || !std::isfinite(a.normalAzimuth_deg) ||
+                        !(a.normalElevation_deg >= 0.0f && a.normalElevation_deg <= 90.0f)))
+          std::abort();
+      }
+      responder->add({jobs.requests[i], jobs.bad[i]}, igFrame);
+    }
+    const size_t n = responder->answer(igFrame, assembler->lastHostFrame(), &grid, host,
+                                       static_cast<cigi::ByteOrder>(igFrame % 2), answers);
+    if (n > sizeof answers) std::abort();
+    ++igFrame;
+  }
   // The same bytes as a capture file.
   std::string error;
   (void)parsePcapUdp(bytes, "fuzz.pcap", [&](const UdpDatagram& d) { (void)assembler->apply(d.payload, counters); },
