@@ -1078,6 +1078,7 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
     if (link) {
       c.haveLink = true;
       c.link = io::snapshot(link->counters());
+      c.haveHatHot = link->hatHotCounters(c.hatHot);
     }
     c.hostRejected = hostRejected_;
     c.configGeneration = m.generation;

@@ -155,6 +155,10 @@ const std::string& StatusReporter::report(int64_t now_ns, const StatusContext& c
             static_cast<unsigned long long>(ctx.link.malformed),
             static_cast<unsigned long long>(ctx.link.outOfRange), static_cast<unsigned long long>(ctx.link.late),
             static_cast<unsigned long long>(ctx.link.dropped));
+  if (ctx.haveHatHot)
+    appendf(json_, ",\"hat_hot\":{\"requests\":%llu,\"answered\":%llu,\"refused\":%llu,\"deferred\":%llu}",
+            static_cast<unsigned long long>(ctx.hatHot.requests), static_cast<unsigned long long>(ctx.hatHot.answered),
+            static_cast<unsigned long long>(ctx.hatHot.refused), static_cast<unsigned long long>(ctx.hatHot.deferred));
   appendf(json_, "},\"config_generation\":%d,\"last_reload_error\":", ctx.configGeneration);
   appendJsonString(json_, ctx.lastReloadError);
   json_ += ",\"layers\":";

@@ -32,6 +32,8 @@ struct StatusContext {
   bool hostLost = false;
   bool haveLink = false;
   io::LinkCountersSnapshot link;
+  bool haveHatHot = false;          // the link answers HAT/HOT Requests (CIGI)
+  io::HatHotCounters hatHot;
   uint64_t hostRejected = 0;        // samples the frame loop rejected (NaN, out of range)
   int configGeneration = 1;         // 1 at start, +1 per successful reload
   std::string lastReloadError;      // "" = the last reload (if any) succeeded

@@ -265,6 +265,10 @@ class CigiLink final : public HostLink {
   uint64_t hatHotRefused() const { return responder_.refused(); }
   uint64_t hatHotDeferred() const { return responder_.deferred(); }
   std::string extraCounters() const override;
+  bool hatHotCounters(HatHotCounters& out) const override {
+    out = {hatHotRequests(), hatHotAnswered(), hatHotRefused(), hatHotDeferred()};
+    return true;
+  }
 
   // Receive thread -> frame loop: HAT/HOT requests (single producer, single consumer).
   static constexpr size_t kHatHotQueue = 256;

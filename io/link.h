@@ -53,6 +53,12 @@ struct LinkCountersSnapshot {
   uint64_t received = 0, accepted = 0, malformed = 0, outOfRange = 0, late = 0, dropped = 0;
 };
 
+// A link that answers terrain queries (CIGI HAT/HOT Requests): requests decoded, answers sent,
+// requests refused (a full queue or too many periodic ones), and answer-frames waited (deferred).
+struct HatHotCounters {
+  uint64_t requests = 0, answered = 0, refused = 0, deferred = 0;
+};
+
 inline LinkCountersSnapshot snapshot(const LinkCounters& c) {
   LinkCountersSnapshot s;
   s.received = c.received.load(std::memory_order_relaxed);
@@ -110,6 +116,9 @@ class HostLink {
   // Link-specific counters for the exit line, e.g. " hat_hot_requests 3 ..." (with a leading
   // space); "" when there is nothing to add.
   virtual std::string extraCounters() const { return {}; }
+  // A link that answers HAT/HOT Requests fills `out` and returns true (the status report then
+  // carries them); the others return false.
+  virtual bool hatHotCounters(HatHotCounters& /*out*/) const { return false; }
 
  protected:
   LinkCounters counters_;

@@ -18,6 +18,7 @@ every 2nd frame until cancelled.
 usage: cigi_igd_test.py <igd> <source dir>
 """
 import csv
+import json
 import math
 import os
 import re
@@ -128,12 +129,14 @@ def main():
     host_port = rx.getsockname()[1]
     stats = os.path.join(tmp, "stats.csv")
     rec = os.path.join(tmp, "host.rec")
+    status = os.path.join(tmp, "status.json")
     cfg = write_link_config(tmp, "cigi", "cigi", f"""bind_address = "127.0.0.1"
 port = {port}
 host_address = "127.0.0.1"
 host_port = {host_port}
 entity_id = 0
-view_id = 0""", src, RATE_HZ, FRAMES, 3.0, rec, write_dem_scene(tmp))
+view_id = 0""", src, RATE_HZ, FRAMES, 3.0, rec, write_dem_scene(tmp),
+                            extra=f'[service]\nstatus_file = "{status}"\n')
     proc = subprocess.Popen([igd, "--config", cfg], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     sofs = []
@@ -151,6 +154,8 @@ view_id = 0""", src, RATE_HZ, FRAMES, 3.0, rec, write_dem_scene(tmp))
         o = ">" if frame % 2 else "<"
         msg = (cs.ig_control(o, frame, int(round(frame * 1e5 / RATE_HZ))) +
                cs.entity_control(o, 0, roll, pitch, yaw, lat, lon, alt) +
+               # An off-axis window (a left side channel): recorded and replayed (version 3).
+               cs.view_definition(o, 0, 0.5, 20000.0, -50.0, 10.0, 20.0, -20.0) +
                cs.celestial(o, 10, 30, 6, 21, 2026))
         if sent_malformed and hat_frame is None:
             hat_frame = frame
@@ -261,12 +266,29 @@ view_id = 0""", src, RATE_HZ, FRAMES, 3.0, rec, write_dem_scene(tmp))
     m = re.search(r"hat_hot_requests (\d+) hat_hot_answered (\d+) hat_hot_refused (\d+)", err)
     check(m is not None and int(m.group(1)) == 6 and int(m.group(2)) == len(answers) and int(m.group(3)) == 0,
           "exit line HAT/HOT counters: %s (answers received: %d)" % (m.group(0) if m else err[-500:], len(answers)))
+    # The status file's last report (written as igd stops) carries the same counters.
+    try:
+        with open(status) as f:
+            hh = json.load(f)["host"].get("hat_hot")
+    except (OSError, ValueError, KeyError) as e:
+        hh = "unreadable: %s" % e
+    check(isinstance(hh, dict) and hh.get("requests") == 6 and hh.get("answered") == len(answers)
+          and hh.get("refused") == 0 and "deferred" in hh, "status file host.hat_hot: %r (answers received: %d)"
+          % (hh, len(answers)))
 
     # The recording of accepted samples.
     with open(rec) as f:
         lines = [l for l in f.read().splitlines() if l.strip() and not l.startswith("#")]
     check(lines and lines[0].startswith("igd-recording"), "record_file header: %r" % lines[:1])
     check(len(lines) - 1 >= FRAMES // 2, "record_file has %d samples" % (len(lines) - 1))
+    # Each sample keeps View Definition's window: shift_x = (tan r + tan l) / 2, shift_y = 0
+    # (top = -bottom), width_tan = tan r - tan l, from the float32 angles sent.
+    tl, tr = math.tan(math.radians(cs_f32(-50.0))), math.tan(math.radians(cs_f32(10.0)))
+    windows = [tuple(float(x) for x in l.split()[14:17]) for l in lines[1:]]
+    bad_windows = [w for w in windows
+                   if len(w) != 3 or abs(w[0] - 0.5 * (tr + tl)) > 1e-9 or w[1] != 0.0 or abs(w[2] - (tr - tl)) > 1e-9]
+    check(windows and not bad_windows, "recorded windows (shift_x shift_y width_tan): %r, expected %.9f 0 %.9f"
+          % (bad_windows[:3], 0.5 * (tr + tl), tr - tl))
 
     print("cigi_igd_test: %d frames, %d rendered host samples, %d Start of Frame packets; %d failures" %
           (len(rows), len(rendered), len(sofs), len(FAILURES)))

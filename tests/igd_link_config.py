@@ -8,8 +8,8 @@ import os
 
 
 def write_link_config(tmp, source, link_table, link_body, src, rate_hz, frames, link_timeout_s,
-                      record_file="", scene=""):
-    """scene: the scene file ("" = config/scenes/default.toml)."""
+                      record_file="", scene="", extra=""):
+    """scene: the scene file ("" = config/scenes/default.toml); extra: more TOML tables, appended."""
     path = os.path.join(tmp, "igd.toml")
     scene = scene or os.path.join(src, 'config/scenes/default.toml')
     record = f'record_file = "{record_file}"\n' if record_file else ""
@@ -33,5 +33,5 @@ link_timeout_s = {link_timeout_s}
 {link_body}
 [scene]
 file = "{scene}"
-""")
+{extra}""")
     return path

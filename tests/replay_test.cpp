@@ -41,7 +41,7 @@ TEST(Replay, ParsesFieldsWithUnits) {
 }
 
 TEST(Replay, ErrorsNameFileLineFieldAndValue) {
-  EXPECT_EQ(parseError("bogus 1\n"), "rec.txt:1: expected header 'igd-recording 2' (or 1), got 'bogus 1'");
+  EXPECT_EQ(parseError("bogus 1\n"), "rec.txt:1: expected header 'igd-recording 3' (or 2, 1), got 'bogus 1'");
   EXPECT_EQ(parseError("igd-recording 1\n0 0 0 1 2 3 4 5 6 45 0.1\n"), "rec.txt:2: expected 12 fields, got 11");
   EXPECT_EQ(parseError("igd-recording 1\n0 0 0 1 nan 3 4 5 6 45 0.1 1000\n"),
             "rec.txt:2: north_m = 'nan': not a finite number");
@@ -54,7 +54,7 @@ TEST(Replay, ErrorsNameFileLineFieldAndValue) {
   EXPECT_EQ(parseError("igd-recording 1\n0 1.5 0 1 2 3 4 5 6 45 0.1 1000\n"),
             "rec.txt:2: host_frame = '1.5': not a non-negative integer");
   EXPECT_EQ(parseError("igd-recording 1\n"), "rec.txt:1: recording has no samples");
-  EXPECT_EQ(parseError(""), "rec.txt:0: empty recording: expected header 'igd-recording 2'");
+  EXPECT_EQ(parseError(""), "rec.txt:0: empty recording: expected header 'igd-recording 3'");
 }
 
 TEST(Replay, TruncatedAtEveryLengthFailsCleanlyOrParsesAPrefix) {
@@ -232,6 +232,44 @@ TEST(Replay, Version2CarriesTimeOfDayAndDate) {
             "rec.txt:2: tod_h = '24': must be < 24 (negative = none)");
   EXPECT_EQ(parseError("igd-recording 2\n0 0 0 1 2 3 4 5 6 45 0.1 1000 1 2026.5\n"),
             "rec.txt:2: date_ymd = '2026.5': not a date YYYYMMDD (0 = none)");
+}
+
+// Version 3 adds the host's off-axis window (CIGI View Definition's asymmetric left/right/bottom/
+// top): a recorded side channel replays with the window it was rendered with, exactly.
+TEST(Replay, Version3CarriesTheOffAxisWindowExactly) {
+  Recording a;
+  HostSample h;
+  h.state.windowShiftX = -0.57735026918962573;  // left -60 deg, right 0 deg: tan(-60) / 2
+  h.state.windowShiftY = 0.1;
+  h.state.windowWidth_tan = 1.7320508075688772;
+  a.samples.push_back(h);
+  h.t_s = 0.5;
+  h.state.windowShiftX = h.state.windowShiftY = h.state.windowWidth_tan = 0.0;
+  a.samples.push_back(h);
+  const std::string text = formatRecording(a);
+  EXPECT_EQ(text.rfind("igd-recording 3\n", 0), 0u) << text;
+  EXPECT_NE(text.find(" 0 0 0\n"), std::string::npos) << "a symmetric window: " << text;
+  Recording b;
+  std::string e;
+  ASSERT_TRUE(parseRecording(text, "rt", b, e)) << e;
+  ASSERT_EQ(b.samples.size(), 2u);
+  EXPECT_EQ(b.samples[0].state.windowShiftX, a.samples[0].state.windowShiftX);
+  EXPECT_EQ(b.samples[0].state.windowShiftY, a.samples[0].state.windowShiftY);
+  EXPECT_EQ(b.samples[0].state.windowWidth_tan, a.samples[0].state.windowWidth_tan);
+  EXPECT_EQ(b.samples[1].state.windowWidth_tan, 0.0);
+  // Version 2 files still read, with a symmetric window.
+  ASSERT_TRUE(parseRecording("igd-recording 2\n0 7 1.5 1 2 3 4 5 6 45 0.1 1000 -1 0\n", "rec.txt", b, e)) << e;
+  EXPECT_EQ(b.samples[0].state.windowShiftX, 0.0);
+  EXPECT_EQ(b.samples[0].state.windowWidth_tan, 0.0);
+  // Bad windows name the field and the value.
+  EXPECT_EQ(parseError("igd-recording 3\n0 0 0 1 2 3 4 5 6 45 0.1 1000 -1 0 0 0\n"), "rec.txt:2: expected 17 fields, got 16");
+  EXPECT_EQ(parseError("igd-recording 3\n0 0 0 1 2 3 4 5 6 45 0.1 1000 -1 0 600 0 1\n"),
+            "rec.txt:2: shift_x = '600': must be in [-500, 500]");
+  EXPECT_EQ(parseError("igd-recording 3\n0 0 0 1 2 3 4 5 6 45 0.1 1000 -1 0 0 nan 1\n"),
+            "rec.txt:2: shift_y = 'nan': not a finite number");
+  EXPECT_EQ(parseError("igd-recording 3\n0 0 0 1 2 3 4 5 6 45 0.1 1000 -1 0 0 0 -1\n"),
+            "rec.txt:2: width_tan = '-1': must be in [0, 1000] (0 = the output's aspect ratio)");
+  EXPECT_EQ(parseError("igd-recording 4\n"), "rec.txt:1: expected header 'igd-recording 3' (or 2, 1), got 'igd-recording 4'");
 }
 
 TEST(Replay, SampleLinesRoundTripToAMicrometre) {

@@ -165,9 +165,17 @@ TEST(Status, ReportCoversTheIntervalAndReplacesTheFile) {
   EXPECT_NE(json.find("\"work_ms_p50\":9.000"), std::string::npos) << json;
   EXPECT_NE(json.find("\"lod\":10.000"), std::string::npos) << json;
   EXPECT_NE(json.find("\\\"must be > 0\\\""), std::string::npos) << "quotes escaped: " << json;
+  EXPECT_EQ(json.find("hat_hot"), std::string::npos) << "no HAT/HOT counters from a link without them: " << json;
   EXPECT_FALSE(std::filesystem::exists(file + ".tmp"));
   // The next interval starts empty.
+  ctx.haveLink = true;
+  ctx.link.received = 7;
+  ctx.haveHatHot = true;
+  ctx.hatHot = {6, 5, 1, 2};
   r.report(2'000'000'000, ctx);
+  EXPECT_NE(r.json().find("\"dropped\":0},\"hat_hot\":{\"requests\":6,\"answered\":5,\"refused\":1,\"deferred\":2}},"),
+            std::string::npos)
+      << "HAT/HOT counters in \"host\", after \"link\": " << r.json();
   EXPECT_NE(r.json().find("\"interval\":{\"seconds\":1.000,\"frames\":0"), std::string::npos) << r.json();
   EXPECT_NE(r.json().find("\"frames\":10,\"overruns\":1"), std::string::npos) << r.json();
   EXPECT_NE(r.json().find("\"governor\":null"), std::string::npos) << r.json();
