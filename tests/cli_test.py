@@ -944,7 +944,8 @@ class Outputs(Tmp):
             if attempt >= 5:
                 break
             log = open(log_path, "w")
-            proc = subprocess.Popen([xvfb, f":{n}", "-screen", "0", "640x480x24", "-nolisten", "tcp"],
+            # -noreset: no server reset (refusing connections) when the last client disconnects.
+            proc = subprocess.Popen([xvfb, f":{n}", "-screen", "0", "640x480x24", "-nolisten", "tcp", "-noreset"],
                                     stdin=subprocess.DEVNULL, stdout=log, stderr=log)
             log.close()
             self.addCleanup(self.stop, proc)
