@@ -1,10 +1,11 @@
 // libFuzzer target for the CIGI decoders: host messages (both byte orders), Start of Frame, the
 // assembler (field validation, late / restart logic, eye computation), the HAT/HOT answers to
-// the requests it accepted (computeHatHot and the responder's queue, on a small terrain grid)
-// and the pcap reader.
+// the requests it accepted (computeHatHot and the responder's queue, on a small terrain grid),
+// the LOS answers likewise (computeLos, lod::intersectGround) and the pcap reader.
 // Properties checked beyond "no crash, no UB, no leak": a message that decodes re-decodes to the
 // same IG Control after re-encoding it in the other byte order; a valid HAT/HOT answer is
-// finite with its normal's elevation in [0, 90] degrees; a frame's answers fit their buffer.
+// finite with its normal's elevation in [0, 90] degrees; a valid LOS answer is finite, its range
+// within the segment / vector; a frame's answers fit their buffer and one 1,472-byte datagram.
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
@@ -71,9 +72,23 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       }
       responder->add({jobs.requests[i], jobs.bad[i]}, igFrame);
     }
+    const CigiAssembler::LosJobs los = assembler->losJobs();
+    for (size_t i = 0; i < los.requests.size(); ++i) {
+      const cigi::LosRequest& r = los.requests[i];
+      if (los.bad[i] == 0) {
+        const LosAnswer a = computeLos(r, enu, &grid, host);
+        // Segments are at most ~2e6 m long (validated points); vectors end at the maximum range.
+        const double maxRange = r.kind == cigi::LosRequest::kVector ? static_cast<double>(r.maxRange_m) + 1e-3 : 1e8;
+        if (a.valid && (!std::isfinite(a.range_m) || a.range_m < 0.0 || a.range_m > maxRange || !std::isfinite(a.lat_deg) ||
+                        !std::isfinite(a.lon_deg) || !std::isfinite(a.alt_m) || !std::isfinite(a.normalAzimuth_deg) ||
+                        !(a.normalElevation_deg >= 0.0f && a.normalElevation_deg <= 90.0f)))
+          std::abort();
+      }
+      responder->add(LosJob{r, los.bad[i]}, igFrame);
+    }
     const size_t n = responder->answer(igFrame, assembler->lastHostFrame(), &grid, host,
                                        static_cast<cigi::ByteOrder>(igFrame % 2), answers);
-    if (n > sizeof answers) std::abort();
+    if (n > sizeof answers || cigi::kStartOfFrameSize + n > 1472) std::abort();
     ++igFrame;
   }
   // The same bytes as a capture file.

@@ -159,6 +159,10 @@ const std::string& StatusReporter::report(int64_t now_ns, const StatusContext& c
     appendf(json_, ",\"hat_hot\":{\"requests\":%llu,\"answered\":%llu,\"refused\":%llu,\"deferred\":%llu}",
             static_cast<unsigned long long>(ctx.hatHot.requests), static_cast<unsigned long long>(ctx.hatHot.answered),
             static_cast<unsigned long long>(ctx.hatHot.refused), static_cast<unsigned long long>(ctx.hatHot.deferred));
+  if (ctx.haveHatHot)
+    appendf(json_, ",\"los\":{\"requests\":%llu,\"answered\":%llu,\"refused\":%llu,\"deferred\":%llu}",
+            static_cast<unsigned long long>(ctx.hatHot.losRequests), static_cast<unsigned long long>(ctx.hatHot.losAnswered),
+            static_cast<unsigned long long>(ctx.hatHot.losRefused), static_cast<unsigned long long>(ctx.hatHot.losDeferred));
   appendf(json_, "},\"config_generation\":%d,\"last_reload_error\":", ctx.configGeneration);
   appendJsonString(json_, ctx.lastReloadError);
   json_ += ",\"layers\":";

@@ -32,7 +32,7 @@ struct StatusContext {
   bool hostLost = false;
   bool haveLink = false;
   io::LinkCountersSnapshot link;
-  bool haveHatHot = false;          // the link answers HAT/HOT Requests (CIGI)
+  bool haveHatHot = false;          // the link answers HAT/HOT and LOS Requests (CIGI)
   io::HatHotCounters hatHot;
   uint64_t hostRejected = 0;        // samples the frame loop rejected (NaN, out of range)
   int configGeneration = 1;         // 1 at start, +1 per successful reload

@@ -79,6 +79,10 @@ size_t fixedSize(uint8_t id) {
     case PacketId::startOfFrame: return kStartOfFrameSize;
     case PacketId::hatHotResponse: return kHatHotResponseSize;
     case PacketId::hatHotExtendedResponse: return kHatHotExtendedResponseSize;
+    case PacketId::losSegmentRequest: return kLosSegmentRequestSize;
+    case PacketId::losVectorRequest: return kLosVectorRequestSize;
+    case PacketId::losResponse: return kLosResponseSize;
+    case PacketId::losExtendedResponse: return kLosExtendedResponseSize;
   }
   return 0;
 }
@@ -219,6 +223,57 @@ HatHotRequest readHatHotRequest(const Cursor& c) {
   return p;
 }
 
+LosRequest readLosSegmentRequest(const Cursor& c) {
+  LosRequest p;
+  p.kind = LosRequest::kSegment;
+  p.losId = c.u16(2);
+  const uint8_t b4 = c.u8(4);
+  p.extended = (b4 & 0x01) != 0;
+  p.sourceEntity = (b4 & 0x02) != 0;
+  p.destinationEntity = (b4 & 0x04) != 0;
+  p.responseEntity = (b4 & 0x08) != 0;
+  p.destinationEntityIdValid = (b4 & 0x10) != 0;
+  p.alphaThreshold = c.u8(5);
+  p.entityId = c.u16(6);
+  p.srcLat_deg = c.f64(8);
+  p.srcLon_deg = c.f64(16);
+  p.srcAlt_m = c.f64(24);
+  p.dstLat_deg = c.f64(32);
+  p.dstLon_deg = c.f64(40);
+  p.dstAlt_m = c.f64(48);
+  p.materialMask = c.u32(56);
+  p.updatePeriod = c.u8(60);
+  p.destinationEntityId = c.u16(62);
+  return p;
+}
+
+LosRequest readLosVectorRequest(const Cursor& c) {
+  LosRequest p;
+  p.kind = LosRequest::kVector;
+  p.losId = c.u16(2);
+  const uint8_t b4 = c.u8(4);
+  p.extended = (b4 & 0x01) != 0;
+  p.sourceEntity = (b4 & 0x02) != 0;
+  p.responseEntity = (b4 & 0x04) != 0;
+  p.alphaThreshold = c.u8(5);
+  p.entityId = c.u16(6);
+  p.azimuth_deg = c.f32(8);
+  p.elevation_deg = c.f32(12);
+  p.minRange_m = c.f32(16);
+  p.maxRange_m = c.f32(20);
+  p.srcLat_deg = c.f64(24);
+  p.srcLon_deg = c.f64(32);
+  p.srcAlt_m = c.f64(40);
+  p.materialMask = c.u32(48);
+  p.updatePeriod = c.u8(52);
+  return p;
+}
+
+bool packetIs(std::span<const std::byte> packet, PacketId id, size_t size) {
+  return packet.size() >= size && std::to_integer<uint8_t>(packet[0]) == static_cast<uint8_t>(id) &&
+         std::to_integer<uint8_t>(packet[1]) == size;
+}
+
 template <class T>
 bool inRange(T value, double lo, double hi) {
   const double v = static_cast<double>(value);
@@ -252,6 +307,8 @@ CigiStatus decodeHostMessage(std::span<const std::byte> bytes, HostMessage& out,
   out.hasCelestial = false;
   out.hatHotCount = 0;
   out.hatHotOmitted = out.unknownPackets = out.omittedPackets = 0;
+  out.losCount = 0;
+  out.losOmitted = 0;
   for (size_t at = kIgControlSize; at < bytes.size();) {
     const Cursor c{bytes.data() + at, swap};
     const uint8_t id = c.u8(0);
@@ -293,6 +350,16 @@ CigiStatus decodeHostMessage(std::span<const std::byte> bytes, HostMessage& out,
           break;
         }
         out.hatHotRequests[out.hatHotCount++] = readHatHotRequest(c);
+        break;
+      case PacketId::losSegmentRequest:
+      case PacketId::losVectorRequest:
+        if (out.losCount == HostMessage::kMaxLosRequests) {
+          ++out.omittedPackets;
+          ++out.losOmitted;
+          break;
+        }
+        out.losRequests[out.losCount++] =
+            id == static_cast<uint8_t>(PacketId::losSegmentRequest) ? readLosSegmentRequest(c) : readLosVectorRequest(c);
         break;
       default:
         ++out.unknownPackets;
@@ -469,6 +536,143 @@ bool decodePacket(std::span<const std::byte> packet, ByteOrder order, HatHotExte
   out.normalAzimuth_deg = c.f32(28);
   out.normalElevation_deg = c.f32(32);
   return true;
+}
+
+size_t encode(const LosRequest& p, ByteOrder order, std::span<std::byte> out) {
+  if (p.kind == LosRequest::kVector) {
+    const Writer w = begin(out, PacketId::losVectorRequest, kLosVectorRequestSize, order);
+    w.u16(2, p.losId);
+    w.u8(4, static_cast<uint8_t>((p.extended ? 0x01 : 0) | (p.sourceEntity ? 0x02 : 0) | (p.responseEntity ? 0x04 : 0)));
+    w.u8(5, p.alphaThreshold);
+    w.u16(6, p.entityId);
+    w.f32(8, p.azimuth_deg);
+    w.f32(12, p.elevation_deg);
+    w.f32(16, p.minRange_m);
+    w.f32(20, p.maxRange_m);
+    w.f64(24, p.srcLat_deg);
+    w.f64(32, p.srcLon_deg);
+    w.f64(40, p.srcAlt_m);
+    w.u32(48, p.materialMask);
+    w.u8(52, p.updatePeriod);
+    return kLosVectorRequestSize;
+  }
+  const Writer w = begin(out, PacketId::losSegmentRequest, kLosSegmentRequestSize, order);
+  w.u16(2, p.losId);
+  w.u8(4, static_cast<uint8_t>((p.extended ? 0x01 : 0) | (p.sourceEntity ? 0x02 : 0) | (p.destinationEntity ? 0x04 : 0) |
+                               (p.responseEntity ? 0x08 : 0) | (p.destinationEntityIdValid ? 0x10 : 0)));
+  w.u8(5, p.alphaThreshold);
+  w.u16(6, p.entityId);
+  w.f64(8, p.srcLat_deg);
+  w.f64(16, p.srcLon_deg);
+  w.f64(24, p.srcAlt_m);
+  w.f64(32, p.dstLat_deg);
+  w.f64(40, p.dstLon_deg);
+  w.f64(48, p.dstAlt_m);
+  w.u32(56, p.materialMask);
+  w.u8(60, p.updatePeriod);
+  w.u16(62, p.destinationEntityId);
+  return kLosSegmentRequestSize;
+}
+
+size_t encode(const LosResponse& p, ByteOrder order, std::span<std::byte> out) {
+  const Writer w = begin(out, PacketId::losResponse, kLosResponseSize, order);
+  w.u16(2, p.losId);
+  w.u8(4, static_cast<uint8_t>((p.valid ? 0x01 : 0) | (p.entityIdValid ? 0x02 : 0) | (p.visible ? 0x04 : 0) |
+                               ((p.hostFrameLsn & 0x0f) << 4)));
+  w.u8(5, p.responseCount);
+  w.u16(6, p.entityId);
+  w.f64(8, p.range_m);
+  return kLosResponseSize;
+}
+
+size_t encode(const LosExtendedResponse& p, ByteOrder order, std::span<std::byte> out) {
+  const Writer w = begin(out, PacketId::losExtendedResponse, kLosExtendedResponseSize, order);
+  w.u16(2, p.losId);
+  w.u8(4, static_cast<uint8_t>((p.valid ? 0x01 : 0) | (p.entityIdValid ? 0x02 : 0) | (p.rangeValid ? 0x04 : 0) |
+                               (p.visible ? 0x08 : 0) | ((p.hostFrameLsn & 0x0f) << 4)));
+  w.u8(5, p.responseCount);
+  w.u16(6, p.entityId);
+  w.f64(8, p.range_m);
+  w.f64(16, p.lat_deg);
+  w.f64(24, p.lon_deg);
+  w.f64(32, p.alt_m);
+  w.u8(40, p.red);
+  w.u8(41, p.green);
+  w.u8(42, p.blue);
+  w.u8(43, p.alpha);
+  w.u32(44, p.materialCode);
+  w.f32(48, p.normalAzimuth_deg);
+  w.f32(52, p.normalElevation_deg);
+  return kLosExtendedResponseSize;
+}
+
+bool decodePacket(std::span<const std::byte> packet, ByteOrder order, LosResponse& out) {
+  if (!packetIs(packet, PacketId::losResponse, kLosResponseSize)) return false;
+  const Cursor c{packet.data(), swapFor(order)};
+  out.losId = c.u16(2);
+  const uint8_t b4 = c.u8(4);
+  out.valid = (b4 & 0x01) != 0;
+  out.entityIdValid = (b4 & 0x02) != 0;
+  out.visible = (b4 & 0x04) != 0;
+  out.hostFrameLsn = static_cast<uint8_t>(b4 >> 4);
+  out.responseCount = c.u8(5);
+  out.entityId = c.u16(6);
+  out.range_m = c.f64(8);
+  return true;
+}
+
+bool decodePacket(std::span<const std::byte> packet, ByteOrder order, LosExtendedResponse& out) {
+  if (!packetIs(packet, PacketId::losExtendedResponse, kLosExtendedResponseSize)) return false;
+  const Cursor c{packet.data(), swapFor(order)};
+  out.losId = c.u16(2);
+  const uint8_t b4 = c.u8(4);
+  out.valid = (b4 & 0x01) != 0;
+  out.entityIdValid = (b4 & 0x02) != 0;
+  out.rangeValid = (b4 & 0x04) != 0;
+  out.visible = (b4 & 0x08) != 0;
+  out.hostFrameLsn = static_cast<uint8_t>(b4 >> 4);
+  out.responseCount = c.u8(5);
+  out.entityId = c.u16(6);
+  out.range_m = c.f64(8);
+  out.lat_deg = c.f64(16);
+  out.lon_deg = c.f64(24);
+  out.alt_m = c.f64(32);
+  out.red = c.u8(40);
+  out.green = c.u8(41);
+  out.blue = c.u8(42);
+  out.alpha = c.u8(43);
+  out.materialCode = c.u32(44);
+  out.normalAzimuth_deg = c.f32(48);
+  out.normalElevation_deg = c.f32(52);
+  return true;
+}
+
+uint32_t validateLosRequest(const LosRequest& p) {
+  constexpr double kMaxOffset_m = 1.0e5, kMaxRange_m = 1.0e6;
+  auto point = [](bool entity, double a, double b, double c, uint32_t fa, uint32_t fb, uint32_t fc) {
+    uint32_t bad = 0;
+    if (entity) {
+      if (!inRange(a, -kMaxOffset_m, kMaxOffset_m)) bad |= fa;
+      if (!inRange(b, -kMaxOffset_m, kMaxOffset_m)) bad |= fb;
+      if (!inRange(c, -kMaxOffset_m, kMaxOffset_m)) bad |= fc;
+    } else {
+      if (!inRange(a, -90.0, 90.0)) bad |= fa;
+      if (!inRange(b, -180.0, 180.0)) bad |= fb;
+      if (!inRange(c, -1.0e4, 1.0e6)) bad |= fc;
+    }
+    return bad;
+  };
+  uint32_t bad = point(p.sourceEntity, p.srcLat_deg, p.srcLon_deg, p.srcAlt_m, kLosSrcLatX, kLosSrcLonY, kLosSrcAltZ);
+  if (p.kind == LosRequest::kSegment) {
+    bad |= point(p.destinationEntity, p.dstLat_deg, p.dstLon_deg, p.dstAlt_m, kLosDstLatX, kLosDstLonY, kLosDstAltZ);
+  } else {
+    if (!inRange(p.azimuth_deg, -360.0, 360.0)) bad |= kLosAzimuth;
+    if (!inRange(p.elevation_deg, -90.0, 90.0)) bad |= kLosElevation;
+    if (!inRange(p.minRange_m, 0.0, kMaxRange_m)) bad |= kLosMinRange;
+    const double lo = (bad & kLosMinRange) ? 0.0 : static_cast<double>(p.minRange_m);
+    if (!inRange(p.maxRange_m, lo, kMaxRange_m)) bad |= kLosMaxRange;
+  }
+  return bad;
 }
 
 uint32_t validateHatHotRequest(const HatHotRequest& p) {

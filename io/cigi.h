@@ -12,8 +12,9 @@
 // the ICD and Wireshark's CIGI dissector (tests/cigi_tshark_test.py checks that).
 //
 // Decoded packets: IG Control (1), Entity Control (2), Celestial Sphere Control (9), View
-// Control (16), View Definition (21), HAT/HOT Request (24). Encoded besides: Start of Frame
-// (101), HAT/HOT Response (102), HAT/HOT Extended Response (103). Every other packet id is skipped by its size byte. A
+// Control (16), View Definition (21), HAT/HOT Request (24), LOS Segment Request (25), LOS Vector
+// Request (26). Encoded besides: Start of Frame (101), HAT/HOT Response (102), HAT/HOT Extended
+// Response (103), LOS Response (104), LOS Extended Response (105). Every other packet id is skipped by its size byte. A
 // known id with a size other than its fixed size, a size below 2, or a packet running past the
 // end of the datagram makes the whole message malformed.
 #pragma once
@@ -36,9 +37,13 @@ enum class PacketId : uint8_t {
   viewControl = 16,
   viewDefinition = 21,
   hatHotRequest = 24,
+  losSegmentRequest = 25,
+  losVectorRequest = 26,
   startOfFrame = 101,
   hatHotResponse = 102,
   hatHotExtendedResponse = 103,
+  losResponse = 104,
+  losExtendedResponse = 105,
 };
 
 // Fixed sizes (bytes, header included) of the packets igd decodes or encodes.
@@ -51,6 +56,10 @@ constexpr size_t kStartOfFrameSize = 24;
 constexpr size_t kHatHotRequestSize = 32;
 constexpr size_t kHatHotResponseSize = 16;
 constexpr size_t kHatHotExtendedResponseSize = 40;
+constexpr size_t kLosSegmentRequestSize = 64;
+constexpr size_t kLosVectorRequestSize = 56;
+constexpr size_t kLosResponseSize = 16;
+constexpr size_t kLosExtendedResponseSize = 56;
 
 enum class ByteOrder : uint8_t { big, little };
 // This machine's order: what an encoder writes with ByteOrder native.
@@ -228,6 +237,95 @@ struct HatHotExtendedResponse {
   float normalElevation_deg = 90;
 };
 
+// LOS Segment Request (id 25, 64 bytes) and LOS Vector Request (id 26, 56 bytes), host -> IG:
+// the first intersection of a segment (source -> destination) or of a vector (source, azimuth,
+// elevation, between a minimum and a maximum range) with the terrain. One struct for both.
+// Segment:
+//  0 id  1 size  2-3 LOS ID
+//  4 bits: 0 request type (0 basic, 1 extended), 1 source point coordinate system (0 geodetic,
+//    1 entity), 2 destination point coordinate system, 3 response coordinate system,
+//    4 destination entity ID valid, 5-7 reserved
+//  5 alpha threshold (u8)  6-7 entity id (entity coordinates)
+//  8-15 source latitude (float64, deg) or x offset (m)  16-23 source longitude or y offset
+//  24-31 source altitude (m) or z offset  32-39 destination latitude or x offset
+//  40-47 destination longitude or y offset  48-55 destination altitude or z offset
+//  56-59 material mask (u32)  60 update period (u8)  61 reserved  62-63 destination entity id
+// Vector:
+//  0 id  1 size  2-3 LOS ID
+//  4 bits: 0 request type, 1 source point coordinate system, 2 response coordinate system,
+//    3-7 reserved
+//  5 alpha threshold  6-7 entity id  8-11 azimuth (float32, deg from true north, clockwise)
+//  12-15 elevation (float32, deg above the local horizontal)  16-19 minimum range (float32, m)
+//  20-23 maximum range (m)  24-31 source latitude or x offset  32-39 source longitude or y offset
+//  40-47 source altitude or z offset  48-51 material mask  52 update period  53-55 reserved
+struct LosRequest {
+  enum Kind : uint8_t { kSegment = 0, kVector = 1 };
+  Kind kind = kSegment;
+  uint16_t losId = 0;
+  bool extended = false;          // request type: false basic (LOS Response), true extended
+  bool sourceEntity = false;      // source x/y/z are offsets in the entity's body axes (x forward,
+                                  //   y right, z down, metres) from the entity's reference point
+  bool destinationEntity = false; // segment: the same for the destination point
+  bool responseEntity = false;    // extended response's point as entity offsets, not lat/lon/alt
+  bool destinationEntityIdValid = false;  // segment
+  uint8_t alphaThreshold = 0;
+  uint16_t entityId = 0;
+  uint8_t updatePeriod = 0;       // 0: answer once; n: answer every n-th IG frame until cancelled
+  uint32_t materialMask = 0;
+  double srcLat_deg = 0;          // or x offset (m)
+  double srcLon_deg = 0;          // or y offset (m)
+  double srcAlt_m = 0;            // or z offset (m)
+  double dstLat_deg = 0;          // segment: destination (or x/y/z offsets)
+  double dstLon_deg = 0;
+  double dstAlt_m = 0;
+  uint16_t destinationEntityId = 0;  // segment
+  float azimuth_deg = 0;          // vector
+  float elevation_deg = 0;
+  float minRange_m = 0;
+  float maxRange_m = 0;
+};
+
+// LOS Response (id 104, 16 bytes), IG -> host: the answer to a basic LOS request.
+//  0 id  1 size  2-3 LOS ID
+//  4 bits: 0 valid, 1 entity ID valid, 2 visible, 3 reserved, 4-7 host frame number LSN
+//  5 response count  6-7 entity id  8-15 range (float64, m)
+struct LosResponse {
+  uint16_t losId = 0;
+  bool valid = false;             // an intersection was found
+  bool entityIdValid = false;     // the intersection is with an entity (igd: never, terrain only)
+  bool visible = false;           // segment: nothing between source and destination
+  uint8_t hostFrameLsn = 0;
+  uint8_t responseCount = 1;      // responses sent for this request (igd: always 1)
+  uint16_t entityId = 0;
+  double range_m = 0;             // from the source point to the intersection
+};
+
+// LOS Extended Response (id 105, 56 bytes), IG -> host: the answer to an extended LOS request.
+//  0 id  1 size  2-3 LOS ID
+//  4 bits: 0 valid, 1 entity ID valid, 2 range valid, 3 visible, 4-7 host frame number LSN
+//  5 response count  6-7 entity id  8-15 range (float64, m)
+//  16-23 latitude (float64, deg) or x offset (m)  24-31 longitude or y offset
+//  32-39 altitude (m) or z offset  40 red  41 green  42 blue  43 alpha  44-47 material code (u32)
+//  48-51 normal vector azimuth (float32, deg)  52-55 normal vector elevation (float32, deg)
+struct LosExtendedResponse {
+  uint16_t losId = 0;
+  bool valid = false;
+  bool entityIdValid = false;
+  bool rangeValid = false;
+  bool visible = false;
+  uint8_t hostFrameLsn = 0;
+  uint8_t responseCount = 1;
+  uint16_t entityId = 0;
+  double range_m = 0;
+  double lat_deg = 0;             // or x offset (m), as the request's response coordinate system
+  double lon_deg = 0;             // or y offset (m)
+  double alt_m = 0;               // or z offset (m)
+  uint8_t red = 0, green = 0, blue = 0, alpha = 0;
+  uint32_t materialCode = 0;
+  float normalAzimuth_deg = 0;
+  float normalElevation_deg = 90;
+};
+
 enum class CigiStatus : uint8_t {
   ok,
   empty,              // zero bytes
@@ -260,6 +358,11 @@ struct HostMessage {
   std::array<HatHotRequest, kMaxHatHotRequests> hatHotRequests;
   size_t hatHotCount = 0;
   uint32_t hatHotOmitted = 0;            // HAT/HOT Requests beyond capacity (also in omittedPackets)
+  // LOS Segment and Vector Requests in message order, up to capacity.
+  static constexpr size_t kMaxLosRequests = 32;
+  std::array<LosRequest, kMaxLosRequests> losRequests;
+  size_t losCount = 0;
+  uint32_t losOmitted = 0;               // LOS Requests beyond capacity (also in omittedPackets)
   uint32_t unknownPackets = 0;           // packets skipped by their size (other ids)
   uint32_t omittedPackets = 0;           // known packets not kept: filtered out or over capacity
 };
@@ -290,11 +393,17 @@ size_t encode(const StartOfFrame& p, ByteOrder order, std::span<std::byte> out);
 size_t encode(const HatHotRequest& p, ByteOrder order, std::span<std::byte> out);
 size_t encode(const HatHotResponse& p, ByteOrder order, std::span<std::byte> out);
 size_t encode(const HatHotExtendedResponse& p, ByteOrder order, std::span<std::byte> out);
+// A LOS Segment Request (kind kSegment, 64 bytes) or a LOS Vector Request (kVector, 56 bytes).
+size_t encode(const LosRequest& p, ByteOrder order, std::span<std::byte> out);
+size_t encode(const LosResponse& p, ByteOrder order, std::span<std::byte> out);
+size_t encode(const LosExtendedResponse& p, ByteOrder order, std::span<std::byte> out);
 
 // Reads one HAT/HOT response packet (id and size checked; false otherwise) in the given byte
 // order (the order of the message's Start of Frame). For hosts and tests.
 bool decodePacket(std::span<const std::byte> packet, ByteOrder order, HatHotResponse& out);
 bool decodePacket(std::span<const std::byte> packet, ByteOrder order, HatHotExtendedResponse& out);
+bool decodePacket(std::span<const std::byte> packet, ByteOrder order, LosResponse& out);
+bool decodePacket(std::span<const std::byte> packet, ByteOrder order, LosExtendedResponse& out);
 
 // Field validation, one bit per field that is NaN, infinite or out of range (0 = all good).
 // Ranges: docs/cigi.md.
@@ -315,6 +424,15 @@ uint32_t validateCelestial(const CelestialSphereControl& p);
 // with abs <= 1e5 m. NaN and infinities always fail.
 enum HatHotField : uint32_t { kHatHotType = 1, kHatHotLatX = 2, kHatHotLonY = 4, kHatHotAltZ = 8 };
 uint32_t validateHatHotRequest(const HatHotRequest& p);
+// LOS: source and (segment) destination points as HAT/HOT's (geodetic: latitude [-90, 90],
+// longitude [-180, 180], altitude [-1e4, 1e6] m; entity: offsets finite, abs <= 1e5 m).
+// Vector: azimuth in [-360, 360] deg, elevation in [-90, 90] deg, minimum range in [0, 1e6] m,
+// maximum range in [minimum, 1e6] m (a bad maximum range sets kLosMaxRange only).
+enum LosField : uint32_t {
+  kLosSrcLatX = 1, kLosSrcLonY = 2, kLosSrcAltZ = 4, kLosDstLatX = 8, kLosDstLonY = 16, kLosDstAltZ = 32,
+  kLosAzimuth = 64, kLosElevation = 128, kLosMinRange = 256, kLosMaxRange = 512
+};
+uint32_t validateLosRequest(const LosRequest& p);
 
 // MMDDYYYY -> YYYYMMDD (no validation).
 inline int32_t dateToYmd(uint32_t mmddyyyy) {

@@ -174,6 +174,7 @@ CigiAssembler::Result CigiAssembler::apply(std::span<const std::byte> datagram, 
   for (size_t i = 0; i < msg_.viewDefinitionCount; ++i) applyViewDefinition(msg_.viewDefinitions[i], counters);
   if (msg_.hasCelestial) applyCelestial(msg_.celestial, counters);
   checkHatHot(counters);
+  checkLos(counters);
 
   counters.accepted.fetch_add(1, std::memory_order_relaxed);
   if (!hasPosition()) return Result::accepted;
@@ -272,6 +273,18 @@ void CigiAssembler::checkHatHot(LinkCounters& counters) {
   }
 }
 
+void CigiAssembler::checkLos(LinkCounters& counters) {
+  for (size_t i = 0; i < msg_.losCount; ++i) {
+    const cigi::LosRequest& r = msg_.losRequests[i];
+    uint32_t bad = cigi::validateLosRequest(r);
+    const bool entity = r.sourceEntity || (r.kind == cigi::LosRequest::kSegment && r.destinationEntity) ||
+                        (r.extended && r.responseEntity);
+    if (entity && r.entityId != config_.entityId) bad |= kLosUnknownEntity;
+    losBad_[i] = bad;
+    counters.outOfRange.fetch_add(static_cast<uint64_t>(std::popcount(bad)), std::memory_order_relaxed);
+  }
+}
+
 void CigiAssembler::computeEye() {
   const EyePose pose = cigiEyePose({lat_deg_, lon_deg_, alt_m_}, yaw_deg_, pitch_deg_, roll_deg_,
                                    {viewOffset_m_[0], viewOffset_m_[1], viewOffset_m_[2]}, viewYaw_deg_,
@@ -353,30 +366,117 @@ HatHotAnswer computeHatHot(const cigi::HatHotRequest& r, const lod::EnuFrame& en
   return a;
 }
 
+LosAnswer computeLos(const cigi::LosRequest& r, const lod::EnuFrame& enu, const lod::HeightGrid* terrain,
+                     const HostState* host) {
+  LosAnswer a;
+  if (!terrain) return a;
+  const bool segment = r.kind == cigi::LosRequest::kSegment;
+  const bool needOwnship = r.sourceEntity || (segment && r.destinationEntity) || (r.extended && r.responseEntity);
+  glm::dmat3 body(1.0);
+  glm::dvec3 ownEcef(0.0);
+  if (needOwnship) {
+    if (!host || !host->hasOwnship) return a;
+    body = lod::nedToEcef(host->ownshipLat_deg, host->ownshipLon_deg) *
+           lod::bodyToNed(host->ownshipYaw_deg, host->ownshipPitch_deg, host->ownshipRoll_deg);
+    ownEcef = lod::geodeticToEcef({host->ownshipLat_deg, host->ownshipLon_deg, host->ownshipAlt_m});
+  }
+  auto toEcef = [&](bool entity, double x, double y, double z) {
+    return entity ? ownEcef + body * glm::dvec3(x, y, z) : lod::geodeticToEcef({x, y, z});
+  };
+  const glm::dvec3 source = toEcef(r.sourceEntity, r.srcLat_deg, r.srcLon_deg, r.srcAlt_m);
+  glm::dvec3 from = source, to{0.0};
+  double range0_m = 0.0;
+  if (segment) {
+    to = toEcef(r.destinationEntity, r.dstLat_deg, r.dstLon_deg, r.dstAlt_m);
+  } else {
+    // Azimuth from true north and elevation above the local horizontal, at the source point.
+    const lod::Geodetic g = r.sourceEntity ? lod::ecefToGeodetic(source) : lod::Geodetic{r.srcLat_deg, r.srcLon_deg, r.srcAlt_m};
+    constexpr double kRad = 3.14159265358979323846 / 180.0;
+    const double az = static_cast<double>(r.azimuth_deg) * kRad, el = static_cast<double>(r.elevation_deg) * kRad;
+    const glm::dvec3 dir = lod::nedToEcef(g.lat_deg, g.lon_deg) *
+                           glm::dvec3(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), -std::sin(el));
+    range0_m = static_cast<double>(r.minRange_m);
+    from = source + dir * range0_m;
+    to = source + dir * static_cast<double>(r.maxRange_m);
+  }
+  const glm::dvec3 fromEnu = enu.toEnu(from), toEnu = enu.toEnu(to);
+  const double length_m = glm::length(toEnu - fromEnu);
+  if (!std::isfinite(length_m)) return a;
+  lod::GroundHit hit;
+  if (!lod::intersectGround(*terrain, fromEnu, toEnu, hit)) {
+    a.visible = segment;  // nothing in the way (no terrain along it, or none above it)
+    return a;
+  }
+  const double along_m = hit.t * length_m;
+  const glm::dvec3 hitEcef = enu.toEcef(hit.point_m);
+  const lod::Geodetic g = enu.toGeodetic(hit.point_m);
+  if (!std::isfinite(g.lat_deg) || !std::isfinite(g.lon_deg) || !std::isfinite(g.height_m)) return a;
+  a.valid = true;
+  a.visible = segment && along_m >= length_m - 1e-3;  // the destination itself lies on the ground
+  a.range_m = range0_m + along_m;
+  if (r.responseEntity) {
+    const glm::dvec3 offset = glm::transpose(body) * (hitEcef - ownEcef);
+    a.lat_deg = offset.x;
+    a.lon_deg = offset.y;
+    a.alt_m = offset.z;
+  } else {
+    a.lat_deg = g.lat_deg;
+    a.lon_deg = g.lon_deg;
+    a.alt_m = g.height_m;
+  }
+  const glm::dvec3 nEcef = enu.toEcef(hit.point_m + hit.normal) - hitEcef;
+  const glm::dvec3 nNed = glm::transpose(lod::nedToEcef(g.lat_deg, g.lon_deg)) * nEcef;
+  const double len = glm::length(nNed);
+  constexpr double kDeg = 180.0 / 3.14159265358979323846;
+  a.normalAzimuth_deg = static_cast<float>(std::atan2(nNed.y, nNed.x) * kDeg);
+  a.normalElevation_deg = static_cast<float>(std::asin(std::clamp(-nNed.z / len, -1.0, 1.0)) * kDeg);
+  return a;
+}
+
 CigiHatHotResponder::CigiHatHotResponder(const lod::Geodetic& origin) : enu_(origin), originHeight_m_(origin.height_m) {}
 
-bool CigiHatHotResponder::push(const HatHotJob& job) {
+size_t CigiHatHotResponder::Job::responseSize() const {
+  if (los) return losJob.request.extended ? cigi::kLosExtendedResponseSize : cigi::kLosResponseSize;
+  return hatHot.request.requestType == cigi::HatHotRequest::kExtended ? cigi::kHatHotExtendedResponseSize
+                                                                      : cigi::kHatHotResponseSize;
+}
+
+bool CigiHatHotResponder::push(const Job& job) {
   if (pendingCount_ == kMaxPending) return false;
   pending_[(pendingHead_ + pendingCount_) % kMaxPending] = job;
   ++pendingCount_;
+  if (job.los) ++pendingLos_;
   return true;
 }
 
 void CigiHatHotResponder::add(const HatHotJob& job, uint32_t igFrame) {
-  const cigi::HatHotRequest& r = job.request;
+  Job j;
+  j.hatHot = job;
+  addJob(j, igFrame);
+}
+
+void CigiHatHotResponder::add(const LosJob& job, uint32_t igFrame) {
+  Job j;
+  j.los = true;
+  j.losJob = job;
+  addJob(j, igFrame);
+}
+
+void CigiHatHotResponder::addJob(const Job& job, uint32_t igFrame) {
+  const uint8_t period = job.period();
   size_t same = periodicCount_;
   for (size_t i = 0; i < periodicCount_; ++i)
-    if (periodic_[i].job.request.hatHotId == r.hatHotId) same = i;
-  if (r.updatePeriod == 0 || job.bad != 0) {
-    if (r.updatePeriod == 0 && same < periodicCount_) periodic_[same] = periodic_[--periodicCount_];  // cancel
+    if (periodic_[i].job.los == job.los && periodic_[i].job.id() == job.id()) same = i;
+  if (period == 0 || job.bad() != 0) {
+    if (period == 0 && same < periodicCount_) periodic_[same] = periodic_[--periodicCount_];  // cancel
   } else if (same < periodicCount_) {
-    periodic_[same] = {job, igFrame + r.updatePeriod};
+    periodic_[same] = {job, igFrame + period};
   } else if (periodicCount_ < kMaxPeriodic) {
-    periodic_[periodicCount_++] = {job, igFrame + r.updatePeriod};
+    periodic_[periodicCount_++] = {job, igFrame + period};
   } else {
-    countRefused(1);  // no room to hold it: answered this once
+    refuse(job);  // no room to hold it: answered this once
   }
-  if (!push(job)) countRefused(1);
+  if (!push(job)) refuse(job);
 }
 
 size_t CigiHatHotResponder::answer(uint32_t igFrame, uint32_t lastHostFrame, const lod::HeightGrid* terrain,
@@ -385,14 +485,47 @@ size_t CigiHatHotResponder::answer(uint32_t igFrame, uint32_t lastHostFrame, con
   for (size_t i = 0; i < periodicCount_; ++i) {
     Periodic& p = periodic_[i];
     // Due (serial arithmetic: IG frame numbers wrap); a full queue leaves it due for the next frame.
-    if (static_cast<int32_t>(igFrame - p.nextDue) >= 0 && push(p.job)) p.nextDue = igFrame + p.job.request.updatePeriod;
+    if (static_cast<int32_t>(igFrame - p.nextDue) >= 0 && push(p.job)) p.nextDue = igFrame + p.job.period();
   }
   const uint8_t lsn = static_cast<uint8_t>(lastHostFrame & 0x0f);
-  size_t bytes = 0, n = 0;
+  size_t bytes = 0, n = 0, nLos = 0;
   for (; n < kMaxAnswersPerFrame && pendingCount_ > 0; ++n) {
-    const HatHotJob job = pending_[pendingHead_];
+    const Job& next = pending_[pendingHead_];
+    if (bytes + next.responseSize() > kMaxBytesPerFrame) break;  // the datagram is full
+    const Job any = next;
     pendingHead_ = (pendingHead_ + 1) % kMaxPending;
     --pendingCount_;
+    if (any.los) {
+      --pendingLos_;
+      ++nLos;
+      const cigi::LosRequest& r = any.losJob.request;
+      const LosAnswer a = any.losJob.bad == 0 ? computeLos(r, enu_, terrain, host) : LosAnswer{};
+      if (r.extended) {
+        cigi::LosExtendedResponse x;
+        x.losId = r.losId;
+        x.valid = a.valid;
+        x.rangeValid = a.valid;
+        x.visible = a.visible;
+        x.hostFrameLsn = lsn;
+        x.range_m = a.range_m;
+        x.lat_deg = a.lat_deg;
+        x.lon_deg = a.lon_deg;
+        x.alt_m = a.alt_m;
+        x.normalAzimuth_deg = a.normalAzimuth_deg;
+        x.normalElevation_deg = a.normalElevation_deg;
+        bytes += cigi::encode(x, order, out.subspan(bytes));
+      } else {
+        cigi::LosResponse x;
+        x.losId = r.losId;
+        x.valid = a.valid;
+        x.visible = a.visible;
+        x.hostFrameLsn = lsn;
+        x.range_m = a.range_m;
+        bytes += cigi::encode(x, order, out.subspan(bytes));
+      }
+      continue;
+    }
+    const HatHotJob& job = any.hatHot;
     const cigi::HatHotRequest& r = job.request;
     const HatHotAnswer a = job.bad == 0 ? computeHatHot(r, enu_, originHeight_m_, terrain, host) : HatHotAnswer{};
     if (r.requestType == cigi::HatHotRequest::kExtended) {
@@ -415,8 +548,10 @@ size_t CigiHatHotResponder::answer(uint32_t igFrame, uint32_t lastHostFrame, con
       bytes += cigi::encode(x, order, out.subspan(bytes));
     }
   }
-  answered_.fetch_add(n, std::memory_order_relaxed);
-  if (pendingCount_ > 0) deferred_.fetch_add(pendingCount_, std::memory_order_relaxed);
+  answered_.fetch_add(n - nLos, std::memory_order_relaxed);
+  losAnswered_.fetch_add(nLos, std::memory_order_relaxed);
+  if (pendingCount_ > pendingLos_) deferred_.fetch_add(pendingCount_ - pendingLos_, std::memory_order_relaxed);
+  if (pendingLos_ > 0) losDeferred_.fetch_add(pendingLos_, std::memory_order_relaxed);
   return bytes;
 }
 
@@ -544,6 +679,20 @@ void CigiLink::handleDatagram(const void* data, size_t size, int flags, sockaddr
       hatHotTail_.store(tail + 1, std::memory_order_release);
     }
   }
+  const CigiAssembler::LosJobs los = assembler_->losJobs();
+  if (!los.requests.empty() || assembler_->lastMessage().losOmitted > 0) {
+    losRequests_.fetch_add(los.requests.size() + assembler_->lastMessage().losOmitted, std::memory_order_relaxed);
+    responder_.countLosRefused(assembler_->lastMessage().losOmitted);
+    for (size_t i = 0; i < los.requests.size(); ++i) {
+      const size_t tail = losTail_.load(std::memory_order_relaxed);
+      if (tail - losHead_.load(std::memory_order_acquire) == kLosQueue) {
+        responder_.countLosRefused(los.requests.size() - i);
+        break;
+      }
+      losRing_[tail % kLosQueue] = {los.requests[i], los.bad[i]};
+      losTail_.store(tail + 1, std::memory_order_release);
+    }
+  }
   if (result == CigiAssembler::Result::published) {
     sink_->publish(assembler_->state());
     publishedSinceFrame_.fetch_add(1, std::memory_order_relaxed);
@@ -568,12 +717,16 @@ void CigiLink::frameStarted(const FrameStart& frame) {
   sof.timestamp_10us = static_cast<uint32_t>(static_cast<uint64_t>(std::fmod(ticks, 4294967296.0)));
   sof.lastHostFrame = lastHostFrame_.load(std::memory_order_relaxed);
   size_t n = cigi::encode(sof, cigi::nativeByteOrder(), tx_);
-  // HAT/HOT responses follow in the same datagram. Nothing to do (the common case): two loads.
+  // HAT/HOT and LOS responses follow in the same datagram. Nothing to do (the common case): four loads.
   const size_t tail = hatHotTail_.load(std::memory_order_acquire);
   size_t head = hatHotHead_.load(std::memory_order_relaxed);
-  if (head != tail || !responder_.idle()) {
+  const size_t losTail = losTail_.load(std::memory_order_acquire);
+  size_t losHead = losHead_.load(std::memory_order_relaxed);
+  if (head != tail || losHead != losTail || !responder_.idle()) {
     for (; head != tail; ++head) responder_.add(hatHotRing_[head % kHatHotQueue], frame.igFrame);
     hatHotHead_.store(head, std::memory_order_release);
+    for (; losHead != losTail; ++losHead) responder_.add(losRing_[losHead % kLosQueue], frame.igFrame);
+    losHead_.store(losHead, std::memory_order_release);
     n += responder_.answer(frame.igFrame, sof.lastHostFrame, frame.terrain, frame.host, cigi::nativeByteOrder(),
                            std::span(tx_).subspan(n));
   }
@@ -587,9 +740,14 @@ void CigiLink::frameStarted(const FrameStart& frame) {
 }
 
 std::string CigiLink::extraCounters() const {
-  if (hatHotRequests() == 0) return {};
-  return " hat_hot_requests " + std::to_string(hatHotRequests()) + " hat_hot_answered " + std::to_string(hatHotAnswered()) +
+  std::string s;
+  if (hatHotRequests() > 0)
+    s += " hat_hot_requests " + std::to_string(hatHotRequests()) + " hat_hot_answered " + std::to_string(hatHotAnswered()) +
          " hat_hot_refused " + std::to_string(hatHotRefused()) + " hat_hot_deferred " + std::to_string(hatHotDeferred());
+  if (losRequests() > 0)
+    s += " los_requests " + std::to_string(losRequests()) + " los_answered " + std::to_string(losAnswered()) +
+         " los_refused " + std::to_string(losRefused()) + " los_deferred " + std::to_string(losDeferred());
+  return s;
 }
 
 std::unique_ptr<CigiLink> makeCigiLink(const CigiLinkConfig& config, const lod::Geodetic& origin) {

@@ -1,7 +1,8 @@
 // CIGI 3.3 host link over UDP: igd is the IG. The host sends one message (datagram) per host
 // frame: IG Control first, then Entity Control for the ownship, optionally View Control, View
-// Definition, Celestial Sphere Control and HAT/HOT Requests. igd answers every frame with a
-// Start of Frame, followed in the same datagram by the HAT/HOT responses due that frame.
+// Definition, Celestial Sphere Control, HAT/HOT Requests and LOS Segment / Vector Requests. igd
+// answers every frame with a Start of Frame, followed in the same datagram by the HAT/HOT and LOS
+// responses due that frame.
 //
 // Two parts:
 //  - CigiAssembler: pure (no sockets, no clock). Turns decoded messages into HostState: the
@@ -11,7 +12,7 @@
 //  - CigiLink: the UDP transport. One receive thread (poll() with a 50 ms timeout so stop()
 //    joins promptly); frameStarted() sends the Start of Frame from the frame loop's thread with
 //    a non-blocking sendto (errors counted, never thrown, never blocking).
-//  - CigiHatHotResponder: pure. The frame loop's side of HAT/HOT: one-shot and periodic
+//  - CigiHatHotResponder: pure. The frame loop's side of HAT/HOT and LOS: one-shot and periodic
 //    requests, answered from the scene's full-resolution terrain, a bounded number per frame.
 //
 // Conventions (docs/cigi.md has the full list):
@@ -114,6 +115,16 @@ class CigiAssembler {
   }
   // A request in entity coordinates for another entity than the ownship (igd knows only it).
   static constexpr uint32_t kHatHotUnknownEntity = 1u << 8;
+  // The same for LOS Segment / Vector Requests.
+  struct LosJobs {
+    std::span<const cigi::LosRequest> requests;
+    std::span<const uint32_t> bad;  // cigi::LosField bits | kLosUnknownEntity
+  };
+  LosJobs losJobs() const {
+    return {std::span(msg_.losRequests.data(), msg_.losCount), std::span(losBad_.data(), msg_.losCount)};
+  }
+  // A point (source, destination or response) in entity coordinates of another entity than the ownship.
+  static constexpr uint32_t kLosUnknownEntity = 1u << 16;
 
  private:
   bool isLate(const cigi::IgControl& ig);
@@ -122,6 +133,7 @@ class CigiAssembler {
   void applyViewDefinition(const cigi::ViewDefinition& d, LinkCounters& counters);
   void applyCelestial(const cigi::CelestialSphereControl& c, LinkCounters& counters);
   void checkHatHot(LinkCounters& counters);
+  void checkLos(LinkCounters& counters);
   void computeEye();
 
   CigiAssemblerConfig config_;
@@ -147,6 +159,7 @@ class CigiAssembler {
   double viewRoll_deg_ = 0, viewPitch_deg_ = 0, viewYaw_deg_ = 0;
   double near_m_, far_m_, top_deg_, bottom_deg_;
   std::array<uint32_t, cigi::HostMessage::kMaxHatHotRequests> hatHotBad_{};
+  std::array<uint32_t, cigi::HostMessage::kMaxLosRequests> losBad_{};
   // Left/right edges; before the host's first left/right the window is as wide as the output's
   // aspect ratio and centred (HostState::windowWidth_tan = 0).
   double left_deg_ = 0, right_deg_ = 0;
@@ -188,15 +201,48 @@ struct HatHotAnswer {
 HatHotAnswer computeHatHot(const cigi::HatHotRequest& request, const lod::EnuFrame& enu, double originHeight_m,
                            const lod::HeightGrid* terrain, const HostState* host);
 
-// The frame loop's HAT/HOT state: periodic requests and the queue of answers still to send.
-// Fixed capacity, no allocation after construction, frame thread only (counters readable from
-// any thread).
+// ---------------------------------------------------------------------------------------------
+// Line of sight (docs/cigi.md "Line of sight").
+
+// One LOS request handed from the receive thread to the frame loop.
+struct LosJob {
+  cigi::LosRequest request;
+  uint32_t bad = 0;  // rejected fields (CigiAssembler::losJobs): answered Valid = false
+};
+
+struct LosAnswer {
+  bool valid = false;               // the segment / vector meets the terrain
+  bool visible = false;             // segment: the destination is visible (no terrain before it)
+  double range_m = 0.0;             // source -> first intersection
+  double lat_deg = 0.0;             // the intersection: geodetic, or x/y/z offsets in the ownship's
+  double lon_deg = 0.0;             //   body axes when the request asks for entity response
+  double alt_m = 0.0;               //   coordinates
+  float normalAzimuth_deg = 0.0f;   // surface normal there: from true north, clockwise, [-180, 180]
+  float normalElevation_deg = 90.0f;  // above the local horizontal
+};
+
+// The answer to one valid LOS request (pure): the first intersection of the segment (source ->
+// destination), or of the vector (from the source along azimuth / elevation, between the minimum
+// and maximum range), with the terrain surface computeHatHot samples (lod::intersectGround on
+// the grid in the ENU plane at `enu`). Points in entity coordinates are offsets in the ownship's
+// body axes (`host`'s ownship fields; invalid without them). Invalid: no terrain, no intersection,
+// a non-finite result. A segment's Visible: no intersection before its destination (1 mm).
+LosAnswer computeLos(const cigi::LosRequest& request, const lod::EnuFrame& enu, const lod::HeightGrid* terrain,
+                     const HostState* host);
+
+// The frame loop's HAT/HOT and LOS state: periodic requests and the queue of answers still to
+// send. Fixed capacity, no allocation after construction, frame thread only (counters readable
+// from any thread). HAT/HOT IDs and LOS IDs are separate name spaces.
 class CigiHatHotResponder {
  public:
-  static constexpr size_t kMaxPeriodic = 64;         // periodic requests held at once
-  static constexpr size_t kMaxPending = 256;         // answers waiting for a frame
-  static constexpr size_t kMaxAnswersPerFrame = 32;  // 24 + 32 x 40 bytes: one 1,304-byte datagram
-  static constexpr size_t kMaxBytesPerFrame = kMaxAnswersPerFrame * cigi::kHatHotExtendedResponseSize;
+  static constexpr size_t kMaxPeriodic = 64;         // periodic requests held at once (both kinds)
+  static constexpr size_t kMaxPending = 256;         // answers waiting for a frame (both kinds)
+  static constexpr size_t kMaxAnswersPerFrame = 32;  // responses per frame, at most ...
+  // ... and at most this many bytes, so that Start of Frame + answers fit one 1,472-byte UDP
+  // payload (an Ethernet frame without IP fragmentation): 32 HAT/HOT Extended Responses (40
+  // bytes) fit, 25 LOS Extended Responses (56 bytes) do.
+  static constexpr size_t kMaxDatagramBytes = 1472;
+  static constexpr size_t kMaxBytesPerFrame = kMaxDatagramBytes - cigi::kStartOfFrameSize;
 
   explicit CigiHatHotResponder(const lod::Geodetic& origin);
 
@@ -206,9 +252,12 @@ class CigiHatHotResponder {
   // held already it is refused (counted) and answered once. A full queue refuses (counted,
   // not answered).
   void add(const HatHotJob& job, uint32_t igFrame);
+  // The same for a LOS request (matched by LOS ID among the periodic LOS requests).
+  void add(const LosJob& job, uint32_t igFrame);
 
-  // This frame's responses, at most kMaxAnswersPerFrame (the rest wait for the next frame,
-  // counted in deferred), encoded into `out` (>= kMaxBytesPerFrame bytes). Returns the bytes.
+  // This frame's responses in queue order, at most kMaxAnswersPerFrame and kMaxBytesPerFrame
+  // bytes (the rest wait for the next frame, counted in deferred), encoded into `out`
+  // (>= kMaxBytesPerFrame bytes). Returns the bytes.
   size_t answer(uint32_t igFrame, uint32_t lastHostFrame, const lod::HeightGrid* terrain, const HostState* host,
                 cigi::ByteOrder order, std::span<std::byte> out);
 
@@ -220,21 +269,38 @@ class CigiHatHotResponder {
   uint64_t refused() const { return refused_.load(std::memory_order_relaxed); }
   uint64_t deferred() const { return deferred_.load(std::memory_order_relaxed); }
   void countRefused(uint64_t n) { refused_.fetch_add(n, std::memory_order_relaxed); }
+  // LOS answers sent, requests refused, answers deferred (summed over frames).
+  uint64_t losAnswered() const { return losAnswered_.load(std::memory_order_relaxed); }
+  uint64_t losRefused() const { return losRefused_.load(std::memory_order_relaxed); }
+  uint64_t losDeferred() const { return losDeferred_.load(std::memory_order_relaxed); }
+  void countLosRefused(uint64_t n) { losRefused_.fetch_add(n, std::memory_order_relaxed); }
 
  private:
+  struct Job {
+    bool los = false;
+    HatHotJob hatHot;
+    LosJob losJob;
+    uint16_t id() const { return los ? losJob.request.losId : hatHot.request.hatHotId; }
+    uint8_t period() const { return los ? losJob.request.updatePeriod : hatHot.request.updatePeriod; }
+    uint32_t bad() const { return los ? losJob.bad : hatHot.bad; }
+    size_t responseSize() const;
+  };
   struct Periodic {
-    HatHotJob job;
+    Job job;
     uint32_t nextDue = 0;  // IG frame
   };
-  bool push(const HatHotJob& job);
+  void addJob(const Job& job, uint32_t igFrame);
+  bool push(const Job& job);
+  void refuse(const Job& job) { job.los ? countLosRefused(1) : countRefused(1); }
 
   lod::EnuFrame enu_;
   double originHeight_m_;
   std::array<Periodic, kMaxPeriodic> periodic_{};
   size_t periodicCount_ = 0;
-  std::array<HatHotJob, kMaxPending> pending_{};  // ring
-  size_t pendingHead_ = 0, pendingCount_ = 0;
+  std::array<Job, kMaxPending> pending_{};  // ring
+  size_t pendingHead_ = 0, pendingCount_ = 0, pendingLos_ = 0;
   std::atomic<uint64_t> answered_{0}, refused_{0}, deferred_{0};
+  std::atomic<uint64_t> losAnswered_{0}, losRefused_{0}, losDeferred_{0};
 };
 
 class CigiLink final : public HostLink {
@@ -264,14 +330,21 @@ class CigiLink final : public HostLink {
   uint64_t hatHotAnswered() const { return responder_.answered(); }
   uint64_t hatHotRefused() const { return responder_.refused(); }
   uint64_t hatHotDeferred() const { return responder_.deferred(); }
+  // The same for LOS Segment / Vector Requests.
+  uint64_t losRequests() const { return losRequests_.load(std::memory_order_relaxed); }
+  uint64_t losAnswered() const { return responder_.losAnswered(); }
+  uint64_t losRefused() const { return responder_.losRefused(); }
+  uint64_t losDeferred() const { return responder_.losDeferred(); }
   std::string extraCounters() const override;
   bool hatHotCounters(HatHotCounters& out) const override {
-    out = {hatHotRequests(), hatHotAnswered(), hatHotRefused(), hatHotDeferred()};
+    out = {hatHotRequests(), hatHotAnswered(), hatHotRefused(), hatHotDeferred(),
+           losRequests(),    losAnswered(),    losRefused(),    losDeferred()};
     return true;
   }
 
-  // Receive thread -> frame loop: HAT/HOT requests (single producer, single consumer).
+  // Receive thread -> frame loop: HAT/HOT and LOS requests (single producer, single consumer).
   static constexpr size_t kHatHotQueue = 256;
+  static constexpr size_t kLosQueue = 256;
 
  private:
   void run();
@@ -297,8 +370,11 @@ class CigiLink final : public HostLink {
   std::array<HatHotJob, kHatHotQueue> hatHotRing_{};
   std::atomic<size_t> hatHotHead_{0}, hatHotTail_{0};
   std::atomic<uint64_t> hatHotRequests_{0};
+  std::array<LosJob, kLosQueue> losRing_{};
+  std::atomic<size_t> losHead_{0}, losTail_{0};
+  std::atomic<uint64_t> losRequests_{0};
   CigiHatHotResponder responder_;  // frame loop only
-  std::array<std::byte, cigi::kStartOfFrameSize + CigiHatHotResponder::kMaxBytesPerFrame> tx_{};
+  std::array<std::byte, cigi::kStartOfFrameSize + CigiHatHotResponder::kMaxBytesPerFrame> tx_{};  // <= 1,472 bytes
 };
 
 std::unique_ptr<CigiLink> makeCigiLink(const CigiLinkConfig& config, const lod::Geodetic& origin);

@@ -54,9 +54,11 @@ struct LinkCountersSnapshot {
 };
 
 // A link that answers terrain queries (CIGI HAT/HOT Requests): requests decoded, answers sent,
-// requests refused (a full queue or too many periodic ones), and answer-frames waited (deferred).
+// requests refused (a full queue or too many periodic ones), and answer-frames waited (deferred);
+// the same four for Line-of-Sight (LOS Segment / Vector) Requests.
 struct HatHotCounters {
   uint64_t requests = 0, answered = 0, refused = 0, deferred = 0;
+  uint64_t losRequests = 0, losAnswered = 0, losRefused = 0, losDeferred = 0;
 };
 
 inline LinkCountersSnapshot snapshot(const LinkCounters& c) {

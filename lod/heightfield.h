@@ -44,4 +44,19 @@ struct GroundSample {
 // allocation.
 bool sampleGround(const HeightGrid& grid, double east_m, double north_m, GroundSample& out);
 
+struct GroundHit {
+  double t = 0.0;                    // along the segment: 0 at `from`, 1 at `to`
+  glm::dvec3 point_m{0.0};           // ENU; z is sampleGround's height there
+  glm::dvec3 normal{0.0, 0.0, 1.0};  // sampleGround's normal there
+};
+
+// The first point of the segment from -> to (ENU metres) on or below the surface sampleGround
+// reports (the bilinear patches of the grid; outside the grid there is no surface). Exact: walks
+// the cells the segment's ground track crosses (2D DDA) and solves the segment against each
+// cell's bilinear patch (height along the segment is quadratic in t). A segment that starts on or
+// below the surface hits at its start (t = 0, or where it enters the grid); a zero-length one
+// hits only there. Returns false (out untouched) for no hit, a non-finite point or a grid
+// sampleGround refuses. O(cells crossed) <= width + height, no allocation.
+bool intersectGround(const HeightGrid& grid, const glm::dvec3& from, const glm::dvec3& to, GroundHit& out);
+
 }  // namespace ig::lod

@@ -99,6 +99,27 @@ def expected_hot(lat, lon):
     return h
 
 
+# The LOS segment (ENU metres): from 800 m up in the north-west down to 200 m below the DEM.
+LOS_A, LOS_B = (-300.0, 200.0, 800.0), (400.0, -300.0, -200.0)
+
+
+def los_expected_range():
+    """Distance from LOS_A to the segment's first point on or below the DEM's bilinear surface:
+    a 5 cm march, then bisection of the first step that goes below."""
+    d = [b - a for a, b in zip(LOS_A, LOS_B)]
+    length = math.sqrt(sum(x * x for x in d))
+    below = lambda t: LOS_A[2] + t * d[2] <= dem_height(LOS_A[0] + t * d[0], LOS_A[1] + t * d[1])  # noqa: E731
+    steps = int(length / 0.05)
+    for k in range(1, steps + 1):
+        if below(k / steps):
+            lo, hi = (k - 1) / steps, k / steps
+            for _ in range(60):
+                mid = 0.5 * (lo + hi)
+                lo, hi = (lo, mid) if below(mid) else (mid, hi)
+            return hi * length
+    return float("nan")
+
+
 def check(cond, what):
     if not cond:
         FAILURES.append(what)
@@ -148,6 +169,10 @@ view_id = 0""", src, RATE_HZ, FRAMES, 3.0, rec, write_dem_scene(tmp),
     p_hot = cs.geodetic_of_enu(ORIGIN, 123.4, -234.5, 0.0)[:2]
     p_ext = cs.geodetic_of_enu(ORIGIN, -456.7, 345.6, 0.0)[:2]
     p_out = cs.geodetic_of_enu(ORIGIN, 1500.0, 0.0, 0.0)[:2]
+    # A LOS segment from above the DEM down through it.
+    los_src = cs.geodetic_of_enu(ORIGIN, *LOS_A)
+    los_dst = cs.geodetic_of_enu(ORIGIN, *LOS_B)
+    los_answers = []
     hat_frame = cancel_frame = None
     while proc.poll() is None and time.monotonic() - t0 < 120:
         roll, pitch, yaw, lat, lon, alt = entity_for(frame)
@@ -163,7 +188,8 @@ view_id = 0""", src, RATE_HZ, FRAMES, 3.0, rec, write_dem_scene(tmp),
                     cs.hat_hot_request(o, 2, 2, p_ext[0], p_ext[1], 900.0) +
                     cs.hat_hot_request(o, 3, 1, p_out[0], p_out[1], 0.0) +
                     cs.hat_hot_request(o, 4, 1, float("nan"), p_hot[1], 0.0) +
-                    cs.hat_hot_request(o, 5, 1, p_hot[0], p_hot[1], 0.0, update_period=2))
+                    cs.hat_hot_request(o, 5, 1, p_hot[0], p_hot[1], 0.0, update_period=2) +
+                    cs.los_segment_request(o, 41, los_src, los_dst))
         elif hat_frame is not None and cancel_frame is None and frame == hat_frame + 12:
             cancel_frame = frame
             msg += cs.hat_hot_request(o, 5, 1, p_hot[0], p_hot[1], 0.0)
@@ -185,6 +211,7 @@ view_id = 0""", src, RATE_HZ, FRAMES, 3.0, rec, write_dem_scene(tmp),
                 data = rx.recv(65536)
                 sofs.append(cs.decode_start_of_frame(data))
                 answers.extend((sofs[-1]["last_host_frame"], a) for a in cs.decode_hat_hot_responses(data))
+                los_answers.extend(cs.decode_los_responses(data))
             except BlockingIOError:
                 break
         time.sleep(1.0 / RATE_HZ)
@@ -194,6 +221,7 @@ view_id = 0""", src, RATE_HZ, FRAMES, 3.0, rec, write_dem_scene(tmp),
             data = rx.recv(65536)
             sofs.append(cs.decode_start_of_frame(data))
             answers.extend((sofs[-1]["last_host_frame"], a) for a in cs.decode_hat_hot_responses(data))
+            los_answers.extend(cs.decode_los_responses(data))
         except BlockingIOError:
             break
     check(proc.returncode == 0, "igd exit status %s: %s" % (proc.returncode, err[-2000:]))
@@ -275,6 +303,21 @@ view_id = 0""", src, RATE_HZ, FRAMES, 3.0, rec, write_dem_scene(tmp),
     check(isinstance(hh, dict) and hh.get("requests") == 6 and hh.get("answered") == len(answers)
           and hh.get("refused") == 0 and "deferred" in hh, "status file host.hat_hot: %r (answers received: %d)"
           % (hh, len(answers)))
+
+    # The LOS segment: one answer, its range within 1 mm of the first intersection with the DEM.
+    want = los_expected_range()
+    check(len(los_answers) == 1 and los_answers[0]["id"] == 41 and los_answers[0]["valid"] == 1 and
+          not los_answers[0]["visible"] and abs(los_answers[0]["range"] - want) < 1e-3,
+          "LOS segment: %r, expected one valid answer with range %.4f" % (los_answers, want))
+    m = re.search(r"los_requests (\d+) los_answered (\d+) los_refused (\d+)", err)
+    check(m is not None and int(m.group(1)) == 1 and int(m.group(2)) == 1 and int(m.group(3)) == 0,
+          "exit line LOS counters: %s" % (m.group(0) if m else err[-500:]))
+    try:
+        with open(status) as f:
+            lc = json.load(f)["host"].get("los")
+    except (OSError, ValueError, KeyError) as e:
+        lc = "unreadable: %s" % e
+    check(isinstance(lc, dict) and lc.get("requests") == 1 and lc.get("answered") == 1, "status file host.los: %r" % lc)
 
     # The recording of accepted samples.
     with open(rec) as f:

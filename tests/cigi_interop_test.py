@@ -241,15 +241,39 @@ def main():
     ent7 = (1.0, 2.0, 3.0, ORIGIN[0] + 0.002, ORIGIN[1] - 0.004, 333.0)
     hot_point = (ORIGIN[0] + 0.004, ORIGIN[1] - 0.009)  # about 445 m north, 540 m west
     ext_point = (ORIGIN[0] - 0.006, ORIGIN[1] + 0.012, 950.0)
+    # ... and two LOS requests: a basic segment and an extended vector (points from ENU).
+    seg_src = cs.geodetic_of_enu(ORIGIN, *LOS_A)
+    seg_dst = cs.geodetic_of_enu(ORIGIN, *LOS_B)
+    vec_src = cs.geodetic_of_enu(ORIGIN, *LOS_V)
     msg = (cs.ig_control(o, 104, 113333) + cs.entity_control(o, 0, *ent7) +
            cs.hat_hot_request(o, 21, 1, hot_point[0], hot_point[1], 0.0) +
-           cs.hat_hot_request(o, 22, 2, *ext_point))
+           cs.hat_hot_request(o, 22, 2, *ext_point) +
+           cs.los_segment_request(o, 31, seg_src, seg_dst) +
+           cs.los_vector_request(o, 32, vec_src, LOS_AZ, LOS_EL, 5.0, 2000.0, extended=True))
     fields7 = ig_fields(o, 104, 113333, 0, [(0, ent7)])
     fields7.update({"cigi.hat_hot_request.hat_hot_id": [21, 22], "cigi.hat_hot_request.type": [1, 2],
                     "cigi.hat_hot_request.coordinate_system": [0, 0], "cigi.hat_hot_request.update_period": [0, 0],
                     "cigi.hat_hot_request.lat_xoff": [hot_point[0], ext_point[0]],
                     "cigi.hat_hot_request.lon_yoff": [hot_point[1], ext_point[1]],
-                    "cigi.hat_hot_request.alt_zoff": [0.0, ext_point[2]]})
+                    "cigi.hat_hot_request.alt_zoff": [0.0, ext_point[2]],
+                    "cigi.los_segment_request.los_id": 31, "cigi.los_segment_request.type": 0,
+                    "cigi.los_segment_request.source_coord": 0, "cigi.los_segment_request.destination_coord": 0,
+                    "cigi.los_segment_request.response_coord": 0,
+                    "cigi.los_segment_request.source_lat_xoff": seg_src[0],
+                    "cigi.los_segment_request.source_lon_yoff": seg_src[1],
+                    "cigi.los_segment_request.source_alt_zoff": seg_src[2],
+                    "cigi.los_segment_request.destination_lat_xoff": seg_dst[0],
+                    "cigi.los_segment_request.destination_lon_yoff": seg_dst[1],
+                    "cigi.los_segment_request.destination_alt_zoff": seg_dst[2],
+                    "cigi.los_segment_request.update_period": 0,
+                    "cigi.los_vector_request.los_id": 32, "cigi.los_vector_request.type": 1,
+                    "cigi.los_vector_request.source_coord": 0, "cigi.los_vector_request.response_coord": 0,
+                    "cigi.los_vector_request.azimuth": LOS_AZ, "cigi.los_vector_request.elevation": LOS_EL,
+                    "cigi.los_vector_request.min_range": 5.0, "cigi.los_vector_request.max_range": 2000.0,
+                    "cigi.los_vector_request.source_lat_xoff": vec_src[0],
+                    "cigi.los_vector_request.source_lon_yoff": vec_src[1],
+                    "cigi.los_vector_request.source_alt_zoff": vec_src[2],
+                    "cigi.los_vector_request.update_period": 0})
     send(msg, fields7, expect(104, 113333, ent7, view2, vdef2, sky2))
 
     # Start of Frame after the host appeared: Operate, status 0, echoes host frame 104, database 6.
@@ -266,10 +290,12 @@ def main():
     check(last["database"] == 6, "Start of Frame database = the host's request (6): %r" % last)
     # The answers follow a Start of Frame in the same datagram, within a few frames.
     answers = [(d, a) for d, _ in sofs for a in cs.decode_hat_hot_responses(d)]
-    while len(answers) < 2 and time.monotonic() < deadline:
+    los_answers = [(d, a) for d, _ in sofs for a in cs.decode_los_responses(d)]
+    while (len(answers) < 2 or len(los_answers) < 2) and time.monotonic() < deadline:
         data = rx.recv(65536)
         sofs.append((data, cs.decode_start_of_frame(data)))
         answers += [(data, a) for a in cs.decode_hat_hot_responses(data)]
+        los_answers += [(data, a) for a in cs.decode_los_responses(data)]
 
     link.stdin.close()
     rest = link.stdout.read().splitlines()
@@ -297,7 +323,7 @@ def main():
 
     # tshark: the host messages Python sent ...
     host_fields = list(sent[0][1].keys()) + [k for k in sent[1][1].keys() if k not in sent[0][1]]
-    host_fields += [k for k in fields7 if k.startswith("cigi.hat_hot_request")]
+    host_fields += [k for k in fields7 if k.startswith(("cigi.hat_hot_request", "cigi.los_"))]
     host_fields = list(dict.fromkeys(host_fields))
     rows = tshark(cap, port, host_port, "udp.dstport == %d && cigi.ig_control" % port, host_fields)
     want = [f for _, f in sent if f is not None]
@@ -313,9 +339,9 @@ def main():
     rows = tshark(cap, port, host_port, "udp.dstport == %d && cigi.sof" % host_port, sof_fields)
     check(len(rows) == len(sofs), "tshark decoded %d Start of Frame packets, Python received %d" % (len(rows), len(sofs)))
     for row, (data, s) in zip(rows, sofs):
-        hat_hot = cs.decode_hat_hot_responses(data)  # the responses after it, if any
-        w = {"cigi.packet_id": [101] + [103 if a["ext"] else 102 for a in hat_hot],
-             "cigi.packet_size": [24] + [40 if a["ext"] else 16 for a in hat_hot], "cigi.version": 3, "cigi.byte_swap": "0x0080",
+        packets = packet_list(data)  # Start of Frame and the responses after it, if any
+        w = {"cigi.packet_id": [p[0] for p in packets],
+             "cigi.packet_size": [p[1] for p in packets], "cigi.version": 3, "cigi.byte_swap": "0x0080",
              "cigi.sof.db_number": s["database"], "cigi.sof.ig_status": s["status"], "cigi.sof.ig_mode": s["mode"],
              "cigi.sof.timestamp_valid": 1, "cigi.sof.earth_reference_model": 0, "cigi.sof.minor_version": 3,
              "cigi.sof.ig_frame_number": s["ig_frame"], "cigi.sof.timestamp": s["timestamp"],
@@ -366,6 +392,47 @@ def main():
         for k, v in w.items():
             check(field_matches(row[k], v), "tshark HAT/HOT Extended Response: %s = %r, expected %r" % (k, row[k], v))
 
+    # LOS: the segment's and the vector's first intersection with the probe's plane.
+    check(sorted(a["id"] for _, a in los_answers) == [31, 32], "LOS answers: %r" % los_answers)
+    seg_range, _ = los_segment_hit(seg_src, seg_dst)
+    vec_range, vec_hit = los_vector_hit(vec_src, LOS_AZ, LOS_EL)
+    for data, a in los_answers:
+        lsn = cs.decode_start_of_frame(data)["last_host_frame"] & 15
+        check(a["valid"] == 1 and a["lsn"] == lsn and a["count"] == 1 and a["entity_valid"] == 0 and not a["visible"],
+              "LOS answer flags: %r" % a)
+        if a["id"] == 31:
+            check(not a["ext"] and abs(a["range"] - seg_range) < 1e-3,
+                  "LOS segment answer: %r, expected range %.4f" % (a, seg_range))
+        else:
+            check(a["ext"] and a["range_valid"] == 1 and abs(a["range"] - vec_range) < 1e-3 and
+                  abs(a["lat"] - vec_hit[0]) < 1e-8 and abs(a["lon"] - vec_hit[1]) < 1e-8 and
+                  abs(a["alt"] - vec_hit[2]) < 1e-3 and a["material"] == 0 and a["rgba"] == (0, 0, 0, 0),
+                  "LOS vector answer: %r, expected range %.4f at %r" % (a, vec_range, vec_hit))
+            az, el = normal_az_el(vec_hit[0], vec_hit[1], (-0.03, 0.02, 1.0))
+            check(abs(a["azimuth"] - az) < 0.001 and abs(a["elevation"] - el) < 0.001,
+                  "LOS vector answer normal: %r, expected azimuth %.4f elevation %.4f" % (a, az, el))
+    los_fields = ["cigi.los_response.los_id", "cigi.los_response.valid", "cigi.los_response.visible",
+                  "cigi.los_response.count", "cigi.los_response.range", "cigi.los_response.host_frame_number_lsn"]
+    rows = tshark(cap, port, host_port, "udp.dstport == %d && cigi.los_response" % host_port, los_fields)
+    got = [a for _, a in los_answers if not a["ext"]]
+    check(len(rows) == len(got) == 1, "tshark decoded %d LOS Responses, Python %d" % (len(rows), len(got)))
+    for row, a in zip(rows, got):
+        for k, v in zip(los_fields, [31, 1, 0, 1, a["range"], a["lsn"]]):
+            check(field_matches(row[k], v), "tshark LOS Response: %s = %r, expected %r" % (k, row[k], v))
+    # CIGI 3.2 and 3.3 share the extended layout (Host Frame Number LSN in byte 4's high nibble);
+    # tshark names its fields cigi.3_2_los_ext_response.* (cigi.los_ext_response.* is 3.0/3.1's).
+    los_ext_fields = ["cigi.3_2_los_ext_response." + f for f in
+                      ("los_id", "valid", "range_valid", "visible", "entity_id_valid", "response_count", "range",
+                       "lat_xoff", "lon_yoff", "alt_zoff", "material_code", "normal_vector_azimuth",
+                       "normal_vector_elevation", "host_frame_number_lsn")]
+    rows = tshark(cap, port, host_port, "udp.dstport == %d && cigi.3_2_los_ext_response" % host_port, los_ext_fields)
+    got = [a for _, a in los_answers if a["ext"]]
+    check(len(rows) == len(got) == 1, "tshark decoded %d LOS Extended Responses, Python %d" % (len(rows), len(got)))
+    for row, a in zip(rows, got):
+        for k, v in zip(los_ext_fields, [32, 1, 1, 0, 0, 1, a["range"], a["lat"], a["lon"], a["alt"], 0, a["azimuth"],
+                                         a["elevation"], a["lsn"]]):
+            check(field_matches(row[k], v), "tshark LOS Extended Response: %s = %r, expected %r" % (k, row[k], v))
+
     # The capture through igd's pcap converter: the same samples as the live link.
     out = subprocess.run([probe, "pcap", cap, str(port), "%r,%r,%r" % ORIGIN], capture_output=True, text=True, timeout=60)
     check(out.returncode == 0, "pcap conversion: %s" % out.stderr)
@@ -390,6 +457,48 @@ def main():
     else:
         print("capture kept in", cap)
     return 1 if FAILURES else 0
+
+
+# LOS requests of message 7 (ENU metres around ORIGIN; azimuth / elevation in degrees).
+LOS_A, LOS_B = (100.0, -50.0, 300.0), (700.0, 250.0, -200.0)
+LOS_V, LOS_AZ, LOS_EL = (-200.0, 100.0, 400.0), 120.0, -30.0
+
+
+def packet_list(data):
+    """(id, size) of every packet of a datagram."""
+    out, at = [], 0
+    while at + 2 <= len(data):
+        out.append((data[at], data[at + 1]))
+        at += max(data[at + 1], 2)
+    return out
+
+
+def plane_hit(p, d):
+    """Parameter s where p + s d (ENU) meets the probe's plane z = 30 + 0.03 east - 0.02 north."""
+    return (30.0 + 0.03 * p[0] - 0.02 * p[1] - p[2]) / (d[2] - 0.03 * d[0] + 0.02 * d[1])
+
+
+def los_segment_hit(src, dst):
+    a, b = enu_of_geodetic(*src), enu_of_geodetic(*dst)
+    d = [b[k] - a[k] for k in range(3)]
+    t = plane_hit(a, d)
+    return t * math.sqrt(sum(x * x for x in d)), tuple(a[k] + t * d[k] for k in range(3))
+
+
+def los_vector_hit(src, az, el):
+    """Range and geodetic hit of a vector: azimuth from true north and elevation above the
+    local horizontal at the source (its NED axes), converted to the origin's ENU axes."""
+    n, e, dn = cs.ned_axes(src[0], src[1])
+    az, el = math.radians(az), math.radians(el)
+    ned = (math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), -math.sin(el))
+    ecef = [ned[0] * n[k] + ned[1] * e[k] + ned[2] * dn[k] for k in range(3)]
+    on, oe, od = cs.ned_axes(ORIGIN[0], ORIGIN[1])
+    dot = lambda a, b: sum(x * y for x, y in zip(a, b))  # noqa: E731
+    d = (dot(ecef, oe), dot(ecef, on), -dot(ecef, od))
+    p = enu_of_geodetic(*src)
+    s = plane_hit(p, d)
+    hit = [p[k] + s * d[k] for k in range(3)]
+    return s, ecef_to_lat_lon_h(*ecef_of_enu(hit))
 
 
 def ecef_of_enu(enu):

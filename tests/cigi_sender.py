@@ -24,6 +24,7 @@ MAGIC = 0x8000
 # Packet ids and sizes (ICD 3.3, section 4.1).
 IG_CONTROL, ENTITY_CONTROL, CELESTIAL, VIEW_CONTROL, VIEW_DEFINITION, START_OF_FRAME = 1, 2, 9, 16, 21, 101
 HAT_HOT_REQUEST, HAT_HOT_RESPONSE, HAT_HOT_EXT_RESPONSE = 24, 102, 103
+LOS_SEGMENT_REQUEST, LOS_VECTOR_REQUEST, LOS_RESPONSE, LOS_EXT_RESPONSE = 25, 26, 104, 105
 
 
 def ig_control(order, host_frame, timestamp_ticks=0, timestamp_valid=True, database=0, ig_mode=1,
@@ -103,6 +104,68 @@ def decode_hat_hot_responses(data):
             _, _, hid, flags, hat, hot, material, az, el = struct.unpack(order + "BBHB3xddIff4x", data[at:at + 40])
             out.append({"ext": True, "id": hid, "valid": flags & 1, "lsn": flags >> 4, "hat": hat, "hot": hot,
                         "material": material, "azimuth": az, "elevation": el})
+        at += max(size, 2)
+    return out
+
+
+def los_segment_request(order, los_id, src, dst, extended=False, update_period=0, src_entity=False,
+                        dst_entity=False, response_entity=False, entity_id=0, alpha=0, material_mask=0,
+                        dst_entity_id=None):
+    """LOS Segment Request, 64 bytes (ICD 3.3, 4.1.25):
+    0 id | 1 size | 2-3 LOS ID | 4 request type (0: 1 extended), source coordinate system (1: 1 entity),
+      destination coordinate system (2), response coordinate system (3), destination entity ID valid (4)
+    5 alpha threshold | 6-7 entity id | 8-15, 16-23, 24-31 source lat / lon / alt (or x / y / z) f64
+    32-39, 40-47, 48-55 destination lat / lon / alt (or x / y / z) f64 | 56-59 material mask u32
+    60 update period | 61 reserved | 62-63 destination entity id"""
+    flags = ((1 if extended else 0) | (2 if src_entity else 0) | (4 if dst_entity else 0) |
+             (8 if response_entity else 0) | (16 if dst_entity_id is not None else 0))
+    return struct.pack(order + "BBHBBHddddddIBxH", LOS_SEGMENT_REQUEST, 64, los_id, flags, alpha, entity_id,
+                       src[0], src[1], src[2], dst[0], dst[1], dst[2], material_mask, update_period,
+                       dst_entity_id or 0)
+
+
+def los_vector_request(order, los_id, src, azimuth, elevation, min_range, max_range, extended=False,
+                       update_period=0, src_entity=False, response_entity=False, entity_id=0, alpha=0,
+                       material_mask=0):
+    """LOS Vector Request, 56 bytes (ICD 3.3, 4.1.26):
+    0 id | 1 size | 2-3 LOS ID | 4 request type (0: 1 extended), source coordinate system (1: 1 entity),
+      response coordinate system (2) | 5 alpha threshold | 6-7 entity id
+    8-11 azimuth f32 | 12-15 elevation f32 | 16-19 minimum range f32 | 20-23 maximum range f32
+    24-31, 32-39, 40-47 source lat / lon / alt (or x / y / z) f64 | 48-51 material mask u32
+    52 update period | 53-55 reserved"""
+    flags = (1 if extended else 0) | (2 if src_entity else 0) | (4 if response_entity else 0)
+    return struct.pack(order + "BBHBBHffffdddIB3x", LOS_VECTOR_REQUEST, 56, los_id, flags, alpha, entity_id,
+                       azimuth, elevation, min_range, max_range, src[0], src[1], src[2], material_mask,
+                       update_period)
+
+
+def decode_los_responses(data):
+    """The LOS responses after an IG message's Start of Frame (in its byte order):
+    LOS Response, 16 bytes (ICD 3.3, 4.2.4): 0 id | 1 size | 2-3 LOS ID
+      4 valid (0), entity ID valid (1), visible (2), host frame LSN (4-7) | 5 response count | 6-7 entity id
+      8-15 range f64
+    LOS Extended Response, 56 bytes (4.2.5): 0 id | 1 size | 2-3 LOS ID
+      4 valid (0), entity ID valid (1), range valid (2), visible (3), host frame LSN (4-7)
+      5 response count | 6-7 entity id | 8-15 range f64 | 16-23, 24-31, 32-39 lat / lon / alt (or x / y / z) f64
+      40-43 red, green, blue, alpha | 44-47 material code u32 | 48-51 normal azimuth f32
+      52-55 normal elevation f32"""
+    order = decode_start_of_frame(data)["order"]
+    out = []
+    at = 24
+    while at + 2 <= len(data):
+        pid, size = data[at], data[at + 1]
+        if pid == LOS_RESPONSE and size == 16:
+            _, _, lid, flags, count, entity, rng = struct.unpack(order + "BBHBBHd", data[at:at + 16])
+            out.append({"ext": False, "id": lid, "valid": flags & 1, "entity_valid": (flags >> 1) & 1,
+                        "visible": (flags >> 2) & 1, "lsn": flags >> 4, "count": count, "entity": entity,
+                        "range": rng})
+        elif pid == LOS_EXT_RESPONSE and size == 56:
+            (_, _, lid, flags, count, entity, rng, lat, lon, alt, red, green, blue, alpha, material, az,
+             el) = struct.unpack(order + "BBHBBHddddBBBBIff", data[at:at + 56])
+            out.append({"ext": True, "id": lid, "valid": flags & 1, "entity_valid": (flags >> 1) & 1,
+                        "range_valid": (flags >> 2) & 1, "visible": (flags >> 3) & 1, "lsn": flags >> 4,
+                        "count": count, "entity": entity, "range": rng, "lat": lat, "lon": lon, "alt": alt,
+                        "rgba": (red, green, blue, alpha), "material": material, "azimuth": az, "elevation": el})
         at += max(size, 2)
     return out
 

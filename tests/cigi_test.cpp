@@ -367,6 +367,238 @@ TEST(CigiCodec, HatHotRequestAndResponsesRoundTripAndLayout) {
   EXPECT_EQ(validateHatHotRequest(g), uint32_t{kHatHotLatX});
 }
 
+TEST(CigiCodec, LosRequestsAndResponsesRoundTripAndLayout) {
+  LosRequest seg;
+  seg.kind = LosRequest::kSegment;
+  seg.losId = 0x1234;
+  seg.extended = true;
+  seg.destinationEntity = true;
+  seg.destinationEntityIdValid = true;
+  seg.alphaThreshold = 7;
+  seg.entityId = 0x0506;
+  seg.srcLat_deg = 57.5;
+  seg.srcLon_deg = -11.25;
+  seg.srcAlt_m = 1234.5;
+  seg.dstLat_deg = 10.0;
+  seg.dstLon_deg = 20.0;
+  seg.dstAlt_m = -30.0;
+  seg.materialMask = 0x01020304;
+  seg.updatePeriod = 9;
+  seg.destinationEntityId = 0x0a0b;
+  LosRequest vec;
+  vec.kind = LosRequest::kVector;
+  vec.losId = 0x2345;
+  vec.sourceEntity = true;
+  vec.responseEntity = true;
+  vec.alphaThreshold = 3;
+  vec.entityId = 0x0708;
+  vec.azimuth_deg = 45.5f;
+  vec.elevation_deg = -5.0f;
+  vec.minRange_m = 1.0f;
+  vec.maxRange_m = 2000.0f;
+  vec.srcLat_deg = 1.25;
+  vec.srcLon_deg = 2.25;
+  vec.srcAlt_m = 3.25;
+  vec.materialMask = 88;
+  vec.updatePeriod = 6;
+  LosResponse r;
+  r.losId = 0x0708;
+  r.valid = true;
+  r.visible = true;
+  r.hostFrameLsn = 0xa;
+  r.entityId = 0x0c0d;
+  r.range_m = 123.25;
+  LosExtendedResponse x;
+  x.losId = 0x4321;
+  x.valid = true;
+  x.rangeValid = true;
+  x.entityIdValid = true;
+  x.hostFrameLsn = 5;
+  x.responseCount = 1;
+  x.entityId = 0x0e0f;
+  x.range_m = 11.5;
+  x.lat_deg = 57.5;
+  x.lon_deg = -11.25;
+  x.alt_m = 22.75;
+  x.red = 1, x.green = 2, x.blue = 3, x.alpha = 4;
+  x.materialCode = 9;
+  x.normalAzimuth_deg = 45.5f;
+  x.normalElevation_deg = 80.25f;
+  for (ByteOrder order : {ByteOrder::big, ByteOrder::little}) {
+    const bool be = order == ByteOrder::big;
+    Bytes b;
+    append(b, Sample().ig, order);
+    append(b, seg, order);
+    append(b, vec, order);
+    ASSERT_EQ(b.size(), 24u + 64u + 56u);
+    // Segment at 24: flags extended | destination entity | destination entity id valid.
+    EXPECT_EQ(at(b, 24), 25);
+    EXPECT_EQ(at(b, 25), 64);
+    EXPECT_EQ(at(b, 26), be ? 0x12 : 0x34);
+    EXPECT_EQ(at(b, 28), 0x01 | 0x04 | 0x10);
+    EXPECT_EQ(at(b, 29), 7);
+    EXPECT_EQ(at(b, 30), be ? 0x05 : 0x06);
+    EXPECT_EQ(at(b, be ? 32 : 39), 0x40);  // source latitude 57.5 = 0x404CC00000000000 at +8
+    EXPECT_EQ(at(b, be ? 33 : 38), 0x4c);
+    EXPECT_EQ(at(b, be ? 56 : 63), 0x40);  // destination latitude 10 = 0x4024000000000000 at +32
+    EXPECT_EQ(at(b, be ? 57 : 62), 0x24);
+    EXPECT_EQ(at(b, be ? 80 : 83), 0x01);  // material mask at +56
+    EXPECT_EQ(at(b, 84), 9);               // update period at +60
+    EXPECT_EQ(at(b, be ? 86 : 87), 0x0a);  // destination entity id at +62
+    // Vector at 88: flags source entity | response entity.
+    EXPECT_EQ(at(b, 88), 26);
+    EXPECT_EQ(at(b, 89), 56);
+    EXPECT_EQ(at(b, 92), 0x02 | 0x04);
+    EXPECT_EQ(at(b, 93), 3);
+    EXPECT_EQ(at(b, be ? 96 : 99), 0x42);   // azimuth 45.5f = 0x42360000 at +8
+    EXPECT_EQ(at(b, be ? 108 : 111), 0x44); // max range 2000f = 0x44FA0000 at +20
+    EXPECT_EQ(at(b, be ? 109 : 110), 0xfa);
+    EXPECT_EQ(at(b, be ? 112 : 119), 0x3f); // source x 1.25 = 0x3FF4000000000000 at +24
+    EXPECT_EQ(at(b, be ? 113 : 118), 0xf4);
+    EXPECT_EQ(at(b, be ? 139 : 136), 88);   // material mask at +48
+    EXPECT_EQ(at(b, 140), 6);               // update period at +52
+    ASSERT_EQ(decode(b), CigiStatus::ok);
+    ASSERT_EQ(scratch().losCount, 2u);
+    const LosRequest& s = scratch().losRequests[0];
+    EXPECT_EQ(s.kind, LosRequest::kSegment);
+    EXPECT_EQ(s.losId, 0x1234);
+    EXPECT_TRUE(s.extended && s.destinationEntity && s.destinationEntityIdValid);
+    EXPECT_FALSE(s.sourceEntity || s.responseEntity);
+    EXPECT_EQ(s.alphaThreshold, 7);
+    EXPECT_EQ(s.entityId, 0x0506);
+    EXPECT_EQ(s.srcLat_deg, 57.5);
+    EXPECT_EQ(s.srcLon_deg, -11.25);
+    EXPECT_EQ(s.srcAlt_m, 1234.5);
+    EXPECT_EQ(s.dstLat_deg, 10.0);
+    EXPECT_EQ(s.dstLon_deg, 20.0);
+    EXPECT_EQ(s.dstAlt_m, -30.0);
+    EXPECT_EQ(s.materialMask, 0x01020304u);
+    EXPECT_EQ(s.updatePeriod, 9);
+    EXPECT_EQ(s.destinationEntityId, 0x0a0b);
+    const LosRequest& v = scratch().losRequests[1];
+    EXPECT_EQ(v.kind, LosRequest::kVector);
+    EXPECT_EQ(v.losId, 0x2345);
+    EXPECT_TRUE(!v.extended && v.sourceEntity && v.responseEntity);
+    EXPECT_EQ(v.entityId, 0x0708);
+    EXPECT_EQ(v.azimuth_deg, 45.5f);
+    EXPECT_EQ(v.elevation_deg, -5.0f);
+    EXPECT_EQ(v.minRange_m, 1.0f);
+    EXPECT_EQ(v.maxRange_m, 2000.0f);
+    EXPECT_EQ(v.srcLat_deg, 1.25);
+    EXPECT_EQ(v.srcLon_deg, 2.25);
+    EXPECT_EQ(v.srcAlt_m, 3.25);
+    EXPECT_EQ(v.materialMask, 88u);
+    EXPECT_EQ(v.updatePeriod, 6);
+
+    Bytes rb;
+    append(rb, r, order);
+    ASSERT_EQ(rb.size(), 16u);
+    EXPECT_EQ(at(rb, 0), 104);
+    EXPECT_EQ(at(rb, 1), 16);
+    EXPECT_EQ(at(rb, 2), be ? 0x07 : 0x08);
+    EXPECT_EQ(at(rb, 4), 0x01 | 0x04 | 0xa0);
+    EXPECT_EQ(at(rb, 5), 1);  // response count
+    EXPECT_EQ(at(rb, be ? 6 : 7), 0x0c);
+    EXPECT_EQ(at(rb, be ? 8 : 15), 0x40);  // 123.25 = 0x405ED00000000000
+    EXPECT_EQ(at(rb, be ? 9 : 14), 0x5e);
+    LosResponse rd;
+    ASSERT_TRUE(decodePacket(rb, order, rd));
+    EXPECT_EQ(rd.losId, r.losId);
+    EXPECT_TRUE(rd.valid && rd.visible && !rd.entityIdValid);
+    EXPECT_EQ(rd.hostFrameLsn, 0xa);
+    EXPECT_EQ(rd.responseCount, 1);
+    EXPECT_EQ(rd.entityId, 0x0c0d);
+    EXPECT_EQ(rd.range_m, 123.25);
+
+    Bytes xb;
+    append(xb, x, order);
+    ASSERT_EQ(xb.size(), 56u);
+    EXPECT_EQ(at(xb, 0), 105);
+    EXPECT_EQ(at(xb, 1), 56);
+    EXPECT_EQ(at(xb, 4), 0x01 | 0x02 | 0x04 | 0x50);
+    EXPECT_EQ(at(xb, 5), 1);
+    EXPECT_EQ(at(xb, be ? 8 : 15), 0x40);   // range 11.5 = 0x4027000000000000
+    EXPECT_EQ(at(xb, be ? 9 : 14), 0x27);
+    EXPECT_EQ(at(xb, be ? 16 : 23), 0x40);  // latitude 57.5
+    EXPECT_EQ(at(xb, be ? 17 : 22), 0x4c);
+    EXPECT_EQ(at(xb, be ? 32 : 39), 0x40);  // altitude 22.75 = 0x4036C00000000000
+    EXPECT_EQ(at(xb, be ? 33 : 38), 0x36);
+    EXPECT_EQ(at(xb, 40), 1);
+    EXPECT_EQ(at(xb, 43), 4);
+    EXPECT_EQ(at(xb, be ? 47 : 44), 9);     // material code
+    EXPECT_EQ(at(xb, be ? 48 : 51), 0x42);  // azimuth 45.5f = 0x42360000
+    EXPECT_EQ(at(xb, be ? 52 : 55), 0x42);  // elevation 80.25f = 0x42A08000
+    EXPECT_EQ(at(xb, be ? 53 : 54), 0xa0);
+    LosExtendedResponse xd;
+    ASSERT_TRUE(decodePacket(xb, order, xd));
+    EXPECT_EQ(xd.losId, x.losId);
+    EXPECT_TRUE(xd.valid && xd.rangeValid && xd.entityIdValid && !xd.visible);
+    EXPECT_EQ(xd.hostFrameLsn, 5);
+    EXPECT_EQ(xd.entityId, 0x0e0f);
+    EXPECT_EQ(xd.range_m, 11.5);
+    EXPECT_EQ(xd.lat_deg, 57.5);
+    EXPECT_EQ(xd.lon_deg, -11.25);
+    EXPECT_EQ(xd.alt_m, 22.75);
+    EXPECT_EQ(xd.red + xd.green + xd.blue + xd.alpha, 10);
+    EXPECT_EQ(xd.materialCode, 9u);
+    EXPECT_EQ(xd.normalAzimuth_deg, 45.5f);
+    EXPECT_EQ(xd.normalElevation_deg, 80.25f);
+    EXPECT_FALSE(decodePacket(rb, order, xd));  // wrong id
+    EXPECT_FALSE(decodePacket(std::span(xb.data(), 55), order, xd));
+  }
+  // Wrong sizes are malformed; more than capacity are counted, not kept.
+  for (const uint8_t id : {uint8_t{25}, uint8_t{26}}) {
+    Bytes bad;
+    append(bad, Sample().ig, ByteOrder::big);
+    appendUnknown(bad, id, 60);
+    EXPECT_EQ(decode(bad), CigiStatus::badPacketSize) << int(id);
+  }
+  Bytes many;
+  append(many, Sample().ig, ByteOrder::big);
+  for (size_t i = 0; i <= HostMessage::kMaxLosRequests; ++i) append(many, i % 2 ? vec : seg, ByteOrder::big);
+  ASSERT_EQ(decode(many), CigiStatus::ok);
+  EXPECT_EQ(scratch().losCount, HostMessage::kMaxLosRequests);
+  EXPECT_EQ(scratch().losOmitted, 1u);
+  EXPECT_EQ(scratch().omittedPackets, 1u);
+  // Validation: points as HAT/HOT's, vector angles and ranges.
+  LosRequest g;
+  g.srcLat_deg = 46.5;
+  g.srcLon_deg = 7.9;
+  g.srcAlt_m = 500.0;
+  g.dstLat_deg = 46.6;
+  g.dstLon_deg = 7.9;
+  g.dstAlt_m = 500.0;
+  EXPECT_EQ(validateLosRequest(g), 0u);
+  g.srcAlt_m = kNaN;
+  g.dstLat_deg = 90.5;
+  g.dstLon_deg = -180.5;
+  g.dstAlt_m = 1.1e6;
+  EXPECT_EQ(validateLosRequest(g), uint32_t{kLosSrcAltZ | kLosDstLatX | kLosDstLonY | kLosDstAltZ});
+  g.destinationEntity = true;
+  g.dstLat_deg = 2.0e5;
+  g.dstLon_deg = -1.0e5;
+  g.dstAlt_m = 0.0;
+  EXPECT_EQ(validateLosRequest(g), uint32_t{kLosSrcAltZ | kLosDstLatX});
+  LosRequest w;
+  w.kind = LosRequest::kVector;
+  w.srcAlt_m = 100.0;
+  w.azimuth_deg = 359.0f;
+  w.elevation_deg = -90.0f;
+  w.maxRange_m = 1000.0f;
+  w.dstLat_deg = kNaN;  // not a vector's field
+  EXPECT_EQ(validateLosRequest(w), 0u);
+  w.azimuth_deg = 361.0f;
+  w.elevation_deg = std::numeric_limits<float>::quiet_NaN();
+  w.minRange_m = 10.0f;
+  w.maxRange_m = 5.0f;  // below the minimum
+  EXPECT_EQ(validateLosRequest(w), uint32_t{kLosAzimuth | kLosElevation | kLosMaxRange});
+  w.azimuth_deg = 0.0f;
+  w.elevation_deg = 0.0f;
+  w.minRange_m = -1.0f;
+  w.maxRange_m = 2.0e6f;
+  EXPECT_EQ(validateLosRequest(w), uint32_t{kLosMinRange | kLosMaxRange});
+}
+
 TEST(CigiCodec, EveryTruncationInsideAPacketIsRejected) {
   const Sample s;
   for (ByteOrder order : {ByteOrder::big, ByteOrder::little}) {
@@ -1196,3 +1428,234 @@ TEST(CigiHatHot, PeriodicRequestsCancelAndBoundedWorkPerFrame) {
   EXPECT_EQ(r.refused(), 1u);
 }
 
+
+// ---------------------------------------------------------------------------------------------
+// Line of sight: LOS Segment / Vector Requests answered from the terrain.
+
+namespace {
+
+ig::lod::Geodetic geodeticOf(glm::dvec3 enu) { return ig::lod::EnuFrame(kOrigin).toGeodetic(enu); }
+
+LosRequest losSegment(uint16_t id, glm::dvec3 from, glm::dvec3 to, bool extended, uint8_t period = 0) {
+  const ig::lod::Geodetic a = geodeticOf(from), b = geodeticOf(to);
+  LosRequest r;
+  r.kind = LosRequest::kSegment;
+  r.losId = id;
+  r.extended = extended;
+  r.updatePeriod = period;
+  r.srcLat_deg = a.lat_deg;
+  r.srcLon_deg = a.lon_deg;
+  r.srcAlt_m = a.height_m;
+  r.dstLat_deg = b.lat_deg;
+  r.dstLon_deg = b.lon_deg;
+  r.dstAlt_m = b.height_m;
+  return r;
+}
+
+struct LosAnswers {
+  std::vector<LosResponse> basic;
+  std::vector<LosExtendedResponse> extended;
+  size_t bytes = 0;
+};
+LosAnswers answerLosFrame(CigiHatHotResponder& r, uint32_t igFrame, const ig::lod::HeightGrid* terrain,
+                          const HostState* host = nullptr, ByteOrder order = ByteOrder::little) {
+  Bytes buf(CigiHatHotResponder::kMaxBytesPerFrame);
+  const size_t n = r.answer(igFrame, 0x1233, terrain, host, order, buf);
+  LosAnswers a;
+  a.bytes = n;
+  for (size_t at = 0; at < n; at += std::to_integer<uint8_t>(buf[at + 1])) {
+    const std::span<const std::byte> p(buf.data() + at, n - at);
+    if (std::to_integer<uint8_t>(buf[at]) == 104) {
+      EXPECT_TRUE(decodePacket(p, order, a.basic.emplace_back()));
+      EXPECT_EQ(a.basic.back().hostFrameLsn, 3);
+    } else if (std::to_integer<uint8_t>(buf[at]) == 105) {
+      EXPECT_TRUE(decodePacket(p, order, a.extended.emplace_back()));
+      EXPECT_EQ(a.extended.back().hostFrameLsn, 3);
+    }
+  }
+  return a;
+}
+
+}  // namespace
+
+TEST(CigiLos, SegmentAnswersTheFirstTerrainIntersection) {
+  const Plane plane;
+  CigiHatHotResponder r(kOrigin);
+  // From 200 m above the ENU origin down through the plane: 200 - 300 t = 50 + 0.02 (400 t) + 0.01 (300 t).
+  const glm::dvec3 a{0.0, 0.0, 200.0}, b{400.0, 300.0, -100.0};
+  const double t = 150.0 / 311.0;
+  r.add(LosJob{losSegment(1, a, b, false), 0}, 5);
+  r.add(LosJob{losSegment(2, a, b, true), 0}, 5);
+  r.add(LosJob{losSegment(3, a, {500.0, 0.0, 200.0}, true), 0}, 5);           // above the ground all the way
+  r.add(LosJob{losSegment(4, a, {100.0, 0.0, Plane::z(100.0, 0.0)}, false), 0}, 5);  // ends on the ground
+  r.add(LosJob{losSegment(5, a, b, true), kLosSrcLatX}, 5);                     // a rejected field
+  LosAnswers got = answerLosFrame(r, 5, &plane.grid);
+  ASSERT_EQ(got.basic.size(), 2u);
+  ASSERT_EQ(got.extended.size(), 3u);
+  const double range = t * glm::length(b - a);
+  EXPECT_EQ(got.basic[0].losId, 1);
+  EXPECT_TRUE(got.basic[0].valid);
+  EXPECT_FALSE(got.basic[0].visible);
+  EXPECT_FALSE(got.basic[0].entityIdValid);
+  EXPECT_EQ(got.basic[0].responseCount, 1);
+  EXPECT_NEAR(got.basic[0].range_m, range, 1e-3);
+  const LosExtendedResponse& x = got.extended[0];
+  EXPECT_TRUE(x.valid && x.rangeValid && !x.visible && !x.entityIdValid);
+  EXPECT_NEAR(x.range_m, range, 1e-3);
+  const ig::lod::Geodetic hit = geodeticOf(a + (b - a) * t);
+  EXPECT_NEAR(x.lat_deg, hit.lat_deg, 1e-9);
+  EXPECT_NEAR(x.lon_deg, hit.lon_deg, 1e-9);
+  EXPECT_NEAR(x.alt_m, hit.height_m, 1e-3);
+  EXPECT_EQ(x.materialCode, 0u);
+  EXPECT_EQ(x.red + x.green + x.blue + x.alpha, 0);
+  // LOS and HOT agree at the hit point, normal included.
+  HatHotRequest hot;
+  hot.requestType = HatHotRequest::kExtended;
+  hot.lat_deg = x.lat_deg;
+  hot.lon_deg = x.lon_deg;
+  hot.alt_m = x.alt_m;
+  const HatHotAnswer h = computeHatHot(hot, ig::lod::EnuFrame(kOrigin), kOrigin.height_m, &plane.grid, nullptr);
+  ASSERT_TRUE(h.valid);
+  EXPECT_NEAR(h.hot_m, x.alt_m, 1e-3);
+  EXPECT_NEAR(h.normalAzimuth_deg, x.normalAzimuth_deg, 1e-3);
+  EXPECT_NEAR(h.normalElevation_deg, x.normalElevation_deg, 1e-3);
+  // Clear of the ground: not valid, visible. Ending on the ground (to rounding): visible, and
+  // where rounding puts the destination a hair below the surface, valid at the destination.
+  EXPECT_FALSE(got.extended[1].valid);
+  EXPECT_TRUE(got.extended[1].visible);
+  EXPECT_EQ(got.basic[1].losId, 4);
+  EXPECT_TRUE(got.basic[1].visible);
+  if (got.basic[1].valid) {
+    EXPECT_NEAR(got.basic[1].range_m, glm::length(glm::dvec3{100.0, 0.0, Plane::z(100.0, 0.0)} - a), 1e-3);
+  }
+  EXPECT_EQ(got.extended[2].losId, 5);
+  EXPECT_FALSE(got.extended[2].valid || got.extended[2].visible);
+  // No terrain: not valid.
+  r.add(LosJob{losSegment(6, a, b, false), 0}, 6);
+  got = answerLosFrame(r, 6, nullptr);
+  ASSERT_EQ(got.basic.size(), 1u);
+  EXPECT_FALSE(got.basic[0].valid);
+  EXPECT_EQ(r.losAnswered(), 6u);
+  EXPECT_EQ(r.answered(), 0u);  // HAT/HOT's counter
+  EXPECT_TRUE(r.idle());
+}
+
+TEST(CigiLos, VectorAndEntityCoordinates) {
+  const Plane plane;
+  CigiHatHotResponder r(kOrigin);
+  // 300 m above the origin, due east, 45 deg down: 300 - s sin45 = 50 + 0.02 s cos45.
+  const ig::lod::Geodetic src = geodeticOf({0.0, 0.0, 300.0});
+  LosRequest v;
+  v.kind = LosRequest::kVector;
+  v.losId = 7;
+  v.extended = true;
+  v.srcLat_deg = src.lat_deg;
+  v.srcLon_deg = src.lon_deg;
+  v.srcAlt_m = src.height_m;
+  v.azimuth_deg = 90.0f;
+  v.elevation_deg = -45.0f;
+  v.minRange_m = 10.0f;
+  v.maxRange_m = 1000.0f;
+  r.add(LosJob{v, 0}, 1);
+  LosRequest shortVector = v;
+  shortVector.losId = 8;
+  shortVector.maxRange_m = 300.0f;  // stops short of the ground
+  r.add(LosJob{shortVector, 0}, 1);
+  LosAnswers got = answerLosFrame(r, 1, &plane.grid, nullptr, ByteOrder::big);
+  ASSERT_EQ(got.extended.size(), 2u);
+  const double s = 250.0 / (std::sqrt(0.5) * 1.02);
+  EXPECT_TRUE(got.extended[0].valid);
+  EXPECT_FALSE(got.extended[0].visible);
+  EXPECT_NEAR(got.extended[0].range_m, s, 1e-3);
+  const ig::lod::Geodetic hit = geodeticOf({s * std::sqrt(0.5), 0.0, 300.0 - s * std::sqrt(0.5)});
+  EXPECT_NEAR(got.extended[0].lat_deg, hit.lat_deg, 1e-8);
+  EXPECT_NEAR(got.extended[0].lon_deg, hit.lon_deg, 1e-8);
+  EXPECT_NEAR(got.extended[0].alt_m, hit.height_m, 1e-3);
+  EXPECT_FALSE(got.extended[1].valid);
+  // Entity coordinates: an ownship 500 m above the origin heading east; from the ownship to 1 km
+  // ahead and 1 km down: 500 - d = 50 + 0.02 d. Response point as offsets in body axes.
+  HostState host;
+  LosRequest e;
+  e.kind = LosRequest::kSegment;
+  e.losId = 9;
+  e.extended = true;
+  e.sourceEntity = e.destinationEntity = e.responseEntity = true;
+  e.dstLat_deg = 1000.0;
+  e.dstAlt_m = 1000.0;
+  r.add(LosJob{e, 0}, 2);
+  got = answerLosFrame(r, 2, &plane.grid, &host);  // no ownship yet: not valid
+  ASSERT_EQ(got.extended.size(), 1u);
+  EXPECT_FALSE(got.extended[0].valid);
+  host.hasOwnship = true;
+  host.ownshipLat_deg = kOrigin.lat_deg;
+  host.ownshipLon_deg = kOrigin.lon_deg;
+  host.ownshipAlt_m = kOrigin.height_m + 500.0;
+  host.ownshipYaw_deg = 90.0;
+  r.add(LosJob{e, 0}, 3);
+  got = answerLosFrame(r, 3, &plane.grid, &host);
+  ASSERT_EQ(got.extended.size(), 1u);
+  const double d = 450.0 / 1.02;
+  EXPECT_TRUE(got.extended[0].valid);
+  EXPECT_NEAR(got.extended[0].range_m, d * std::sqrt(2.0), 1e-3);
+  EXPECT_NEAR(got.extended[0].lat_deg, d, 1e-3);  // x forward
+  EXPECT_NEAR(got.extended[0].lon_deg, 0.0, 1e-3);
+  EXPECT_NEAR(got.extended[0].alt_m, d, 1e-3);    // z down
+}
+
+TEST(CigiLos, PeriodicCancelAndAByteCapPerDatagram) {
+  const Plane plane;
+  CigiHatHotResponder r(kOrigin);
+  const glm::dvec3 a{0.0, 0.0, 200.0}, b{400.0, 300.0, -100.0};
+  r.add(LosJob{losSegment(9, a, b, false, 3), 0}, 10);  // every 3rd frame
+  r.add(HatHotJob{geodeticRequest(9, HatHotRequest::kHot, 0.0, 0.0, 0.0, 0), 0}, 10);  // not the same ID space
+  std::vector<uint32_t> answeredAt;
+  for (uint32_t f = 10; f < 20; ++f) {
+    if (f == 15) r.add(LosJob{losSegment(9, a, b, false, 0), 0}, f);  // cancel (answered once)
+    if (!answerLosFrame(r, f, &plane.grid).basic.empty()) answeredAt.push_back(f);
+  }
+  EXPECT_EQ(answeredAt, (std::vector<uint32_t>{10, 13, 15}));
+  EXPECT_TRUE(r.idle());
+  EXPECT_EQ(r.answered(), 1u);
+  // 40 extended requests: 25 x 56 bytes fit one datagram with its Start of Frame (1,472 bytes).
+  for (uint16_t i = 0; i < 40; ++i) r.add(LosJob{losSegment(i, a, b, true), 0}, 20);
+  LosAnswers got = answerLosFrame(r, 20, &plane.grid);
+  EXPECT_EQ(got.extended.size(), 25u);
+  EXPECT_LE(kStartOfFrameSize + got.bytes, 1472u);
+  EXPECT_EQ(r.losDeferred(), 15u);
+  EXPECT_EQ(answerLosFrame(r, 21, &plane.grid).extended.size(), 15u);
+  // A full table of periodic requests refuses the next one (answered once).
+  for (uint16_t i = 0; i <= CigiHatHotResponder::kMaxPeriodic; ++i) r.add(LosJob{losSegment(100 + i, a, b, false, 200), 0}, 22);
+  EXPECT_EQ(r.periodicCount(), CigiHatHotResponder::kMaxPeriodic);
+  EXPECT_EQ(r.losRefused(), 1u);
+  EXPECT_EQ(r.refused(), 0u);
+}
+
+TEST(CigiAssembler, LosRequestsAreValidatedLikeHatHot) {
+  CigiAssembler a({}, kOrigin);
+  LinkCounters c;
+  Host h;
+  Bytes b = h.message();
+  LosRequest good = losSegment(1, {0.0, 0.0, 200.0}, {100.0, 0.0, 0.0}, false);
+  LosRequest nan = good;
+  nan.losId = 2;
+  nan.dstAlt_m = kNaN;
+  LosRequest other = good;  // entity coordinates of an entity igd does not know
+  other.losId = 3;
+  other.sourceEntity = true;
+  other.srcLat_deg = other.srcLon_deg = other.srcAlt_m = 0.0;
+  other.entityId = 9;
+  LosRequest vec;
+  vec.kind = LosRequest::kVector;
+  vec.losId = 4;
+  vec.elevation_deg = 91.0f;
+  vec.maxRange_m = 100.0f;
+  for (const LosRequest& r : {good, nan, other, vec}) append(b, r, ByteOrder::big);
+  ASSERT_EQ(a.apply(b, c), CigiAssembler::Result::published);
+  const CigiAssembler::LosJobs jobs = a.losJobs();
+  ASSERT_EQ(jobs.requests.size(), 4u);
+  EXPECT_EQ(jobs.bad[0], 0u);
+  EXPECT_EQ(jobs.bad[1], uint32_t{kLosDstAltZ});
+  EXPECT_EQ(jobs.bad[2], CigiAssembler::kLosUnknownEntity);
+  EXPECT_EQ(jobs.bad[3], uint32_t{kLosElevation});
+  EXPECT_EQ(c.outOfRange.load(), 3u);
+}

@@ -376,3 +376,152 @@ TEST(TerrainGrid, PlaneNormalsAreExactOnTheBorderToo) {
       for (int i = 0; i < 3; ++i) ASSERT_NEAR(a.normal[i], b.normal[i], 1e-6) << x << "," << y;
     }
 }
+
+// ---------------------------------------------------------------------------------------------
+// intersectGround: the first point of a segment on the bilinear surface sampleGround reports.
+
+namespace {
+
+struct Grid {
+  std::vector<float> h;
+  HeightGrid g;
+  Grid(int w, int n, double spacing, glm::dvec3 origin, double (*z)(int, int)) {
+    for (int y = 0; y < n; ++y)
+      for (int x = 0; x < w; ++x) h.push_back(static_cast<float>(z(x, y)));
+    g = {h, w, n, spacing, origin};
+  }
+};
+
+}  // namespace
+
+TEST(IntersectGround, FlatGridAndSlopedPlaneAnalytic) {
+  const Grid flat(11, 11, 10.0, {0.0, 0.0, 0.0}, [](int, int) { return 10.0; });
+  GroundHit hit;
+  ASSERT_TRUE(intersectGround(flat.g, {5.0, 5.0, 20.0}, {95.0, 95.0, 0.0}, hit));
+  EXPECT_NEAR(hit.t, 0.5, 1e-12);
+  EXPECT_NEAR(hit.point_m.x, 50.0, 1e-9);
+  EXPECT_NEAR(hit.point_m.y, 50.0, 1e-9);
+  EXPECT_DOUBLE_EQ(hit.point_m.z, 10.0);
+  EXPECT_NEAR(hit.normal.z, 1.0, 1e-12);
+  // z = 5 + 0.3 east + 0.1 north (grid-local, posts 4 m apart, origin moved): bilinear patches
+  // reproduce the plane, so the hit solves 200 - 300 t = 5 + 0.3 (x(t) + 50) + 0.1 (y(t) + 60) + 100.
+  const Grid plane(26, 31, 4.0, {-50.0, -60.0, 100.0}, [](int x, int y) { return 5.0 + 0.3 * 4 * x + 0.1 * 4 * y; });
+  const glm::dvec3 a{-40.0, -50.0, 200.0}, b{45.0, 55.0, -100.0};
+  ASSERT_TRUE(intersectGround(plane.g, a, b, hit));
+  // f(t) = 200 - 300 t - [105 + 0.3 (10 + 85 t) + 0.1 (10 + 105 t)] = 91 - 336 t
+  EXPECT_NEAR(hit.t, 91.0 / 336.0, 1e-9);
+  GroundSample s;
+  ASSERT_TRUE(sampleGround(plane.g, hit.point_m.x, hit.point_m.y, s));
+  EXPECT_DOUBLE_EQ(hit.point_m.z, s.height_m);  // the same surface HAT/HOT samples
+  EXPECT_NEAR(hit.point_m.z, (a + (b - a) * hit.t).z, 1e-6);
+  const double len = std::sqrt(0.3 * 0.3 + 0.1 * 0.1 + 1.0);
+  EXPECT_NEAR(hit.normal.x, -0.3 / len, 1e-6);
+  EXPECT_NEAR(hit.normal.y, -0.1 / len, 1e-6);
+}
+
+TEST(IntersectGround, RidgeBlocksASegmentThatClearsTheFlat) {
+  // Flat at 0 with a 50 m ridge along post column 5 (east 50 m).
+  const Grid ridge(11, 11, 10.0, {0.0, 0.0, 0.0}, [](int x, int) { return x == 5 ? 50.0 : 0.0; });
+  GroundHit hit;
+  ASSERT_TRUE(intersectGround(ridge.g, {10.0, 50.0, 30.0}, {90.0, 50.0, 30.0}, hit));
+  EXPECT_NEAR(hit.point_m.x, 46.0, 1e-9);  // 5 (x - 40) = 30 on the ridge's west slope
+  EXPECT_NEAR(hit.t, 36.0 / 80.0, 1e-12);
+  const Grid flat(11, 11, 10.0, {0.0, 0.0, 0.0}, [](int, int) { return 0.0; });
+  EXPECT_FALSE(intersectGround(flat.g, {10.0, 50.0, 30.0}, {90.0, 50.0, 30.0}, hit));
+  // A diagonal over the ridge: the bilinear patch is not a plane across the diagonal.
+  ASSERT_TRUE(intersectGround(ridge.g, {12.0, 3.0, 40.0}, {88.0, 97.0, 40.0}, hit));
+  EXPECT_NEAR(hit.point_m.z, 40.0, 1e-9);
+  EXPECT_LT(hit.point_m.x, 50.0);
+}
+
+TEST(IntersectGround, ParallelBelowStartLeavingTheGridZeroLengthNaNAndHugeCoordinates) {
+  const Grid flat(11, 11, 10.0, {0.0, 0.0, 0.0}, [](int, int) { return 10.0; });
+  GroundHit hit;
+  // Parallel to the ground, 0.5 m above it; on it: touches at the start.
+  EXPECT_FALSE(intersectGround(flat.g, {1.0, 2.0, 10.5}, {99.0, 97.0, 10.5}, hit));
+  ASSERT_TRUE(intersectGround(flat.g, {1.0, 2.0, 10.0}, {99.0, 97.0, 10.0}, hit));
+  EXPECT_EQ(hit.t, 0.0);
+  // Parallel to a sloped plane, 1 m above it.
+  const Grid slope(11, 11, 10.0, {0.0, 0.0, 0.0}, [](int x, int) { return 2.0 * x; });
+  EXPECT_FALSE(intersectGround(slope.g, {0.0, 50.0, 1.0}, {100.0, 50.0, 21.0}, hit));
+  // Vertical: straight down onto the slope at east 33.
+  ASSERT_TRUE(intersectGround(slope.g, {33.0, 40.0, 100.0}, {33.0, 40.0, -100.0}, hit));
+  EXPECT_NEAR(hit.point_m.z, 6.6, 1e-9);
+  // Starting below ground: the hit is the start.
+  ASSERT_TRUE(intersectGround(flat.g, {50.0, 50.0, 5.0}, {60.0, 60.0, 50.0}, hit));
+  EXPECT_EQ(hit.t, 0.0);
+  EXPECT_DOUBLE_EQ(hit.point_m.z, 10.0);
+  // Leaving the grid before it comes down to the ground: no hit.
+  EXPECT_FALSE(intersectGround(flat.g, {50.0, 50.0, 30.0}, {250.0, 50.0, 0.0}, hit));
+  // Entering the grid from outside, then down to the ground.
+  ASSERT_TRUE(intersectGround(flat.g, {-50.0, 50.0, 30.0}, {50.0, 50.0, 0.0}, hit));
+  EXPECT_NEAR(hit.t, 2.0 / 3.0, 1e-12);
+  EXPECT_NEAR(hit.point_m.x, 50.0 / 3.0, 1e-9);
+  // Missing the grid entirely.
+  EXPECT_FALSE(intersectGround(flat.g, {-50.0, -50.0, 0.0}, {-10.0, 200.0, 0.0}, hit));
+  // Zero length: above the ground no hit, below it a hit at t = 0.
+  EXPECT_FALSE(intersectGround(flat.g, {50.0, 50.0, 11.0}, {50.0, 50.0, 11.0}, hit));
+  ASSERT_TRUE(intersectGround(flat.g, {50.0, 50.0, 9.0}, {50.0, 50.0, 9.0}, hit));
+  EXPECT_EQ(hit.t, 0.0);
+  // NaN, infinities, huge coordinates.
+  const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
+  hit.t = -7.0;
+  EXPECT_FALSE(intersectGround(flat.g, {nan, 50.0, 30.0}, {50.0, 50.0, 0.0}, hit));
+  EXPECT_FALSE(intersectGround(flat.g, {50.0, 50.0, 30.0}, {50.0, 50.0, -inf}, hit));
+  EXPECT_FALSE(intersectGround(flat.g, {1e300, 50.0, 30.0}, {-1e300, 50.0, 0.0}, hit));
+  EXPECT_FALSE(intersectGround(flat.g, {1e15, 1e15, 30.0}, {2e15, 1e15, 0.0}, hit));
+  EXPECT_EQ(hit.t, -7.0);  // untouched
+  ASSERT_TRUE(intersectGround(flat.g, {1e15, 1e15, 1e6}, {50.0, 50.0, -1e6}, hit));
+  EXPECT_TRUE(std::isfinite(hit.point_m.x) && hit.point_m.x >= 0.0 && hit.point_m.x <= 100.0);
+  EXPECT_TRUE(std::isfinite(hit.point_m.y) && hit.point_m.y >= 0.0 && hit.point_m.y <= 100.0);
+  // A grid sampleGround refuses.
+  const Grid tiny(1, 1, 10.0, {0.0, 0.0, 0.0}, [](int, int) { return 0.0; });
+  EXPECT_FALSE(intersectGround(tiny.g, {0.0, 0.0, 1.0}, {0.0, 0.0, -1.0}, hit));
+}
+
+TEST(IntersectGround, MatchesAFineMarchOnAFractalHeightfield) {
+  HeightfieldDesc d;
+  d.postsX = d.postsY = 33;
+  d.postSpacing_m = 20.0;
+  d.heightScale_m = 200.0;
+  std::vector<float> h(33 * 33);
+  generateHeightfield(d, h);
+  const HeightGrid g{h, 33, 33, 20.0, {-320.0, -320.0, 0.0}};
+  uint32_t state = 12345;
+  auto rnd = [&](double lo, double hi) {
+    state = state * 1664525u + 1013904223u;
+    return lo + (hi - lo) * (state >> 8) / 16777216.0;
+  };
+  int hits = 0;
+  for (int i = 0; i < 60; ++i) {
+    const glm::dvec3 a{rnd(-400, 400), rnd(-400, 400), rnd(50, 260)}, b{rnd(-400, 400), rnd(-400, 400), rnd(-20, 200)};
+    GroundHit hit;
+    const bool got = intersectGround(g, a, b, hit);
+    // March: the first sample on or below the surface (sampleGround), 4,000 steps.
+    constexpr int kSteps = 4000;
+    int first = -1;
+    for (int k = 0; k <= kSteps && first < 0; ++k) {
+      const glm::dvec3 p = a + (b - a) * (static_cast<double>(k) / kSteps);
+      GroundSample s;
+      if (sampleGround(g, p.x, p.y, s) && p.z <= s.height_m) first = k;
+    }
+    if (first >= 0) {
+      ASSERT_TRUE(got) << i;
+      EXPECT_LE(hit.t, first / static_cast<double>(kSteps) + 1e-9) << i;
+      EXPECT_GE(hit.t, (first - 1) / static_cast<double>(kSteps) - 1e-9) << i;
+      ++hits;
+    }
+    if (got) {
+      GroundSample s;
+      ASSERT_TRUE(sampleGround(g, hit.point_m.x, hit.point_m.y, s));
+      const double z = (a + (b - a) * hit.t).z;
+      const bool edge = std::abs(std::abs(hit.point_m.x) - 320.0) < 1e-6 || std::abs(std::abs(hit.point_m.y) - 320.0) < 1e-6;
+      if (hit.t > 0.0 && !edge) {
+        EXPECT_NEAR(z, s.height_m, 1e-6) << i;
+      } else {
+        EXPECT_LE(z, s.height_m + 1e-6) << i;  // started, or entered the grid, below the ground
+      }
+    }
+  }
+  EXPECT_GT(hits, 10);
+}

@@ -171,11 +171,12 @@ TEST(Status, ReportCoversTheIntervalAndReplacesTheFile) {
   ctx.haveLink = true;
   ctx.link.received = 7;
   ctx.haveHatHot = true;
-  ctx.hatHot = {6, 5, 1, 2};
+  ctx.hatHot = {6, 5, 1, 2, 4, 3, 1, 7};
   r.report(2'000'000'000, ctx);
-  EXPECT_NE(r.json().find("\"dropped\":0},\"hat_hot\":{\"requests\":6,\"answered\":5,\"refused\":1,\"deferred\":2}},"),
+  EXPECT_NE(r.json().find("\"dropped\":0},\"hat_hot\":{\"requests\":6,\"answered\":5,\"refused\":1,\"deferred\":2},"
+                          "\"los\":{\"requests\":4,\"answered\":3,\"refused\":1,\"deferred\":7}},"),
             std::string::npos)
-      << "HAT/HOT counters in \"host\", after \"link\": " << r.json();
+      << "HAT/HOT and LOS counters in \"host\", after \"link\": " << r.json();
   EXPECT_NE(r.json().find("\"interval\":{\"seconds\":1.000,\"frames\":0"), std::string::npos) << r.json();
   EXPECT_NE(r.json().find("\"frames\":10,\"overruns\":1"), std::string::npos) << r.json();
   EXPECT_NE(r.json().find("\"governor\":null"), std::string::npos) << r.json();
