@@ -403,7 +403,7 @@ LosAnswer computeLos(const cigi::LosRequest& r, const lod::EnuFrame& enu, const 
   const double length_m = glm::length(toEnu - fromEnu);
   if (!std::isfinite(length_m)) return a;
   lod::GroundHit hit;
-  if (!lod::intersectGround(*terrain, fromEnu, toEnu, hit)) {
+  if (!lod::intersectGround(*terrain, fromEnu, toEnu, hit, &a.cells)) {
     a.visible = segment;  // nothing in the way (no terrain along it, or none above it)
     return a;
   }
@@ -489,9 +489,11 @@ size_t CigiHatHotResponder::answer(uint32_t igFrame, uint32_t lastHostFrame, con
   }
   const uint8_t lsn = static_cast<uint8_t>(lastHostFrame & 0x0f);
   size_t bytes = 0, n = 0, nLos = 0;
+  uint32_t losCells = 0;
   for (; n < kMaxAnswersPerFrame && pendingCount_ > 0; ++n) {
     const Job& next = pending_[pendingHead_];
     if (bytes + next.responseSize() > kMaxBytesPerFrame) break;  // the datagram is full
+    if (next.los && losCells >= kMaxLosCellsPerFrame) break;     // this frame's LOS work is spent
     const Job any = next;
     pendingHead_ = (pendingHead_ + 1) % kMaxPending;
     --pendingCount_;
@@ -500,6 +502,7 @@ size_t CigiHatHotResponder::answer(uint32_t igFrame, uint32_t lastHostFrame, con
       ++nLos;
       const cigi::LosRequest& r = any.losJob.request;
       const LosAnswer a = any.losJob.bad == 0 ? computeLos(r, enu_, terrain, host) : LosAnswer{};
+      losCells += a.cells;
       if (r.extended) {
         cigi::LosExtendedResponse x;
         x.losId = r.losId;

@@ -219,6 +219,7 @@ struct LosAnswer {
   double alt_m = 0.0;               //   coordinates
   float normalAzimuth_deg = 0.0f;   // surface normal there: from true north, clockwise, [-180, 180]
   float normalElevation_deg = 90.0f;  // above the local horizontal
+  uint32_t cells = 0;               // grid cells the intersection examined: the answer's cost
 };
 
 // The answer to one valid LOS request (pure): the first intersection of the segment (source ->
@@ -243,6 +244,11 @@ class CigiHatHotResponder {
   // bytes) fit, 25 LOS Extended Responses (56 bytes) do.
   static constexpr size_t kMaxDatagramBytes = 1472;
   static constexpr size_t kMaxBytesPerFrame = kMaxDatagramBytes - cigi::kStartOfFrameSize;
+  // A LOS answer walks the grid cells its ray crosses (up to width + height: 32,770 on a
+  // 16385-post DEM). Once a frame's LOS answers have examined this many cells the rest wait for
+  // the next frame (deferred), so a frame spends at most this plus one ray on LOS (one is always
+  // answered: the queue moves on).
+  static constexpr uint32_t kMaxLosCellsPerFrame = 16384;
 
   explicit CigiHatHotResponder(const lod::Geodetic& origin);
 
@@ -256,7 +262,8 @@ class CigiHatHotResponder {
   void add(const LosJob& job, uint32_t igFrame);
 
   // This frame's responses in queue order, at most kMaxAnswersPerFrame and kMaxBytesPerFrame
-  // bytes (the rest wait for the next frame, counted in deferred), encoded into `out`
+  // bytes, LOS ones until kMaxLosCellsPerFrame cells are spent (the rest wait for the next frame,
+  // counted in deferred), encoded into `out`
   // (>= kMaxBytesPerFrame bytes). Returns the bytes.
   size_t answer(uint32_t igFrame, uint32_t lastHostFrame, const lod::HeightGrid* terrain, const HostState* host,
                 cigi::ByteOrder order, std::span<std::byte> out);

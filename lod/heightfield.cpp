@@ -123,9 +123,9 @@ double firstRoot(double a, double b, double c, double len) {
   return r0 >= 0.0 && r0 <= len ? r0 : -1.0;
 }
 
-}  // namespace
-
-bool intersectGround(const HeightGrid& g, const glm::dvec3& from, const glm::dvec3& to, GroundHit& out) {
+// intersectGround, counting the cells it examines.
+bool intersectGroundCounting(const HeightGrid& g, const glm::dvec3& from, const glm::dvec3& to, GroundHit& out,
+                             uint32_t& visited) {
   if (g.width < 2 || g.height < 2 || !(g.spacing_m > 0.0) ||
       g.heights_m.size() < static_cast<size_t>(g.width) * static_cast<size_t>(g.height))
     return false;
@@ -165,6 +165,7 @@ bool intersectGround(const HeightGrid& g, const glm::dvec3& from, const glm::dve
   const double tDeltaX = dx != 0.0 ? std::abs(1.0 / dx) : HUGE_VAL, tDeltaY = dy != 0.0 ? std::abs(1.0 / dy) : HUGE_VAL;
   double ta = t0;
   for (int steps = 0; steps <= g.width + g.height; ++steps) {
+    ++visited;
     const double tb = std::min({tMaxX, tMaxY, t1});
     // The patch over cell (ix, iy): h00 + p u + q v + r u v with u, v in [0, 1]; along the
     // segment u = ua + du s, v = va + dv s, z = za + dz s with s = t - ta.
@@ -208,6 +209,15 @@ bool intersectGround(const HeightGrid& g, const glm::dvec3& from, const glm::dve
     ta = tb;
   }
   return false;
+}
+}  // namespace
+
+bool intersectGround(const HeightGrid& g, const glm::dvec3& from, const glm::dvec3& to, GroundHit& out,
+                     uint32_t* cellsVisited) {
+  uint32_t cells = 0;
+  const bool hit = intersectGroundCounting(g, from, to, out, cells);
+  if (cellsVisited) *cellsVisited = cells;
+  return hit;
 }
 
 }  // namespace ig::lod

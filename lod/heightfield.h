@@ -56,7 +56,9 @@ struct GroundHit {
 // cell's bilinear patch (height along the segment is quadratic in t). A segment that starts on or
 // below the surface hits at its start (t = 0, or where it enters the grid); a zero-length one
 // hits only there. Returns false (out untouched) for no hit, a non-finite point or a grid
-// sampleGround refuses. O(cells crossed) <= width + height, no allocation.
-bool intersectGround(const HeightGrid& grid, const glm::dvec3& from, const glm::dvec3& to, GroundHit& out);
+// sampleGround refuses. O(cells crossed) <= width + height, no allocation. `cellsVisited` (if
+// given) gets the number of cells examined, the call's cost, whatever the result.
+bool intersectGround(const HeightGrid& grid, const glm::dvec3& from, const glm::dvec3& to, GroundHit& out,
+                     uint32_t* cellsVisited = nullptr);
 
 }  // namespace ig::lod

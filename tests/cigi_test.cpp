@@ -1630,6 +1630,42 @@ TEST(CigiLos, PeriodicCancelAndAByteCapPerDatagram) {
   EXPECT_EQ(r.refused(), 0u);
 }
 
+// A LOS answer costs the grid cells its ray crosses: a frame answers rays until it has examined
+// kMaxLosCellsPerFrame cells (always one), the rest wait for the next frames, and nothing is lost.
+TEST(CigiLos, AFrameStopsAnsweringRaysOnceItsCellBudgetIsSpent) {
+  const int n = 1025;  // 1 m posts, flat at 0: each ray below passes 2,000 cells above the ground
+  const std::vector<float> heights(static_cast<size_t>(n) * n, 0.0f);
+  const ig::lod::HeightGrid grid{heights, n, n, 1.0, {-512.0, -512.0, 0.0}};
+  const glm::dvec3 a{-500.0, -500.0, 100.0}, b{500.0, 500.0, 50.0};
+  ig::lod::GroundHit hit;
+  uint32_t cellsPerRay = 0;
+  ASSERT_FALSE(ig::lod::intersectGround(grid, a, b, hit, &cellsPerRay));
+  ASSERT_GE(cellsPerRay, 1999u);
+  ASSERT_LE(cellsPerRay, 2001u);
+  CigiHatHotResponder r(kOrigin);
+  for (uint16_t i = 0; i < 20; ++i) r.add(LosJob{losSegment(i, a, b, false), 0}, 1);
+  // Rays while fewer than the budget's cells are spent: k with (k - 1) x cells < budget.
+  const size_t perFrame = (CigiHatHotResponder::kMaxLosCellsPerFrame + cellsPerRay - 1) / cellsPerRay;
+  ASSERT_LT(perFrame, 20u);
+  std::vector<size_t> answered;
+  std::vector<uint16_t> ids;
+  for (uint32_t f = 1; f <= 5 && !r.idle(); ++f) {
+    const LosAnswers got = answerLosFrame(r, f, &grid);
+    answered.push_back(got.basic.size());
+    for (const LosResponse& x : got.basic) {
+      ids.push_back(x.losId);
+      EXPECT_FALSE(x.valid);  // above the flat ground all the way
+      EXPECT_TRUE(x.visible);
+    }
+  }
+  EXPECT_EQ(answered, (std::vector<size_t>{perFrame, perFrame, 20 - 2 * perFrame}));
+  std::vector<uint16_t> all(20);
+  for (uint16_t i = 0; i < 20; ++i) all[i] = i;
+  EXPECT_EQ(ids, all) << "in queue order, each once";
+  EXPECT_EQ(r.losAnswered(), 20u);
+  EXPECT_EQ(r.losDeferred(), (20 - perFrame) + (20 - 2 * perFrame));
+}
+
 TEST(CigiAssembler, LosRequestsAreValidatedLikeHatHot) {
   CigiAssembler a({}, kOrigin);
   LinkCounters c;
