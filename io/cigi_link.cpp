@@ -326,6 +326,21 @@ void CigiAssembler::computeEye() {
 // ---------------------------------------------------------------------------------------------
 // HAT/HOT
 
+namespace {
+// A terrain normal (unit, scene ENU) at `enuPoint`, as CIGI's HAT/HOT and LOS Extended Responses
+// give it: azimuth from true north, clockwise, and elevation above the local horizontal at
+// lat_deg / lon_deg (the point's geodetic position).
+void normalAngles(const lod::EnuFrame& enu, const glm::dvec3& enuPoint, const glm::dvec3& normal, double lat_deg,
+                  double lon_deg, float& azimuth_deg, float& elevation_deg) {
+  const glm::dvec3 nEcef = enu.toEcef(enuPoint + normal) - enu.toEcef(enuPoint);
+  const glm::dvec3 nNed = glm::transpose(lod::nedToEcef(lat_deg, lon_deg)) * nEcef;
+  const double len = glm::length(nNed);
+  constexpr double kDeg = 180.0 / 3.14159265358979323846;
+  azimuth_deg = static_cast<float>(std::atan2(nNed.y, nNed.x) * kDeg);
+  elevation_deg = static_cast<float>(std::asin(std::clamp(-nNed.z / len, -1.0, 1.0)) * kDeg);
+}
+}  // namespace
+
 HatHotAnswer computeHatHot(const cigi::HatHotRequest& r, const lod::EnuFrame& enu, double originHeight_m,
                            const lod::HeightGrid* terrain, const HostState* host) {
   HatHotAnswer a;
@@ -356,13 +371,7 @@ HatHotAnswer computeHatHot(const cigi::HatHotRequest& r, const lod::EnuFrame& en
   a.valid = true;
   a.hot_m = guess_m;
   a.hat_m = hasAltitude ? point.height_m - a.hot_m : 0.0;
-  // The normal in the local north-east-down frame at the point.
-  const glm::dvec3 nEcef = enu.toEcef(surface + ground.normal) - enu.toEcef(surface);
-  const glm::dvec3 nNed = glm::transpose(lod::nedToEcef(point.lat_deg, point.lon_deg)) * nEcef;
-  const double len = glm::length(nNed);
-  constexpr double kDeg = 180.0 / 3.14159265358979323846;
-  a.normalAzimuth_deg = static_cast<float>(std::atan2(nNed.y, nNed.x) * kDeg);
-  a.normalElevation_deg = static_cast<float>(std::asin(std::clamp(-nNed.z / len, -1.0, 1.0)) * kDeg);
+  normalAngles(enu, surface, ground.normal, point.lat_deg, point.lon_deg, a.normalAzimuth_deg, a.normalElevation_deg);
   return a;
 }
 
@@ -408,14 +417,13 @@ LosAnswer computeLos(const cigi::LosRequest& r, const lod::EnuFrame& enu, const 
     return a;
   }
   const double along_m = hit.t * length_m;
-  const glm::dvec3 hitEcef = enu.toEcef(hit.point_m);
   const lod::Geodetic g = enu.toGeodetic(hit.point_m);
   if (!std::isfinite(g.lat_deg) || !std::isfinite(g.lon_deg) || !std::isfinite(g.height_m)) return a;
   a.valid = true;
   a.visible = segment && along_m >= length_m - 1e-3;  // the destination itself lies on the ground
   a.range_m = range0_m + along_m;
   if (r.responseEntity) {
-    const glm::dvec3 offset = glm::transpose(body) * (hitEcef - ownEcef);
+    const glm::dvec3 offset = glm::transpose(body) * (enu.toEcef(hit.point_m) - ownEcef);
     a.lat_deg = offset.x;
     a.lon_deg = offset.y;
     a.alt_m = offset.z;
@@ -424,12 +432,7 @@ LosAnswer computeLos(const cigi::LosRequest& r, const lod::EnuFrame& enu, const 
     a.lon_deg = g.lon_deg;
     a.alt_m = g.height_m;
   }
-  const glm::dvec3 nEcef = enu.toEcef(hit.point_m + hit.normal) - hitEcef;
-  const glm::dvec3 nNed = glm::transpose(lod::nedToEcef(g.lat_deg, g.lon_deg)) * nEcef;
-  const double len = glm::length(nNed);
-  constexpr double kDeg = 180.0 / 3.14159265358979323846;
-  a.normalAzimuth_deg = static_cast<float>(std::atan2(nNed.y, nNed.x) * kDeg);
-  a.normalElevation_deg = static_cast<float>(std::asin(std::clamp(-nNed.z / len, -1.0, 1.0)) * kDeg);
+  normalAngles(enu, hit.point_m, hit.normal, g.lat_deg, g.lon_deg, a.normalAzimuth_deg, a.normalElevation_deg);
   return a;
 }
 
