@@ -7,6 +7,7 @@ target_sources(ig_lod PRIVATE
   ${CMAKE_CURRENT_SOURCE_DIR}/hdlod_site.cpp
   ${CMAKE_CURRENT_SOURCE_DIR}/hdlod_cache.cpp
   ${CMAKE_CURRENT_SOURCE_DIR}/hdlod_models.cpp
+  ${CMAKE_CURRENT_SOURCE_DIR}/hdlod_rays.cpp
 )
 # glTF models (lod/hdlod_models.cpp): Debian libtinygltf-dev (CMake package TinyGLTF, a shared
 # library with its header).
