@@ -56,7 +56,21 @@ std::unique_ptr<HdlodLayer> HdlodLayer::create(const HdlodLayerConfig& config, s
   layer->buildSeconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   bar.finish();
   layer->draws_ = hd::DrawList(layer->tree_);  // sized once: select() writes into it
+  layer->surfaces_.rays = hd::SceneRays(layer->scene_);
   return layer;
+}
+
+bool HdlodLayer::Surfaces::intersect(const glm::dvec3& from_m, const glm::dvec3& to_m, io::SurfaceHit& hit,
+                                     uint32_t* work) const {
+  hd::RayHit h;
+  hd::RayWork w;
+  const bool found = rays.intersect(from_m, to_m, time_s, h, &w);
+  if (work != nullptr) *work += w.nodes + w.triangles;
+  if (!found) return false;
+  hit.t = h.t;
+  hit.point_m = h.point_m;
+  hit.normal = h.normal;
+  return true;
 }
 
 HdlodLayer::~HdlodLayer() = default;
@@ -66,15 +80,20 @@ bool HdlodLayer::initRender(std::string& error) {
   return pass_->init(tree_, scene_, config_.octreeDepth, error);
 }
 
+double HdlodLayer::scheduleTime(double simulationTime_s) const {
+  return hd::clampTime(config_.timeOffset_s + config_.timeScale * simulationTime_s, scene_.duration_s);
+}
+
 void HdlodLayer::select(const lod::Camera& camera, double simulationTime_s, int viewportHeight_px) {
   hd::SelectView v;
   v.camera = camera;
   // Clamped here, not only in the selection: a finite host time far beyond the schedule can
   // overflow time_offset_s + time_scale * t to +-inf, which the selection rejects as bad input
   // (nothing drawn) instead of holding the schedule at T (or 0).
-  v.time_s = hd::clampTime(config_.timeOffset_s + config_.timeScale * simulationTime_s, scene_.duration_s);
+  v.time_s = scheduleTime(simulationTime_s);
   v.tolerance_rad = hd::toleranceFromPixels(tolerance_px_, camera.fovY_deg, std::max(1, viewportHeight_px));
   stats_.scheduleTime_s = v.time_s;
+  surfaces_.time_s = v.time_s;
   drawCount_ = hd::selectHdlod(tree_, scene_, v, draws_->draws, draws_->moving, &stats_.select);
 }
 

@@ -14,8 +14,10 @@
 #include <vector>
 
 #include "ig/config.h"
+#include "io/link.h"
 #include "lod/hdlod_build.h"
 #include "lod/hdlod_cache.h"
+#include "lod/hdlod_rays.h"
 #include "lod/hdlod_scene.h"
 #include "lod/hdlod_select.h"
 #include "lod/view.h"
@@ -53,6 +55,16 @@ class HdlodLayer {
   void setTolerance_px(double r) { tolerance_px_ = r; }
   double tolerance_px() const { return tolerance_px_; }
 
+  // The objects as the host's terrain queries meet them (CIGI HAT/HOT and line of sight:
+  // io::FrameStart::objects), where they are at the schedule time of the last select() or
+  // setQueryTime() (time 0 before either). Every triangle of every present object at full
+  // detail, not the LOD drawn.
+  const io::SceneSurfaces& surfaces() const { return surfaces_; }
+  // The simulation time the queries answer for (select() sets it too): the frame loop sets this
+  // frame's before the host link answers, ahead of the selection.
+  void setQueryTime(double simulationTime_s) { surfaces_.time_s = scheduleTime(simulationTime_s); }
+  const lod::hdlod::SceneRays& rays() const { return surfaces_.rays; }
+
   const HdlodLayerStats& stats() const { return stats_; }
   const lod::hdlod::Scene& scene() const { return scene_; }
   const lod::hdlod::HdlodTree& tree() const { return tree_; }
@@ -65,6 +77,8 @@ class HdlodLayer {
 
  private:
   HdlodLayer() = default;
+  // Schedule time for a simulation time: time_offset_s + time_scale * t, clamped to [0, T].
+  double scheduleTime(double simulationTime_s) const;
   HdlodLayerConfig config_;
   double tolerance_px_ = 1.0;
   lod::hdlod::Scene scene_;
@@ -76,6 +90,13 @@ class HdlodLayer {
   size_t drawCount_ = 0;
   std::unique_ptr<render::HdlodPass> pass_;
   HdlodLayerStats stats_;
+  struct Surfaces final : io::SceneSurfaces {
+    lod::hdlod::SceneRays rays;
+    double time_s = 0.0;
+    bool intersect(const glm::dvec3& from_m, const glm::dvec3& to_m, io::SurfaceHit& hit, uint32_t* work) const override;
+    double top_m() const override { return rays.top_m(); }
+  };
+  Surfaces surfaces_;
 };
 
 }  // namespace ig

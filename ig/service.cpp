@@ -1259,6 +1259,10 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
       fs.overrun = prevOverrun;
       fs.host = &host_;
       fs.terrain = m.hasGround ? &m.ground : nullptr;
+      if (m.hdlod) {
+        m.hdlod->setQueryTime(host_.simTime_s);  // where this frame draws the objects
+        fs.objects = &m.hdlod->surfaces();
+      }
       link->frameStarted(fs);
     }
     pacer.endPhase(Phase::Input);

@@ -184,8 +184,21 @@ struct HatHotJob {
   uint32_t bad = 0;  // rejected fields (CigiAssembler::hatHotJobs): answered Valid = false
 };
 
+// What HAT/HOT and LOS requests are answered against: the terrain grid and the scene's objects
+// standing on it (either may be null). Material codes in the extended responses: kMaterialTerrain
+// for the terrain, kMaterialObject for an object.
+struct QueryScene {
+  QueryScene(const lod::HeightGrid* terrain_ = nullptr, const SceneSurfaces* objects_ = nullptr)  // NOLINT: implicit
+      : terrain(terrain_), objects(objects_) {}
+  const lod::HeightGrid* terrain = nullptr;
+  const SceneSurfaces* objects = nullptr;
+};
+constexpr uint32_t kMaterialTerrain = 0;
+constexpr uint32_t kMaterialObject = 1;
+
 struct HatHotAnswer {
   bool valid = false;
+  uint32_t materialCode = kMaterialTerrain;  // what the surface found is
   double hat_m = 0.0;               // altitude - HOT
   double hot_m = 0.0;               // terrain height above the WGS-84 ellipsoid
   float normalAzimuth_deg = 0.0f;   // surface normal: from true north, clockwise, [-180, 180]
@@ -197,9 +210,13 @@ struct HatHotAnswer {
 // terrain is the scene's local ENU plane at `enu`: the point goes to ENU through ECEF, the grid
 // is sampled there (lod::sampleGround, bilinear) and the surface point goes back to geodetic,
 // twice (the second pass at the terrain's height, so the answer does not depend on the
-// requested altitude). Invalid: no terrain, a point outside it, a non-finite result.
+// requested altitude). Objects (scene.objects): the surface is the first one a vertical line
+// meets going down to the terrain, from the requested point for HAT and extended requests (the
+// surface under the point: a helicopter under a bridge gets the ground), from above every
+// object for HOT (the highest surface: a roof). Invalid: no terrain, a point outside it, a
+// non-finite result.
 HatHotAnswer computeHatHot(const cigi::HatHotRequest& request, const lod::EnuFrame& enu, double originHeight_m,
-                           const lod::HeightGrid* terrain, const HostState* host);
+                           const QueryScene& scene, const HostState* host);
 
 // ---------------------------------------------------------------------------------------------
 // Line of sight (docs/cigi.md "Line of sight").
@@ -211,7 +228,8 @@ struct LosJob {
 };
 
 struct LosAnswer {
-  bool valid = false;               // the segment / vector meets the terrain
+  bool valid = false;               // the segment / vector meets the terrain or an object
+  uint32_t materialCode = kMaterialTerrain;  // what it met
   bool visible = false;             // segment: the destination is visible (no terrain before it)
   double range_m = 0.0;             // source -> first intersection
   double lat_deg = 0.0;             // the intersection: geodetic, or x/y/z offsets in the ownship's
@@ -219,16 +237,17 @@ struct LosAnswer {
   double alt_m = 0.0;               //   coordinates
   float normalAzimuth_deg = 0.0f;   // surface normal there: from true north, clockwise, [-180, 180]
   float normalElevation_deg = 90.0f;  // above the local horizontal
-  uint32_t cells = 0;               // grid cells the intersection examined: the answer's cost
+  uint32_t cells = 0;               // grid cells, object hierarchy nodes and triangles examined: the answer's cost
 };
 
 // The answer to one valid LOS request (pure): the first intersection of the segment (source ->
 // destination), or of the vector (from the source along azimuth / elevation, between the minimum
 // and maximum range), with the terrain surface computeHatHot samples (lod::intersectGround on
-// the grid in the ENU plane at `enu`). Points in entity coordinates are offsets in the ownship's
-// body axes (`host`'s ownship fields; invalid without them). Invalid: no terrain, no intersection,
-// a non-finite result. A segment's Visible: no intersection before its destination (1 mm).
-LosAnswer computeLos(const cigi::LosRequest& request, const lod::EnuFrame& enu, const lod::HeightGrid* terrain,
+// the grid in the ENU plane at `enu`) and with the scene's objects (scene.objects), whichever is
+// nearer the source. Points in entity coordinates are offsets in the ownship's body axes
+// (`host`'s ownship fields; invalid without them). Invalid: no terrain, no intersection, a
+// non-finite result. A segment's Visible: no intersection before its destination (1 mm).
+LosAnswer computeLos(const cigi::LosRequest& request, const lod::EnuFrame& enu, const QueryScene& scene,
                      const HostState* host);
 
 // The frame loop's HAT/HOT and LOS state: periodic requests and the queue of answers still to
@@ -265,7 +284,7 @@ class CigiHatHotResponder {
   // bytes, LOS ones until kMaxLosCellsPerFrame cells are spent (the rest wait for the next frame,
   // counted in deferred), encoded into `out`
   // (>= kMaxBytesPerFrame bytes). Returns the bytes.
-  size_t answer(uint32_t igFrame, uint32_t lastHostFrame, const lod::HeightGrid* terrain, const HostState* host,
+  size_t answer(uint32_t igFrame, uint32_t lastHostFrame, const QueryScene& scene, const HostState* host,
                 cigi::ByteOrder order, std::span<std::byte> out);
 
   // Nothing held: no periodic request and nothing queued.

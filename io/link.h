@@ -19,6 +19,8 @@
 #include <string>
 #include <string_view>
 
+#include <glm/vec3.hpp>
+
 #include "io/host_state.h"
 
 namespace ig::lod {
@@ -80,6 +82,26 @@ class HostSink {
   virtual void publish(const HostState& state) = 0;
 };
 
+// Scene geometry above the terrain that the host's terrain queries (CIGI HAT/HOT and line of
+// sight) hit, where it is this frame: in igd the [hdlod] objects at the frame's schedule time
+// (ig/hdlod_layer.h). Local ENU metres, like lod::HeightGrid. Read by the frame thread only.
+struct SurfaceHit {
+  double t = 0.0;                    // along the segment, [0, 1]
+  glm::dvec3 point_m{0.0};
+  glm::dvec3 normal{0.0, 0.0, 1.0};  // unit, facing the segment's start
+};
+class SceneSurfaces {
+ public:
+  // The first intersection of the segment from -> to; `work` (may be null) adds the hierarchy
+  // nodes and triangles examined (the caller's per-frame cap). False: none, or bad input.
+  virtual bool intersect(const glm::dvec3& from_m, const glm::dvec3& to_m, SurfaceHit& hit, uint32_t* work) const = 0;
+  // No surface is higher than this (ENU metres), at any time.
+  virtual double top_m() const = 0;
+
+ protected:
+  ~SceneSurfaces() = default;
+};
+
 // What the frame loop tells a link at the start of every frame (CIGI answers with a Start of
 // Frame packet; other links may ignore it).
 struct FrameStart {
@@ -90,6 +112,7 @@ struct FrameStart {
   bool overrun = false;        // the previous frame overran its budget
   const HostState* host = nullptr;            // the host sample this frame renders (nullptr: none yet)
   const lod::HeightGrid* terrain = nullptr;   // the scene's full-resolution terrain; nullptr: none
+  const SceneSurfaces* objects = nullptr;     // the scene's objects above it this frame; nullptr: none
 };
 
 // Link receive threads run at nice +5: under a packet flood the render threads keep the CPU

@@ -13,7 +13,9 @@ height): a HOT and an extended request inside it answer the HOT Python computes 
 posts, through the same WGS-84 <-> ENU geodesy), a point outside and a NaN latitude answer
 Valid = false (the NaN counted in out_of_range), a HAT/HOT packet with a bad size makes its
 message malformed (counted) and igd keeps running and answering; a periodic request is answered
-every 2nd frame until cancelled.
+every 2nd frame until cancelled. A 500 m tower (an [hdlod] schedule object) stands on the DEM: an
+extended request over it answers its roof (material code 1), and an extended LOS segment towards
+it stops at its west wall (range, material 1, normal facing west).
 
 usage: cigi_igd_test.py <igd> <source dir>
 """
@@ -73,8 +75,27 @@ png_scale_m = 0.1
 png_offset_m = 100.0
 lod = "block"
 offset_m = [{DEM_SW}, {DEM_SW}, 0]
+[hdlod]
+schedule = "tower.sched"
+""")
+    # A 500 m tower (an [hdlod] object) standing on the DEM: HOT over it is its roof, a LOS
+    # segment towards it stops at its wall (material code 1, "object").
+    with open(os.path.join(tmp, "tower.sched"), "w") as f:
+        f.write(f"""hdlod-schedule 1
+duration_s 100
+model tower box {2 * TOWER_HALF[0]} {2 * TOWER_HALF[1]} {TOWER_HEIGHT}
+object tower tower
+at tower 0 {TOWER_AT[0]} {TOWER_AT[1]} {tower_base()!r} 0
 """)
     return path
+
+
+# The tower: centred on TOWER_AT (ENU), its base 1 m below the DEM there.
+TOWER_AT, TOWER_HALF, TOWER_HEIGHT = (300.0, 300.0), (20.0, 15.0), 500.0
+
+
+def tower_base():
+    return dem_height(*TOWER_AT) - 1.0
 
 
 def dem_height(e, n):
@@ -173,6 +194,11 @@ view_id = 0""", src, RATE_HZ, FRAMES, 3.0, rec, write_dem_scene(tmp),
     los_src = cs.geodetic_of_enu(ORIGIN, *LOS_A)
     los_dst = cs.geodetic_of_enu(ORIGIN, *LOS_B)
     los_answers = []
+    # Over the tower (extended HOT from high above) and level towards its west wall at 450 m
+    # (above every post of the DEM, below the tower's roof).
+    p_tower = cs.geodetic_of_enu(ORIGIN, TOWER_AT[0], TOWER_AT[1], 0.0)[:2]
+    tower_src = cs.geodetic_of_enu(ORIGIN, TOWER_AT[0] - 150.0, TOWER_AT[1], 450.0)
+    tower_dst = cs.geodetic_of_enu(ORIGIN, TOWER_AT[0], TOWER_AT[1], 450.0)
     hat_frame = cancel_frame = None
     while proc.poll() is None and time.monotonic() - t0 < 120:
         roll, pitch, yaw, lat, lon, alt = entity_for(frame)
@@ -189,7 +215,9 @@ view_id = 0""", src, RATE_HZ, FRAMES, 3.0, rec, write_dem_scene(tmp),
                     cs.hat_hot_request(o, 3, 1, p_out[0], p_out[1], 0.0) +
                     cs.hat_hot_request(o, 4, 1, float("nan"), p_hot[1], 0.0) +
                     cs.hat_hot_request(o, 5, 1, p_hot[0], p_hot[1], 0.0, update_period=2) +
-                    cs.los_segment_request(o, 41, los_src, los_dst))
+                    cs.los_segment_request(o, 41, los_src, los_dst) +
+                    cs.hat_hot_request(o, 7, 2, p_tower[0], p_tower[1], 2000.0) +
+                    cs.los_segment_request(o, 42, tower_src, tower_dst, extended=True))
         elif hat_frame is not None and cancel_frame is None and frame == hat_frame + 12:
             cancel_frame = frame
             msg += cs.hat_hot_request(o, 5, 1, p_hot[0], p_hot[1], 0.0)
@@ -269,8 +297,9 @@ view_id = 0""", src, RATE_HZ, FRAMES, 3.0, rec, write_dem_scene(tmp),
     for lhf, a in answers:
         by_id.setdefault(a["id"], []).append((lhf, a))
     check(hat_frame is not None and cancel_frame is not None, "HAT/HOT requests were sent")
-    check(sorted(by_id) == [1, 2, 3, 4, 5], "HAT/HOT answers for ids %r, expected 1..5 (6 was malformed)" % sorted(by_id))
-    for i in (1, 2, 3, 4):
+    check(sorted(by_id) == [1, 2, 3, 4, 5, 7], "HAT/HOT answers for ids %r, expected 1..5 and 7 (6 was malformed)"
+          % sorted(by_id))
+    for i in (1, 2, 3, 4, 7):
         check(len(by_id.get(i, [])) == 1, "one-shot request %d answered %d times" % (i, len(by_id.get(i, []))))
     if by_id.get(1):
         a = by_id[1][0][1]
@@ -282,6 +311,14 @@ view_id = 0""", src, RATE_HZ, FRAMES, 3.0, rec, write_dem_scene(tmp),
         want = expected_hot(*p_ext)
         check(a["ext"] and a["valid"] == 1 and abs(a["hot"] - want) < 1e-3 and abs(a["hat"] - (900.0 - a["hot"])) < 1e-6
               and 0.0 < a["elevation"] <= 90.0, "extended inside the DEM: %r, expected HOT %.4f" % (a, want))
+    if by_id.get(7):
+        # The roof: the ENU vertical through the DEM point under p_tower, at the roof's height.
+        a = by_id[7][0][1]
+        e, n, _ = cs.enu_of_geodetic(ORIGIN, p_tower[0], p_tower[1], expected_hot(*p_tower))
+        want = cs.geodetic_of_enu(ORIGIN, e, n, tower_base() + TOWER_HEIGHT)[2]
+        check(a["ext"] and a["valid"] == 1 and abs(a["hot"] - want) < 1e-3 and a["material"] == 1
+              and abs(a["elevation"] - 90.0) < 0.1, "extended HOT over the tower: %r, expected HOT %.4f, material 1"
+              % (a, want))
     for i in (3, 4):
         if by_id.get(i):
             check(by_id[i][0][1]["valid"] == 0, "request %d (outside / NaN) answered Valid = false: %r" % (i, by_id[i][0][1]))
@@ -292,7 +329,7 @@ view_id = 0""", src, RATE_HZ, FRAMES, 3.0, rec, write_dem_scene(tmp),
           "periodic request: %d answers before the cancel, all valid" % len(before))
     check(len(after) <= 1, "periodic request: %d answers after the cancel (at most its own one-shot)" % len(after))
     m = re.search(r"hat_hot_requests (\d+) hat_hot_answered (\d+) hat_hot_refused (\d+)", err)
-    check(m is not None and int(m.group(1)) == 6 and int(m.group(2)) == len(answers) and int(m.group(3)) == 0,
+    check(m is not None and int(m.group(1)) == 7 and int(m.group(2)) == len(answers) and int(m.group(3)) == 0,
           "exit line HAT/HOT counters: %s (answers received: %d)" % (m.group(0) if m else err[-500:], len(answers)))
     # The status file's last report (written as igd stops) carries the same counters.
     try:
@@ -300,24 +337,30 @@ view_id = 0""", src, RATE_HZ, FRAMES, 3.0, rec, write_dem_scene(tmp),
             hh = json.load(f)["host"].get("hat_hot")
     except (OSError, ValueError, KeyError) as e:
         hh = "unreadable: %s" % e
-    check(isinstance(hh, dict) and hh.get("requests") == 6 and hh.get("answered") == len(answers)
+    check(isinstance(hh, dict) and hh.get("requests") == 7 and hh.get("answered") == len(answers)
           and hh.get("refused") == 0 and "deferred" in hh, "status file host.hat_hot: %r (answers received: %d)"
           % (hh, len(answers)))
 
     # The LOS segment: one answer, its range within 1 mm of the first intersection with the DEM.
     want = los_expected_range()
-    check(len(los_answers) == 1 and los_answers[0]["id"] == 41 and los_answers[0]["valid"] == 1 and
-          not los_answers[0]["visible"] and abs(los_answers[0]["range"] - want) < 1e-3,
+    los = {a["id"]: a for a in los_answers}
+    check(len(los_answers) == 2 and 41 in los and los[41]["valid"] == 1 and
+          not los[41]["visible"] and abs(los[41]["range"] - want) < 1e-3 and not los[41]["ext"],
           "LOS segment: %r, expected one valid answer with range %.4f" % (los_answers, want))
+    # The tower's west wall, 130 m from the source.
+    check(42 in los and los[42]["ext"] and los[42]["valid"] == 1 and not los[42]["visible"] and
+          abs(los[42]["range"] - (150.0 - TOWER_HALF[0])) < 1e-3 and los[42]["material"] == 1 and
+          abs(los[42]["azimuth"] + 90.0) < 0.1, "LOS towards the tower: %r, expected range %.1f, material 1, normal west"
+          % (los.get(42), 150.0 - TOWER_HALF[0]))
     m = re.search(r"los_requests (\d+) los_answered (\d+) los_refused (\d+)", err)
-    check(m is not None and int(m.group(1)) == 1 and int(m.group(2)) == 1 and int(m.group(3)) == 0,
+    check(m is not None and int(m.group(1)) == 2 and int(m.group(2)) == 2 and int(m.group(3)) == 0,
           "exit line LOS counters: %s" % (m.group(0) if m else err[-500:]))
     try:
         with open(status) as f:
             lc = json.load(f)["host"].get("los")
     except (OSError, ValueError, KeyError) as e:
         lc = "unreadable: %s" % e
-    check(isinstance(lc, dict) and lc.get("requests") == 1 and lc.get("answered") == 1, "status file host.los: %r" % lc)
+    check(isinstance(lc, dict) and lc.get("requests") == 2 and lc.get("answered") == 2, "status file host.los: %r" % lc)
 
     # The recording of accepted samples.
     with open(rec) as f:

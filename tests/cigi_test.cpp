@@ -17,6 +17,8 @@
 #include "io/cigi.h"
 #include "io/cigi_link.h"
 #include "io/pcap.h"
+#include "lod/hdlod_rays.h"
+#include "lod/hdlod_scene.h"
 #include "lod/terrain_grid.h"
 #include "lod/view.h"
 
@@ -1694,4 +1696,113 @@ TEST(CigiAssembler, LosRequestsAreValidatedLikeHatHot) {
   EXPECT_EQ(jobs.bad[2], CigiAssembler::kLosUnknownEntity);
   EXPECT_EQ(jobs.bad[3], uint32_t{kLosElevation});
   EXPECT_EQ(c.outOfRange.load(), 3u);
+}
+
+// ---------------------------------------------------------------------------------------------
+// HAT/HOT and LOS against the scene's objects (io::SceneSurfaces; igd: the [hdlod] objects).
+
+namespace {
+
+// On the Plane: a slab 16 m above the ground at (100, 200) (a bridge deck, z 70 ... 71) and a
+// tower 10 x 10 x 40 m standing on the ground at (-300, 0) (z 44 ... 84).
+struct Objects final : ig::io::SceneSurfaces {
+  ig::lod::hdlod::Scene scene;
+  ig::lod::hdlod::SceneRays rays;
+  Objects() {
+    namespace hd = ig::lod::hdlod;
+    scene.duration_s = 1.0;
+    scene.models = {hd::makeBoxModel("deck", {20.0, 20.0, 1.0}), hd::makeBoxModel("tower", {10.0, 10.0, 40.0})};
+    hd::Object deck, tower;
+    deck.name = "deck";
+    deck.visible = {{0.0, 1.0}};
+    deck.path = {{0.0, {100.0, 200.0, 70.0}, 0.0}};
+    tower.name = "tower";
+    tower.model = 1;
+    tower.visible = {{0.0, 1.0}};
+    tower.path = {{0.0, {-300.0, 0.0, Plane::z(-300.0, 0.0)}, 0.0}};
+    scene.objects = {deck, tower};
+    rays = hd::SceneRays(scene);
+  }
+  Objects(const Objects&) = delete;
+  bool intersect(const glm::dvec3& from, const glm::dvec3& to, SurfaceHit& hit, uint32_t* work) const override {
+    ig::lod::hdlod::RayHit h;
+    ig::lod::hdlod::RayWork w;
+    const bool found = rays.intersect(from, to, 0.5, h, &w);
+    if (work) *work += w.nodes + w.triangles;
+    if (found) hit = {h.t, h.point_m, h.normal};
+    return found;
+  }
+  double top_m() const override { return rays.top_m(); }
+};
+
+}  // namespace
+
+TEST(CigiObjects, HatHotFindsRoofsAndTheGroundUnderABridge) {
+  const Plane plane;
+  const Objects objects;
+  const ig::lod::EnuFrame enu(kOrigin);
+  const QueryScene scene(&plane.grid, &objects);
+  const double h0 = kOrigin.height_m;
+  // HOT over the deck: its top. From 200 m (extended): the same, material "object", normal up.
+  HatHotAnswer a = computeHatHot(geodeticRequest(1, HatHotRequest::kHot, 100.0, 200.0, 0.0), enu, h0, scene, nullptr);
+  ASSERT_TRUE(a.valid);
+  EXPECT_NEAR(a.hot_m, h0 + 71.0, 0.02);
+  EXPECT_EQ(a.materialCode, kMaterialObject);
+  a = computeHatHot(geodeticRequest(2, HatHotRequest::kExtended, 100.0, 200.0, h0 + 200.0), enu, h0, scene, nullptr);
+  EXPECT_NEAR(a.hot_m, h0 + 71.0, 0.02);
+  EXPECT_NEAR(a.hat_m, 200.0 - 71.0, 0.02);
+  EXPECT_NEAR(a.normalElevation_deg, 90.0, 0.1);
+  // Under the deck (at 60 m): the ground, 54 m; material "terrain".
+  a = computeHatHot(geodeticRequest(3, HatHotRequest::kHat, 100.0, 200.0, h0 + 60.0), enu, h0, scene, nullptr);
+  ASSERT_TRUE(a.valid);
+  EXPECT_NEAR(a.hat_m, 60.0 - Plane::z(100.0, 200.0), 0.02);
+  EXPECT_EQ(a.materialCode, kMaterialTerrain);
+  // The tower's roof; beside it the ground; without the objects the ground everywhere.
+  a = computeHatHot(geodeticRequest(4, HatHotRequest::kHot, -300.0, 0.0, 0.0), enu, h0, scene, nullptr);
+  EXPECT_NEAR(a.hot_m, h0 + Plane::z(-300.0, 0.0) + 40.0, 0.02);
+  a = computeHatHot(geodeticRequest(5, HatHotRequest::kHot, -310.0, 0.0, 0.0), enu, h0, scene, nullptr);
+  EXPECT_NEAR(a.hot_m, h0 + Plane::z(-310.0, 0.0), 0.02);
+  a = computeHatHot(geodeticRequest(6, HatHotRequest::kHot, -300.0, 0.0, 0.0), enu, h0, &plane.grid, nullptr);
+  EXPECT_NEAR(a.hot_m, h0 + Plane::z(-300.0, 0.0), 0.02);
+  EXPECT_EQ(a.materialCode, kMaterialTerrain);
+}
+
+TEST(CigiObjects, LineOfSightStopsAtTheNearerOfObjectAndTerrain) {
+  const Plane plane;
+  const Objects objects;
+  CigiHatHotResponder r(kOrigin);
+  // Level at 60 m from the west towards the tower: its west wall at x = -305, facing west.
+  const glm::dvec3 a{-400.0, 0.0, 60.0}, b{-200.0, 0.0, 60.0};
+  r.add(LosJob{losSegment(1, a, b, true), 0}, 5);
+  r.add(LosJob{losSegment(2, a, b, false), 0}, 5);
+  // Down through the deck (it shadows the ground below it) and past it (the ground).
+  r.add(LosJob{losSegment(3, {100.0, 200.0, 200.0}, {100.0, 200.0, 0.0}, true), 0}, 5);
+  r.add(LosJob{losSegment(4, {130.0, 200.0, 200.0}, {130.0, 200.0, 0.0}, true), 0}, 5);
+  // Over the tower: clear.
+  r.add(LosJob{losSegment(5, {-400.0, 0.0, 120.0}, {-200.0, 0.0, 120.0}, false), 0}, 5);
+  Bytes buf(CigiHatHotResponder::kMaxBytesPerFrame);
+  const size_t n = r.answer(5, 0x1233, QueryScene(&plane.grid, &objects), nullptr, ByteOrder::little, buf);
+  std::vector<LosExtendedResponse> x;
+  std::vector<LosResponse> basic;
+  for (size_t at = 0; at < n; at += std::to_integer<uint8_t>(buf[at + 1])) {
+    const std::span<const std::byte> p(buf.data() + at, n - at);
+    if (std::to_integer<uint8_t>(buf[at]) == 105) EXPECT_TRUE(decodePacket(p, ByteOrder::little, x.emplace_back()));
+    else EXPECT_TRUE(decodePacket(p, ByteOrder::little, basic.emplace_back()));
+  }
+  ASSERT_EQ(x.size(), 3u);
+  ASSERT_EQ(basic.size(), 2u);
+  EXPECT_TRUE(x[0].valid && !x[0].visible);
+  EXPECT_NEAR(x[0].range_m, 95.0, 1e-3);
+  EXPECT_EQ(x[0].materialCode, kMaterialObject);
+  EXPECT_NEAR(x[0].normalAzimuth_deg, -90.0, 0.1);  // west
+  EXPECT_NEAR(x[0].normalElevation_deg, 0.0, 0.1);
+  EXPECT_NEAR(x[0].lon_deg, geodeticOf({-305.0, 0.0, 60.0}).lon_deg, 1e-9);
+  EXPECT_TRUE(basic[0].valid && !basic[0].visible);
+  EXPECT_NEAR(basic[0].range_m, 95.0, 1e-3);
+  EXPECT_NEAR(x[1].range_m, 129.0, 1e-3);  // the deck's top at 71 m
+  EXPECT_EQ(x[1].materialCode, kMaterialObject);
+  EXPECT_NEAR(x[2].range_m, 200.0 - Plane::z(130.0, 200.0), 1e-3);
+  EXPECT_EQ(x[2].materialCode, kMaterialTerrain);
+  EXPECT_TRUE(basic[1].visible);
+  EXPECT_FALSE(basic[1].valid);
 }
