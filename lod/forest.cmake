@@ -6,4 +6,5 @@ target_sources(ig_lod PRIVATE
   ${CMAKE_CURRENT_SOURCE_DIR}/forest_kdtree.cpp
   ${CMAKE_CURRENT_SOURCE_DIR}/forest_fins.cpp
   ${CMAKE_CURRENT_SOURCE_DIR}/forest_model.cpp
+  ${CMAKE_CURRENT_SOURCE_DIR}/forest_rays.cpp
 )

@@ -54,56 +54,23 @@ void build(std::vector<Node>& nodes, std::vector<Item>& items, size_t begin, siz
   build(nodes, items, mid, end, order);
 }
 
-// Whether the segment o + t d, t in [0, tMax], meets the box; tEnter: where it enters.
-bool segmentBox(const glm::dvec3& o, const glm::dvec3& d, double tMax, const glm::dvec3& lo, const glm::dvec3& hi) {
-  double t0 = 0.0, t1 = tMax;
-  for (int a = 0; a < 3; ++a) {
-    if (d[a] == 0.0) {
-      if (o[a] < lo[a] || o[a] > hi[a]) return false;
-      continue;
-    }
-    const double inv = 1.0 / d[a];
-    double ta = (lo[a] - o[a]) * inv, tb = (hi[a] - o[a]) * inv;
-    if (ta > tb) std::swap(ta, tb);
-    t0 = std::max(t0, ta);
-    t1 = std::min(t1, tb);
-    if (t0 > t1) return false;
-  }
-  return true;
-}
-
 }  // namespace
 
 SceneRays::SceneRays(const Scene& scene) {
   if (!validateScene(scene).empty()) return;
   scene_ = &scene;
-  models_.resize(scene.models.size());
-  std::vector<Item> items;
-  for (size_t m = 0; m < scene.models.size(); ++m) {
-    const Model& model = scene.models[m];
-    items.clear();
-    for (size_t k = 0; k + 2 < model.indices.size(); k += 3) {
-      const glm::dvec3 a(model.positions[model.indices[k]]), b(model.positions[model.indices[k + 1]]),
-          c(model.positions[model.indices[k + 2]]);
-      const glm::dvec3 e1 = b - a, e2 = c - a;
-      const double area2 = glm::length(glm::cross(e1, e2));
-      if (!finite3(a) || !finite3(b) || !finite3(c) || !(area2 > 1e-12 * std::max(glm::dot(e1, e1), glm::dot(e2, e2)))) {
-        ++degenerate_;
-        continue;
-      }
-      const glm::dvec3 lo = glm::min(a, glm::min(b, c)), hi = glm::max(a, glm::max(b, c));
-      items.push_back({lo, hi, (lo + hi) * 0.5, static_cast<uint32_t>(k / 3)});
-    }
-    triangles_ += items.size();
-    if (items.empty()) continue;
-    models_[m].nodes.reserve(2 * items.size() / kLeafItems + 1);
-    build(models_[m].nodes, items, 0, items.size(), models_[m].triangles);
+  models_.reserve(scene.models.size());
+  for (const Model& model : scene.models) {
+    models_.emplace_back(model.positions.empty() ? nullptr : &model.positions[0].x, model.positions.size(),
+                         sizeof(glm::vec3), model.indices);
+    triangles_ += models_.back().triangles();
+    degenerate_ += models_.back().degenerateTriangles();
   }
-  items.clear();
+  std::vector<Item> items;
   top_m_ = -std::numeric_limits<double>::infinity();
   for (size_t o = 0; o < scene.objects.size(); ++o) {
     const Object& object = scene.objects[o];
-    if (object.visible.empty() || models_[object.model].nodes.empty()) continue;  // never present, or nothing to hit
+    if (object.visible.empty() || models_[object.model].empty()) continue;  // never present, or nothing to hit
     const Aabb box = sweptBox(object, scene.models[object.model]);
     if (!finite3(box.min) || !finite3(box.max)) continue;
     top_m_ = std::max(top_m_, box.max.z);
@@ -129,7 +96,7 @@ bool SceneRays::intersect(const glm::dvec3& from_m, const glm::dvec3& to_m, doub
   while (top > 0) {
     const Node& n = objectNodes_[stack[--top]];
     ++w.nodes;
-    if (!segmentBox(from_m, d, std::min(best, 1.0), n.min, n.max)) continue;
+    if (!segmentMeetsBox(from_m, d, std::min(best, 1.0), n.min, n.max)) continue;
     if (n.count == 0) {
       stack[top++] = n.first;
       stack[top++] = static_cast<uint32_t>(&n - objectNodes_.data()) + 1;
@@ -142,50 +109,17 @@ bool SceneRays::intersect(const glm::dvec3& from_m, const glm::dvec3& to_m, doub
       const Model& model = scene.models[object.model];
       const glm::dmat4 m = objectMatrix(object, t_s, scene.duration_s);
       const Aabb at = transformBox(model.box, m);
-      if (!segmentBox(from_m, d, std::min(best, 1.0), at.min, at.max)) continue;
+      if (!segmentMeetsBox(from_m, d, std::min(best, 1.0), at.min, at.max)) continue;
       // Into model space: the position is a translation and a turn about z (rotation only).
       const glm::dmat3 r(m);
       const glm::dmat3 rt = glm::transpose(r);
       const glm::dvec3 lo = rt * (from_m - glm::dvec3(m[3])), ld = rt * d;
-      const ModelIndex& mi = models_[object.model];
-      std::array<uint32_t, 128> mstack{};
-      size_t mtop = 0;
-      mstack[mtop++] = 0;
-      while (mtop > 0) {
-        const Node& mn = mi.nodes[mstack[--mtop]];
-        ++w.nodes;
-        if (!segmentBox(lo, ld, std::min(best, 1.0), mn.min, mn.max)) continue;
-        if (mn.count == 0) {
-          mstack[mtop++] = mn.first;
-          mstack[mtop++] = static_cast<uint32_t>(&mn - mi.nodes.data()) + 1;
-          continue;
-        }
-        for (uint32_t k = mn.first; k < mn.first + mn.count; ++k) {
-          const uint32_t tri = mi.triangles[k];
-          ++w.triangles;
-          const glm::dvec3 a(model.positions[model.indices[3 * tri]]), b(model.positions[model.indices[3 * tri + 1]]),
-              c(model.positions[model.indices[3 * tri + 2]]);
-          // Moller-Trumbore, both sides, edges included (a segment through a shared edge hits).
-          const glm::dvec3 e1 = b - a, e2 = c - a, p = glm::cross(ld, e2);
-          const double det = glm::dot(e1, p);
-          if (!(std::abs(det) > 1e-12 * glm::length(e1) * glm::length(e2) * glm::length(ld))) continue;  // parallel
-          const double inv = 1.0 / det;
-          const glm::dvec3 s = lo - a;
-          const double u = glm::dot(s, p) * inv;
-          if (u < 0.0 || u > 1.0) continue;
-          const glm::dvec3 q = glm::cross(s, e1);
-          const double v = glm::dot(ld, q) * inv;
-          if (v < 0.0 || u + v > 1.0) continue;
-          const double t = glm::dot(e2, q) * inv;
-          if (t < 0.0 || t > 1.0 || t >= best) continue;
-          best = t;
-          found = true;
-          glm::dvec3 normal = r * glm::normalize(glm::cross(e1, e2));
-          if (glm::dot(normal, d) > 0.0) normal = -normal;
-          hit.t = t;
-          hit.normal = normal;
-          hit.object = o;
-        }
+      glm::dvec3 normal;
+      if (models_[object.model].intersect(lo, ld, best, normal, w)) {
+        found = true;
+        hit.t = best;
+        hit.normal = r * normal;
+        hit.object = o;
       }
     }
   }

@@ -4,7 +4,7 @@
 // vehicle on a slab, a laser range finder aimed at a crane, a helicopter's height above a roof.
 //
 // Index (built once, immutable, safe to read from any thread): per model a bounding volume
-// hierarchy over its triangles in model space; over the objects one hierarchy of their swept
+// hierarchy over its triangles in model space (lod/mesh_rays.h); over the objects one hierarchy of their swept
 // boxes (lod::hdlod::sweptBox: every place the object can be in [0, T]), so moving objects need
 // no rebuild. A query walks the objects' hierarchy with the segment, tests each candidate's
 // presence at t and its box at t, takes the segment into that object's model space (the
@@ -25,6 +25,7 @@
 #include <glm/vec3.hpp>
 
 #include "lod/hdlod_scene.h"
+#include "lod/mesh_rays.h"
 
 namespace ig::lod::hdlod {
 
@@ -35,10 +36,7 @@ struct RayHit {
   uint32_t object = 0;             // index in Scene::objects
 };
 
-struct RayWork {
-  uint32_t nodes = 0;      // hierarchy nodes visited (objects' and models')
-  uint32_t triangles = 0;  // triangles tested
-};
+using lod::RayWork;  // hierarchy nodes visited (objects' and models') and triangles tested
 
 class SceneRays {
  public:
@@ -61,19 +59,15 @@ class SceneRays {
   size_t degenerateTriangles() const { return degenerate_; }  // left out
 
  private:
-  // A node of either hierarchy: a box; a leaf holds items [first, first + count), an inner node
-  // has count 0, its children at index + 1 and at `first`.
+  // A node of the objects' hierarchy: a box; a leaf holds objects [first, first + count), an
+  // inner node has count 0, its children at index + 1 and at `first`.
   struct Node {
     glm::dvec3 min{0.0}, max{0.0};
     uint32_t first = 0, count = 0;
   };
-  struct ModelIndex {
-    std::vector<Node> nodes;
-    std::vector<uint32_t> triangles;  // triangle numbers of the model, in leaf order
-  };
 
   const Scene* scene_ = nullptr;
-  std::vector<ModelIndex> models_;
+  std::vector<MeshRays> models_;
   std::vector<Node> objectNodes_;
   std::vector<uint32_t> objects_;  // object numbers in leaf order
   double top_m_ = 0.0;
