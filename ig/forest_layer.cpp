@@ -241,12 +241,34 @@ std::unique_ptr<ForestLayer> ForestLayer::create(const ForestLayerConfig& c, con
   pdesc.nearFade = f.nearFade_;
   pdesc.maxInstances = static_cast<size_t>(c.maxTrees);
   if (!f.pass_.init(pdesc, f.map_, textures, models, c.fins ? &f.fins_ : nullptr, error)) return nullptr;
+  f.yawJitter_ = pdesc.yawJitter;
   f.instances_.resize(static_cast<size_t>(c.maxTrees));
   f.scratch_.resize(static_cast<size_t>(c.maxTrees));
   f.modelRanges_.resize(models.size());
+  f.models_ = std::move(models);  // for enableQueries()
   f.groups_.resize(f.fins_.groups.size());
   f.stats_.layers = f.pass_.layerCount();
   return layer;
+}
+
+void ForestLayer::enableQueries() {
+  if (surfaces_.rays.empty()) surfaces_.rays = lod::ForestRays(kd_, models_, yawJitter_);
+  models_ = {};
+}
+
+bool ForestLayer::Surfaces::intersect(const glm::dvec3& from_m, const glm::dvec3& to_m, io::SurfaceQuery query,
+                                      io::SurfaceHit& hit, uint32_t* work) const {
+  if (query != io::SurfaceQuery::Sight) return false;
+  lod::TreeHit h;
+  lod::RayWork w;
+  const bool found = rays.intersect(from_m, to_m, h, &w);
+  if (work != nullptr) *work += w.nodes + w.triangles;
+  if (!found) return false;
+  hit.t = h.t;
+  hit.point_m = h.point_m;
+  hit.normal = h.normal;
+  hit.material = io::kSurfaceTree;
+  return true;
 }
 
 bool ForestLayer::setFades(const lod::NearFade& nearFade, const lod::FarFade& farFade, std::string& error) {

@@ -19,10 +19,12 @@
 #include <glm/vec3.hpp>
 
 #include "ig/config.h"
+#include "io/link.h"
 #include "lod/forest.h"
 #include "lod/forest_fins.h"
 #include "lod/forest_kdtree.h"
 #include "lod/forest_model.h"
+#include "lod/forest_rays.h"
 #include "lod/view.h"
 #include "render/forest_pass.h"
 
@@ -78,6 +80,13 @@ class ForestLayer {
 
   // For benchmarks and tests.
   const lod::ForestKdTree& kdTree() const { return kd_; }
+  // The trees as the host's line-of-sight queries meet them (CIGI LOS: io::FrameStart::objects):
+  // every tree of the forest, posed as the near pass draws it (lod/forest_rays.h), for sight
+  // queries only (HAT/HOT: a vehicle stands on the ground between the trees). Empty until
+  // enableQueries() builds the index (the service does when its host link answers queries:
+  // ~100 ms and ~23 bytes a tree for the default 1.2 M-tree forest).
+  const io::SceneSurfaces& surfaces() const { return surfaces_; }
+  void enableQueries();
   const lod::FinSet& fins() const { return fins_; }
   const lod::ForestMap& map() const { return map_; }
   render::ForestPass& pass() { return pass_; }
@@ -123,6 +132,15 @@ class ForestLayer {
   ForestLayerStats stats_;
   bool drawTrees_ = true, drawLayers_ = true, drawFins_ = true;
   int layersDrawn_ = 0;
+  struct Surfaces final : io::SceneSurfaces {
+    lod::ForestRays rays;
+    bool intersect(const glm::dvec3& from_m, const glm::dvec3& to_m, io::SurfaceQuery query, io::SurfaceHit& hit,
+                   uint32_t* work) const override;
+    double top_m() const override { return rays.empty() ? -1e300 : rays.top_m(); }
+  };
+  Surfaces surfaces_;
+  std::vector<lod::TreeMesh> models_;  // for enableQueries()
+  float yawJitter_ = 1.0f;
 };
 
 }  // namespace ig

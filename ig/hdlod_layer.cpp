@@ -56,12 +56,11 @@ std::unique_ptr<HdlodLayer> HdlodLayer::create(const HdlodLayerConfig& config, s
   layer->buildSeconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   bar.finish();
   layer->draws_ = hd::DrawList(layer->tree_);  // sized once: select() writes into it
-  layer->surfaces_.rays = hd::SceneRays(layer->scene_);
   return layer;
 }
 
-bool HdlodLayer::Surfaces::intersect(const glm::dvec3& from_m, const glm::dvec3& to_m, io::SurfaceHit& hit,
-                                     uint32_t* work) const {
+bool HdlodLayer::Surfaces::intersect(const glm::dvec3& from_m, const glm::dvec3& to_m, io::SurfaceQuery,
+                                     io::SurfaceHit& hit, uint32_t* work) const {
   hd::RayHit h;
   hd::RayWork w;
   const bool found = rays.intersect(from_m, to_m, time_s, h, &w);
@@ -70,6 +69,7 @@ bool HdlodLayer::Surfaces::intersect(const glm::dvec3& from_m, const glm::dvec3&
   hit.t = h.t;
   hit.point_m = h.point_m;
   hit.normal = h.normal;
+  hit.material = io::kSurfaceObject;
   return true;
 }
 

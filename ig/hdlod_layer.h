@@ -58,8 +58,12 @@ class HdlodLayer {
   // The objects as the host's terrain queries meet them (CIGI HAT/HOT and line of sight:
   // io::FrameStart::objects), where they are at the schedule time of the last select() or
   // setQueryTime() (time 0 before either). Every triangle of every present object at full
-  // detail, not the LOD drawn.
+  // detail, not the LOD drawn. Empty until enableQueries() builds the index (the service does
+  // when its host link answers queries: 7 ms for the site at scale 0.25).
   const io::SceneSurfaces& surfaces() const { return surfaces_; }
+  void enableQueries() {
+    if (surfaces_.rays.empty()) surfaces_.rays = lod::hdlod::SceneRays(scene_);
+  }
   // The simulation time the queries answer for (select() sets it too): the frame loop sets this
   // frame's before the host link answers, ahead of the selection.
   void setQueryTime(double simulationTime_s) { surfaces_.time_s = scheduleTime(simulationTime_s); }
@@ -93,7 +97,8 @@ class HdlodLayer {
   struct Surfaces final : io::SceneSurfaces {
     lod::hdlod::SceneRays rays;
     double time_s = 0.0;
-    bool intersect(const glm::dvec3& from_m, const glm::dvec3& to_m, io::SurfaceHit& hit, uint32_t* work) const override;
+    bool intersect(const glm::dvec3& from_m, const glm::dvec3& to_m, io::SurfaceQuery query, io::SurfaceHit& hit,
+                   uint32_t* work) const override;
     double top_m() const override { return rays.top_m(); }
   };
   Surfaces surfaces_;

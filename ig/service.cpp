@@ -28,6 +28,7 @@
 #include "ig/cells_layer.h"
 #include "ig/forest_layer.h"
 #include "ig/hdlod_layer.h"
+#include "ig/scene_surfaces.h"
 #include "ig/host_input.h"
 #include "ig/host_links.h"
 #include "lod/block_lod.h"
@@ -535,6 +536,7 @@ struct Service::Impl {
   std::unique_ptr<ForestLayer> forest;            // [forest]: on the terrain mesh
   std::unique_ptr<HdlodLayer> hdlod;              // [hdlod]: 4D scene
   std::unique_ptr<CellsLayer> cells;              // [cells]: streamed hierarchical cells
+  SurfaceSet surfaces;  // the [hdlod] objects and [forest] trees for the host link's HAT/HOT and LOS answers
   std::unique_ptr<io::ReplaySource> replay;
   MonotonicClock startClock;                 // stamps host samples until run() hands over its clock
   std::unique_ptr<HostInput> hostInput;      // live link and recorder; only for link sources
@@ -848,6 +850,10 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
       return nullptr;
     }
     s->info_.layers.push_back("forest");
+    if (config.host == HostSource::Cigi) {  // the link that answers LOS requests
+      m.forest->enableQueries();
+      m.surfaces.add(&m.forest->surfaces());
+    }
   }
   if (scene.hdlod) {
     const auto t0 = std::chrono::steady_clock::now();
@@ -861,6 +867,10 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
       return nullptr;
     }
     s->info_.layers.push_back("hdlod");
+    if (config.host == HostSource::Cigi) {  // the link that answers HAT/HOT and LOS requests
+      m.hdlod->enableQueries();
+      m.surfaces.add(&m.hdlod->surfaces());
+    }
     s->info_.hdlodDescription = m.hdlod->describe();
     s->info_.hdlodBuild_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   }
@@ -1259,10 +1269,8 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
       fs.overrun = prevOverrun;
       fs.host = &host_;
       fs.terrain = m.hasGround ? &m.ground : nullptr;
-      if (m.hdlod) {
-        m.hdlod->setQueryTime(host_.simTime_s);  // where this frame draws the objects
-        fs.objects = &m.hdlod->surfaces();
-      }
+      if (m.hdlod) m.hdlod->setQueryTime(host_.simTime_s);  // where this frame draws the objects
+      fs.objects = m.surfaces.empty() ? nullptr : &m.surfaces;
       link->frameStarted(fs);
     }
     pacer.endPhase(Phase::Input);

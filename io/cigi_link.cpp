@@ -377,13 +377,13 @@ HatHotAnswer computeHatHot(const cigi::HatHotRequest& r, const lod::EnuFrame& en
     const double from_m = hasAltitude ? enu.fromGeodetic(point).z : scene.objects->top_m() + 1.0;
     SurfaceHit hit;
     if (from_m > surface.z && std::isfinite(from_m) &&
-        scene.objects->intersect({surface.x, surface.y, from_m}, surface, hit, nullptr)) {
+        scene.objects->intersect({surface.x, surface.y, from_m}, surface, SurfaceQuery::Height, hit, nullptr)) {
       const double height_m = enu.toGeodetic(hit.point_m).height_m;
       if (std::isfinite(height_m)) {
         surface = hit.point_m;
         normal = hit.normal;
         guess_m = height_m;
-        a.materialCode = kMaterialObject;
+        a.materialCode = hit.material;
       }
     }
   }
@@ -437,13 +437,13 @@ LosAnswer computeLos(const cigi::LosRequest& r, const lod::EnuFrame& enu, const 
     // An object before the terrain hit (or anywhere along the segment when there is none).
     SurfaceHit o;
     const glm::dvec3 end = found ? hit.point_m : toEnu;
-    if (scene.objects->intersect(fromEnu, end, o, &a.cells)) {
+    if (scene.objects->intersect(fromEnu, end, SurfaceQuery::Sight, o, &a.cells)) {
       const double t = found ? o.t * hit.t : o.t;
       hit.t = t;
       hit.point_m = o.point_m;
       hit.normal = o.normal;
       found = true;
-      a.materialCode = kMaterialObject;
+      a.materialCode = o.material;
     }
   }
   if (!found) {

@@ -185,16 +185,17 @@ struct HatHotJob {
 };
 
 // What HAT/HOT and LOS requests are answered against: the terrain grid and the scene's objects
-// standing on it (either may be null). Material codes in the extended responses: kMaterialTerrain
-// for the terrain, kMaterialObject for an object.
+// and trees standing on it (either may be null). Material codes in the extended responses:
+// io::SurfaceMaterial (0 terrain, 1 object, 2 tree).
 struct QueryScene {
   QueryScene(const lod::HeightGrid* terrain_ = nullptr, const SceneSurfaces* objects_ = nullptr)  // NOLINT: implicit
       : terrain(terrain_), objects(objects_) {}
   const lod::HeightGrid* terrain = nullptr;
   const SceneSurfaces* objects = nullptr;
 };
-constexpr uint32_t kMaterialTerrain = 0;
-constexpr uint32_t kMaterialObject = 1;
+constexpr uint32_t kMaterialTerrain = kSurfaceTerrain;
+constexpr uint32_t kMaterialObject = kSurfaceObject;
+constexpr uint32_t kMaterialTree = kSurfaceTree;
 
 struct HatHotAnswer {
   bool valid = false;
@@ -243,8 +244,8 @@ struct LosAnswer {
 // The answer to one valid LOS request (pure): the first intersection of the segment (source ->
 // destination), or of the vector (from the source along azimuth / elevation, between the minimum
 // and maximum range), with the terrain surface computeHatHot samples (lod::intersectGround on
-// the grid in the ENU plane at `enu`) and with the scene's objects (scene.objects), whichever is
-// nearer the source. Points in entity coordinates are offsets in the ownship's body axes
+// the grid in the ENU plane at `enu`) and with the scene's objects and trees (scene.objects),
+// whichever is nearer the source. Points in entity coordinates are offsets in the ownship's body axes
 // (`host`'s ownship fields; invalid without them). Invalid: no terrain, no intersection, a
 // non-finite result. A segment's Visible: no intersection before its destination (1 mm).
 LosAnswer computeLos(const cigi::LosRequest& request, const lod::EnuFrame& enu, const QueryScene& scene,

@@ -84,17 +84,30 @@ class HostSink {
 
 // Scene geometry above the terrain that the host's terrain queries (CIGI HAT/HOT and line of
 // sight) hit, where it is this frame: in igd the [hdlod] objects at the frame's schedule time
-// (ig/hdlod_layer.h). Local ENU metres, like lod::HeightGrid. Read by the frame thread only.
+// (ig/hdlod_layer.h) and the [forest]'s trees (ig/forest_layer.h). Local ENU metres, like
+// lod::HeightGrid. Read by the frame thread only.
+// What a surface is (CIGI's material code in the extended responses).
+enum SurfaceMaterial : uint32_t {
+  kSurfaceTerrain = 0,  // the terrain grid
+  kSurfaceObject = 1,   // a scene object: a building, slab, crane, vehicle ([hdlod])
+  kSurfaceTree = 2,     // a tree's trunk or crown ([forest])
+};
+// Height queries (HAT/HOT: what a vehicle stands on) or sight (LOS: what a line of sight meets).
+// Trees count for sight only: a vehicle drives among trees, not on their crowns.
+enum class SurfaceQuery : uint8_t { Height, Sight };
 struct SurfaceHit {
   double t = 0.0;                    // along the segment, [0, 1]
   glm::dvec3 point_m{0.0};
   glm::dvec3 normal{0.0, 0.0, 1.0};  // unit, facing the segment's start
+  uint32_t material = kSurfaceObject;
 };
 class SceneSurfaces {
  public:
-  // The first intersection of the segment from -> to; `work` (may be null) adds the hierarchy
-  // nodes and triangles examined (the caller's per-frame cap). False: none, or bad input.
-  virtual bool intersect(const glm::dvec3& from_m, const glm::dvec3& to_m, SurfaceHit& hit, uint32_t* work) const = 0;
+  // The first intersection of the segment from -> to with the surfaces that count for `query`;
+  // `work` (may be null) adds the hierarchy nodes and triangles examined (the caller's
+  // per-frame cap). False: none, or bad input.
+  virtual bool intersect(const glm::dvec3& from_m, const glm::dvec3& to_m, SurfaceQuery query, SurfaceHit& hit,
+                         uint32_t* work) const = 0;
   // No surface is higher than this (ENU metres), at any time.
   virtual double top_m() const = 0;
 

@@ -15,7 +15,8 @@ Valid = false (the NaN counted in out_of_range), a HAT/HOT packet with a bad siz
 message malformed (counted) and igd keeps running and answering; a periodic request is answered
 every 2nd frame until cancelled. A 500 m tower (an [hdlod] schedule object) stands on the DEM: an
 extended request over it answers its roof (material code 1), and an extended LOS segment towards
-it stops at its west wall (range, material 1, normal facing west).
+it stops at its west wall (range, material 1, normal facing west). Eight LOS rays straight down
+into a patch of [forest] stop at a tree above the ground (material 2) or at the ground.
 
 usage: cigi_igd_test.py <igd> <source dir>
 """
@@ -77,6 +78,11 @@ lod = "block"
 offset_m = [{DEM_SW}, {DEM_SW}, 0]
 [hdlod]
 schedule = "tower.sched"
+[forest]
+area_m = [{FOREST[0]}, {FOREST[1]}, {FOREST[2]}, {FOREST[3]}]
+glade_fraction = 0
+layers = 2
+fins = false
 """)
     # A 500 m tower (an [hdlod] object) standing on the DEM: HOT over it is its roof, a LOS
     # segment towards it stops at its wall (material code 1, "object").
@@ -89,6 +95,11 @@ at tower 0 {TOWER_AT[0]} {TOWER_AT[1]} {tower_base()!r} 0
 """)
     return path
 
+
+# A patch of forest (ENU east0, north0, east1, north1), away from every other query: LOS rays
+# straight down into it stop at a tree (material 2) above the ground, or at the ground.
+FOREST = (600.0, -900.0, 900.0, -600.0)
+FOREST_RAYS = [(610.0 + 35.0 * k, -610.0 - 37.0 * k) for k in range(8)]
 
 # The tower: centred on TOWER_AT (ENU), its base 1 m below the DEM there.
 TOWER_AT, TOWER_HALF, TOWER_HEIGHT = (300.0, 300.0), (20.0, 15.0), 500.0
@@ -217,7 +228,10 @@ view_id = 0""", src, RATE_HZ, FRAMES, 3.0, rec, write_dem_scene(tmp),
                     cs.hat_hot_request(o, 5, 1, p_hot[0], p_hot[1], 0.0, update_period=2) +
                     cs.los_segment_request(o, 41, los_src, los_dst) +
                     cs.hat_hot_request(o, 7, 2, p_tower[0], p_tower[1], 2000.0) +
-                    cs.los_segment_request(o, 42, tower_src, tower_dst, extended=True))
+                    cs.los_segment_request(o, 42, tower_src, tower_dst, extended=True) +
+                    b"".join(cs.los_segment_request(o, 51 + k, cs.geodetic_of_enu(ORIGIN, e, n, 1000.0),
+                                                    cs.geodetic_of_enu(ORIGIN, e, n, -100.0), extended=True)
+                             for k, (e, n) in enumerate(FOREST_RAYS)))
         elif hat_frame is not None and cancel_frame is None and frame == hat_frame + 12:
             cancel_frame = frame
             msg += cs.hat_hot_request(o, 5, 1, p_hot[0], p_hot[1], 0.0)
@@ -344,7 +358,7 @@ view_id = 0""", src, RATE_HZ, FRAMES, 3.0, rec, write_dem_scene(tmp),
     # The LOS segment: one answer, its range within 1 mm of the first intersection with the DEM.
     want = los_expected_range()
     los = {a["id"]: a for a in los_answers}
-    check(len(los_answers) == 2 and 41 in los and los[41]["valid"] == 1 and
+    check(len(los_answers) == 2 + len(FOREST_RAYS) and 41 in los and los[41]["valid"] == 1 and
           not los[41]["visible"] and abs(los[41]["range"] - want) < 1e-3 and not los[41]["ext"],
           "LOS segment: %r, expected one valid answer with range %.4f" % (los_answers, want))
     # The tower's west wall, 130 m from the source.
@@ -352,15 +366,29 @@ view_id = 0""", src, RATE_HZ, FRAMES, 3.0, rec, write_dem_scene(tmp),
           abs(los[42]["range"] - (150.0 - TOWER_HALF[0])) < 1e-3 and los[42]["material"] == 1 and
           abs(los[42]["azimuth"] + 90.0) < 0.1, "LOS towards the tower: %r, expected range %.1f, material 1, normal west"
           % (los.get(42), 150.0 - TOWER_HALF[0]))
+    # Straight down into the forest: each ray stops at a tree above the ground (material 2) or at
+    # the ground itself (material 0, at the DEM's height within 1 mm); some of them at trees.
+    trees = 0
+    for k, (e, n) in enumerate(FOREST_RAYS):
+        a = los.get(51 + k)
+        ground = 1000.0 - dem_height(e, n)  # the ENU distance down to the DEM
+        ok = a is not None and a["ext"] and a["valid"] == 1 and not a["visible"] and (
+            (a["material"] == 0 and abs(a["range"] - ground) < 1e-3) or
+            (a["material"] == 2 and a["range"] < ground - 0.5))
+        trees += 1 if ok and a["material"] == 2 else 0
+        check(ok, "LOS down into the forest at (%.0f, %.0f): %r, expected a tree (material 2) above the ground or the"
+              " ground %.4f m down (material 0)" % (e, n, a, ground))
+    check(trees >= 2, "LOS down into the forest: %d of %d rays stopped at a tree" % (trees, len(FOREST_RAYS)))
     m = re.search(r"los_requests (\d+) los_answered (\d+) los_refused (\d+)", err)
-    check(m is not None and int(m.group(1)) == 2 and int(m.group(2)) == 2 and int(m.group(3)) == 0,
+    nlos = 2 + len(FOREST_RAYS)
+    check(m is not None and int(m.group(1)) == nlos and int(m.group(2)) == nlos and int(m.group(3)) == 0,
           "exit line LOS counters: %s" % (m.group(0) if m else err[-500:]))
     try:
         with open(status) as f:
             lc = json.load(f)["host"].get("los")
     except (OSError, ValueError, KeyError) as e:
         lc = "unreadable: %s" % e
-    check(isinstance(lc, dict) and lc.get("requests") == 2 and lc.get("answered") == 2, "status file host.los: %r" % lc)
+    check(isinstance(lc, dict) and lc.get("requests") == nlos and lc.get("answered") == nlos, "status file host.los: %r" % lc)
 
     # The recording of accepted samples.
     with open(rec) as f:
@@ -376,8 +404,9 @@ view_id = 0""", src, RATE_HZ, FRAMES, 3.0, rec, write_dem_scene(tmp),
     check(windows and not bad_windows, "recorded windows (shift_x shift_y width_tan): %r, expected %.9f 0 %.9f"
           % (bad_windows[:3], 0.5 * (tr + tl), tr - tl))
 
-    print("cigi_igd_test: %d frames, %d rendered host samples, %d Start of Frame packets; %d failures" %
-          (len(rows), len(rendered), len(sofs), len(FAILURES)))
+    print("cigi_igd_test: %d frames, %d rendered host samples, %d Start of Frame packets, %d of %d rays into the"
+          " forest stopped at trees; %d failures" % (len(rows), len(rendered), len(sofs), trees, len(FOREST_RAYS),
+                                                      len(FAILURES)))
     if not FAILURES:
         import shutil
         shutil.rmtree(tmp, ignore_errors=True)

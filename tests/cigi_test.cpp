@@ -1724,12 +1724,12 @@ struct Objects final : ig::io::SceneSurfaces {
     rays = hd::SceneRays(scene);
   }
   Objects(const Objects&) = delete;
-  bool intersect(const glm::dvec3& from, const glm::dvec3& to, SurfaceHit& hit, uint32_t* work) const override {
+  bool intersect(const glm::dvec3& from, const glm::dvec3& to, SurfaceQuery, SurfaceHit& hit, uint32_t* work) const override {
     ig::lod::hdlod::RayHit h;
     ig::lod::hdlod::RayWork w;
     const bool found = rays.intersect(from, to, 0.5, h, &w);
     if (work) *work += w.nodes + w.triangles;
-    if (found) hit = {h.t, h.point_m, h.normal};
+    if (found) hit = {h.t, h.point_m, h.normal, kSurfaceObject};
     return found;
   }
   double top_m() const override { return rays.top_m(); }

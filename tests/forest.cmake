@@ -4,6 +4,8 @@
 ig_add_test(forest_placement_test forest_placement_test.cpp LIBS ig_lod)
 ig_add_test(forest_kdtree_test forest_kdtree_test.cpp LIBS ig_lod)
 ig_add_test(forest_rays_test forest_rays_test.cpp LIBS ig_lod)
+# The host queries' surfaces of the layers together (ig/scene_surfaces.h: trees and [hdlod] objects).
+ig_add_test(scene_surfaces_test scene_surfaces_test.cpp LIBS ig_core)
 ig_add_test(forest_fins_test forest_fins_test.cpp LIBS ig_lod)
 ig_add_test(forest_gltest forest_gltest.cpp LIBS ig_core ig_render PkgConfig::EGL GL)
 ig_add_test(forest_service_gltest forest_service_gltest.cpp LIBS ig_core PkgConfig::EGL GL)
