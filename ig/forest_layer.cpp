@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "ig/forest_tool.h"
+#include "ig/scene_surfaces.h"
 #include "render/image.h"
 #include "render/renderer.h"
 
@@ -262,13 +263,7 @@ bool ForestLayer::Surfaces::intersect(const glm::dvec3& from_m, const glm::dvec3
   lod::TreeHit h;
   lod::RayWork w;
   const bool found = rays.intersect(from_m, to_m, h, &w);
-  if (work != nullptr) *work += w.nodes + w.triangles;
-  if (!found) return false;
-  hit.t = h.t;
-  hit.point_m = h.point_m;
-  hit.normal = h.normal;
-  hit.material = io::kSurfaceTree;
-  return true;
+  return toSurfaceHit(found, h, w, io::kSurfaceTree, hit, work);
 }
 
 bool ForestLayer::setFades(const lod::NearFade& nearFade, const lod::FarFade& farFade, std::string& error) {

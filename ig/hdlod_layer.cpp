@@ -5,6 +5,7 @@
 #include <cstdio>
 
 #include "ig/hdlod_tool.h"
+#include "ig/scene_surfaces.h"
 #include "lod/hdlod_site.h"
 #include "render/hdlod_pass.h"
 #include "render/renderer.h"
@@ -64,13 +65,7 @@ bool HdlodLayer::Surfaces::intersect(const glm::dvec3& from_m, const glm::dvec3&
   hd::RayHit h;
   hd::RayWork w;
   const bool found = rays.intersect(from_m, to_m, time_s, h, &w);
-  if (work != nullptr) *work += w.nodes + w.triangles;
-  if (!found) return false;
-  hit.t = h.t;
-  hit.point_m = h.point_m;
-  hit.normal = h.normal;
-  hit.material = io::kSurfaceObject;
-  return true;
+  return toSurfaceHit(found, h, w, io::kSurfaceObject, hit, work);
 }
 
 HdlodLayer::~HdlodLayer() = default;

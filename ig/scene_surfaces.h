@@ -9,8 +9,23 @@
 #include <cstdint>
 
 #include "io/link.h"
+#include "lod/mesh_rays.h"
 
 namespace ig {
+
+// A layer's answer (a lod hit with t, point_m and normal) as an io::SurfaceHit of `material`:
+// the layers' io::SceneSurfaces adapters. Adds the work (nodes + triangles) to `work` when set.
+template <typename LodHit>
+bool toSurfaceHit(bool found, const LodHit& h, const lod::RayWork& w, uint32_t material, io::SurfaceHit& hit,
+                  uint32_t* work) {
+  if (work != nullptr) *work += w.nodes + w.triangles;
+  if (!found) return false;
+  hit.t = h.t;
+  hit.point_m = h.point_m;
+  hit.normal = h.normal;
+  hit.material = material;
+  return true;
+}
 
 class SurfaceSet final : public io::SceneSurfaces {
  public:

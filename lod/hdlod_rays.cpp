@@ -15,45 +15,6 @@ constexpr uint32_t kLeafItems = 4;
 
 bool finite3(const glm::dvec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 
-struct Item {
-  glm::dvec3 min, max, centre;
-  uint32_t id;
-};
-
-// Builds the hierarchy over items[begin, end) at nodes.back(); the leaves' items go to `order`.
-template <typename Node>
-void build(std::vector<Node>& nodes, std::vector<Item>& items, size_t begin, size_t end, std::vector<uint32_t>& order) {
-  const size_t at = nodes.size();
-  nodes.emplace_back();
-  glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
-  glm::dvec3 clo = lo, chi = hi;
-  for (size_t i = begin; i < end; ++i) {
-    lo = glm::min(lo, items[i].min);
-    hi = glm::max(hi, items[i].max);
-    clo = glm::min(clo, items[i].centre);
-    chi = glm::max(chi, items[i].centre);
-  }
-  nodes[at].min = lo;
-  nodes[at].max = hi;
-  if (end - begin <= kLeafItems) {
-    nodes[at].first = static_cast<uint32_t>(order.size());
-    nodes[at].count = static_cast<uint32_t>(end - begin);
-    for (size_t i = begin; i < end; ++i) order.push_back(items[i].id);
-    return;
-  }
-  const glm::dvec3 extent = chi - clo;
-  const int axis = extent.x >= extent.y && extent.x >= extent.z ? 0 : (extent.y >= extent.z ? 1 : 2);
-  const size_t mid = begin + (end - begin) / 2;
-  std::nth_element(items.begin() + static_cast<std::ptrdiff_t>(begin), items.begin() + static_cast<std::ptrdiff_t>(mid),
-                   items.begin() + static_cast<std::ptrdiff_t>(end), [axis](const Item& a, const Item& b) {
-                     return a.centre[axis] < b.centre[axis] || (a.centre[axis] == b.centre[axis] && a.id < b.id);
-                   });
-  build(nodes, items, begin, mid, order);
-  nodes[at].first = static_cast<uint32_t>(nodes.size());
-  nodes[at].count = 0;
-  build(nodes, items, mid, end, order);
-}
-
 }  // namespace
 
 SceneRays::SceneRays(const Scene& scene) {
@@ -66,7 +27,7 @@ SceneRays::SceneRays(const Scene& scene) {
     triangles_ += models_.back().triangles();
     degenerate_ += models_.back().degenerateTriangles();
   }
-  std::vector<Item> items;
+  std::vector<BoxItem> items;
   top_m_ = -std::numeric_limits<double>::infinity();
   for (size_t o = 0; o < scene.objects.size(); ++o) {
     const Object& object = scene.objects[o];
@@ -74,11 +35,9 @@ SceneRays::SceneRays(const Scene& scene) {
     const Aabb box = sweptBox(object, scene.models[object.model]);
     if (!finite3(box.min) || !finite3(box.max)) continue;
     top_m_ = std::max(top_m_, box.max.z);
-    items.push_back({box.min, box.max, (box.min + box.max) * 0.5, static_cast<uint32_t>(o)});
+    items.push_back({box.min, box.max, static_cast<uint32_t>(o)});
   }
-  if (items.empty()) return;
-  objectNodes_.reserve(2 * items.size() / kLeafItems + 1);
-  build(objectNodes_, items, 0, items.size(), objects_);
+  buildBoxHierarchy(items, kLeafItems, objectNodes_, objects_);
 }
 
 bool SceneRays::intersect(const glm::dvec3& from_m, const glm::dvec3& to_m, double t_s, RayHit& hit,
@@ -90,16 +49,16 @@ bool SceneRays::intersect(const glm::dvec3& from_m, const glm::dvec3& to_m, doub
   double best = std::numeric_limits<double>::infinity();
   bool found = false;
   RayWork w;
-  std::array<uint32_t, 128> stack{};
+  std::array<uint32_t, 128> stack;
   size_t top = 0;
   stack[top++] = 0;
   while (top > 0) {
-    const Node& n = objectNodes_[stack[--top]];
+    const BoxNode& n = objectNodes_[stack[--top]];
     ++w.nodes;
     if (!segmentMeetsBox(from_m, d, std::min(best, 1.0), n.min, n.max)) continue;
     if (n.count == 0) {
+      stack[top++] = n.first + 1;
       stack[top++] = n.first;
-      stack[top++] = static_cast<uint32_t>(&n - objectNodes_.data()) + 1;
       continue;
     }
     for (uint32_t i = n.first; i < n.first + n.count; ++i) {

@@ -59,16 +59,9 @@ class SceneRays {
   size_t degenerateTriangles() const { return degenerate_; }  // left out
 
  private:
-  // A node of the objects' hierarchy: a box; a leaf holds objects [first, first + count), an
-  // inner node has count 0, its children at index + 1 and at `first`.
-  struct Node {
-    glm::dvec3 min{0.0}, max{0.0};
-    uint32_t first = 0, count = 0;
-  };
-
   const Scene* scene_ = nullptr;
   std::vector<MeshRays> models_;
-  std::vector<Node> objectNodes_;
+  std::vector<BoxNode> objectNodes_;  // over the objects' swept boxes (lod/mesh_rays.h)
   std::vector<uint32_t> objects_;  // object numbers in leaf order
   double top_m_ = 0.0;
   size_t triangles_ = 0, degenerate_ = 0;

@@ -15,11 +15,6 @@ constexpr uint32_t kLeafTriangles = 4;
 
 bool finite3(const glm::dvec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 
-struct Item {
-  glm::dvec3 min, max, centre;
-  uint32_t id;
-};
-
 }  // namespace
 
 bool segmentMeetsBox(const glm::dvec3& o, const glm::dvec3& d, double tMax, const glm::dvec3& lo, const glm::dvec3& hi) {
@@ -46,13 +41,68 @@ bool segmentMeetsBox(const glm::dvec3& o, const glm::dvec3& d, double tMax, cons
   return true;
 }
 
+void buildBoxHierarchy(std::vector<BoxItem>& items, uint32_t leafItems, std::vector<BoxNode>& nodes,
+                       std::vector<uint32_t>& order) {
+  nodes.clear();
+  order.clear();
+  if (items.empty()) return;
+  leafItems = std::max(leafItems, 1u);
+  nodes.reserve(2 * items.size() / leafItems + 1);
+  order.reserve(items.size());
+  // Depth-first with an explicit stack of (node, begin, end).
+  struct Range {
+    uint32_t node;
+    size_t begin, end;
+  };
+  std::vector<Range> todo;
+  nodes.emplace_back();
+  todo.push_back({0, 0, items.size()});
+  const auto centre = [](const BoxItem& b, int axis) { return b.min[axis] + b.max[axis]; };
+  while (!todo.empty()) {
+    const Range r = todo.back();
+    todo.pop_back();
+    glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
+    glm::dvec3 clo = lo, chi = hi;
+    for (size_t i = r.begin; i < r.end; ++i) {
+      lo = glm::min(lo, items[i].min);
+      hi = glm::max(hi, items[i].max);
+      const glm::dvec3 c = items[i].min + items[i].max;
+      clo = glm::min(clo, c);
+      chi = glm::max(chi, c);
+    }
+    nodes[r.node].min = lo;
+    nodes[r.node].max = hi;
+    if (r.end - r.begin <= leafItems) {
+      nodes[r.node].first = static_cast<uint32_t>(order.size());
+      nodes[r.node].count = static_cast<uint32_t>(r.end - r.begin);
+      for (size_t i = r.begin; i < r.end; ++i) order.push_back(items[i].id);
+      continue;
+    }
+    const glm::dvec3 extent = chi - clo;
+    const int axis = extent.x >= extent.y && extent.x >= extent.z ? 0 : (extent.y >= extent.z ? 1 : 2);
+    const size_t mid = r.begin + (r.end - r.begin) / 2;
+    std::nth_element(items.begin() + static_cast<std::ptrdiff_t>(r.begin), items.begin() + static_cast<std::ptrdiff_t>(mid),
+                     items.begin() + static_cast<std::ptrdiff_t>(r.end), [axis, &centre](const BoxItem& x, const BoxItem& y) {
+                       return centre(x, axis) < centre(y, axis) || (centre(x, axis) == centre(y, axis) && x.id < y.id);
+                     });
+    // The two children side by side.
+    const uint32_t left = static_cast<uint32_t>(nodes.size());
+    nodes.emplace_back();
+    nodes.emplace_back();
+    nodes[r.node].first = left;
+    nodes[r.node].count = 0;
+    todo.push_back({left + 1, mid, r.end});
+    todo.push_back({left, r.begin, mid});
+  }
+}
+
 MeshRays::MeshRays(const float* positions, size_t count, size_t stride, std::span<const uint32_t> indices) {
   auto vertex = [&](uint32_t i) {
     float p[3];
     std::memcpy(p, reinterpret_cast<const char*>(positions) + static_cast<size_t>(i) * stride, sizeof p);
     return glm::dvec3(p[0], p[1], p[2]);
   };
-  std::vector<Item> items;
+  std::vector<BoxItem> items;
   std::vector<Tri> tris;
   for (size_t k = 0; k + 2 < indices.size(); k += 3) {
     if (indices[k] >= count || indices[k + 1] >= count || indices[k + 2] >= count) {
@@ -66,56 +116,13 @@ MeshRays::MeshRays(const float* positions, size_t count, size_t stride, std::spa
       ++degenerate_;
       continue;
     }
-    const glm::dvec3 lo = glm::min(a, glm::min(b, c)), hi = glm::max(a, glm::max(b, c));
-    items.push_back({lo, hi, (lo + hi) * 0.5, static_cast<uint32_t>(tris.size())});
+    items.push_back({glm::min(a, glm::min(b, c)), glm::max(a, glm::max(b, c)), static_cast<uint32_t>(tris.size())});
     tris.push_back({a, e1, e2});
   }
-  if (items.empty()) return;
-  nodes_.reserve(2 * items.size() / kLeafTriangles + 1);
-  tris_.reserve(tris.size());
-  // Built depth-first with an explicit stack of (node, begin, end).
-  struct Range {
-    uint32_t node;
-    size_t begin, end;
-  };
-  std::vector<Range> todo;
-  nodes_.emplace_back();
-  todo.push_back({0, 0, items.size()});
-  while (!todo.empty()) {
-    const Range r = todo.back();
-    todo.pop_back();
-    glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
-    glm::dvec3 clo = lo, chi = hi;
-    for (size_t i = r.begin; i < r.end; ++i) {
-      lo = glm::min(lo, items[i].min);
-      hi = glm::max(hi, items[i].max);
-      clo = glm::min(clo, items[i].centre);
-      chi = glm::max(chi, items[i].centre);
-    }
-    nodes_[r.node].min = lo;
-    nodes_[r.node].max = hi;
-    if (r.end - r.begin <= kLeafTriangles) {
-      nodes_[r.node].first = static_cast<uint32_t>(tris_.size());
-      nodes_[r.node].count = static_cast<uint32_t>(r.end - r.begin);
-      for (size_t i = r.begin; i < r.end; ++i) tris_.push_back(tris[items[i].id]);
-      continue;
-    }
-    const glm::dvec3 extent = chi - clo;
-    const int axis = extent.x >= extent.y && extent.x >= extent.z ? 0 : (extent.y >= extent.z ? 1 : 2);
-    const size_t mid = r.begin + (r.end - r.begin) / 2;
-    std::nth_element(items.begin() + static_cast<std::ptrdiff_t>(r.begin), items.begin() + static_cast<std::ptrdiff_t>(mid),
-                     items.begin() + static_cast<std::ptrdiff_t>(r.end), [axis](const Item& x, const Item& y) {
-                       return x.centre[axis] < y.centre[axis] || (x.centre[axis] == y.centre[axis] && x.id < y.id);
-                     });
-    // The two children side by side.
-    const uint32_t left = static_cast<uint32_t>(nodes_.size());
-    nodes_.emplace_back();
-    nodes_.emplace_back();
-    nodes_[r.node].first = left;
-    nodes_[r.node].count = 0;
-    todo.push_back({left + 1, mid, r.end});
-    todo.push_back({left, r.begin, mid});
-  }
+  std::vector<uint32_t> order;
+  buildBoxHierarchy(items, kLeafTriangles, nodes_, order);
+  tris_.reserve(order.size());
+  for (uint32_t i : order) tris_.push_back(tris[i]);  // leaves index tris_ directly
 }
 
 bool MeshRays::intersect(const glm::dvec3& o, const glm::dvec3& d, double& tBest, glm::dvec3& normal, RayWork& work) const {
@@ -125,7 +132,7 @@ bool MeshRays::intersect(const glm::dvec3& o, const glm::dvec3& d, double& tBest
   size_t top = 0;
   stack[top++] = 0;
   while (top > 0) {
-    const Node& n = nodes_[stack[--top]];
+    const BoxNode& n = nodes_[stack[--top]];
     ++work.nodes;
     if (!segmentMeetsBox(o, d, std::min(tBest, 1.0), n.min, n.max)) continue;
     if (n.count == 0) {

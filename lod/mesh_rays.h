@@ -22,6 +22,21 @@ struct RayWork {
   uint32_t triangles = 0;  // triangles tested
 };
 
+// A bounding volume hierarchy over boxes (median split on the longest axis of the boxes'
+// centres, up to `leafItems` a leaf), the one MeshRays and lod::hdlod::SceneRays walk. A node's
+// box holds its items; a leaf holds order[first, first + count), an inner node has count 0 and
+// its children at `first` and `first + 1`. Node 0 is the root (none for no items).
+struct BoxItem {
+  glm::dvec3 min{0.0}, max{0.0};
+  uint32_t id = 0;
+};
+struct BoxNode {
+  glm::dvec3 min{0.0}, max{0.0};
+  uint32_t first = 0, count = 0;
+};
+void buildBoxHierarchy(std::vector<BoxItem>& items, uint32_t leafItems, std::vector<BoxNode>& nodes,
+                       std::vector<uint32_t>& order);
+
 class MeshRays {
  public:
   MeshRays() = default;
@@ -38,15 +53,10 @@ class MeshRays {
   size_t degenerateTriangles() const { return degenerate_; }
 
  private:
-  struct Node {
-    glm::dvec3 min{0.0}, max{0.0};
-    uint32_t first = 0, count = 0;  // leaf: triangles [first, first + count); inner: count 0,
-                                    // children at `first` and `first + 1`
-  };
   struct Tri {
     glm::dvec3 a, e1, e2;  // a vertex and the two edges from it
   };
-  std::vector<Node> nodes_;
+  std::vector<BoxNode> nodes_;  // leaves index tris_ directly (stored in leaf order)
   std::vector<Tri> tris_;
   size_t degenerate_ = 0;
 };

@@ -92,6 +92,8 @@ uint hash(uint x) {
   return x;
 }
 void main() {
+  // lod::treePose (lod/forest_rays.h) repeats this pose for the host's line-of-sight queries:
+  // change both together.
   uint h = hash(iTree);
   float yaw = float(h & 0xffffu) * (6.2831853 / 65536.0) * uYawJitter;
   float s = 1.0 + 0.2 * uYawJitter * (float((h >> 16) & 0xffu) / 255.0 - 0.5);

@@ -16,6 +16,7 @@
 #include "lod/forest_kdtree.h"
 #include "lod/forest_model.h"
 #include "lod/forest_rays.h"
+#include "segment_triangle.h"
 
 using namespace ig::lod;
 
@@ -57,7 +58,6 @@ std::vector<TreeInstance> scatter(int n, glm::dvec3 offset, uint32_t seed) {
 bool bruteForce(const ForestKdTree& kd, const std::vector<TreeMesh>& m, float jitter, glm::dvec3 from, glm::dvec3 to,
                 double& tHit) {
   tHit = std::numeric_limits<double>::infinity();
-  const glm::dvec3 d = to - from;
   for (uint32_t i = 0; i < kd.trees().size(); ++i) {
     const TreeMesh& mesh = m[kd.trees()[i].model];
     const glm::dvec3 base = kd.decode(i);
@@ -75,12 +75,8 @@ bool bruteForce(const ForestKdTree& kd, const std::vector<TreeMesh>& m, float ji
         const glm::dvec3 q(p[0], p[1], p[2]);
         v[j] = base + pose.scale * glm::dvec3(c * q.x - s * q.y, s * q.x + c * q.y, q.z);
       }
-      const glm::dvec3 e1 = v[1] - v[0], e2 = v[2] - v[0], rr = from - v[0];
-      const glm::dmat3 a(-d, e1, e2);
-      const double det = glm::determinant(a);
-      if (std::abs(det) < 1e-12) continue;
-      const glm::dvec3 x = glm::inverse(a) * rr;  // (t, u, w)
-      if (x.x >= 0.0 && x.x <= 1.0 && x.y >= -1e-12 && x.z >= -1e-12 && x.y + x.z <= 1.0 + 1e-12) tHit = std::min(tHit, x.x);
+      double t = 0.0;
+      if (ig::test::segmentTriangle(from, to, v[0], v[1], v[2], t)) tHit = std::min(tHit, t);
     }
   }
   return tHit < std::numeric_limits<double>::infinity();

@@ -13,6 +13,7 @@
 
 #include "lod/hdlod_rays.h"
 #include "lod/hdlod_scene.h"
+#include "segment_triangle.h"
 
 using namespace ig::lod::hdlod;
 
@@ -42,7 +43,6 @@ Scene oneBox(glm::dvec3 at, double heading_deg = 0.0) {
 // The first hit by brute force: every triangle of every present object, in world coordinates.
 bool bruteForce(const Scene& s, glm::dvec3 from, glm::dvec3 to, double t_s, double& tHit) {
   tHit = kInf;
-  const glm::dvec3 d = to - from;
   for (const Object& o : s.objects) {
     if (!isPresent(o, t_s, s.duration_s)) continue;
     const glm::dmat4 m = objectMatrix(o, t_s, s.duration_s);
@@ -55,13 +55,8 @@ bool bruteForce(const Scene& s, glm::dvec3 from, glm::dvec3 to, double t_s, doub
     for (size_t k = 0; k + 2 < model.indices.size(); k += 3) {
       glm::dvec3 v[3];
       for (int j = 0; j < 3; ++j) v[j] = glm::dvec3(m * glm::dvec4(glm::dvec3(model.positions[model.indices[k + j]]), 1.0));
-      // Solve from + t d = v0 + u (v1 - v0) + w (v2 - v0) (Cramer's rule).
-      const glm::dvec3 e1 = v[1] - v[0], e2 = v[2] - v[0], r = from - v[0];
-      const glm::dmat3 a(-d, e1, e2);
-      const double det = glm::determinant(a);
-      if (std::abs(det) < 1e-12) continue;
-      const glm::dvec3 x = glm::inverse(a) * r;  // (t, u, w)
-      if (x.x >= 0.0 && x.x <= 1.0 && x.y >= -1e-12 && x.z >= -1e-12 && x.y + x.z <= 1.0 + 1e-12) tHit = std::min(tHit, x.x);
+      double t = 0.0;
+      if (ig::test::segmentTriangle(from, to, v[0], v[1], v[2], t)) tHit = std::min(tHit, t);
     }
   }
   return tHit < kInf;
