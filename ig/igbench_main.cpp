@@ -14,6 +14,7 @@
 #include "ig/bench_governor.h"
 #include "ig/bench_hdlod.h"
 #include "ig/bench_latency.h"
+#include "ig/bench_queries.h"
 #include "ig/bench_perfmodel.h"
 #include "ig/bench_terrain.h"
 #include "ig/clock.h"
@@ -193,6 +194,21 @@ int main(int argc, char** argv) {
   latency->add_option("--width", latencyOptions.width_px, "Frame width in pixels (default: the config's)");
   latency->add_option("--height", latencyOptions.height_px, "Frame height in pixels (default: the config's)");
   latency->add_flag("--json", latencyOptions.json, "Print one JSON object instead of the human summary");
+  ig::QueriesBenchOptions queriesOptions;
+  CLI::App* queries = app.add_subcommand(
+      "queries",
+      "The host's terrain queries (CIGI HAT/HOT and line of sight, docs/cigi.md) per kind of surface:\n"
+      "a 4097 x 4097-post terrain grid, the construction site's objects, the default forest's trees.\n"
+      "Random seeded queries, each timed alone. JSON fields: suite, queries, terrain_posts, objects,\n"
+      "object_triangles, objects_index_ms, trees, forest_index_ms, forest_index_mb, and per kind\n"
+      "(terrain_hot, terrain_los, objects_hot, objects_los, forest_los) us_p50, us_p99, us_mean,\n"
+      "work_mean, work_max (the units the per-frame LOS budget counts), hit_pct, ns_per_work.");
+  queries->add_option("--queries", queriesOptions.queries, "Queries per kind")
+      ->capture_default_str()->check(CLI::Range(1, 10000000));
+  queries->add_option("--site-scale", queriesOptions.siteScale, "Construction site scale (1 = ~56k objects)")
+      ->capture_default_str()->check(CLI::Range(0.001, 10.0));
+  queries->add_option("--seed", queriesOptions.seed, "Seed of the random queries")->capture_default_str();
+  queries->add_flag("--json", queriesOptions.json, "Print one JSON object instead of the human summary");
   ig::HdlodBenchOptions hdlodOptions;
   CLI::App* hdlod = app.add_subcommand(
       "hdlod",
@@ -481,6 +497,7 @@ int main(int argc, char** argv) {
     return ig::runHdlodBench(hdlodOptions);
   }
   if (latency->parsed()) return ig::runLatencyBench(latencyOptions);
+  if (queries->parsed()) return ig::runQueriesBench(queriesOptions);
   if (terrain->parsed()) {
     terrainOptions.render = !noRender;
     terrainOptions.baselines = !noBaselines;

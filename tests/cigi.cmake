@@ -28,3 +28,10 @@ if(TARGET igd)
     set_tests_properties(cigi_igd_test PROPERTIES ENVIRONMENT "ASAN_OPTIONS=detect_leaks=0:abort_on_error=1")
   endif()
 endif()
+
+# igbench queries: the cost of HAT/HOT and LOS per kind of surface (terrain, objects, trees).
+# Release only, like every benchmark test.
+if(NOT IG_SANITIZE)
+  add_test(NAME queries_bench_test COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/queries_bench_test.sh $<TARGET_FILE:igbench>)
+  set_tests_properties(queries_bench_test PROPERTIES TIMEOUT 120)
+endif()
