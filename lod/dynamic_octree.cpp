@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <limits>
 
 namespace ig::lod {
 namespace {
@@ -17,7 +18,12 @@ bool inside(const Aabb& outer, const Aabb& b) {
   return b.min.x >= outer.min.x && b.min.y >= outer.min.y && b.min.z >= outer.min.z && b.max.x <= outer.max.x &&
          b.max.y <= outer.max.y && b.max.z <= outer.max.z;
 }
-Aabb emptyBox() { return {glm::dvec3(1e300), glm::dvec3(-1e300)}; }
+// Empty: +inf ... -inf, so that growing it by any finite box gives that box (with +-1e300 a box
+// beyond 1e300 came out loose: DynamicOctree.BoundsAreTightForBoxesBeyondOneE300).
+Aabb emptyBox() {
+  constexpr double inf = std::numeric_limits<double>::infinity();
+  return {glm::dvec3(inf), glm::dvec3(-inf)};
+}
 // True if the box (eye-relative) lies wholly inside the frustum: every node below it is drawn.
 bool insideFrustum(const Frustum& f, const Aabb& b) {
   for (const auto& p : f.planes) {

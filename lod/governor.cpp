@@ -622,7 +622,6 @@ const GovDecision& Governor::update(const GovSample& sample) {
         quantumRaise_ms_[l] = frame_ms;
       }
     }
-    framesSinceRaise_ = 0;
   } else {
     d.action = GovAction::Hold;
   }
@@ -672,6 +671,9 @@ const GovDecision& Governor::update(const GovSample& sample) {
   if (lowered) ++stats_.decreases;
   // A raise or decrease that moved nothing (every layer at its bound) is a hold.
   if (!raised && !lowered && (d.action == GovAction::Increase || d.action == GovAction::Decrease)) d.action = GovAction::Hold;
+  // The raise interval counts from the last raise that moved a knob (a raise that moved nothing
+  // is a hold: Governor.AnIncreaseThatMovedNothingDoesNotRestartTheRaiseInterval).
+  if (d.action == GovAction::Increase) framesSinceRaise_ = 0;
   knob_ = next;
   d.knob = knob_;
   d.loadScale = s;

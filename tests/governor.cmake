@@ -1,6 +1,8 @@
 # Frame governor (lod/governor.h): fake clock and fake costs; holds the rate under a 10x swing,
 # no oscillation, spike recovery, bounds, bad measurements, absent phases; RLS and WorkBudget.
 ig_add_test(governor_test ${CMAKE_CURRENT_SOURCE_DIR}/governor_test.cpp LIBS ig_lod)
+# Mutation-testing pass over lod/governor.cpp: control-law details the tests above leave open.
+ig_add_test(governor_mutation_test ${CMAKE_CURRENT_SOURCE_DIR}/governor_mutation_test.cpp LIBS ig_lod)
 # igbench governor at CI size: it runs, and the JSON carries the fields issue 7 names (the
 # overrun goal is a benchmark result on an idle machine, not asserted here); each frame's phases
 # add up to its time. Release only.
