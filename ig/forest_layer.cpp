@@ -257,9 +257,9 @@ void ForestLayer::enableQueries() {
   models_ = {};
 }
 
-bool ForestLayer::Surfaces::intersect(const glm::dvec3& from_m, const glm::dvec3& to_m, io::SurfaceQuery query,
+bool ForestLayer::Surfaces::intersect(const glm::dvec3& from_m, const glm::dvec3& to_m, io::SurfaceMask mask,
                                       io::SurfaceHit& hit, uint32_t* work) const {
-  if (query != io::SurfaceQuery::Sight) return false;
+  if (!(mask & io::surfaceBit(io::kSurfaceTree))) return false;
   lod::TreeHit h;
   lod::RayWork w;
   const bool found = rays.intersect(from_m, to_m, h, &w);

@@ -134,7 +134,7 @@ class ForestLayer {
   int layersDrawn_ = 0;
   struct Surfaces final : io::SceneSurfaces {
     lod::ForestRays rays;
-    bool intersect(const glm::dvec3& from_m, const glm::dvec3& to_m, io::SurfaceQuery query, io::SurfaceHit& hit,
+    bool intersect(const glm::dvec3& from_m, const glm::dvec3& to_m, io::SurfaceMask mask, io::SurfaceHit& hit,
                    uint32_t* work) const override;
     double top_m() const override { return rays.empty() ? -1e300 : rays.top_m(); }
   };

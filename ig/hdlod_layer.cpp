@@ -60,8 +60,9 @@ std::unique_ptr<HdlodLayer> HdlodLayer::create(const HdlodLayerConfig& config, s
   return layer;
 }
 
-bool HdlodLayer::Surfaces::intersect(const glm::dvec3& from_m, const glm::dvec3& to_m, io::SurfaceQuery,
+bool HdlodLayer::Surfaces::intersect(const glm::dvec3& from_m, const glm::dvec3& to_m, io::SurfaceMask mask,
                                      io::SurfaceHit& hit, uint32_t* work) const {
+  if (!(mask & io::surfaceBit(io::kSurfaceObject))) return false;
   hd::RayHit h;
   hd::RayWork w;
   const bool found = rays.intersect(from_m, to_m, time_s, h, &w);

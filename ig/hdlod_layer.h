@@ -97,7 +97,7 @@ class HdlodLayer {
   struct Surfaces final : io::SceneSurfaces {
     lod::hdlod::SceneRays rays;
     double time_s = 0.0;
-    bool intersect(const glm::dvec3& from_m, const glm::dvec3& to_m, io::SurfaceQuery query, io::SurfaceHit& hit,
+    bool intersect(const glm::dvec3& from_m, const glm::dvec3& to_m, io::SurfaceMask mask, io::SurfaceHit& hit,
                    uint32_t* work) const override;
     double top_m() const override { return rays.top_m(); }
   };

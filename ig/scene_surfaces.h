@@ -34,7 +34,7 @@ class SurfaceSet final : public io::SceneSurfaces {
   }
   bool empty() const { return count_ == 0; }
 
-  bool intersect(const glm::dvec3& from_m, const glm::dvec3& to_m, io::SurfaceQuery query, io::SurfaceHit& hit,
+  bool intersect(const glm::dvec3& from_m, const glm::dvec3& to_m, io::SurfaceMask mask, io::SurfaceHit& hit,
                  uint32_t* work) const override {
     // Each part searches only up to the nearest hit so far: the segment shrinks to it.
     bool found = false;
@@ -42,7 +42,7 @@ class SurfaceSet final : public io::SceneSurfaces {
     double scale = 1.0;  // the shrunk segment's end as a fraction of the whole
     for (size_t i = 0; i < count_; ++i) {
       io::SurfaceHit h;
-      if (!parts_[i]->intersect(from_m, end, query, h, work)) continue;
+      if (!parts_[i]->intersect(from_m, end, mask, h, work)) continue;
       found = true;
       hit = h;
       hit.t = h.t * scale;

@@ -271,7 +271,7 @@ struct LosRequest {
   uint8_t alphaThreshold = 0;
   uint16_t entityId = 0;
   uint8_t updatePeriod = 0;       // 0: answer once; n: answer every n-th IG frame until cancelled
-  uint32_t materialMask = 0;
+  uint32_t materialMask = 0;      // bit n: register hits with material code n (igd: 0 terrain, 1 object, 2 tree); 0: all
   double srcLat_deg = 0;          // or x offset (m)
   double srcLon_deg = 0;          // or y offset (m)
   double srcAlt_m = 0;            // or z offset (m)

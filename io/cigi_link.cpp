@@ -377,7 +377,7 @@ HatHotAnswer computeHatHot(const cigi::HatHotRequest& r, const lod::EnuFrame& en
     const double from_m = hasAltitude ? enu.fromGeodetic(point).z : scene.objects->top_m() + 1.0;
     SurfaceHit hit;
     if (from_m > surface.z && std::isfinite(from_m) &&
-        scene.objects->intersect({surface.x, surface.y, from_m}, surface, SurfaceQuery::Height, hit, nullptr)) {
+        scene.objects->intersect({surface.x, surface.y, from_m}, surface, kHeightSurfaces, hit, nullptr)) {
       const double height_m = enu.toGeodetic(hit.point_m).height_m;
       if (std::isfinite(height_m)) {
         surface = hit.point_m;
@@ -431,13 +431,16 @@ LosAnswer computeLos(const cigi::LosRequest& r, const lod::EnuFrame& enu, const 
   const glm::dvec3 fromEnu = enu.toEnu(from), toEnu = enu.toEnu(to);
   const double length_m = glm::length(toEnu - fromEnu);
   if (!std::isfinite(length_m)) return a;
+  // The host's material mask: bit n registers hits with material code n (0 terrain, 1 object,
+  // 2 tree); 0 (what most hosts send) registers every surface.
+  const SurfaceMask mask = r.materialMask != 0 ? r.materialMask : kSightSurfaces;
   lod::GroundHit hit;
-  bool found = lod::intersectGround(*terrain, fromEnu, toEnu, hit, &a.cells);
-  if (scene.objects != nullptr) {
+  bool found = (mask & surfaceBit(kSurfaceTerrain)) && lod::intersectGround(*terrain, fromEnu, toEnu, hit, &a.cells);
+  if (scene.objects != nullptr && (mask & (kSightSurfaces & ~surfaceBit(kSurfaceTerrain)))) {
     // An object before the terrain hit (or anywhere along the segment when there is none).
     SurfaceHit o;
     const glm::dvec3 end = found ? hit.point_m : toEnu;
-    if (scene.objects->intersect(fromEnu, end, SurfaceQuery::Sight, o, &a.cells)) {
+    if (scene.objects->intersect(fromEnu, end, mask, o, &a.cells)) {
       const double t = found ? o.t * hit.t : o.t;
       hit.t = t;
       hit.point_m = o.point_m;

@@ -92,9 +92,13 @@ enum SurfaceMaterial : uint32_t {
   kSurfaceObject = 1,   // a scene object: a building, slab, crane, vehicle ([hdlod])
   kSurfaceTree = 2,     // a tree's trunk or crown ([forest])
 };
-// Height queries (HAT/HOT: what a vehicle stands on) or sight (LOS: what a line of sight meets).
-// Trees count for sight only: a vehicle drives among trees, not on their crowns.
-enum class SurfaceQuery : uint8_t { Height, Sight };
+// Which surfaces a query meets: a mask of bits 1 << SurfaceMaterial. Height queries (HAT/HOT:
+// what a vehicle stands on) meet terrain and objects: a vehicle drives among trees, not on their
+// crowns. Sight queries (LOS) meet all three, or what the host's material mask names.
+using SurfaceMask = uint32_t;
+constexpr SurfaceMask surfaceBit(SurfaceMaterial m) { return SurfaceMask{1} << m; }
+constexpr SurfaceMask kHeightSurfaces = surfaceBit(kSurfaceTerrain) | surfaceBit(kSurfaceObject);
+constexpr SurfaceMask kSightSurfaces = kHeightSurfaces | surfaceBit(kSurfaceTree);
 struct SurfaceHit {
   double t = 0.0;                    // along the segment, [0, 1]
   glm::dvec3 point_m{0.0};
@@ -103,10 +107,10 @@ struct SurfaceHit {
 };
 class SceneSurfaces {
  public:
-  // The first intersection of the segment from -> to with the surfaces that count for `query`;
+  // The first intersection of the segment from -> to with the surfaces in `mask`;
   // `work` (may be null) adds the hierarchy nodes and triangles examined (the caller's
   // per-frame cap). False: none, or bad input.
-  virtual bool intersect(const glm::dvec3& from_m, const glm::dvec3& to_m, SurfaceQuery query, SurfaceHit& hit,
+  virtual bool intersect(const glm::dvec3& from_m, const glm::dvec3& to_m, SurfaceMask mask, SurfaceHit& hit,
                          uint32_t* work) const = 0;
   // No surface is higher than this (ENU metres), at any time.
   virtual double top_m() const = 0;

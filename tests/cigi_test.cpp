@@ -1724,7 +1724,8 @@ struct Objects final : ig::io::SceneSurfaces {
     rays = hd::SceneRays(scene);
   }
   Objects(const Objects&) = delete;
-  bool intersect(const glm::dvec3& from, const glm::dvec3& to, SurfaceQuery, SurfaceHit& hit, uint32_t* work) const override {
+  bool intersect(const glm::dvec3& from, const glm::dvec3& to, SurfaceMask mask, SurfaceHit& hit, uint32_t* work) const override {
+    if (!(mask & surfaceBit(kSurfaceObject))) return false;
     ig::lod::hdlod::RayHit h;
     ig::lod::hdlod::RayWork w;
     const bool found = rays.intersect(from, to, 0.5, h, &w);
@@ -1780,6 +1781,16 @@ TEST(CigiObjects, LineOfSightStopsAtTheNearerOfObjectAndTerrain) {
   r.add(LosJob{losSegment(4, {130.0, 200.0, 200.0}, {130.0, 200.0, 0.0}, true), 0}, 5);
   // Over the tower: clear.
   r.add(LosJob{losSegment(5, {-400.0, 0.0, 120.0}, {-200.0, 0.0, 120.0}, false), 0}, 5);
+  // The host's material mask: terrain only (bit 0) sees through the tower (and stays above the
+  // ground); objects only (bit 1) sees through the ground beside the deck, and meets the tower.
+  LosRequest terrainOnly = losSegment(6, a, b, false), objectsOnly = losSegment(7, {130.0, 200.0, 200.0}, {130.0, 200.0, 0.0}, false);
+  terrainOnly.materialMask = 1u << kMaterialTerrain;
+  objectsOnly.materialMask = 1u << kMaterialObject;
+  LosRequest towerOnly = losSegment(8, a, b, false);
+  towerOnly.materialMask = 1u << kMaterialObject;
+  r.add(LosJob{terrainOnly, 0}, 5);
+  r.add(LosJob{objectsOnly, 0}, 5);
+  r.add(LosJob{towerOnly, 0}, 5);
   Bytes buf(CigiHatHotResponder::kMaxBytesPerFrame);
   const size_t n = r.answer(5, 0x1233, QueryScene(&plane.grid, &objects), nullptr, ByteOrder::little, buf);
   std::vector<LosExtendedResponse> x;
@@ -1790,7 +1801,11 @@ TEST(CigiObjects, LineOfSightStopsAtTheNearerOfObjectAndTerrain) {
     else EXPECT_TRUE(decodePacket(p, ByteOrder::little, basic.emplace_back()));
   }
   ASSERT_EQ(x.size(), 3u);
-  ASSERT_EQ(basic.size(), 2u);
+  ASSERT_EQ(basic.size(), 5u);
+  EXPECT_TRUE(basic[2].visible && !basic[2].valid);  // terrain only: through the tower, above the ground
+  EXPECT_TRUE(basic[3].visible && !basic[3].valid);  // objects only: through the ground
+  EXPECT_TRUE(basic[4].valid && !basic[4].visible);  // objects only: the tower
+  EXPECT_NEAR(basic[4].range_m, 95.0, 1e-3);
   EXPECT_TRUE(x[0].valid && !x[0].visible);
   EXPECT_NEAR(x[0].range_m, 95.0, 1e-3);
   EXPECT_EQ(x[0].materialCode, kMaterialObject);

@@ -32,7 +32,8 @@ struct Scene {
 
   struct Objects final : io::SceneSurfaces {
     const hd::SceneRays* rays = nullptr;
-    bool intersect(const glm::dvec3& a, const glm::dvec3& b, io::SurfaceQuery, io::SurfaceHit& hit, uint32_t* work) const override {
+    bool intersect(const glm::dvec3& a, const glm::dvec3& b, io::SurfaceMask m, io::SurfaceHit& hit, uint32_t* work) const override {
+      if (!(m & io::surfaceBit(io::kSurfaceObject))) return false;
       hd::RayHit h;
       hd::RayWork w;
       const bool found = rays->intersect(a, b, 0.0, h, &w);
@@ -44,8 +45,8 @@ struct Scene {
   } objects;
   struct Trees final : io::SceneSurfaces {
     const lod::ForestRays* rays = nullptr;
-    bool intersect(const glm::dvec3& a, const glm::dvec3& b, io::SurfaceQuery q, io::SurfaceHit& hit, uint32_t* work) const override {
-      if (q != io::SurfaceQuery::Sight) return false;
+    bool intersect(const glm::dvec3& a, const glm::dvec3& b, io::SurfaceMask m, io::SurfaceHit& hit, uint32_t* work) const override {
+      if (!(m & io::surfaceBit(io::kSurfaceTree))) return false;
       lod::TreeHit h;
       lod::RayWork w;
       const bool found = rays->intersect(a, b, h, &w);
@@ -89,30 +90,34 @@ TEST(SurfaceSet, TheNearerOfTreeAndTowerWithItsMaterial) {
   io::SurfaceHit hit;
   uint32_t work = 0;
   // Level at 5 m from the west: the pine's crown or trunk first, well before the tower.
-  ASSERT_TRUE(s.both.intersect({-50.0, 0.0, 5.0}, {50.0, 0.0, 5.0}, io::SurfaceQuery::Sight, hit, &work));
+  ASSERT_TRUE(s.both.intersect({-50.0, 0.0, 5.0}, {50.0, 0.0, 5.0}, io::kSightSurfaces, hit, &work));
   EXPECT_EQ(hit.material, io::kSurfaceTree);
   EXPECT_LT(hit.point_m.x, 0.0);
   EXPECT_GT(hit.point_m.x, -10.0);
   EXPECT_NEAR(hit.t, (hit.point_m.x + 50.0) / 100.0, 1e-12);
   EXPECT_GT(work, 0u);
   // From between them, eastwards: the tower's west wall at x = 25, t along the whole segment.
-  ASSERT_TRUE(s.both.intersect({10.0, 0.0, 5.0}, {50.0, 0.0, 5.0}, io::SurfaceQuery::Sight, hit, nullptr));
+  ASSERT_TRUE(s.both.intersect({10.0, 0.0, 5.0}, {50.0, 0.0, 5.0}, io::kSightSurfaces, hit, nullptr));
   EXPECT_EQ(hit.material, io::kSurfaceObject);
   EXPECT_NEAR(hit.point_m.x, 25.0, 1e-9);
   EXPECT_NEAR(hit.t, 15.0 / 40.0, 1e-12);
   // The same from the east: the tower (its east wall) is first; the tree behind it is not seen.
-  ASSERT_TRUE(s.both.intersect({50.0, 0.0, 5.0}, {-50.0, 0.0, 5.0}, io::SurfaceQuery::Sight, hit, nullptr));
+  ASSERT_TRUE(s.both.intersect({50.0, 0.0, 5.0}, {-50.0, 0.0, 5.0}, io::kSightSurfaces, hit, nullptr));
   EXPECT_EQ(hit.material, io::kSurfaceObject);
   EXPECT_NEAR(hit.point_m.x, 35.0, 1e-9);
   EXPECT_NEAR(hit.t, 15.0 / 100.0, 1e-12);
+  // A mask without trees (a host's LOS material mask) sees through the pine to the tower.
+  ASSERT_TRUE(s.both.intersect({-50.0, 0.0, 5.0}, {50.0, 0.0, 5.0}, io::surfaceBit(io::kSurfaceObject), hit, nullptr));
+  EXPECT_EQ(hit.material, io::kSurfaceObject);
+  EXPECT_NEAR(hit.point_m.x, 25.0, 1e-9);
   // Height queries: down through the pine finds nothing (trees are not ground); the tower's roof.
-  EXPECT_FALSE(s.both.intersect({0.3, 0.2, 100.0}, {0.3, 0.2, 0.0}, io::SurfaceQuery::Height, hit, nullptr));
-  EXPECT_TRUE(s.both.intersect({0.3, 0.2, 100.0}, {0.3, 0.2, 0.0}, io::SurfaceQuery::Sight, hit, nullptr));
-  ASSERT_TRUE(s.both.intersect({31.0, 0.0, 100.0}, {31.0, 0.0, 0.0}, io::SurfaceQuery::Height, hit, nullptr));
+  EXPECT_FALSE(s.both.intersect({0.3, 0.2, 100.0}, {0.3, 0.2, 0.0}, io::kHeightSurfaces, hit, nullptr));
+  EXPECT_TRUE(s.both.intersect({0.3, 0.2, 100.0}, {0.3, 0.2, 0.0}, io::kSightSurfaces, hit, nullptr));
+  ASSERT_TRUE(s.both.intersect({31.0, 0.0, 100.0}, {31.0, 0.0, 0.0}, io::kHeightSurfaces, hit, nullptr));
   EXPECT_NEAR(hit.point_m.z, 40.0, 1e-9);
   EXPECT_NEAR(s.both.top_m(), std::max(s.objectRays.top_m(), s.treeRays.top_m()), 0.0);
   EXPECT_TRUE(SurfaceSet().empty());
-  EXPECT_FALSE(SurfaceSet().intersect({0.0, 0.0, 5.0}, {1.0, 0.0, 5.0}, io::SurfaceQuery::Sight, hit, nullptr));
+  EXPECT_FALSE(SurfaceSet().intersect({0.0, 0.0, 5.0}, {1.0, 0.0, 5.0}, io::kSightSurfaces, hit, nullptr));
 }
 
 TEST(SurfaceSet, CigiAnswersCarryTheTreesMaterialCode) {
