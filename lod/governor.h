@@ -128,7 +128,7 @@ struct GovernorConfig {
   bool enforcePhaseBudgets = false;  // also decrease a layer whose own phase exceeds its budget
   double maxDecrease = 0.5;          // smallest load multiplier of one decrease, in (0, 1)
   double maxIncrease = 1.10;         // largest load multiplier of one raise, > 1
-  int raiseInterval_frames = 6;      // frames between raises (>= 1)
+  int raiseInterval_frames = 6;      // frames between raises (>= 1), counted from the last raise that moved a knob
   int holdAfterDecrease_frames = 30; // no raise for this many frames after a decrease (>= 0)
   double emergencyScale = 0.6;       // load multiplier at most, after an overrun, in (0, 1]
   double emergencyMaxDecrease = 0.25;  // ... and at least (the deepest cut), in (0, emergencyScale]
