@@ -69,7 +69,9 @@
 // Phase budgets: B * phaseShare_p, the shares renormalised over the present phases (a phase of
 // an absent layer has budget 0 and no model, and its measurements are ignored). They bound the
 // deferrable work of the layer phases (workBudget) and, with enforcePhaseBudgets, a layer whose
-// own phase is predicted over its budget is decreased even when the frame fits.
+// own phase is predicted over its budget is decreased even when the frame fits (on a HOLD or
+// DECREASE frame; an INCREASE frame raises as the frame allows, and a phase it pushes over its
+// budget is cut back on the next frames).
 //
 // Bad measurements (NaN, infinite, negative) are ignored and counted (GovStats::ignored): a bad
 // phase time skips that phase's model update; a bad load keeps the last good one; a bad frame
