@@ -366,6 +366,25 @@ size_t TerrainChunks::cull(const Camera& camera, std::vector<TerrainDrawRange>& 
   return triangles;
 }
 
+// The last range grew: while it now touches the range before it (same mark), the two become one
+// (consecutive ranges of one mark are never contiguous: "merged where contiguous").
+void TerrainChunks::mergeLast(std::vector<TerrainDrawRange>& ranges) {
+  while (ranges.size() >= 2) {
+    TerrainDrawRange& prev = ranges[ranges.size() - 2];
+    const TerrainDrawRange last = ranges.back();
+    if (prev.near != last.near) return;
+    if (prev.first + prev.count == last.first) {
+      prev.count += last.count;
+    } else if (last.first + last.count == prev.first) {
+      prev.first = last.first;
+      prev.count += last.count;
+    } else {
+      return;
+    }
+    ranges.pop_back();
+  }
+}
+
 size_t TerrainChunks::cullChunk(const Chunk& c, const Frustum& frustum, const glm::dvec3& eye, double nearReach_m,
                                 std::vector<TerrainDrawRange>& ranges, double& nearest_m) const {
   if (c.live == 0 || !frustum.intersects(Aabb{c.lo - eye, c.hi - eye})) return 0;
@@ -379,11 +398,13 @@ size_t TerrainChunks::cullChunk(const Chunk& c, const Frustum& frustum, const gl
       TerrainDrawRange& r = ranges.back();
       if (r.first + r.count == k.first) {
         r.count += k.used;
+        mergeLast(ranges);
         continue;
       }
       if (k.first + k.used == r.first) {
         r.first = k.first;
         r.count += k.used;
+        mergeLast(ranges);
         continue;
       }
     }

@@ -7,7 +7,8 @@
 // one vertex buffer (16 ... 1024 slots a block, growing with the chunk), so a frame draws the
 // chunks inside the frustum as one range per block (a multi-draw); a slot whose triangle left
 // stays degenerate until the chunk takes a new triangle into it. A chunk that empties returns
-// its blocks; one that shrinks below a quarter of its slots is packed into fresh blocks.
+// its blocks; one that shrinks below a quarter of its slots (and holds more than two of the
+// smallest blocks) is packed into fresh blocks.
 //
 // Per frame: apply() replays Roam's leaf-change log (O(changes)), and lists the slots the
 // caller must write (the triangle now in each, or degenerate); cull() tests groups of 8 x 8
@@ -126,6 +127,7 @@ class TerrainChunks {
     uint32_t stamp = 0;  // recomputed in this apply
   };
   void updateGroup(uint32_t g);
+  static void mergeLast(std::vector<TerrainDrawRange>& ranges);
   size_t cullChunk(const Chunk& c, const Frustum& frustum, const glm::dvec3& eye, double nearReach_m,
                    std::vector<TerrainDrawRange>& ranges, double& nearest_m) const;
   uint32_t groupOf(uint32_t chunk) const {

@@ -1,6 +1,8 @@
 # HDLOD (paper 000): scene model and schedule files; cluster tree, selection, site generator.
 ig_add_test(hdlod_scene_test ${CMAKE_CURRENT_SOURCE_DIR}/hdlod_scene_test.cpp LIBS ig_lod)
 ig_add_test(hdlod_tree_test ${CMAKE_CURRENT_SOURCE_DIR}/hdlod_tree_test.cpp LIBS ig_lod)
+# What a mutation pass found the selection tests above leave open (lod/hdlod_select).
+ig_add_test(hdlod_select_mutation_test ${CMAKE_CURRENT_SOURCE_DIR}/hdlod_select_mutation_test.cpp LIBS ig_lod)
 ig_add_test(hdlod_rays_test ${CMAKE_CURRENT_SOURCE_DIR}/hdlod_rays_test.cpp LIBS ig_lod)
 # Release only, like every benchmark test: under ASAN it took 6 s of the 2-core CI run, and the
 # hdlod_*_test and hdlod_pass_gltest files run the same build, selection and pass code with every
