@@ -98,6 +98,7 @@ int main(int argc, char** argv) {
   if (!info.hdlodDescription.empty())
     std::fprintf(stderr, "igd: hdlod: %s, ready in %.0f ms\n", info.hdlodDescription.c_str(), info.hdlodBuild_ms);
   if (!info.cellsDescription.empty()) std::fprintf(stderr, "igd: %s\n", info.cellsDescription.c_str());
+  if (!info.queriesDescription.empty()) std::fprintf(stderr, "igd: host queries (HAT/HOT, LOS) meet: %s\n", info.queriesDescription.c_str());
   if (!info.scheduling.empty()) std::fprintf(stderr, "igd: render thread: %s\n", info.scheduling.c_str());
   if (!info.terrainSource.empty())
     std::fprintf(stderr, "igd: terrain: %s, built in %.0f ms (load, LOD precomputation, upload)\n",

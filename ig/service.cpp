@@ -48,6 +48,12 @@ namespace {
 
 constexpr double kDeg = 3.14159265358979323846 / 180.0;
 
+std::string formatMs(std::chrono::steady_clock::duration d) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.0f ms", std::chrono::duration<double, std::milli>(d).count());
+  return buf;
+}
+
 render::ContextKind contextKind(OutputMode m) {
   switch (m) {
     case OutputMode::Headless: return render::ContextKind::Headless;
@@ -851,8 +857,11 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
     }
     s->info_.layers.push_back("forest");
     if (config.host == HostSource::Cigi) {  // the link that answers LOS requests
+      const auto t0 = std::chrono::steady_clock::now();
       m.forest->enableQueries();
       m.surfaces.add(&m.forest->surfaces());
+      s->info_.queriesDescription += ", " + std::to_string(m.forest->kdTree().trees().size()) + " [forest] trees (LOS, index " +
+                                     formatMs(std::chrono::steady_clock::now() - t0) + ")";
     }
   }
   if (scene.hdlod) {
@@ -868,8 +877,12 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
     }
     s->info_.layers.push_back("hdlod");
     if (config.host == HostSource::Cigi) {  // the link that answers HAT/HOT and LOS requests
+      const auto q0 = std::chrono::steady_clock::now();
       m.hdlod->enableQueries();
       m.surfaces.add(&m.hdlod->surfaces());
+      s->info_.queriesDescription += ", " + std::to_string(m.hdlod->scene().objects.size()) + " [hdlod] objects (" +
+                                     std::to_string(m.hdlod->rays().triangles()) + " model triangles, index " +
+                                     formatMs(std::chrono::steady_clock::now() - q0) + ")";
     }
     s->info_.hdlodDescription = m.hdlod->describe();
     s->info_.hdlodBuild_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
@@ -904,6 +917,13 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
     m.hostInput = std::make_unique<HostInput>(s->mailbox_, m.startClock);
     if (!m.hostInput->start(std::move(link), config.recordFile, config.linkTimeout_s, error)) return nullptr;
     s->info_.threads += m.hostInput->threads();
+  }
+  if (config.host == HostSource::Cigi) {
+    s->info_.queriesDescription =
+        (m.hasGround ? "the terrain grid (" + std::to_string(m.ground.width) + " x " + std::to_string(m.ground.height) +
+                           " posts)"
+                     : std::string("no terrain (every answer Valid = 0)")) +
+        s->info_.queriesDescription;
   }
   s->info_.passes = m.renderer.passCount();
   s->info_.gpuBufferBytes = m.renderer.bufferBytes() + (m.hdlod ? m.hdlod->gpuBytes() : 0) +

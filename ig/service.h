@@ -42,6 +42,7 @@ struct ServiceInfo {
   std::string hdlodDescription;      // [hdlod]: objects, clusters, cache outcome
   double hdlodBuild_ms = 0.0;        // [hdlod]: schedule + tree (cache or build) + upload
   std::string cellsDescription;      // [cells]: source, cells, placement, budgets
+  std::string queriesDescription;    // what the host's HAT/HOT and LOS answers meet (CIGI link only)
 };
 
 // The terrain grid a scene's [terrain] table describes.

@@ -267,6 +267,11 @@ view_id = 0""", src, RATE_HZ, FRAMES, 3.0, rec, write_dem_scene(tmp),
         except BlockingIOError:
             break
     check(proc.returncode == 0, "igd exit status %s: %s" % (proc.returncode, err[-2000:]))
+    # The start-up log names what the answers meet: the DEM's posts, the tower, the forest's trees.
+    m = re.search(r"igd: host queries \(HAT/HOT, LOS\) meet: the terrain grid \((\d+) x (\d+) posts\), (\d+) \[forest\]"
+                  r" trees \(LOS, index \d+ ms\), 1 \[hdlod\] objects \(12 model triangles", err)
+    check(m is not None and int(m.group(1)) == DEM_N and int(m.group(2)) == DEM_N and int(m.group(3)) > 100,
+          "start-up log line 'host queries': %s" % [l for l in err.splitlines() if "host queries" in l])
 
     # Stats: the rendered eyepoint is the one Python sent for that host frame.
     with open(stats) as f:
