@@ -4,7 +4,7 @@
 // (lod/hdlod_rays.h, site scale --site-scale) and the default generated forest
 // (lod/forest_rays.h: 7.7 km, 6 m spacing, procedural pine and cypress). Per query kind: the
 // microseconds per query (p50, p99, mean; each query timed alone with the monotonic clock),
-// the work units the per-frame LOS budget counts (grid cells, hierarchy nodes, tree boxes,
+// the work units the per-frame query work budget counts (grid cells, hierarchy nodes, tree boxes,
 // triangles; mean and max), the share of queries that hit, and the ns per work unit; per index
 // its build time. Queries are random, seeded, the same every run.
 #pragma once

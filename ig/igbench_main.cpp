@@ -202,7 +202,7 @@ int main(int argc, char** argv) {
       "Random seeded queries, each timed alone. JSON fields: suite, queries, terrain_posts, objects,\n"
       "object_triangles, objects_index_ms, trees, forest_index_ms, forest_index_mb, and per kind\n"
       "(terrain_hot, terrain_los, objects_hot, objects_los, forest_los) us_p50, us_p99, us_mean,\n"
-      "work_mean, work_max (the units the per-frame LOS budget counts), hit_pct, ns_per_work.");
+      "work_mean, work_max (the units the per-frame query work budget counts), hit_pct, ns_per_work.");
   queries->add_option("--queries", queriesOptions.queries, "Queries per kind")
       ->capture_default_str()->check(CLI::Range(1, 10000000));
   queries->add_option("--site-scale", queriesOptions.siteScale, "Construction site scale (1 = ~56k objects)")

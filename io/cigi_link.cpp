@@ -364,6 +364,7 @@ HatHotAnswer computeHatHot(const cigi::HatHotRequest& r, const lod::EnuFrame& en
   glm::dvec3 surface{0.0}, normal{0.0, 0.0, 1.0};
   for (int pass = 0; pass < 2; ++pass) {
     const glm::dvec3 p = enu.fromGeodetic({point.lat_deg, point.lon_deg, guess_m});
+    ++a.work;
     if (!lod::sampleGround(*terrain, p.x, p.y, ground)) return a;
     surface = {p.x, p.y, ground.height_m};
     normal = ground.normal;
@@ -377,7 +378,7 @@ HatHotAnswer computeHatHot(const cigi::HatHotRequest& r, const lod::EnuFrame& en
     const double from_m = hasAltitude ? enu.fromGeodetic(point).z : scene.objects->top_m() + 1.0;
     SurfaceHit hit;
     if (from_m > surface.z && std::isfinite(from_m) &&
-        scene.objects->intersect({surface.x, surface.y, from_m}, surface, kHeightSurfaces, hit, nullptr)) {
+        scene.objects->intersect({surface.x, surface.y, from_m}, surface, kHeightSurfaces, hit, &a.work)) {
       const double height_m = enu.toGeodetic(hit.point_m).height_m;
       if (std::isfinite(height_m)) {
         surface = hit.point_m;
@@ -529,11 +530,11 @@ size_t CigiHatHotResponder::answer(uint32_t igFrame, uint32_t lastHostFrame, con
   }
   const uint8_t lsn = static_cast<uint8_t>(lastHostFrame & 0x0f);
   size_t bytes = 0, n = 0, nLos = 0;
-  uint32_t losCells = 0;
+  uint32_t work = 0;
   for (; n < kMaxAnswersPerFrame && pendingCount_ > 0; ++n) {
     const Job& next = pending_[pendingHead_];
     if (bytes + next.responseSize() > kMaxBytesPerFrame) break;  // the datagram is full
-    if (next.los && losCells >= kMaxLosCellsPerFrame) break;     // this frame's LOS work is spent
+    if (work >= kMaxQueryWorkPerFrame) break;                      // this frame's query work is spent
     const Job any = next;
     pendingHead_ = (pendingHead_ + 1) % kMaxPending;
     --pendingCount_;
@@ -542,7 +543,7 @@ size_t CigiHatHotResponder::answer(uint32_t igFrame, uint32_t lastHostFrame, con
       ++nLos;
       const cigi::LosRequest& r = any.losJob.request;
       const LosAnswer a = any.losJob.bad == 0 ? computeLos(r, enu_, scene, host) : LosAnswer{};
-      losCells += a.cells;
+      work += a.cells;
       if (r.extended) {
         cigi::LosExtendedResponse x;
         x.losId = r.losId;
@@ -572,6 +573,7 @@ size_t CigiHatHotResponder::answer(uint32_t igFrame, uint32_t lastHostFrame, con
     const HatHotJob& job = any.hatHot;
     const cigi::HatHotRequest& r = job.request;
     const HatHotAnswer a = job.bad == 0 ? computeHatHot(r, enu_, originHeight_m_, scene, host) : HatHotAnswer{};
+    work += a.work;
     if (r.requestType == cigi::HatHotRequest::kExtended) {
       cigi::HatHotExtendedResponse x;
       x.hatHotId = r.hatHotId;

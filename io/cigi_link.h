@@ -200,6 +200,7 @@ constexpr uint32_t kMaterialTree = kSurfaceTree;
 struct HatHotAnswer {
   bool valid = false;
   uint32_t materialCode = kMaterialTerrain;  // what the surface found is
+  uint32_t work = 0;                         // grid samples, object nodes and triangles examined: the answer's cost
   double hat_m = 0.0;               // altitude - HOT
   double hot_m = 0.0;               // terrain height above the WGS-84 ellipsoid
   float normalAzimuth_deg = 0.0f;   // surface normal: from true north, clockwise, [-180, 180]
@@ -264,11 +265,12 @@ class CigiHatHotResponder {
   // bytes) fit, 25 LOS Extended Responses (56 bytes) do.
   static constexpr size_t kMaxDatagramBytes = 1472;
   static constexpr size_t kMaxBytesPerFrame = kMaxDatagramBytes - cigi::kStartOfFrameSize;
-  // A LOS answer walks the grid cells its ray crosses (up to width + height: 32,770 on a
-  // 16385-post DEM). Once a frame's LOS answers have examined this many cells the rest wait for
-  // the next frame (deferred), so a frame spends at most this plus one ray on LOS (one is always
-  // answered: the queue moves on).
-  static constexpr uint32_t kMaxLosCellsPerFrame = 16384;
+  // An answer's work: a LOS ray walks the grid cells it crosses (up to width + height: 32,770 on
+  // a 16385-post DEM) and the objects' and trees' nodes, tree boxes and triangles it examines; a
+  // HAT/HOT answer samples the grid twice and examines the objects under its point. Once a
+  // frame's answers have done this much work the rest wait for the next frame (deferred), so a
+  // frame spends at most this plus one answer (one is always answered: the queue moves on).
+  static constexpr uint32_t kMaxQueryWorkPerFrame = 16384;
 
   explicit CigiHatHotResponder(const lod::Geodetic& origin);
 
@@ -282,8 +284,8 @@ class CigiHatHotResponder {
   void add(const LosJob& job, uint32_t igFrame);
 
   // This frame's responses in queue order, at most kMaxAnswersPerFrame and kMaxBytesPerFrame
-  // bytes, LOS ones until kMaxLosCellsPerFrame cells are spent (the rest wait for the next frame,
-  // counted in deferred), encoded into `out`
+  // bytes, until kMaxQueryWorkPerFrame work is spent (the rest wait for the next frame, counted
+  // in deferred), encoded into `out`
   // (>= kMaxBytesPerFrame bytes). Returns the bytes.
   size_t answer(uint32_t igFrame, uint32_t lastHostFrame, const QueryScene& scene, const HostState* host,
                 cigi::ByteOrder order, std::span<std::byte> out);

@@ -1633,7 +1633,7 @@ TEST(CigiLos, PeriodicCancelAndAByteCapPerDatagram) {
 }
 
 // A LOS answer costs the grid cells its ray crosses: a frame answers rays until it has examined
-// kMaxLosCellsPerFrame cells (always one), the rest wait for the next frames, and nothing is lost.
+// kMaxQueryWorkPerFrame cells (always one), the rest wait for the next frames, and nothing is lost.
 TEST(CigiLos, AFrameStopsAnsweringRaysOnceItsCellBudgetIsSpent) {
   const int n = 1025;  // 1 m posts, flat at 0: each ray below passes 2,000 cells above the ground
   const std::vector<float> heights(static_cast<size_t>(n) * n, 0.0f);
@@ -1647,7 +1647,7 @@ TEST(CigiLos, AFrameStopsAnsweringRaysOnceItsCellBudgetIsSpent) {
   CigiHatHotResponder r(kOrigin);
   for (uint16_t i = 0; i < 20; ++i) r.add(LosJob{losSegment(i, a, b, false), 0}, 1);
   // Rays while fewer than the budget's cells are spent: k with (k - 1) x cells < budget.
-  const size_t perFrame = (CigiHatHotResponder::kMaxLosCellsPerFrame + cellsPerRay - 1) / cellsPerRay;
+  const size_t perFrame = (CigiHatHotResponder::kMaxQueryWorkPerFrame + cellsPerRay - 1) / cellsPerRay;
   ASSERT_LT(perFrame, 20u);
   std::vector<size_t> answered;
   std::vector<uint16_t> ids;
@@ -1820,4 +1820,46 @@ TEST(CigiObjects, LineOfSightStopsAtTheNearerOfObjectAndTerrain) {
   EXPECT_EQ(x[2].materialCode, kMaterialTerrain);
   EXPECT_TRUE(basic[1].visible);
   EXPECT_FALSE(basic[1].valid);
+}
+
+// HAT/HOT answers share the frame's work budget: with objects that cost 5,000 units a query, a
+// frame answers requests until kMaxQueryWorkPerFrame is spent (always one), the rest wait for the
+// next frames in queue order, and nothing is lost. Without objects a HOT costs 2 (two samples).
+TEST(CigiObjects, HatHotAnswersShareTheFramesWorkBudget) {
+  struct Costly final : SceneSurfaces {
+    bool intersect(const glm::dvec3&, const glm::dvec3&, SurfaceMask, SurfaceHit&, uint32_t* work) const override {
+      if (work) *work += 5000;
+      return false;
+    }
+    double top_m() const override { return 500.0; }
+  } costly;
+  const Plane plane;
+  const HatHotAnswer cheap = computeHatHot(geodeticRequest(1, HatHotRequest::kHot, 100.0, 200.0, 0.0),
+                                           ig::lod::EnuFrame(kOrigin), kOrigin.height_m, &plane.grid, nullptr);
+  EXPECT_EQ(cheap.work, 2u);
+  CigiHatHotResponder r(kOrigin);
+  for (uint16_t i = 0; i < 20; ++i) r.add({geodeticRequest(i, HatHotRequest::kHot, 100.0, 200.0, 0.0), 0}, 1);
+  const size_t perFrame = (CigiHatHotResponder::kMaxQueryWorkPerFrame + 5001) / 5002;  // (k - 1) x 5002 < budget
+  ASSERT_EQ(perFrame, 4u);
+  std::vector<size_t> answered;
+  std::vector<uint16_t> ids;
+  for (uint32_t f = 1; f <= 10 && !r.idle(); ++f) {
+    Bytes buf(CigiHatHotResponder::kMaxBytesPerFrame);
+    const size_t n = r.answer(f, 0x1237, QueryScene(&plane.grid, &costly), nullptr, ByteOrder::little, buf);
+    size_t count = 0;
+    for (size_t at = 0; at < n; at += std::to_integer<uint8_t>(buf[at + 1])) {
+      HatHotResponse x;
+      ASSERT_TRUE(decodePacket(std::span<const std::byte>(buf.data() + at, n - at), ByteOrder::little, x));
+      EXPECT_TRUE(x.valid);  // the objects were missed: the ground
+      ids.push_back(x.hatHotId);
+      ++count;
+    }
+    answered.push_back(count);
+  }
+  EXPECT_EQ(answered, (std::vector<size_t>{4, 4, 4, 4, 4}));
+  std::vector<uint16_t> all(20);
+  for (uint16_t i = 0; i < 20; ++i) all[i] = i;
+  EXPECT_EQ(ids, all) << "in queue order, each once";
+  EXPECT_EQ(r.answered(), 20u);
+  EXPECT_EQ(r.deferred(), 16u + 12u + 8u + 4u);
 }

@@ -2,7 +2,7 @@
 # igbench queries --json (the host's terrain queries per kind of surface, docs/cigi.md) prints one
 # JSON object with every field it documents and sane values: each kind timed, hits where a kind
 # must hit (a HOT inside the grid, a ray into the site or the forest), work within what one
-# query may cost (the per-frame LOS budget's units), the indices built.
+# query may cost (the per-frame query work budget's units), the indices built.
 set -euo pipefail
 igbench=$1
 out=$("$igbench" queries --json --queries 300)
