@@ -23,52 +23,17 @@
 using namespace ig::lod;
 using ig::lod::test::tilesDem;
 
+using ig::lod::test::BlockDem;
+using ig::lod::test::blockFractal;
+using ig::lod::test::blockTriangles;
+using ig::lod::test::blockViewAt;
+
 namespace {
-
-struct Dem {
-  int w, h;
-  std::vector<float> z;
-  float at(int x, int y) const {
-    x = std::clamp(x, 0, w - 1);
-    y = std::clamp(y, 0, h - 1);
-    return z[static_cast<size_t>(y) * static_cast<size_t>(w) + static_cast<size_t>(x)];
-  }
-};
-
-Dem fractal(int w, int h, uint32_t seed = 7) {
-  HeightfieldDesc d;
-  d.seed = seed;
-  d.postsX = w;
-  d.postsY = h;
-  d.postSpacing_m = 30.0;
-  d.heightScale_m = 800.0;
-  Dem dem{w, h, std::vector<float>(static_cast<size_t>(w) * h)};
-  generateHeightfield(d, dem.z);
-  return dem;
-}
-
-RoamView viewAt(glm::dvec3 eye, double heading, double pitch, double tol) {
-  RoamView v;
-  v.camera.eye_m = eye;
-  v.camera.heading_deg = heading;
-  v.camera.pitch_deg = pitch;
-  v.camera.fovY_deg = 45;
-  v.camera.aspect = 16.0 / 9.0;
-  v.viewportHeight_px = 720;
-  v.tolerance_px = tol;
-  return v;
-}
-
-std::vector<RoamTriangle> emit(const BlockLod& b) {
-  std::vector<RoamTriangle> out(b.triangleBound());
-  out.resize(b.emitTriangles(out));
-  return out;
-}
 
 // The documented rule, from the DEM's samples: block (bx, by) covers samples [bx B, (bx + 1) B]
 // (clamped to the DEM); its box spans them and their heights (relative to the origin).
 struct Reference {
-  const Dem& dem;
+  const BlockDem& dem;
   int B;
   double spacing;
 
@@ -122,7 +87,7 @@ struct Reference {
 TEST(BlockLod, EveryBlockTakesTheCoarsestLevelWithinToleranceOfItsBox) {
   const glm::dvec3 origin{500.0, -300.0, 10.0};
   for (auto [w, h] : {std::pair{50, 40}, std::pair{129, 129}}) {
-    const Dem d = fractal(w, h, 11);
+    const BlockDem d = blockFractal(w, h, 11);
     const int B = 16;
     BlockLod lod(d.z, d.w, d.h, 30.0, origin, {B});
     const Reference ref{d, B, 30.0};
@@ -134,7 +99,7 @@ TEST(BlockLod, EveryBlockTakesTheCoarsestLevelWithinToleranceOfItsBox) {
       for (const double heading : {0.0, 90.0, 200.0, 300.0}) {
         for (const double pitch : {-90.0, -30.0}) {
           for (const double tol : {0.5, 2.0, 8.0}) {
-            const RoamView v = viewAt(origin + eye, heading, pitch, tol);
+            const RoamView v = blockViewAt(origin + eye, heading, pitch, tol);
             const BlockLodStats st = lod.update(v);
             SCOPED_TRACE(testing::Message() << w << "x" << h << " eye " << eye.x << "," << eye.y << "," << eye.z
                                             << " heading " << heading << " pitch " << pitch << " tol " << tol);
@@ -151,11 +116,11 @@ TEST(BlockLod, EveryBlockTakesTheCoarsestLevelWithinToleranceOfItsBox) {
 // "error ... <= tolerance_px": a block whose coarsest level projects to exactly the tolerance
 // takes that level.
 TEST(BlockLod, ALevelExactlyAtTheToleranceIsTaken) {
-  const Dem d = fractal(129, 129);
+  const BlockDem d = blockFractal(129, 129);
   const int B = 16;
   BlockLod b(d.z, d.w, d.h, 30.0, {0, 0, 0}, {B});
   const Reference ref{d, B, 30.0};
-  RoamView v = viewAt({1900, 1900, 2500}, 0, -90, 1.0);
+  RoamView v = blockViewAt({1900, 1900, 2500}, 0, -90, 1.0);
   // The block under the eye, at its coarsest level: its pixels there become the tolerance.
   const int bx = 1900 / 30 / B, by = 1900 / 30 / B, top = b.levels() - 1;
   ASSERT_GT(b.levelError_m(bx, by, top), b.levelError_m(bx, by, top - 1));
@@ -171,10 +136,10 @@ TEST(BlockLod, ALevelExactlyAtTheToleranceIsTaken) {
 // With the eye inside a block's box (on the surface) that block draws its finest level, whose
 // error is 0: the largest projected error is that of the other blocks, not infinite.
 TEST(BlockLod, MaxErrorPxIsFiniteWithTheEyeInsideABlock) {
-  const Dem d = fractal(129, 129);
+  const BlockDem d = blockFractal(129, 129);
   BlockLod b(d.z, d.w, d.h, 30.0, {0, 0, 0}, {16});
   const glm::dvec3 onSurface = b.vertexPosition(40, 70) + glm::dvec3(0.25, 0.5, 1.0);
-  const BlockLodStats st = b.update(viewAt(onSurface, 30, -5, 1.0));
+  const BlockLodStats st = b.update(blockViewAt(onSurface, 30, -5, 1.0));
   ASSERT_EQ(b.level(40 / 16, 70 / 16), 0);
   EXPECT_TRUE(std::isfinite(st.maxErrorPx));
   EXPECT_LE(st.maxErrorPx, 1.0);
@@ -184,26 +149,26 @@ TEST(BlockLod, MaxErrorPxIsFiniteWithTheEyeInsideABlock) {
 // eye height, a NaN field of view or a window shift beyond kMaxWindowShift. "A NaN tolerance
 // takes the coarsest level too" but the camera is valid: blocks outside the view are culled.
 TEST(BlockLod, ACameraThatIsNotFiniteDrawsEveryBlockCoarsest) {
-  const Dem d = fractal(129, 129);
+  const BlockDem d = blockFractal(129, 129);
   BlockLod b(d.z, d.w, d.h, 30.0, {0, 0, 0}, {16});
   const int blocks = b.blocksX() * b.blocksY();
-  RoamView eyeZ = viewAt({1900, 1900, 900}, 0, -30, 1.0);
+  RoamView eyeZ = blockViewAt({1900, 1900, 900}, 0, -30, 1.0);
   eyeZ.camera.eye_m.z = std::nan("");
-  RoamView fov = viewAt({1900, 1900, 900}, 0, -30, 1.0);
+  RoamView fov = blockViewAt({1900, 1900, 900}, 0, -30, 1.0);
   fov.camera.fovY_deg = std::nan("");
-  RoamView shifted = viewAt({1900, 1900, 900}, 0, -30, 1.0);
+  RoamView shifted = blockViewAt({1900, 1900, 900}, 0, -30, 1.0);
   shifted.camera.shiftX = 2.0 * kMaxWindowShift;
   for (const RoamView& v : {eyeZ, fov, shifted}) {
     const BlockLodStats st = b.update(v);
     EXPECT_EQ(st.blocksVisible, static_cast<uint32_t>(blocks));
     for (int by = 0; by < b.blocksY(); ++by)
       for (int bx = 0; bx < b.blocksX(); ++bx) ASSERT_EQ(b.level(bx, by), b.levels() - 1) << bx << "," << by;
-    EXPECT_TRUE(tilesDem(emit(b), d.w, d.h));
+    EXPECT_TRUE(tilesDem(blockTriangles(b), d.w, d.h));
   }
   // A NaN tolerance from the DEM's west edge looking west: coarsest, and culled.
-  const BlockLodStats away = b.update(viewAt({-3000, 1900, 2000}, 270, 10, std::nan("")));
+  const BlockLodStats away = b.update(blockViewAt({-3000, 1900, 2000}, 270, 10, std::nan("")));
   EXPECT_EQ(away.blocksVisible, 0u);
-  const BlockLodStats down = b.update(viewAt({1920, 1920, 1500}, 0, -90, std::nan("")));
+  const BlockLodStats down = b.update(blockViewAt({1920, 1920, 1500}, 0, -90, std::nan("")));
   EXPECT_GT(down.blocksVisible, 0u);
   for (int by = 0; by < b.blocksY(); ++by)
     for (int bx = 0; bx < b.blocksX(); ++bx)
@@ -217,24 +182,24 @@ TEST(BlockLod, ACameraThatIsNotFiniteDrawsEveryBlockCoarsest) {
 // zero-area ones, which are not drawn and have no error), so every block is drawn coarsest.
 TEST(BlockLod, FlatTerrainCutByTheDemEdgeHasNoErrorAtAnyLevel) {
   for (auto [w, h] : {std::pair{50, 40}, std::pair{20, 13}}) {
-    Dem d{w, h, std::vector<float>(static_cast<size_t>(w) * h, 120.0f)};
+    BlockDem d{w, h, std::vector<float>(static_cast<size_t>(w) * h, 120.0f)};
     BlockLod b(d.z, d.w, d.h, 10.0, {0, 0, 0}, {16});
     for (int by = 0; by < b.blocksY(); ++by)
       for (int bx = 0; bx < b.blocksX(); ++bx)
         for (int k = 0; k < b.levels(); ++k) ASSERT_EQ(b.levelError_m(bx, by, k), 0.0) << w << "x" << h << " " << bx << "," << by << " k " << k;
-    ASSERT_EQ(b.update(viewAt({100, 100, 5000}, 0, -90, 0.5)).blocksVisible, static_cast<uint32_t>(b.blocksX() * b.blocksY()));
+    ASSERT_EQ(b.update(blockViewAt({100, 100, 5000}, 0, -90, 0.5)).blocksVisible, static_cast<uint32_t>(b.blocksX() * b.blocksY()));
     for (int by = 0; by < b.blocksY(); ++by)
       for (int bx = 0; bx < b.blocksX(); ++bx)
         if (b.level(bx, by) >= 0) {
           EXPECT_EQ(b.level(bx, by), b.levels() - 1);
         }
-    EXPECT_TRUE(tilesDem(emit(b), w, h));
+    EXPECT_TRUE(tilesDem(blockTriangles(b), w, h));
   }
 }
 
 // "Coordinates east / north of the DEM clamp to its edge" (the grid is padded to whole blocks).
 TEST(BlockLod, VertexPositionsBeyondTheDemClampToItsEdge) {
-  const Dem d = fractal(50, 40);
+  const BlockDem d = blockFractal(50, 40);
   const glm::dvec3 origin{1000.0, 2000.0, 5.0};
   BlockLod b(d.z, d.w, d.h, 30.0, origin, {16});
   EXPECT_EQ(b.vertexPosition(63, 10), b.vertexPosition(49, 10));

@@ -15,56 +15,21 @@
 using namespace ig::lod;
 using ig::lod::test::tilesDem;
 
-namespace {
-
-struct Dem {
-  int w, h;
-  std::vector<float> z;
-};
-
-Dem fractal(int w, int h, uint32_t seed = 7) {
-  HeightfieldDesc d;
-  d.seed = seed;
-  d.postsX = w;
-  d.postsY = h;
-  d.postSpacing_m = 30.0;
-  d.heightScale_m = 800.0;
-  Dem dem{w, h, std::vector<float>(static_cast<size_t>(w) * h)};
-  generateHeightfield(d, dem.z);
-  return dem;
-}
-
-
-RoamView viewAt(glm::dvec3 eye, double heading, double pitch, double tol) {
-  RoamView v;
-  v.camera.eye_m = eye;
-  v.camera.heading_deg = heading;
-  v.camera.pitch_deg = pitch;
-  v.camera.fovY_deg = 45;
-  v.camera.aspect = 16.0 / 9.0;
-  v.viewportHeight_px = 720;
-  v.tolerance_px = tol;
-  return v;
-}
-
-std::vector<RoamTriangle> emit(const BlockLod& b) {
-  std::vector<RoamTriangle> out(b.triangleBound());
-  out.resize(b.emitTriangles(out));
-  return out;
-}
-
-}  // namespace
+using ig::lod::test::BlockDem;
+using ig::lod::test::blockFractal;
+using ig::lod::test::blockTriangles;
+using ig::lod::test::blockViewAt;
 
 TEST(BlockLod, MixedLevelsTileTheDemWithoutCracks) {
-  const Dem d = fractal(257, 257);
+  const BlockDem d = blockFractal(257, 257);
   BlockLod b(d.z, d.w, d.h, 30.0, {0, 0, 0}, {32});
   // Looking straight down from high enough to see every block; flat valley floors and rough
   // mountains give each block a different level.
-  for (auto v : {viewAt({3840, 3840, 60000}, 0, -90, 1.0), viewAt({3840, 3840, 12000}, 0, -90, 0.25),
-                 viewAt({3840, 3840, 12000}, 0, -90, 2.0)}) {
+  for (auto v : {blockViewAt({3840, 3840, 60000}, 0, -90, 1.0), blockViewAt({3840, 3840, 12000}, 0, -90, 0.25),
+                 blockViewAt({3840, 3840, 12000}, 0, -90, 2.0)}) {
     const BlockLodStats st = b.update(v);
     EXPECT_EQ(st.blocksVisible, 64u);
-    const auto tris = emit(b);
+    const auto tris = blockTriangles(b);
     EXPECT_EQ(tris.size(), st.triangles);
     EXPECT_TRUE(tilesDem(tris, d.w, d.h));
   }
@@ -78,9 +43,9 @@ TEST(BlockLod, MixedLevelsTileTheDemWithoutCracks) {
 }
 
 TEST(BlockLod, LevelIsTheCoarsestWithinTolerance) {
-  const Dem d = fractal(129, 129);
+  const BlockDem d = blockFractal(129, 129);
   BlockLod b(d.z, d.w, d.h, 30.0, {0, 0, 0}, {16});
-  const RoamView v = viewAt({-2000, 1900, 1500}, 90, -20, 2.0);
+  const RoamView v = blockViewAt({-2000, 1900, 1500}, 90, -20, 2.0);
   const BlockLodStats st = b.update(v);
   for (int by = 0; by < b.blocksY(); ++by)
     for (int bx = 0; bx < b.blocksX(); ++bx) {
@@ -95,9 +60,9 @@ TEST(BlockLod, LevelIsTheCoarsestWithinTolerance) {
 }
 
 TEST(BlockLod, FlatTerrainUsesTheCoarsestLevelEverywhere) {
-  Dem d{65, 65, std::vector<float>(65 * 65, 120.0f)};
+  BlockDem d{65, 65, std::vector<float>(65 * 65, 120.0f)};
   BlockLod b(d.z, d.w, d.h, 10.0, {0, 0, 0}, {16});
-  const BlockLodStats st = b.update(viewAt({320, 320, 20000}, 0, -90, 0.5));
+  const BlockLodStats st = b.update(blockViewAt({320, 320, 20000}, 0, -90, 0.5));
   EXPECT_EQ(st.blocksVisible, 16u);
   for (int by = 0; by < b.blocksY(); ++by)
     for (int bx = 0; bx < b.blocksX(); ++bx)
@@ -105,32 +70,32 @@ TEST(BlockLod, FlatTerrainUsesTheCoarsestLevelEverywhere) {
         EXPECT_EQ(b.level(bx, by), b.levels() - 1);
       }
   EXPECT_EQ(st.triangles, 2u * st.blocksVisible);
-  EXPECT_TRUE(tilesDem(emit(b), d.w, d.h));
+  EXPECT_TRUE(tilesDem(blockTriangles(b), d.w, d.h));
 }
 
 TEST(BlockLod, CliffBlocksStayFineAndTheRestIsCoarse) {
-  Dem d{129, 129, std::vector<float>(129 * 129, 0.0f)};
+  BlockDem d{129, 129, std::vector<float>(129 * 129, 0.0f)};
   for (int y = 0; y < 129; ++y)
     for (int x = 70; x < 129; ++x) d.z[static_cast<size_t>(y) * 129 + x] = 500.0f;  // vertical step at x = 69..70
   BlockLod b(d.z, d.w, d.h, 10.0, {0, 0, 0}, {16});
-  b.update(viewAt({640, 640, 20000}, 0, -90, 1.0));
+  b.update(blockViewAt({640, 640, 20000}, 0, -90, 1.0));
   EXPECT_EQ(b.level(4, 3), 0);                  // the block holding the step (x 64..80)
   EXPECT_EQ(b.level(0, 0), b.levels() - 1);     // flat
   EXPECT_EQ(b.level(7, 7), b.levels() - 1);     // flat plateau
-  EXPECT_TRUE(tilesDem(emit(b), d.w, d.h));
+  EXPECT_TRUE(tilesDem(blockTriangles(b), d.w, d.h));
 }
 
 TEST(BlockLod, SmallAndOddDemsAndHardCameras) {
   for (auto [w, h] : {std::pair{2, 2}, std::pair{3, 3}, std::pair{5, 5}, std::pair{17, 17}, std::pair{100, 37}}) {
-    const Dem d = fractal(w, h);
+    const BlockDem d = blockFractal(w, h);
     BlockLod b(d.z, d.w, d.h, 30.0, {1.0e6, -2.0e6, 0.0}, {8});
     const glm::dvec3 o{1.0e6, -2.0e6, 0.0};
     const glm::dvec3 onVertex = b.vertexPosition(1, 1);
     const glm::dvec3 below = o + glm::dvec3(15, 15, -100);
-    for (const RoamView& v : {viewAt(onVertex, 0, -30, 1.0), viewAt(below, 30, 10, 1.0),
-                              viewAt(o + glm::dvec3(NAN, 0, 0), 0, 0, 1.0), viewAt(o + glm::dvec3(0, 0, 5e4), 0, -90, 0.5)}) {
+    for (const RoamView& v : {blockViewAt(onVertex, 0, -30, 1.0), blockViewAt(below, 30, 10, 1.0),
+                              blockViewAt(o + glm::dvec3(NAN, 0, 0), 0, 0, 1.0), blockViewAt(o + glm::dvec3(0, 0, 5e4), 0, -90, 0.5)}) {
       b.update(v);
-      const auto tris = emit(b);
+      const auto tris = blockTriangles(b);
       // Every block is drawn except those culled; with the camera looking straight down from
       // high up, or NaN (nothing culled), the mesh covers the whole DEM.
       if (!std::isfinite(v.camera.eye_m.x) || v.camera.pitch_deg == -90) {
@@ -139,7 +104,7 @@ TEST(BlockLod, SmallAndOddDemsAndHardCameras) {
     }
     // The camera exactly on a vertex is inside that vertex's blocks: they take the finest level
     // (or, on a DEM so small that every level draws the same clamped mesh, any level: all exact).
-    b.update(viewAt(onVertex, 0, -30, 1.0));
+    b.update(blockViewAt(onVertex, 0, -30, 1.0));
     EXPECT_EQ(b.levelError_m(0, 0, b.level(0, 0)), 0.0) << w << "x" << h;
     if (b.levelError_m(0, 0, b.levels() - 1) > 0.0) {
       EXPECT_EQ(b.level(0, 0), 0) << w << "x" << h;
@@ -151,13 +116,13 @@ TEST(BlockLod, SmallAndOddDemsAndHardCameras) {
 // eye relative to it choose the same level for every block, also with the eye inside a block's
 // box (on the surface) and looking straight down, and the vertices keep their place.
 TEST(BlockLod, HugeCoordinatesChooseTheSameLevels) {
-  const Dem d = fractal(129, 129);
+  const BlockDem d = blockFractal(129, 129);
   const glm::dvec3 far{2441.0 * 4096.0, -1220.0 * 4096.0, 0.0};  // ~(1e7, -5e6): exact in double
   BlockLod a(d.z, d.w, d.h, 30.0, {0, 0, 0}, {16}), b(d.z, d.w, d.h, 30.0, far, {16});
   const glm::dvec3 onSurface = a.vertexPosition(40, 70) + glm::dvec3(0.25, 0.5, 1.0);
   int compared = 0;
-  for (const RoamView& v : {viewAt({-2000, 1900, 1500}, 90, -20, 2.0), viewAt(onSurface, 30, -5, 1.0),
-                            viewAt({1900, 1900, 3000}, 0, -90, 0.5), viewAt({1234.5, 321.25, 900}, 200, -35, 4.0)}) {
+  for (const RoamView& v : {blockViewAt({-2000, 1900, 1500}, 90, -20, 2.0), blockViewAt(onSurface, 30, -5, 1.0),
+                            blockViewAt({1900, 1900, 3000}, 0, -90, 0.5), blockViewAt({1234.5, 321.25, 900}, 200, -35, 4.0)}) {
     a.update(v);
     RoamView w = v;
     w.camera.eye_m += far;
@@ -167,7 +132,7 @@ TEST(BlockLod, HugeCoordinatesChooseTheSameLevels) {
         ASSERT_EQ(a.level(bx, by), b.level(bx, by)) << bx << "," << by << " eye " << v.camera.eye_m.x;
         compared += a.level(bx, by) >= 0;
       }
-    const auto ta = emit(a), tb = emit(b);
+    const auto ta = blockTriangles(a), tb = blockTriangles(b);
     ASSERT_EQ(ta.size(), tb.size());
   }
   EXPECT_GT(compared, 100);
@@ -183,14 +148,14 @@ TEST(BlockLod, HugeCoordinatesChooseTheSameLevels) {
 // ~60 m more than the table said on these 30 m DEMs.
 TEST(BlockLod, DrawnMeshStaysWithinTheLevelErrorOfItsBlock) {
   for (auto [w, h] : {std::pair{65, 65}, std::pair{50, 40}, std::pair{20, 13}, std::pair{27, 40}, std::pair{40, 27}}) {
-    const Dem d = fractal(w, h, 11);
+    const BlockDem d = blockFractal(w, h, 11);
     const int B = 16;
     BlockLod b(d.z, d.w, d.h, 30.0, {0, 0, 0}, {B});
     auto z = [&](int x, int y) {
       return static_cast<double>(d.z[static_cast<size_t>(y) * static_cast<size_t>(w) + static_cast<size_t>(x)]);
     };
-    for (const RoamView& v : {viewAt({960, 960, 40000}, 0, -90, 4.0), viewAt({960, 960, 40000}, 0, -90, 40.0),
-                              viewAt({-500, 500, 800}, 90, -20, 2.0), viewAt({960, 960, 40000}, 0, -90, 1e9)}) {
+    for (const RoamView& v : {blockViewAt({960, 960, 40000}, 0, -90, 4.0), blockViewAt({960, 960, 40000}, 0, -90, 40.0),
+                              blockViewAt({-500, 500, 800}, 90, -20, 2.0), blockViewAt({960, 960, 40000}, 0, -90, 1e9)}) {
       b.update(v);
       auto coarserNeighbour = [&](int bx, int by) {
         const int k = b.level(bx, by);
@@ -200,7 +165,7 @@ TEST(BlockLod, DrawnMeshStaysWithinTheLevelErrorOfItsBlock) {
       };
       double worst = 0.0;
       int checked = 0;
-      for (const RoamTriangle& t0 : emit(b)) {
+      for (const RoamTriangle& t0 : blockTriangles(b)) {
         const int bx = (t0.v[0].x + t0.v[1].x + t0.v[2].x) / 3 / B, by = (t0.v[0].y + t0.v[1].y + t0.v[2].y) / 3 / B;
         ASSERT_LT(bx, b.blocksX());
         ASSERT_LT(by, b.blocksY());
@@ -236,15 +201,15 @@ TEST(BlockLod, DrawnMeshStaysWithinTheLevelErrorOfItsBlock) {
 // camera is still valid: blocks outside the frustum are not drawn. It switched culling off
 // and drew every block behind the camera too.
 TEST(BlockLod, InfiniteToleranceStillCullsOutsideTheFrustum) {
-  const Dem d = fractal(129, 129);
+  const BlockDem d = blockFractal(129, 129);
   BlockLod b(d.z, d.w, d.h, 30.0, {0, 0, 0}, {16});
   // West of the DEM looking west and up: nothing of the DEM is in view.
-  const BlockLodStats away = b.update(viewAt({-3000, 1900, 2000}, 270, 10, INFINITY));
+  const BlockLodStats away = b.update(blockViewAt({-3000, 1900, 2000}, 270, 10, INFINITY));
   EXPECT_EQ(away.blocksVisible, 0u);
   EXPECT_EQ(away.triangles, 0u);
-  EXPECT_EQ(emit(b).size(), 0u);
+  EXPECT_EQ(blockTriangles(b).size(), 0u);
   // Looking down on all of it: every block, each at its coarsest level.
-  const BlockLodStats all = b.update(viewAt({1920, 1920, 60000}, 0, -90, INFINITY));
+  const BlockLodStats all = b.update(blockViewAt({1920, 1920, 60000}, 0, -90, INFINITY));
   EXPECT_EQ(all.blocksVisible, 64u);
   for (int by = 0; by < b.blocksY(); ++by)
     for (int bx = 0; bx < b.blocksX(); ++bx) EXPECT_EQ(b.level(bx, by), b.levels() - 1);

@@ -25,30 +25,17 @@
 
 #include "lod/dynamic_octree.h"
 #include "lod/view.h"
+#include "octree_fixtures.h"
 
 using namespace ig::lod;
 
 namespace {
 
-Aabb cube(glm::dvec3 c, double h) { return {c - glm::dvec3(h), c + glm::dvec3(h)}; }
+using ig::lod::test::cube;
+using ig::lod::test::wideCamera;
 
 // 256 m root cube at the origin.
-OctreeConfig rootConfig(uint32_t maxDepth, uint32_t maxAge = 8) {
-  OctreeConfig c;
-  c.bounds = cube(glm::dvec3(0.0), 128.0);
-  c.maxDepth = maxDepth;
-  c.maxObjects = 2000;
-  c.occlusionMaxAge = maxAge;
-  return c;
-}
-
-// At the origin looking north (+y), 90 deg vertical field of view, 16:9.
-Camera wideCamera() {
-  Camera cam;
-  cam.aspect = 16.0 / 9.0;
-  cam.fovY_deg = 90.0;
-  return cam;
-}
+OctreeConfig rootConfig(uint32_t maxDepth, uint32_t maxAge = 8) { return ig::lod::test::octreeConfig(maxDepth, maxAge); }
 
 bool holds(std::span<const uint32_t> list, uint32_t count, uint32_t n) {
   return std::find(list.begin(), list.begin() + count, n) != list.begin() + count;

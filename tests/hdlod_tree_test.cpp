@@ -16,6 +16,7 @@
 #include "lod/hdlod_build.h"
 #include "lod/hdlod_select.h"
 #include "lod/hdlod_site.h"
+#include "hdlod_fixtures.h"
 
 using namespace ig::lod;
 using namespace ig::lod::hdlod;
@@ -24,27 +25,8 @@ namespace {
 
 constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
 
-Object placed(const std::string& name, uint32_t model, glm::dvec3 pos, std::vector<Interval> visible) {
-  Object o;
-  o.name = name;
-  o.model = model;
-  o.path.push_back({0.0, pos, 0.0});
-  o.visible = std::move(visible);
-  return o;
-}
-
-// Looks north at `target` from `distance` south of it, level.
-SelectView viewOf(glm::dvec3 target, double distance, double t, double r) {
-  SelectView v;
-  v.camera.eye_m = target - glm::dvec3(0, distance, 0);
-  v.camera.fovY_deg = 60;
-  v.camera.aspect = 1.0;
-  v.camera.near_m = 0.1;
-  v.camera.far_m = 1e7;
-  v.time_s = t;
-  v.tolerance_rad = r;
-  return v;
-}
+using ig::lod::hdlod::test::placed;
+using ig::lod::hdlod::test::viewOf;
 
 std::vector<uint32_t> sortedClusters(std::span<const Draw> d) {
   std::vector<uint32_t> ids;

@@ -13,6 +13,7 @@
 #include "lod/dynamic_octree.h"
 #include "lod/perfmodel.h"
 #include "lod/view.h"
+#include "octree_fixtures.h"
 
 using namespace ig::lod;
 
@@ -480,7 +481,8 @@ TEST(PerfModel, FitsRefuseAHugeCountAndKeepSolving) {
 
 // ---- octree ----------------------------------------------------------------------------------
 
-Aabb cube(glm::dvec3 c, double h) { return {c - glm::dvec3(h), c + glm::dvec3(h)}; }
+using ig::lod::test::cube;
+using ig::lod::test::wideCamera;
 
 bool containedIn(const Aabb& outer, const Aabb& b) {
   return b.min.x >= outer.min.x && b.min.y >= outer.min.y && b.min.z >= outer.min.z && b.max.x <= outer.max.x &&
@@ -565,22 +567,7 @@ TEST(DynamicOctree, SingleReferenceUnderInsertMoveRemove) {
 }
 
 // The occlusion tests' octree: 128 m cube, 5 levels, up to 2,000 objects.
-OctreeConfig occlusionTestConfig(uint32_t maxAge) {
-  OctreeConfig c;
-  c.bounds = cube(glm::dvec3(0.0), 128.0);
-  c.maxDepth = 5;
-  c.maxObjects = 2000;
-  c.occlusionMaxAge = maxAge;
-  return c;
-}
-
-// At the origin looking north (+y), 90 deg vertical field of view, 16:9.
-Camera wideCamera() {
-  Camera cam;
-  cam.aspect = 16.0 / 9.0;
-  cam.fovY_deg = 90.0;
-  return cam;
-}
+OctreeConfig occlusionTestConfig(uint32_t maxAge) { return ig::lod::test::octreeConfig(5, maxAge); }
 
 TEST(DynamicOctree, ExpensiveNodesAndTheHiddenEstimate) {
   DynamicOctree t;

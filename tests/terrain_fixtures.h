@@ -13,6 +13,7 @@
 
 #include <glm/vec3.hpp>
 
+#include "lod/block_lod.h"
 #include "lod/heightfield.h"
 #include "lod/roam.h"
 
@@ -79,6 +80,41 @@ inline ::testing::AssertionResult tilesDem(std::span<const RoamTriangle> tris, i
                                            << ") has no twin: a crack or T-junction";
   }
   return ::testing::AssertionSuccess();
+}
+
+// Block LOD tests (block_lod_test, block_lod_mutation_test): a fractal DEM of w x h posts 30 m
+// apart, heights up to 800 m, and a view with a 45 deg field of view, 16:9, 720 px high.
+struct BlockDem {
+  int w, h;
+  std::vector<float> z;
+  float at(int x, int y) const {  // clamped to the DEM
+    x = std::clamp(x, 0, w - 1);
+    y = std::clamp(y, 0, h - 1);
+    return z[static_cast<size_t>(y) * static_cast<size_t>(w) + static_cast<size_t>(x)];
+  }
+};
+
+inline BlockDem blockFractal(int w, int h, uint32_t seed = 7) {
+  return BlockDem{w, h, fractalHeights(w, h, seed, 800.0, 30.0)};
+}
+
+inline RoamView blockViewAt(glm::dvec3 eye, double heading, double pitch, double tol) {
+  RoamView v;
+  v.camera.eye_m = eye;
+  v.camera.heading_deg = heading;
+  v.camera.pitch_deg = pitch;
+  v.camera.fovY_deg = 45;
+  v.camera.aspect = 16.0 / 9.0;
+  v.viewportHeight_px = 720;
+  v.tolerance_px = tol;
+  return v;
+}
+
+// Every triangle block LOD emits for its current levels.
+inline std::vector<RoamTriangle> blockTriangles(const BlockLod& b) {
+  std::vector<RoamTriangle> out(b.triangleBound());
+  out.resize(b.emitTriangles(out));
+  return out;
 }
 
 }  // namespace ig::lod::test
