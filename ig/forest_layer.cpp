@@ -252,8 +252,8 @@ std::unique_ptr<ForestLayer> ForestLayer::create(const ForestLayerConfig& c, con
   return layer;
 }
 
-void ForestLayer::enableQueries() {
-  if (surfaces_.rays.empty()) surfaces_.rays = lod::ForestRays(kd_, models_, yawJitter_);
+void ForestLayer::enableQueries(bool enable) {
+  if (enable && surfaces_.rays.empty()) surfaces_.rays = lod::ForestRays(kd_, models_, yawJitter_);
   models_ = {};
 }
 

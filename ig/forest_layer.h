@@ -84,9 +84,10 @@ class ForestLayer {
   // every tree of the forest, posed as the near pass draws it (lod/forest_rays.h), for sight
   // queries only (HAT/HOT: a vehicle stands on the ground between the trees). Empty until
   // enableQueries() builds the index (the service does when its host link answers queries:
-  // ~100 ms and ~23 bytes a tree for the default 1.2 M-tree forest).
+  // ~70 ms and ~23 bytes a tree for the default 1.2 M-tree forest). enableQueries(false) frees
+  // what the index would be built from (the service does for any other host source).
   const io::SceneSurfaces& surfaces() const { return surfaces_; }
-  void enableQueries();
+  void enableQueries(bool enable = true);
   const lod::FinSet& fins() const { return fins_; }
   const lod::ForestMap& map() const { return map_; }
   render::ForestPass& pass() { return pass_; }

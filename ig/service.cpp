@@ -856,12 +856,12 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
       return nullptr;
     }
     s->info_.layers.push_back("forest");
-    if (config.host == HostSource::Cigi) {  // the link that answers LOS requests
-      const auto t0 = std::chrono::steady_clock::now();
-      m.forest->enableQueries();
+    const auto q0 = std::chrono::steady_clock::now();
+    m.forest->enableQueries(config.host == HostSource::Cigi);  // the link that answers LOS requests
+    if (config.host == HostSource::Cigi) {
       m.surfaces.add(&m.forest->surfaces());
       s->info_.queriesDescription += ", " + std::to_string(m.forest->kdTree().trees().size()) + " [forest] trees (LOS, index " +
-                                     formatMs(std::chrono::steady_clock::now() - t0) + ")";
+                                     formatMs(std::chrono::steady_clock::now() - q0) + ")";
     }
   }
   if (scene.hdlod) {
