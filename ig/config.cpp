@@ -875,8 +875,9 @@ bool parseScene(const std::string& text, const std::string& name, const std::str
   r.get(sun, "color", cfg.sun.color, closed(0.0, 1.0));
   r.get(sun, "ambient", cfg.sun.ambient, closed(0.0, 1.0));
 
-  const Table fog = r.table(root, "fog", {"enabled", "visibility_m", "color"});
+  const Table fog = r.table(root, "fog", {"enabled", "visibility_m", "color", "cull"});
   r.get(fog, "enabled", cfg.fog.enabled);
+  r.get(fog, "cull", cfg.fog.cull);
   r.get(fog, "visibility_m", cfg.fog.visibility_m, openClosed(0.0, 1e7));
   r.get(fog, "color", cfg.fog.color, closed(0.0, 1.0));
 

@@ -675,8 +675,12 @@ struct Service::Impl {
     fixedLighting = render::daylight(lighting, scene.sun.elevation_deg);
   }
 
+  // The host's camera, its far plane moved in to where the fog is opaque ([fog] cull).
   lod::Camera cameraFor(const io::HostState& h) const {
-    return ig::cameraFor(h, config.channel, config.width_px, config.height_px);
+    lod::Camera c = ig::cameraFor(h, config.channel, config.width_px, config.height_px);
+    if (scene.fog.enabled && scene.fog.cull)
+      c.far_m = std::min(c.far_m, std::max(render::fogOpaqueDistance_m(scene.fog.visibility_m), 2.0 * c.near_m));
+    return c;
   }
 
   // lod phase: every layer the scene has selects what to draw. `clock` (the frame loop's)

@@ -376,7 +376,7 @@ void CellsPass::draw(Renderer& renderer, std::span<const lod::CellDraw> cells) {
   const float viewport[2] = {static_cast<float>(renderer.width()), static_cast<float>(renderer.height())};
   gl.ProgramUniform2fv(p, g.uViewport, 1, viewport);
   gl.ProgramUniform3fv(p, g.uFogColor, 1, glm::value_ptr(fogColor));
-  gl.ProgramUniform1f(p, g.uFogDensity, l.fog ? static_cast<float>(3.912 / l.fogVisibility_m) : 0.0f);
+  gl.ProgramUniform1f(p, g.uFogDensity, l.fog ? static_cast<float>(kFogExtinction / l.fogVisibility_m) : 0.0f);
   // The colours are baked in daylight, 0.3 ambient + 0.7 sun (igtool cells-build): each part
   // dimmed as the frame's (render::daylight): 1 by day (the image unchanged), 0.045 at night.
   const double day = std::clamp(l.daylight, 0.0, 1.0);

@@ -805,7 +805,7 @@ void DynamicPass::draw(Renderer& r, uint64_t frame) {
   gl.ProgramUniform3fv(p, g.uSunColor, 1, glm::value_ptr(sunColor));
   gl.ProgramUniform1f(p, g.uAmbient, static_cast<float>(l.ambient));
   gl.ProgramUniform3fv(p, g.uFogColor, 1, glm::value_ptr(fogColor));
-  gl.ProgramUniform1f(p, g.uFogDensity, l.fog ? static_cast<float>(3.912 / l.fogVisibility_m) : 0.0f);
+  gl.ProgramUniform1f(p, g.uFogDensity, l.fog ? static_cast<float>(kFogExtinction / l.fogVisibility_m) : 0.0f);
   gl.ProgramUniform1i(p, g.uWork, static_cast<GLint>(config_.fragmentWork));
   bindBoxState(p, g.vao.id(), g.commands.id());
   const int sq = static_cast<int>(frame & 1u);

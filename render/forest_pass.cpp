@@ -274,7 +274,7 @@ struct Locations {
     gl.ProgramUniform3fv(p, sunColor, 1, glm::value_ptr(sunRgb));
     gl.ProgramUniform1f(p, ambient, static_cast<float>(l.ambient));
     gl.ProgramUniform3fv(p, fogColor, 1, glm::value_ptr(fog));
-    gl.ProgramUniform1f(p, fogDensity, l.fog ? static_cast<float>(3.912 / l.fogVisibility_m) : 0.0f);
+    gl.ProgramUniform1f(p, fogDensity, l.fog ? static_cast<float>(kFogExtinction / l.fogVisibility_m) : 0.0f);
   }
 };
 

@@ -471,7 +471,7 @@ void HdlodPass::draw(Renderer& renderer, std::span<const hd::Draw> draws) {
   gl.ProgramUniform3fv(p, m.uSunColor, 1, glm::value_ptr(sunColor));
   gl.ProgramUniform1f(p, m.uAmbient, static_cast<float>(lighting.ambient));
   gl.ProgramUniform3fv(p, m.uFogColor, 1, glm::value_ptr(fogColor));
-  gl.ProgramUniform1f(p, m.uFogDensity, lighting.fog ? static_cast<float>(3.912 / lighting.fogVisibility_m) : 0.0f);
+  gl.ProgramUniform1f(p, m.uFogDensity, lighting.fog ? static_cast<float>(kFogExtinction / lighting.fogVisibility_m) : 0.0f);
   gl.UseProgram(p);
   gl.BindVertexArray(m.vertexArray.id());
   gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m.materialBuffer.id());

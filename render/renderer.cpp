@@ -352,7 +352,7 @@ class TerrainPass {
     gl.ProgramUniform1f(p, g.uAmbient, static_cast<float>(lighting.ambient));
     gl.ProgramUniform3fv(p, g.uFogColor, 1, glm::value_ptr(fogColor));
     // Koschmieder: 2 % contrast at the visibility distance.
-    gl.ProgramUniform1f(p, g.uFogDensity, lighting.fog ? static_cast<float>(3.912 / lighting.fogVisibility_m) : 0.0f);
+    gl.ProgramUniform1f(p, g.uFogDensity, lighting.fog ? static_cast<float>(kFogExtinction / lighting.fogVisibility_m) : 0.0f);
     gl.ProgramUniform1f(p, g.uHeightScale, heightScale_);
     gl.ProgramUniform1f(p, g.uHeightBase, heightBase_);
     const glm::vec2 phase(std::fmod(std::fmod(camera.eye_m.x, 1024.0) + 1024.0, 1024.0),

@@ -18,6 +18,16 @@
 
 namespace ig::render {
 
+// Koschmieder fog: a surface at distance d keeps exp(-kFogExtinction * d / visibility) of its
+// colour (2 % at the meteorological visibility: ln 50); the rest is the fog colour, which is also
+// the sky's.
+inline constexpr double kFogExtinction = 3.912;
+// Beyond this distance the fog lets less than 1/1024 of a surface's colour through, so a pixel
+// there differs from the sky by under a quarter of an 8-bit level (1.77 x the visibility). The
+// service uses it as the far plane while fog is on ([fog] cull): nothing beyond is selected,
+// uploaded or drawn.
+inline double fogOpaqueDistance_m(double visibility_m) { return visibility_m * (6.931471805599453 / kFogExtinction); }  // ln 1024
+
 struct Lighting {
   glm::dvec3 sunDirection{0.0, 0.0, 1.0};  // ENU, unit, towards the sun
   glm::dvec3 sunColor{1.0};

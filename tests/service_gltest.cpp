@@ -249,6 +249,52 @@ TEST(ServiceGL, EyepointInsideTerrainAndAtExtremeClipPlanesRendersWithoutGlError
   }
 }
 
+// [fog] cull: in thick fog nothing beyond the opaque distance is drawn, and the picture is the
+// one drawn with the host's far plane to within one colour level (the fog lets less than 1/1024
+// through there). The default scene (terrain, forest, objects) at 1.5 km visibility, looking
+// level and down from the built-in circuit.
+TEST(ServiceGL, FogCullDrawsLessAndThePictureStaysTheSame) {
+  ServiceConfig cfg;
+  SceneConfig scene;
+  test::defaultConfigs(cfg, scene);
+  scene.fog.enabled = true;
+  scene.fog.visibility_m = 800.0;
+  ASSERT_NEAR(render::fogOpaqueDistance_m(scene.fog.visibility_m), 1417.5, 0.5);  // 1.77 x
+  std::string error;
+  SceneConfig open = scene;
+  open.fog.cull = false;
+  auto culled = Service::create(cfg, scene, error);
+  ASSERT_TRUE(culled) << error;
+  auto full = Service::create(cfg, open, error);
+  ASSERT_TRUE(full) << error;
+  uint64_t culledTriangles = 0, fullTriangles = 0;
+  for (double t : {5.0, 40.0}) {
+    for (double pitch : {0.0, -10.0}) {
+      io::HostState h = test::defaultHostAt(t);
+      h.pitch_deg = pitch;
+      h.far_m = 100000.0;
+      render::Image a, b;
+      const FrameRecord ra = culled->renderOnce(h, &a);
+      const FrameRecord rb = full->renderOnce(h, &b);
+      ASSERT_EQ(a.rgba.size(), b.rgba.size());
+      int worst = 0;
+      size_t differ = 0;
+      for (size_t i = 0; i < a.rgba.size(); ++i) {
+        const int d = std::abs(int{a.rgba[i]} - int{b.rgba[i]});
+        worst = std::max(worst, d);
+        differ += d != 0;
+      }
+      EXPECT_LE(worst, 1) << "t " << t << " pitch " << pitch;
+      EXPECT_LT(differ, a.rgba.size() / 100) << "t " << t << " pitch " << pitch;
+      EXPECT_LT(ra.triangles, rb.triangles) << "t " << t << " pitch " << pitch;
+      culledTriangles += ra.triangles;
+      fullTriangles += rb.triangles;
+    }
+  }
+  // Thick fog: well under two thirds of what the host's 100 km far plane draws (0.57 when written).
+  EXPECT_LT(3 * culledTriangles, 2 * fullTriangles);
+}
+
 TEST(ServiceGL, RunWritesStatsAndSnapshotsWithAFakeClock) {
   const auto dir = std::filesystem::temp_directory_path() / ("igd_service_gltest_" + std::to_string(::getpid()));
   std::filesystem::remove_all(dir);
