@@ -526,6 +526,8 @@ bool hostStateValid(const io::HostState& s, std::string* why) {
     return bad("window_width_tan", s.windowWidth_tan);
   // Time of day: negative = none (the scene's sun), else UTC hours below 24 (io/host_state.h).
   if (std::isinf(s.timeOfDay_h) || !(s.timeOfDay_h < 24.0)) return bad("tod_h", s.timeOfDay_h);
+  // Visibility: <= 0 = none (the scene's fog), else metres up to 1e7.
+  if (std::isinf(s.visibility_m) || !(s.visibility_m <= 1e7)) return bad("visibility_m", s.visibility_m);
   return true;
 }
 
@@ -549,6 +551,8 @@ struct Service::Impl {
   std::optional<lod::EnuFrame> enu;
   render::Lighting lighting;       // the scene's sun and fog at full daylight
   render::Lighting fixedLighting;  // the same dimmed for the scene's fixed sun (render::daylight())
+  render::Lighting haze;           // `lighting` with the scene's fog colour on: a host's visibility applies
+  render::Lighting fixedHaze;      //   (CIGI Atmosphere Control) even where the scene has no fog
   SummaryCollector summary{1};
   int64_t overruns = 0, missed = 0;  // of every run() so far, as the summary's frames
   int64_t loopStart_ns = 0;
@@ -673,13 +677,23 @@ struct Service::Impl {
     lighting.fogColor = {scene.fog.color[0], scene.fog.color[1], scene.fog.color[2]};
     if (!scene.fog.enabled) lighting.fogColor = {0.52, 0.68, 0.88};  // clear sky
     fixedLighting = render::daylight(lighting, scene.sun.elevation_deg);
+    haze = lighting;
+    haze.fog = true;
+    haze.fogColor = {scene.fog.color[0], scene.fog.color[1], scene.fog.color[2]};
+    fixedHaze = render::daylight(haze, scene.sun.elevation_deg);
+  }
+
+  // The fog's visibility this frame: the host's when it sent one, else the scene's; 0: no fog.
+  double fogVisibility_m(const io::HostState& h) const {
+    if (h.visibility_m > 0.0) return h.visibility_m;
+    return scene.fog.enabled ? scene.fog.visibility_m : 0.0;
   }
 
   // The host's camera, its far plane moved in to where the fog is opaque ([fog] cull).
   lod::Camera cameraFor(const io::HostState& h) const {
     lod::Camera c = ig::cameraFor(h, config.channel, config.width_px, config.height_px);
-    if (scene.fog.enabled && scene.fog.cull)
-      c.far_m = std::min(c.far_m, std::max(render::fogOpaqueDistance_m(scene.fog.visibility_m), 2.0 * c.near_m));
+    if (const double v = fogVisibility_m(h); v > 0.0 && scene.fog.cull)
+      c.far_m = std::min(c.far_m, std::max(render::fogOpaqueDistance_m(v), 2.0 * c.near_m));
     return c;
   }
 
@@ -740,13 +754,21 @@ struct Service::Impl {
   }
 
   // The scene's fixed sun, or the sun for the host's date and time of day at the eyepoint
-  // (no date: the March equinox). Night dims sun, ambient light and sky together.
+  // (no date: the March equinox). Night dims sun, ambient light and sky together. A host's
+  // visibility turns the fog on (the scene's fog colour) at that visibility.
   render::Lighting lightingFor(const io::HostState& h) const {
-    if (h.timeOfDay_h < 0.0) return fixedLighting;
+    if (h.visibility_m > 0.0) {
+      render::Lighting l = h.timeOfDay_h < 0.0 ? fixedHaze : sunlit(h, haze);
+      l.fogVisibility_m = h.visibility_m;
+      return l;
+    }
+    return h.timeOfDay_h < 0.0 ? fixedLighting : sunlit(h, lighting);
+  }
+  render::Lighting sunlit(const io::HostState& h, const render::Lighting& full) const {
     const lod::Geodetic g = enu->toGeodetic(h.eyeEnu_m);
     const lod::SunPosition sun = lod::sunPosition(h.dateYmd != 0 ? h.dateYmd : 20260320, h.timeOfDay_h, g.lat_deg, g.lon_deg);
     const double az = sun.azimuth_deg * kDeg, el = sun.elevation_deg * kDeg;
-    render::Lighting l = render::daylight(lighting, sun.elevation_deg);
+    render::Lighting l = render::daylight(full, sun.elevation_deg);
     l.sunDirection = {std::sin(az) * std::cos(el), std::cos(az) * std::cos(el), std::sin(el)};
     return l;
   }

@@ -73,6 +73,7 @@ size_t fixedSize(uint8_t id) {
     case PacketId::igControl: return kIgControlSize;
     case PacketId::entityControl: return kEntityControlSize;
     case PacketId::celestialSphereControl: return kCelestialSphereControlSize;
+    case PacketId::atmosphereControl: return kAtmosphereControlSize;
     case PacketId::viewControl: return kViewControlSize;
     case PacketId::viewDefinition: return kViewDefinitionSize;
     case PacketId::hatHotRequest: return kHatHotRequestSize;
@@ -298,6 +299,19 @@ const char* toString(CigiStatus s) {
   return "?";
 }
 
+AtmosphereControl readAtmosphere(const Cursor& c) {
+  AtmosphereControl p;
+  p.atmosphericModelEnable = (c.u8(2) & 0x01) != 0;
+  p.humidity_pct = c.u8(3);
+  p.airTemperature_c = c.f32(4);
+  p.visibility_m = c.f32(8);
+  p.horizontalWind_mps = c.f32(12);
+  p.verticalWind_mps = c.f32(16);
+  p.windDirection_deg = c.f32(20);
+  p.pressure_hpa = c.f32(24);
+  return p;
+}
+
 CigiStatus decodeHostMessage(std::span<const std::byte> bytes, HostMessage& out, const HostMessageFilter& filter) {
   bool swap = false;
   if (const CigiStatus s = checkFraming(bytes, PacketId::igControl, swap); s != CigiStatus::ok) return s;
@@ -305,6 +319,7 @@ CigiStatus decodeHostMessage(std::span<const std::byte> bytes, HostMessage& out,
   out.igControl = readIgControl(Cursor{bytes.data(), swap});
   out.entityCount = out.viewControlCount = out.viewDefinitionCount = 0;
   out.hasCelestial = false;
+  out.hasAtmosphere = false;
   out.hatHotCount = 0;
   out.hatHotOmitted = out.unknownPackets = out.omittedPackets = 0;
   out.losCount = 0;
@@ -342,6 +357,10 @@ CigiStatus decodeHostMessage(std::span<const std::byte> bytes, HostMessage& out,
       case PacketId::celestialSphereControl:
         out.celestial = readCelestial(c);
         out.hasCelestial = true;
+        break;
+      case PacketId::atmosphereControl:
+        out.atmosphere = readAtmosphere(c);
+        out.hasAtmosphere = true;
         break;
       case PacketId::hatHotRequest:
         if (out.hatHotCount == HostMessage::kMaxHatHotRequests) {
@@ -427,6 +446,19 @@ size_t encode(const CelestialSphereControl& p, ByteOrder order, std::span<std::b
   w.u32(8, p.date_mmddyyyy);
   w.f32(12, p.starIntensity_pct);
   return kCelestialSphereControlSize;
+}
+
+size_t encode(const AtmosphereControl& p, ByteOrder order, std::span<std::byte> out) {
+  const Writer w = begin(out, PacketId::atmosphereControl, kAtmosphereControlSize, order);
+  w.u8(2, p.atmosphericModelEnable ? 0x01 : 0x00);
+  w.u8(3, p.humidity_pct);
+  w.f32(4, p.airTemperature_c);
+  w.f32(8, p.visibility_m);
+  w.f32(12, p.horizontalWind_mps);
+  w.f32(16, p.verticalWind_mps);
+  w.f32(20, p.windDirection_deg);
+  w.f32(24, p.pressure_hpa);
+  return kAtmosphereControlSize;
 }
 
 size_t encode(const ViewControl& p, ByteOrder order, std::span<std::byte> out) {
@@ -738,6 +770,10 @@ uint32_t validateCelestial(const CelestialSphereControl& p) {
     bad |= kCelestialDate;
   if (!inRange(p.starIntensity_pct, 0.0, 100.0)) bad |= kCelestialStars;
   return bad;
+}
+
+uint32_t validateAtmosphere(const AtmosphereControl& p) {
+  return p.visibility_m > 0.0f && p.visibility_m <= 1e7f ? 0u : kAtmosphereVisibility;
 }
 
 }  // namespace ig::io::cigi

@@ -11,8 +11,8 @@
 // encoded. Layouts (byte offsets within a packet) are written next to each struct; they match
 // the ICD and Wireshark's CIGI dissector (tests/cigi_tshark_test.py checks that).
 //
-// Decoded packets: IG Control (1), Entity Control (2), Celestial Sphere Control (9), View
-// Control (16), View Definition (21), HAT/HOT Request (24), LOS Segment Request (25), LOS Vector
+// Decoded packets: IG Control (1), Entity Control (2), Celestial Sphere Control (9), Atmosphere
+// Control (10), View Control (16), View Definition (21), HAT/HOT Request (24), LOS Segment Request (25), LOS Vector
 // Request (26). Encoded besides: Start of Frame (101), HAT/HOT Response (102), HAT/HOT Extended
 // Response (103), LOS Response (104), LOS Extended Response (105). Every other packet id is skipped by its size byte. A
 // known id with a size other than its fixed size, a size below 2, or a packet running past the
@@ -34,6 +34,7 @@ enum class PacketId : uint8_t {
   igControl = 1,
   entityControl = 2,
   celestialSphereControl = 9,
+  atmosphereControl = 10,
   viewControl = 16,
   viewDefinition = 21,
   hatHotRequest = 24,
@@ -50,6 +51,7 @@ enum class PacketId : uint8_t {
 constexpr size_t kIgControlSize = 24;
 constexpr size_t kEntityControlSize = 48;
 constexpr size_t kCelestialSphereControlSize = 16;
+constexpr size_t kAtmosphereControlSize = 32;
 constexpr size_t kViewControlSize = 32;
 constexpr size_t kViewDefinitionSize = 32;
 constexpr size_t kStartOfFrameSize = 24;
@@ -123,6 +125,23 @@ struct CelestialSphereControl {
   bool dateTimeValid = false;     // hour, minute and date apply only when set
   uint32_t date_mmddyyyy = 0;     // e.g. 6212026 = 21 June 2026
   float starIntensity_pct = 0;
+};
+
+// Atmosphere Control (id 10, 32 bytes), host -> IG: the global atmosphere (where no weather layer
+// or region says otherwise). igd uses the visibility range (its fog); the rest is read and kept.
+//  0 id  1 size  2 bits: 0 atmospheric model enable  3 global humidity (u8, %)
+//  4-7 air temperature (float32, deg C)  8-11 visibility range (m)  12-15 horizontal wind (m/s)
+//  16-19 vertical wind (m/s)  20-23 wind direction (deg, from true north)
+//  24-27 barometric pressure (hPa)  28-31 reserved
+struct AtmosphereControl {
+  bool atmosphericModelEnable = false;
+  uint8_t humidity_pct = 30;
+  float airTemperature_c = 15.0f;
+  float visibility_m = 20000.0f;  // > 0, <= 1e7
+  float horizontalWind_mps = 0.0f;
+  float verticalWind_mps = 0.0f;
+  float windDirection_deg = 0.0f;
+  float pressure_hpa = 1013.25f;
 };
 
 // View Control (id 16, 32 bytes), host -> IG: the view's eye relative to an entity.
@@ -353,6 +372,8 @@ struct HostMessage {
   size_t viewDefinitionCount = 0;
   bool hasCelestial = false;             // the last Celestial Sphere Control of the message
   CelestialSphereControl celestial;
+  bool hasAtmosphere = false;            // the last Atmosphere Control of the message
+  AtmosphereControl atmosphere;
   // HAT/HOT Requests in message order (all kept, whatever the filter), up to capacity.
   static constexpr size_t kMaxHatHotRequests = 32;
   std::array<HatHotRequest, kMaxHatHotRequests> hatHotRequests;
@@ -387,6 +408,7 @@ CigiStatus decodeStartOfFrame(std::span<const std::byte> bytes, StartOfFrame& ou
 size_t encode(const IgControl& p, ByteOrder order, std::span<std::byte> out);
 size_t encode(const EntityControl& p, ByteOrder order, std::span<std::byte> out);
 size_t encode(const CelestialSphereControl& p, ByteOrder order, std::span<std::byte> out);
+size_t encode(const AtmosphereControl& p, ByteOrder order, std::span<std::byte> out);
 size_t encode(const ViewControl& p, ByteOrder order, std::span<std::byte> out);
 size_t encode(const ViewDefinition& p, ByteOrder order, std::span<std::byte> out);
 size_t encode(const StartOfFrame& p, ByteOrder order, std::span<std::byte> out);
@@ -419,6 +441,10 @@ uint32_t validateViewDefinition(const ViewDefinition& p);
 // kCelestialTime: hour >= 24 or minute >= 60; kCelestialDate: not a real MMDDYYYY date.
 enum CelestialField : uint32_t { kCelestialTime = 1, kCelestialDate = 2, kCelestialStars = 4 };
 uint32_t validateCelestial(const CelestialSphereControl& p);
+// kAtmosphereVisibility: the visibility range NaN, infinite, <= 0 or > 1e7 m (the others are not
+// checked: igd does not use them).
+enum AtmosphereField : uint32_t { kAtmosphereVisibility = 1 };
+uint32_t validateAtmosphere(const AtmosphereControl& p);
 // kHatHotType: request type 3. Geodetic: latitude in [-90, 90], longitude in [-180, 180],
 // altitude in [-1e4, 1e6] m (not checked for HOT, which ignores it). Entity: each offset finite
 // with abs <= 1e5 m. NaN and infinities always fail.

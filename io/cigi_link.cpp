@@ -173,6 +173,7 @@ CigiAssembler::Result CigiAssembler::apply(std::span<const std::byte> datagram, 
   for (size_t i = 0; i < msg_.viewControlCount; ++i) applyView(msg_.viewControls[i], counters);
   for (size_t i = 0; i < msg_.viewDefinitionCount; ++i) applyViewDefinition(msg_.viewDefinitions[i], counters);
   if (msg_.hasCelestial) applyCelestial(msg_.celestial, counters);
+  if (msg_.hasAtmosphere) applyAtmosphere(msg_.atmosphere, counters);
   checkHatHot(counters);
   checkLos(counters);
 
@@ -261,6 +262,14 @@ void CigiAssembler::applyCelestial(const cigi::CelestialSphereControl& c, LinkCo
   counters.outOfRange.fetch_add(static_cast<uint64_t>(std::popcount(bad)), std::memory_order_relaxed);
   if (!(bad & cigi::kCelestialTime)) state_.timeOfDay_h = c.hour + c.minute / 60.0;
   if (!(bad & cigi::kCelestialDate)) state_.dateYmd = cigi::dateToYmd(c.date_mmddyyyy);
+}
+
+void CigiAssembler::applyAtmosphere(const cigi::AtmosphereControl& a, LinkCounters& counters) {
+  if (cigi::validateAtmosphere(a) & cigi::kAtmosphereVisibility) {
+    counters.outOfRange.fetch_add(1, std::memory_order_relaxed);  // the last good visibility stays
+    return;
+  }
+  state_.visibility_m = a.visibility_m;
 }
 
 void CigiAssembler::checkHatHot(LinkCounters& counters) {

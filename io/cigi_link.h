@@ -1,12 +1,13 @@
 // CIGI 3.3 host link over UDP: igd is the IG. The host sends one message (datagram) per host
 // frame: IG Control first, then Entity Control for the ownship, optionally View Control, View
-// Definition, Celestial Sphere Control, HAT/HOT Requests and LOS Segment / Vector Requests. igd
+// Definition, Celestial Sphere Control, Atmosphere Control (the visibility: igd's fog), HAT/HOT
+// Requests and LOS Segment / Vector Requests. igd
 // answers every frame with a Start of Frame, followed in the same datagram by the HAT/HOT and LOS
 // responses due that frame.
 //
 // Two parts:
 //  - CigiAssembler: pure (no sockets, no clock). Turns decoded messages into HostState: the
-//    eyepoint, attitude, frustum, time and date, field by field, with the late / restart rule.
+//    eyepoint, attitude, frustum, time and date, visibility, field by field, with the late / restart rule.
 //    Shared by the live link and the pcap converter (io/pcap.h), so a capture replays exactly
 //    what the live link would have rendered.
 //  - CigiLink: the UDP transport. One receive thread (poll() with a 50 ms timeout so stop()
@@ -132,6 +133,7 @@ class CigiAssembler {
   void applyView(const cigi::ViewControl& v, LinkCounters& counters);
   void applyViewDefinition(const cigi::ViewDefinition& d, LinkCounters& counters);
   void applyCelestial(const cigi::CelestialSphereControl& c, LinkCounters& counters);
+  void applyAtmosphere(const cigi::AtmosphereControl& a, LinkCounters& counters);
   void checkHatHot(LinkCounters& counters);
   void checkLos(LinkCounters& counters);
   void computeEye();

@@ -31,6 +31,9 @@ struct HostState {
   // given by the host: the scene's own sun applies.
   double timeOfDay_h = -1.0;         // UTC hours, 0 <= h < 24
   int32_t dateYmd = 0;               // UTC date as YYYYMMDD, e.g. 20260621
+  // Meteorological visibility for the fog (CIGI Atmosphere Control's visibility range), metres,
+  // 0 < v <= 1e7. <= 0 = not given by the host: the scene's own [fog] applies.
+  double visibility_m = -1.0;
   // The ownship the eye follows, as the CIGI host gave it (Entity Control): WGS-84 position and
   // attitude in its local level frame (yaw clockwise from true north). HAT/HOT requests in
   // entity coordinates are relative to it. hasOwnship is false for other sources.

@@ -15,19 +15,23 @@ namespace ig::io {
 namespace {
 
 constexpr std::string_view kMagic = "igd-recording";
-// Version 1 has the first 12 fields; version 2 adds the date and time of day; version 3 (written
-// now) adds the off-axis window (HostState windowShiftX, windowShiftY, windowWidth_tan).
-constexpr int kVersion = 3;
+// Version 1 has the first 12 fields; version 2 adds the date and time of day; version 3 adds the
+// off-axis window (HostState windowShiftX, windowShiftY, windowWidth_tan); version 4 (written now)
+// the host's visibility (HostState visibility_m).
+constexpr int kVersion = 4;
 constexpr const char* kFieldNames[] = {"t_s",         "host_frame", "sim_time_s", "east_m",
                                        "north_m",     "up_m",       "heading_deg", "pitch_deg",
                                        "roll_deg",    "fovy_deg",   "near_m",     "far_m",
                                        "tod_h",       "date_ymd",   "shift_x",    "shift_y",
-                                       "width_tan"};
+                                       "width_tan",   "vis_m"};
 constexpr size_t kFieldCount = std::size(kFieldNames);
 constexpr size_t kFieldCountV1 = 12;
 constexpr size_t kFieldCountV2 = 14;
+constexpr size_t kFieldCountV3 = 17;
 // The window's limits, as the frame loop checks a host sample (ig/service.cpp).
 constexpr double kMaxShift = lod::kMaxWindowShift;
+// The largest visibility a sample may carry (as the scene's [fog] visibility_m).
+constexpr double kMaxVisibility_m = 1e7;
 // Timestamps are written to 0.1 ms: a sample within that of the replay time is due.
 constexpr double kTimeTolerance_s = 1e-4;
 // host_frame is read as a double: integers are exact up to 2^53.
@@ -76,16 +80,16 @@ bool parseRecording(std::string_view text, const std::string& name, Recording& o
     if (!sawHeader) {
       double version = 0;
       if (count != 2 || tokens[0] != kMagic || !parseDouble(tokens[1], version) ||
-          (version != 1 && version != 2 && version != 3))
-        return fail("expected header 'igd-recording 3' (or 2, 1), got '" + std::string(raw) + "'");
-      fields = version == 1 ? kFieldCountV1 : version == 2 ? kFieldCountV2 : kFieldCount;
+          (version != 1 && version != 2 && version != 3 && version != 4))
+        return fail("expected header 'igd-recording 4' (or 3, 2, 1), got '" + std::string(raw) + "'");
+      fields = version == 1 ? kFieldCountV1 : version == 2 ? kFieldCountV2 : version == 3 ? kFieldCountV3 : kFieldCount;
       sawHeader = true;
       continue;
     }
     if (count != fields || !line.empty())
       return fail("expected " + std::to_string(fields) + " fields, got " +
                   (line.empty() ? std::to_string(count) : std::string("more")));
-    double v[kFieldCount] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, -1.0, 0, 0, 0, 0};
+    double v[kFieldCount] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, -1.0, 0, 0, 0, 0, -1.0};
     for (size_t i = 0; i < fields; ++i) {
       if (!parseDouble(tokens[i], v[i]) || !std::isfinite(v[i]))
         return fail(std::string(kFieldNames[i]) + " = '" + std::string(tokens[i]) + "': not a finite number");
@@ -118,7 +122,7 @@ bool parseRecording(std::string_view text, const std::string& name, Recording& o
     if (!(s.state.near_m > 0 && s.state.far_m > s.state.near_m))
       return fail("near_m/far_m = '" + std::string(tokens[10]) + " " + std::string(tokens[11]) +
                   "': need 0 < near_m < far_m");
-    if (fields == kFieldCount) {
+    if (fields >= kFieldCountV3) {
       s.state.windowShiftX = v[14];
       s.state.windowShiftY = v[15];
       s.state.windowWidth_tan = v[16];
@@ -128,9 +132,12 @@ bool parseRecording(std::string_view text, const std::string& name, Recording& o
       if (!(v[16] >= 0.0 && v[16] <= 2.0 * kMaxShift))
         return fail("width_tan = '" + std::string(tokens[16]) + "': must be in [0, 1000] (0 = the output's aspect ratio)");
     }
+    s.state.visibility_m = v[17];
+    if (!(v[17] <= kMaxVisibility_m))
+      return fail("vis_m = '" + std::string(tokens[17]) + "': must be <= 1e7 (metres; <= 0 = the scene's fog)");
     rec.samples.push_back(s);
   }
-  if (!sawHeader) return fail("empty recording: expected header 'igd-recording 3'");
+  if (!sawHeader) return fail("empty recording: expected header 'igd-recording 4'");
   if (rec.samples.empty()) return fail("recording has no samples");
   out = std::move(rec);
   return true;
@@ -190,12 +197,14 @@ std::string formatSample(const HostSample& h) {
   auto window = [](double v) { return v == 0.0 ? std::string("0") : exactFixed(v, 9); };
   const std::string shiftX = window(st.windowShiftX), shiftY = window(st.windowShiftY),
                     width = window(st.windowWidth_tan);
+  // The visibility exactly (a host's float survives); none is "-1".
+  const std::string vis = st.visibility_m > 0.0 ? exactFixed(st.visibility_m, 3) : std::string("-1");
   auto print = [&](char* out, size_t size) {
-    return std::snprintf(out, size, "%.6f %llu %.6f %.6f %.6f %.6f %.6f %.6f %.6f %s %s %s %s %d %s %s %s\n", h.t_s,
+    return std::snprintf(out, size, "%.6f %llu %.6f %.6f %.6f %.6f %.6f %.6f %.6f %s %s %s %s %d %s %s %s %s\n", h.t_s,
                          static_cast<unsigned long long>(st.hostFrame), st.simTime_s, st.eyeEnu_m.x, st.eyeEnu_m.y,
                          st.eyeEnu_m.z, st.heading_deg, st.pitch_deg, st.roll_deg, fovy.c_str(), nearM.c_str(),
                          farM.c_str(), tod.c_str(), static_cast<int>(st.dateYmd), shiftX.c_str(), shiftY.c_str(),
-                         width.c_str());
+                         width.c_str(), vis.c_str());
   };
   char buf[512];
   const int n = print(buf, sizeof buf);

@@ -2,17 +2,19 @@
 // `igtool make-recording`) and replayed into the frame loop for tests and hardware-in-the-loop
 // runs. Text so a person can read and edit it; '#' starts a comment.
 //
-//   igd-recording 3
-//   # t_s host_frame sim_time_s east_m north_m up_m heading_deg pitch_deg roll_deg fovy_deg near_m far_m tod_h date_ymd shift_x shift_y width_tan
-//   0.000 0 0.000 -1200.0 -1800.0 450.0 35.0 -4.0 0.0 45.0 0.1 100000 -1 0 0 0 0
+//   igd-recording 4
+//   # t_s host_frame sim_time_s east_m north_m up_m heading_deg pitch_deg roll_deg fovy_deg near_m far_m tod_h date_ymd shift_x shift_y width_tan vis_m
+//   0.000 0 0.000 -1200.0 -1800.0 450.0 35.0 -4.0 0.0 45.0 0.1 100000 -1 0 0 0 0 -1
 //
 // t_s is the replay clock (seconds from the start of the replay, non-decreasing); the sample
 // with the largest t_s <= now is the current one. tod_h (UTC hours, negative = not given) and
 // date_ymd (YYYYMMDD, 0 = not given) drive the sun when the host sent them. shift_x, shift_y
 // and width_tan are the host's off-axis window (CIGI View Definition's left/right/bottom/top:
 // HostState windowShiftX, windowShiftY, windowWidth_tan; 0 0 0 = symmetric, as wide as the
-// output). Version 2 files (the first 14 fields) and version 1 files (the first 12) are still
-// read, with a symmetric window.
+// output). vis_m is the host's visibility for the fog (CIGI Atmosphere Control; HostState
+// visibility_m, metres, at most 1e7; <= 0 = not given: the scene's [fog]). Version 3 files (the
+// first 17 fields), version 2 (14) and version 1 (12) are still read, with a symmetric window
+// and no visibility.
 #pragma once
 
 #include <string>

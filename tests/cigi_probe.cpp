@@ -10,7 +10,7 @@
 //   cigi_probe pcap <file> <port> <lat,lon,h>  convert a capture; print SAMPLE lines and COUNTERS.
 //
 // SAMPLE t_s host_frame sim_time_s east_m north_m up_m lat_deg lon_deg height_m heading_deg
-//        pitch_deg roll_deg fovy_deg near_m far_m time_of_day_h date_ymd
+//        pitch_deg roll_deg fovy_deg near_m far_m time_of_day_h date_ymd visibility_m
 #include <poll.h>
 #include <unistd.h>
 
@@ -29,10 +29,10 @@ using namespace ig::io;
 namespace {
 
 void printSample(double t_s, const HostState& s) {
-  std::printf("SAMPLE %.6f %llu %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g %d\n",
+  std::printf("SAMPLE %.6f %llu %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g %d %.17g\n",
               t_s, static_cast<unsigned long long>(s.hostFrame), s.simTime_s, s.eyeEnu_m.x, s.eyeEnu_m.y,
               s.eyeEnu_m.z, s.lat_deg, s.lon_deg, s.height_m, s.heading_deg, s.pitch_deg, s.roll_deg, s.fovY_deg,
-              s.near_m, s.far_m, s.timeOfDay_h, s.dateYmd);
+              s.near_m, s.far_m, s.timeOfDay_h, s.dateYmd, s.visibility_m);
   std::fflush(stdout);
 }
 

@@ -23,6 +23,7 @@ MAGIC = 0x8000
 
 # Packet ids and sizes (ICD 3.3, section 4.1).
 IG_CONTROL, ENTITY_CONTROL, CELESTIAL, VIEW_CONTROL, VIEW_DEFINITION, START_OF_FRAME = 1, 2, 9, 16, 21, 101
+ATMOSPHERE = 10
 HAT_HOT_REQUEST, HAT_HOT_RESPONSE, HAT_HOT_EXT_RESPONSE = 24, 102, 103
 LOS_SEGMENT_REQUEST, LOS_VECTOR_REQUEST, LOS_RESPONSE, LOS_EXT_RESPONSE = 25, 26, 104, 105
 
@@ -71,6 +72,15 @@ def celestial(order, hour, minute, month, day, year, valid=True, star_intensity=
     flags = 0x02 | (0x10 if valid else 0)
     date = month * 1000000 + day * 10000 + year
     return struct.pack(order + "BBBBBBBBIf", CELESTIAL, 16, hour, minute, flags, 0, 0, 0, date, star_intensity)
+
+
+def atmosphere(order, visibility, humidity=40, temperature=12.5, wind=(3.0, -0.5, 270.0), pressure=1009.0):
+    """Atmosphere Control, 32 bytes (ICD 3.3, 4.1.10):
+    0 id | 1 size | 2 atmospheric model enable (bit 0) | 3 global humidity (%, u8)
+    4-7 air temperature (deg C) | 8-11 visibility range (m) | 12-15 horizontal wind (m/s)
+    16-19 vertical wind (m/s) | 20-23 wind direction (deg) | 24-27 barometric pressure (hPa) | 28-31 reserved"""
+    return struct.pack(order + "BBBBffffffI", ATMOSPHERE, 32, 0, humidity, temperature, visibility,
+                       wind[0], wind[1], wind[2], pressure, 0)
 
 
 def hat_hot_request(order, hat_hot_id, request_type, lat_x, lon_y, alt_z, update_period=0, entity=False,

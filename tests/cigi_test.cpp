@@ -934,6 +934,92 @@ TEST(CigiAssembler, BadFieldIsRejectedAloneAndKeepsItsLastGoodValue) {
   }
 }
 
+// Atmosphere Control: every field through both byte orders (offsets as Wireshark's dissector
+// reads them: tests/cigi_interop_test.py), kept as the message's last one, and its visibility
+// validated (> 0, <= 1e7 m, finite).
+TEST(Cigi, AtmosphereControlRoundTripsAndItsVisibilityIsChecked) {
+  AtmosphereControl p;
+  p.atmosphericModelEnable = true;
+  p.humidity_pct = 87;
+  p.airTemperature_c = -12.25f;
+  p.visibility_m = 1234.5f;
+  p.horizontalWind_mps = 17.5f;
+  p.verticalWind_mps = -2.0f;
+  p.windDirection_deg = 275.0f;
+  p.pressure_hpa = 987.5f;
+  for (ByteOrder order : {ByteOrder::big, ByteOrder::little}) {
+    Bytes b;
+    IgControl ig;
+    append(b, ig, order);
+    AtmosphereControl first = p;
+    first.visibility_m = 50.0f;
+    append(b, first, order);
+    append(b, p, order);  // the last one counts
+    ASSERT_EQ(b.size(), kIgControlSize + 2 * kAtmosphereControlSize);
+    EXPECT_EQ(static_cast<uint8_t>(b[kIgControlSize]), 10u);
+    EXPECT_EQ(static_cast<uint8_t>(b[kIgControlSize + 1]), 32u);
+    HostMessage m;
+    ASSERT_EQ(decodeHostMessage(b, m), CigiStatus::ok);
+    ASSERT_TRUE(m.hasAtmosphere);
+    EXPECT_TRUE(m.atmosphere.atmosphericModelEnable);
+    EXPECT_EQ(m.atmosphere.humidity_pct, 87);
+    EXPECT_EQ(m.atmosphere.airTemperature_c, -12.25f);
+    EXPECT_EQ(m.atmosphere.visibility_m, 1234.5f);
+    EXPECT_EQ(m.atmosphere.horizontalWind_mps, 17.5f);
+    EXPECT_EQ(m.atmosphere.verticalWind_mps, -2.0f);
+    EXPECT_EQ(m.atmosphere.windDirection_deg, 275.0f);
+    EXPECT_EQ(m.atmosphere.pressure_hpa, 987.5f);
+    EXPECT_EQ(m.unknownPackets, 0u);
+    // A wrong size is malformed, as for every packet igd decodes.
+    b[kIgControlSize + 1] = std::byte{28};
+    EXPECT_EQ(decodeHostMessage(b, m), CigiStatus::badPacketSize);
+  }
+  HostMessage none;
+  Bytes b;
+  append(b, IgControl{}, ByteOrder::big);
+  ASSERT_EQ(decodeHostMessage(b, none), CigiStatus::ok);
+  EXPECT_FALSE(none.hasAtmosphere);
+  EXPECT_EQ(validateAtmosphere(p), 0u);
+  for (float v : {0.0f, -1.0f, 1.5e7f, std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity()}) {
+    p.visibility_m = v;
+    EXPECT_EQ(validateAtmosphere(p), kAtmosphereVisibility) << v;
+  }
+  for (float v : {0.001f, 1e7f}) {
+    p.visibility_m = v;
+    EXPECT_EQ(validateAtmosphere(p), 0u) << v;
+  }
+}
+
+// The host's visibility reaches HostState; a bad one is counted and the last good one kept; a
+// message without Atmosphere Control changes nothing.
+TEST(CigiAssembler, AtmosphereVisibilityAppliesAndABadOneIsRejected) {
+  CigiAssembler a({}, kOrigin);
+  LinkCounters c;
+  Host h;
+  ASSERT_EQ(a.apply(h.message(), c), CigiAssembler::Result::published);
+  EXPECT_LE(a.state().visibility_m, 0.0);  // not given: the scene's fog
+  auto withAtmosphere = [&](float visibility, ByteOrder order) {
+    Bytes b = h.message(order);
+    AtmosphereControl p;
+    p.visibility_m = visibility;
+    append(b, p, order);
+    return b;
+  };
+  ASSERT_EQ(a.apply(withAtmosphere(800.0f, ByteOrder::little), c), CigiAssembler::Result::published);
+  EXPECT_EQ(a.state().visibility_m, 800.0);
+  EXPECT_EQ(c.outOfRange.load(), 0u);
+  uint64_t rejected = 0;
+  for (float bad : {0.0f, -10.0f, 2e7f, std::numeric_limits<float>::quiet_NaN()}) {
+    ASSERT_EQ(a.apply(withAtmosphere(bad, ByteOrder::big), c), CigiAssembler::Result::published);
+    EXPECT_EQ(a.state().visibility_m, 800.0) << bad;
+    EXPECT_EQ(c.outOfRange.load(), ++rejected) << bad;
+  }
+  ASSERT_EQ(a.apply(h.message(), c), CigiAssembler::Result::published);
+  EXPECT_EQ(a.state().visibility_m, 800.0);
+  ASSERT_EQ(a.apply(withAtmosphere(25000.0f, ByteOrder::big), c), CigiAssembler::Result::published);
+  EXPECT_EQ(a.state().visibility_m, 25000.0);
+}
+
 TEST(CigiAssembler, ViewDefinitionAndCelestialSphere) {
   CigiAssembler a({}, kOrigin);
   LinkCounters c;

@@ -411,7 +411,7 @@ class StartupFailures(Tmp):
             lines = f.readlines()[:6]
         # line 4 (1-based) is the second sample; its 5th field is north_m.
         fields = lines[3].split()
-        self.assertEqual(len(fields), 17, lines[3])
+        self.assertEqual(len(fields), 18, lines[3])
         fields[4] = "nan"
         lines[3] = " ".join(fields) + "\n"
         rec = write(os.path.join(self.tmp, "nan.rec"), "".join(lines))
@@ -1145,13 +1145,13 @@ class Tools(Tmp):
         self.assertExit(p, 0)
         with open(out, encoding="utf-8") as f:
             lines = f.read().splitlines()
-        self.assertEqual(lines[0], "igd-recording 3")
+        self.assertEqual(lines[0], "igd-recording 4")
         samples = [l for l in lines[1:] if l.strip() and not l.lstrip().startswith("#")]
         self.assertEqual(len(samples), 11, "\n".join(lines))
         times = [float(s.split()[0]) for s in samples]
         self.assertEqual(times, sorted(times))
         self.assertAlmostEqual(times[-1], 1.0)
-        self.assertTrue(all(len(s.split()) == 17 for s in samples))
+        self.assertTrue(all(len(s.split()) == 18 for s in samples))
         # igd accepts it as a replay.
         p = run([IGD, "--config", service_config_copy(self.tmp), "--replay", out, "--frames", "3", "--free-run",
                  "--width", "64", "--height", "36"], timeout=RUN, cwd=self.tmp)

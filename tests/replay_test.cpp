@@ -41,7 +41,7 @@ TEST(Replay, ParsesFieldsWithUnits) {
 }
 
 TEST(Replay, ErrorsNameFileLineFieldAndValue) {
-  EXPECT_EQ(parseError("bogus 1\n"), "rec.txt:1: expected header 'igd-recording 3' (or 2, 1), got 'bogus 1'");
+  EXPECT_EQ(parseError("bogus 1\n"), "rec.txt:1: expected header 'igd-recording 4' (or 3, 2, 1), got 'bogus 1'");
   EXPECT_EQ(parseError("igd-recording 1\n0 0 0 1 2 3 4 5 6 45 0.1\n"), "rec.txt:2: expected 12 fields, got 11");
   EXPECT_EQ(parseError("igd-recording 1\n0 0 0 1 nan 3 4 5 6 45 0.1 1000\n"),
             "rec.txt:2: north_m = 'nan': not a finite number");
@@ -54,7 +54,7 @@ TEST(Replay, ErrorsNameFileLineFieldAndValue) {
   EXPECT_EQ(parseError("igd-recording 1\n0 1.5 0 1 2 3 4 5 6 45 0.1 1000\n"),
             "rec.txt:2: host_frame = '1.5': not a non-negative integer");
   EXPECT_EQ(parseError("igd-recording 1\n"), "rec.txt:1: recording has no samples");
-  EXPECT_EQ(parseError(""), "rec.txt:0: empty recording: expected header 'igd-recording 3'");
+  EXPECT_EQ(parseError(""), "rec.txt:0: empty recording: expected header 'igd-recording 4'");
 }
 
 TEST(Replay, TruncatedAtEveryLengthFailsCleanlyOrParsesAPrefix) {
@@ -247,8 +247,8 @@ TEST(Replay, Version3CarriesTheOffAxisWindowExactly) {
   h.state.windowShiftX = h.state.windowShiftY = h.state.windowWidth_tan = 0.0;
   a.samples.push_back(h);
   const std::string text = formatRecording(a);
-  EXPECT_EQ(text.rfind("igd-recording 3\n", 0), 0u) << text;
-  EXPECT_NE(text.find(" 0 0 0\n"), std::string::npos) << "a symmetric window: " << text;
+  EXPECT_EQ(text.rfind("igd-recording 4\n", 0), 0u) << text;
+  EXPECT_NE(text.find(" 0 0 0 -1\n"), std::string::npos) << "a symmetric window, no visibility: " << text;
   Recording b;
   std::string e;
   ASSERT_TRUE(parseRecording(text, "rt", b, e)) << e;
@@ -269,7 +269,39 @@ TEST(Replay, Version3CarriesTheOffAxisWindowExactly) {
             "rec.txt:2: shift_y = 'nan': not a finite number");
   EXPECT_EQ(parseError("igd-recording 3\n0 0 0 1 2 3 4 5 6 45 0.1 1000 -1 0 0 0 -1\n"),
             "rec.txt:2: width_tan = '-1': must be in [0, 1000] (0 = the output's aspect ratio)");
-  EXPECT_EQ(parseError("igd-recording 4\n"), "rec.txt:1: expected header 'igd-recording 3' (or 2, 1), got 'igd-recording 4'");
+  EXPECT_EQ(parseError("igd-recording 5\n"), "rec.txt:1: expected header 'igd-recording 4' (or 3, 2, 1), got 'igd-recording 5'");
+}
+
+// Version 4: the host's visibility (CIGI Atmosphere Control) replays exactly, "-1" (none) reads
+// back as not given, version 3 files read without one, and a bad value names the field.
+TEST(Replay, VisibilityRoundTripsAndOlderFilesHaveNone) {
+  Recording a;
+  HostSample h;
+  h.state.visibility_m = static_cast<double>(1234.567f);  // a host's float
+  a.samples.push_back(h);
+  h.t_s = 1.0;
+  h.state.visibility_m = -1.0;
+  a.samples.push_back(h);
+  h.t_s = 2.0;
+  h.state.visibility_m = 1e7;
+  a.samples.push_back(h);
+  const std::string text = formatRecording(a);
+  Recording b;
+  std::string e;
+  ASSERT_TRUE(parseRecording(text, "rt", b, e)) << e;
+  ASSERT_EQ(b.samples.size(), 3u);
+  EXPECT_EQ(b.samples[0].state.visibility_m, a.samples[0].state.visibility_m);
+  EXPECT_LE(b.samples[1].state.visibility_m, 0.0);
+  EXPECT_EQ(b.samples[2].state.visibility_m, 1e7);
+  ASSERT_TRUE(parseRecording("igd-recording 3\n0 0 0 1 2 3 4 5 6 45 0.1 1000 -1 0 0 0 0\n", "rec.txt", b, e)) << e;
+  EXPECT_LE(b.samples[0].state.visibility_m, 0.0);
+  ASSERT_TRUE(parseRecording("igd-recording 4\n0 0 0 1 2 3 4 5 6 45 0.1 1000 -1 0 0 0 0 800\n", "rec.txt", b, e)) << e;
+  EXPECT_EQ(b.samples[0].state.visibility_m, 800.0);
+  EXPECT_EQ(parseError("igd-recording 4\n0 0 0 1 2 3 4 5 6 45 0.1 1000 -1 0 0 0 0\n"), "rec.txt:2: expected 18 fields, got 17");
+  EXPECT_EQ(parseError("igd-recording 4\n0 0 0 1 2 3 4 5 6 45 0.1 1000 -1 0 0 0 0 2e7\n"),
+            "rec.txt:2: vis_m = '2e7': must be <= 1e7 (metres; <= 0 = the scene's fog)");
+  EXPECT_EQ(parseError("igd-recording 4\n0 0 0 1 2 3 4 5 6 45 0.1 1000 -1 0 0 0 0 inf\n"),
+            "rec.txt:2: vis_m = 'inf': not a finite number");
 }
 
 TEST(Replay, SampleLinesRoundTripToAMicrometre) {

@@ -295,6 +295,68 @@ TEST(ServiceGL, FogCullDrawsLessAndThePictureStaysTheSame) {
   EXPECT_LT(3 * culledTriangles, 2 * fullTriangles);
 }
 
+// A host's visibility (CIGI Atmosphere Control) turns the fog on in a scene without fog, with
+// the scene's fog colour, and culls like the scene's own fog: the same picture, byte for byte,
+// as the scene with [fog] at that visibility. NaN, infinite or above 1e7 m is a bad sample,
+// rejected with the last good one kept; <= 0 is "not given".
+TEST(ServiceGL, HostVisibilityFogsTheSceneAndABadOneIsRejected) {
+  ServiceConfig cfg;
+  SceneConfig clear, foggy;
+  test::defaultConfigs(cfg, clear);
+  clear.fog.enabled = false;
+  foggy = clear;
+  foggy.fog.enabled = true;
+  foggy.fog.visibility_m = 800.0;
+  std::string error;
+  auto host = Service::create(cfg, clear, error);
+  ASSERT_TRUE(host) << error;
+  auto own = Service::create(cfg, foggy, error);
+  ASSERT_TRUE(own) << error;
+  io::HostState h = test::defaultHostAt(40.0);
+  render::Image clearImage, hostImage, ownImage;
+  const FrameRecord rClear = host->renderOnce(h, &clearImage);
+  const FrameRecord rOwn = own->renderOnce(h, &ownImage);
+  h.visibility_m = 800.0;
+  const FrameRecord rHost = host->renderOnce(h, &hostImage);
+  EXPECT_EQ(hostImage.rgba, ownImage.rgba);
+  EXPECT_NE(hostImage.rgba, clearImage.rgba);
+  EXPECT_EQ(rHost.triangles, rOwn.triangles);
+  EXPECT_LT(rHost.triangles, rClear.triangles);
+  // The host's visibility wins over the scene's own fog, too.
+  h.visibility_m = 20000.0;
+  render::Image thin;
+  own->renderOnce(h, &thin);
+  EXPECT_NE(thin.rgba, ownImage.rgba);
+
+  cfg.frames = 1;
+  auto service = Service::create(cfg, clear, error);
+  ASSERT_TRUE(service) << error;
+  FakeClock clock;
+  std::atomic<bool> stop{false};
+  io::HostState good = test::defaultHostAt(2.0);
+  good.visibility_m = 1500.0;
+  service->mailbox().publish(good);
+  ASSERT_EQ(service->run(clock, stop), 0);
+  ASSERT_EQ(service->currentHost().visibility_m, 1500.0);
+  uint64_t rejected = 0;
+  for (const double v : {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity(),
+                         -std::numeric_limits<double>::infinity(), 1.5e7}) {
+    SCOPED_TRACE(v);
+    io::HostState bad = good;
+    bad.visibility_m = v;
+    std::string why;
+    EXPECT_FALSE(hostStateValid(bad, &why));
+    EXPECT_EQ(why.rfind("visibility_m", 0), 0u) << why;
+    service->mailbox().publish(bad);
+    ASSERT_EQ(service->run(clock, stop), 0);
+    EXPECT_EQ(service->hostRejected(), ++rejected);
+    EXPECT_EQ(service->currentHost().visibility_m, 1500.0);
+  }
+  io::HostState none = good;
+  none.visibility_m = 0.0;  // not given: valid
+  EXPECT_TRUE(hostStateValid(none));
+}
+
 TEST(ServiceGL, RunWritesStatsAndSnapshotsWithAFakeClock) {
   const auto dir = std::filesystem::temp_directory_path() / ("igd_service_gltest_" + std::to_string(::getpid()));
   std::filesystem::remove_all(dir);
