@@ -4,7 +4,8 @@
 // every other input with an object on it: io::SceneSurfaces), the LOS answers likewise
 // (computeLos, lod::intersectGround) and the pcap reader.
 // Properties checked beyond "no crash, no UB, no leak": a message that decodes re-decodes to the
-// same IG Control after re-encoding it in the other byte order; a valid HAT/HOT answer is
+// same IG Control after re-encoding it in the other byte order; the assembler's visibility is
+// never NaN or above 1e7 m; a valid HAT/HOT answer is
 // finite with its normal's elevation in [0, 90] degrees; a valid LOS answer is finite, its range
 // within the segment / vector, its normal's elevation in [0, 90] on the terrain and in [-90, 90]
 // on an object (seen from below); a frame's answers fit their buffer and one 1,472-byte datagram.
@@ -88,6 +89,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   (void)cigi::decodeStartOfFrame(bytes, sof);
   // The assembler keeps state across inputs, like a long-running link.
   const CigiAssembler::Result applied = assembler->apply(bytes, counters);
+  // The host's visibility is "not given" or a checked one (Atmosphere Control).
+  if (const double vis = assembler->state().visibility_m; std::isnan(vis) || vis > 1e7) std::abort();
 
   // HAT/HOT: the accepted message's requests answered over a 1 km grid of sloped terrain around
   // the origin, as the frame loop answers them (the responder keeps its queue across inputs).
