@@ -10,6 +10,7 @@
 #include "ig/app_common.h"
 #include "ig/bench_adaptive.h"
 #include "ig/bench_cells.h"
+#include "ig/bench_fog.h"
 #include "ig/bench_forest.h"
 #include "ig/bench_governor.h"
 #include "ig/bench_hdlod.h"
@@ -209,6 +210,24 @@ int main(int argc, char** argv) {
       ->capture_default_str()->check(CLI::Range(0.001, 10.0));
   queries->add_option("--seed", queriesOptions.seed, "Seed of the random queries")->capture_default_str();
   queries->add_flag("--json", queriesOptions.json, "Print one JSON object instead of the human summary");
+  ig::FogBenchOptions fogOptions;
+  CLI::App* fog = app.add_subcommand(
+      "fog",
+      "What fog culling ([fog] cull) buys and costs: frames of the built-in replay rendered twice,\n"
+      "side by side, at each visibility (given as the host's, as CIGI Atmosphere Control gives it):\n"
+      "with the far plane where the fog is opaque (1.77 x the visibility) and with the host's far\n"
+      "plane. JSON fields: suite, scene, renderer, width_px, height_px, frames, points\n"
+      "[{visibility_m, cull_distance_m, triangles_cull, triangles_full, triangle_ratio,\n"
+      "frame_ms_cull, frame_ms_full (p50; select + submit + glFinish), speedup (full / cull),\n"
+      "max_diff_levels (8-bit), differ_pct (pixels with any difference), psnr_db_min}],\n"
+      "speedup_min, speedup_max, max_diff_levels.");
+  fog->add_option("-c,--config", fogOptions.configFile, "Service config (TOML)")->capture_default_str();
+  fog->add_option("--scene", fogOptions.sceneFile, "Scene config (\"\" = the config's)")->capture_default_str();
+  fog->add_option("--visibility", fogOptions.visibilities_m, "Visibilities to sweep (metres)")->capture_default_str();
+  fog->add_option("--frames", fogOptions.frames, "Frames per visibility")->capture_default_str()->check(CLI::Range(1, 100000));
+  fog->add_option("--width", fogOptions.width_px, "Frame width in pixels")->capture_default_str()->check(CLI::Range(16, 16384));
+  fog->add_option("--height", fogOptions.height_px, "Frame height in pixels")->capture_default_str()->check(CLI::Range(16, 16384));
+  fog->add_flag("--json", fogOptions.json, "Print one JSON object instead of the human summary");
   ig::HdlodBenchOptions hdlodOptions;
   CLI::App* hdlod = app.add_subcommand(
       "hdlod",
@@ -497,6 +516,7 @@ int main(int argc, char** argv) {
     return ig::runHdlodBench(hdlodOptions);
   }
   if (latency->parsed()) return ig::runLatencyBench(latencyOptions);
+  if (fog->parsed()) return ig::runFogBench(fogOptions);
   if (queries->parsed()) return ig::runQueriesBench(queriesOptions);
   if (terrain->parsed()) {
     terrainOptions.render = !noRender;

@@ -812,6 +812,8 @@ Service::~Service() {
   // before impl_ and its HostInput: stop the link first. run() stops it too; this covers a
   // Service destroyed without run(), e.g. create() failing after the link started.
   if (impl_ && impl_->hostInput) impl_->hostInput->stop();
+  // The layers and the renderer delete their GL objects in this service's context.
+  if (impl_ && impl_->context) impl_->context->makeCurrent();
 }
 
 std::unique_ptr<Service> Service::create(const ServiceConfig& config, const SceneConfig& scene, std::string& error,
@@ -1006,6 +1008,7 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
 
 FrameRecord Service::renderOnce(const io::HostState& host, render::Image* image) {
   Impl& m = *impl_;
+  m.context->makeCurrent();
   const lod::Camera cam = m.cameraFor(host);
   m.select(cam, nullptr, std::nan(""), host.simTime_s);
   const render::RenderStats st = m.submit(cam, host);
@@ -1026,6 +1029,7 @@ struct PendingReload {
 
 int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* reload) {
   Impl& m = *impl_;
+  m.context->makeCurrent();
   const ServiceConfig& cfg = m.config;
   StatsWriter stats;
   std::string error;

@@ -72,6 +72,9 @@ void releaseDisplay(EGLDisplay display) {
 
 class EglHeadlessContext final : public GlContext {
  public:
+  void makeCurrent() override {
+    if (eglGetCurrentContext() != context_) eglMakeCurrent(display_, EGL_NO_SURFACE, EGL_NO_SURFACE, context_);
+  }
   ~EglHeadlessContext() override {
     if (display_ != EGL_NO_DISPLAY) {
       // Only this context is released: the thread may have a later one current.
@@ -157,6 +160,9 @@ class EglHeadlessContext final : public GlContext {
 
 class OSMesaHeadlessContext final : public GlContext {
  public:
+  void makeCurrent() override {
+    if (OSMesaGetCurrentContext() != context_) OSMesaMakeCurrent(context_, buffer_.data(), GL_UNSIGNED_BYTE, 4, 4);
+  }
   ~OSMesaHeadlessContext() override {
     if (context_) OSMesaDestroyContext(context_);
   }
@@ -217,6 +223,9 @@ void releaseGlfw() {
 
 class GlfwWindowContext final : public GlContext {
  public:
+  void makeCurrent() override {
+    if (window_ && glfwGetCurrentContext() != window_) glfwMakeContextCurrent(window_);
+  }
   ~GlfwWindowContext() override {
     if (window_) glfwDestroyWindow(window_);
     if (initialised_) releaseGlfw();

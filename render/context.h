@@ -39,6 +39,11 @@ class GlContext {
   // The window's framebuffer size in pixels (what present() scales the frame to); 0 x 0 without
   // a window.
   virtual void windowSize(int& width_px, int& height_px) const { width_px = height_px = 0; }
+  // Makes this context current on the calling thread (nothing when it already is). A process
+  // with several contexts (tests, benchmarks running two services side by side) must call it
+  // before GL work: the GL calls of a service whose context is not current land in another
+  // context, on that context's objects of the same names.
+  virtual void makeCurrent() = 0;
 
  protected:
   std::string description_;

@@ -357,6 +357,39 @@ TEST(ServiceGL, HostVisibilityFogsTheSceneAndABadOneIsRejected) {
   EXPECT_TRUE(hostStateValid(none));
 }
 
+// Two services in one process (tests, igbench side by side) each draw with their own GL context:
+// a service created second made its context current, and the first one's GL calls went there,
+// onto the second's objects of the same names (a ROAM mesh drew the other mesh's buffer). The
+// first service's picture is the same before the second exists, while it exists, and after it
+// is destroyed.
+TEST(ServiceGL, TwoServicesInOneProcessEachDrawWithTheirOwnContext) {
+  ServiceConfig cfg;
+  SceneConfig roam;
+  test::defaultConfigs(cfg, roam);
+  roam.terrain->lod = TerrainLayerConfig::Lod::Roam;
+  roam.terrain->lodBudget_ms = 0.0;
+  SceneConfig other = roam;
+  other.terrain->seed = roam.terrain->seed + 1;  // another relief: another mesh in the same buffer names
+  std::string error;
+  auto a = Service::create(cfg, roam, error);
+  ASSERT_TRUE(a) << error;
+  const io::HostState h = test::defaultHostAt(3.0);
+  render::Image alone, beside, after, second;
+  a->renderOnce(h, &alone);
+  {
+    auto b = Service::create(cfg, other, error);
+    ASSERT_TRUE(b) << error;
+    b->renderOnce(h, &second);
+    EXPECT_NE(second.rgba, alone.rgba);  // the other relief
+    a->renderOnce(h, &beside);
+    EXPECT_EQ(beside.rgba, alone.rgba);
+    b->renderOnce(h, &beside);
+    EXPECT_EQ(beside.rgba, second.rgba);
+  }
+  a->renderOnce(h, &after);
+  EXPECT_EQ(after.rgba, alone.rgba);
+}
+
 TEST(ServiceGL, RunWritesStatsAndSnapshotsWithAFakeClock) {
   const auto dir = std::filesystem::temp_directory_path() / ("igd_service_gltest_" + std::to_string(::getpid()));
   std::filesystem::remove_all(dir);

@@ -373,3 +373,31 @@ TEST(TerrainChunks, RandomViewsBudgetsAndSmallBuffersMatchTheMesh) {
   EXPECT_GT(droppedFrames, 0u);
   EXPECT_GT(incremental, 0u);
 }
+
+// A frame whose far plane culls the whole terrain (thick fog; a host's View Definition), then
+// the far plane back: the buffer still holds the mesh and cull() draws every visible leaf.
+TEST(TerrainChunks, AFrameThatSeesNothingLeavesTheBufferWhole) {
+  const int n = 257;
+  const auto hts = fractal(n, n);
+  for (RoamMode mode : {RoamMode::EnhMerge, RoamMode::Deferred}) {
+    SCOPED_TRACE(static_cast<int>(mode));
+    RoamConfig rc;
+    rc.maxTriangles = 200000;
+    Roam roam(hts, n, n, 30.0, {0, 0, 0}, rc);
+    TerrainChunksConfig cc;
+    cc.chunkSide = 16;
+    TerrainChunks chunks(roam, cc);
+    Buffer buffer(chunks.capacity());
+    RoamView open = makeView({0.3 * 30.0 * (n - 1), 0.2 * 30.0 * (n - 1), 700.0}, 20.0, -10.0);
+    RoamView shut = open;
+    shut.camera.far_m = 50.0;
+    int f = 0;
+    for (const RoamView* v : {&open, &open, &shut, &shut, &open, &open}) {
+      roam.update(*v, mode);
+      chunks.apply();
+      buffer.apply(roam, chunks);
+      checkFrame(roam, chunks, buffer, v->camera, "frame " + std::to_string(f++));
+      if (HasFatalFailure()) return;
+    }
+  }
+}

@@ -283,3 +283,40 @@ TEST(TerrainService, MorphsOfAFirstRunEndInASecondRun) {
   service.reset();
   std::filesystem::remove_all(dir);
 }
+
+// A far plane that culls the whole terrain for a frame (thick fog, a host's View Definition)
+// and then moves out again: the mesh drawn afterwards is whole, the picture the one a fresh
+// service draws.
+TEST(TerrainService, FarPlaneThatCulledEverythingLeavesNoHoles) {
+  for (const auto mode : {TerrainLayerConfig::RoamMode::Deferred, TerrainLayerConfig::RoamMode::EnhMerge}) {
+    SCOPED_TRACE(static_cast<int>(mode));
+    const SceneConfig scene = roamScene(0.0, mode, 1.0);
+    ServiceConfig cfg;
+    SceneConfig unused;
+    test::defaultConfigs(cfg, unused);
+    cfg.width_px = 320;
+    cfg.height_px = 180;
+    std::string error;
+    auto a = Service::create(cfg, scene, error);
+    ASSERT_TRUE(a) << error;
+    auto b = Service::create(cfg, scene, error);
+    ASSERT_TRUE(b) << error;
+    io::HostState h = test::defaultHostAt(0.0);
+    h.eyeEnu_m = kLow.eye_m;
+    h.heading_deg = 0.0;
+    h.pitch_deg = -10.0;
+    h.roll_deg = 0.0;
+    h.far_m = 100000.0;
+    render::Image first, again, fresh;
+    a->renderOnce(h, &first);
+    io::HostState shut = h;
+    shut.far_m = 50.0;
+    const FrameRecord r0 = a->renderOnce(shut, nullptr);
+    EXPECT_EQ(r0.triangles, 0u);
+    const FrameRecord ra = a->renderOnce(h, &again);
+    const FrameRecord rb = b->renderOnce(h, &fresh);
+    EXPECT_GT(ra.triangles, 0u);
+    EXPECT_LT(render::fractionDifferent(again, fresh, 8), 0.001) << "triangles " << ra.triangles << " vs " << rb.triangles;
+    EXPECT_LT(render::fractionDifferent(again, first, 8), 0.001);
+  }
+}
