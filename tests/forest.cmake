@@ -7,6 +7,9 @@ ig_add_test(forest_rays_test forest_rays_test.cpp LIBS ig_lod)
 # The host queries' surfaces of the layers together (ig/scene_surfaces.h: trees and [hdlod] objects).
 ig_add_test(scene_surfaces_test scene_surfaces_test.cpp LIBS ig_core)
 ig_add_test(forest_fins_test forest_fins_test.cpp LIBS ig_lod)
+# What a mutation pass found forest_kdtree_test and forest_fins_test leave open (lod/forest_kdtree,
+# lod/forest_fins).
+ig_add_test(forest_mutation_test forest_mutation_test.cpp LIBS ig_lod)
 ig_add_test(forest_gltest forest_gltest.cpp LIBS ig_core ig_render PkgConfig::EGL GL)
 ig_add_test(forest_service_gltest forest_service_gltest.cpp LIBS ig_core PkgConfig::EGL GL)
 # The real tree models (Scopia pine and cypress, Debian's sweethome3d-furniture), fetched at test

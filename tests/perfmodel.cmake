@@ -1,6 +1,8 @@
 # Paper 002: performance model, switching, q*, fits and the octree (pure), and the dynamic
 # pass with its three strategies and the calibration cache (GL).
 ig_add_test(perfmodel_test perfmodel_test.cpp LIBS ig_lod)
+# What a mutation pass found perfmodel_test leaves open (lod/perfmodel).
+ig_add_test(perfmodel_mutation_test perfmodel_mutation_test.cpp LIBS ig_lod)
 # Mutation-testing pass over lod/dynamic_octree.cpp: placement, counts, thresholds and traversal
 # details the octree tests above leave open.
 ig_add_test(dynamic_octree_mutation_test dynamic_octree_mutation_test.cpp LIBS ig_lod)

@@ -14,26 +14,13 @@
 #include "lod/perfmodel.h"
 #include "lod/view.h"
 #include "octree_fixtures.h"
+#include "perfmodel_fixtures.h"
 
 using namespace ig::lod;
 
 namespace {
 
-PerfConstants handConstants() {
-  PerfConstants c;
-  c.frame_ns = 10000;
-  c.tri_ns = 10;
-  c.frag_ns = 1;
-  c.depthFrag_ns = 0.5;
-  c.state_ns = 100;
-  c.command_ns = 1000;
-  c.rerecord_ns = 50;
-  c.submit_ns = 500;
-  c.cull_ns = 20;
-  c.occlusionTest_ns = 3000;
-  c.overlap = 1.0;
-  return c;
-}
+using ig::lod::test::handConstants;
 
 TEST(PerfModel, MemoryModelSumsEveryTerm) {
   const uint64_t tex[] = {1024}, buf[] = {64, 36}, desc[] = {16};
