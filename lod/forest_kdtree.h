@@ -4,7 +4,8 @@
 // Build (start-up, O(n log n)): the forest's ground rectangle is split at the midpoint of its
 // longer side while that side is longer than leafSize_m (default 256 m); a region with no
 // trees becomes an empty leaf at once. So every leaf is empty or its sides lie in
-// (leafSize_m / 2, leafSize_m] (for a forest whose sides are above leafSize_m) and it holds
+// (leafSize_m / 2, leafSize_m] (for a forest whose sides are above leafSize_m, and down to the
+// depth cap kMaxDepth: a leafSize_m so small that splitting would go deeper keeps larger leaves) and it holds
 // every tree inside it (as many as fit: there is no count limit but 2^32). Trees are stored in
 // leaf order, 16 bytes each (PackedTree): the position relative to the leaf's box quantised to
 // 16 bits per axis (about 4 mm for a 256 m leaf), the normal as two signed bytes (nz >= 0

@@ -132,7 +132,8 @@ struct TimeBreakdown {
 //        + T_fc(H) + T_buf(H) + max(T_state(H), T_vert(H), T_frag(H), T_z(H))           (2)
 // with T_buf = commands t_c(commands) + rerecorded t_r + submissions t_s + occlusionTests T_vis,
 // T_vert = N_tri T_tri (3) with T_tri = triangleCost_ns(triangles / submissions),
-// T_frag = f T_frag (4) + rasterShare (N_tri T_rtri + commands T_draw) + edgePx T_edge, T_state = stateChanges T_state,
+// T_frag = f T_frag (4) + depthFragments T_z + rasterShare (N_tri T_rtri + commands T_draw) + edgePx T_edge
+// (depthFragments: depth-only fragments drawn in that set; T_z = depthFrag_ns), T_state = stateChanges T_state,
 // T_fc = frustumTests T_cull.
 // This implementation's additions: T_fc(S) (per-object culling of strategy 1) and T_frame ((2)
 // has T_fc only for H, and no fixed per-frame cost); in T_frag the rasterizer's cost per
