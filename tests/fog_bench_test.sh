@@ -2,7 +2,7 @@
 # igbench fog --json (docs: README "Fog"): one JSON object with every field it documents; at each
 # visibility the fog-culled picture is the one drawn with the host's far plane to within one
 # colour level, and thick fog draws fewer triangles (none when the eye is above the opaque
-# distance). Times are reported, not asserted (benchmarks hold the goals).
+# distance); scripts/plot_fog.py plots it. Times are reported, not asserted (benchmarks hold the goals).
 set -euo pipefail
 igbench=$1
 cd "$2"
@@ -29,5 +29,10 @@ assert p[300]["triangles_cull"] == 0, p[300]
 assert 0 < p[800]["triangles_cull"] < 0.5 * p[800]["triangles_full"], p[800]
 assert p[20000]["triangle_ratio"] > 0.95, p[20000]
 assert d["max_diff_levels"] <= 1, d
-print("fog_bench_test: 1 passed, 0 failed")
 PY
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+printf '%s\n' "$out" > "$tmp/fog.json"
+/usr/bin/python3 scripts/plot_fog.py "$tmp/fog.json" "$tmp/fog.png"
+[ "$(head -c 8 "$tmp/fog.png" | od -An -tx1 | tr -d ' \n')" = 89504e470d0a1a0a ] || { echo "plot_fog.py wrote no PNG" >&2; exit 1; }
+echo "fog_bench_test: 1 passed, 0 failed"
