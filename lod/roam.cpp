@@ -718,6 +718,7 @@ bool Roam::walkEnhMerge() {
     const Node& nd = nodes_[n];
     if (nd.free) continue;
     ++stats_.nodesExamined;
+    ++visitsUsed_;  // Deferred's unbudgeted walks count their visits too (visits = examined + created + freed)
     const double p = priority(nd, vs_);
     if (nd.children == kNone) {
       considerLeaf(n, p);
