@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include "lod/forest_fins.h"
+#include "forest_fixtures.h"
 
 namespace {
 using namespace ig::lod;
@@ -81,14 +82,9 @@ TEST(ForestFins, OnlyWhereTheAngleRuleAllows) {
 
 TEST(ForestFins, NoneWhollyInGlades) {
   const int n = 41;
-  HeightfieldDesc hd;
-  hd.postsX = hd.postsY = n;
-  hd.postSpacing_m = 32.0;
-  std::vector<float> h(static_cast<size_t>(n) * n);
-  generateHeightfield(hd, h);
   std::vector<glm::dvec3> pos;
   std::vector<uint32_t> tri;
-  makeGridMesh(h, n, n, 32.0, {0, 0, 0}, pos, tri);
+  test::finGridMesh(n, pos, tri);
   ForestMap map;
   map.width = map.height = 40;
   map.cell_m = 32.0;
@@ -118,14 +114,9 @@ TEST(ForestFins, NoneWhollyInGlades) {
 
 TEST(ForestFins, ConeRejectionIsConservative) {
   const int n = 65;
-  HeightfieldDesc hd;
-  hd.postsX = hd.postsY = n;
-  hd.postSpacing_m = 32.0;
-  std::vector<float> h(static_cast<size_t>(n) * n);
-  generateHeightfield(hd, h);
   std::vector<glm::dvec3> pos;
   std::vector<uint32_t> tri;
-  makeGridMesh(h, n, n, 32.0, {0, 0, 0}, pos, tri);
+  test::finGridMesh(n, pos, tri);
   FinParams p;
   p.criticalAngle_deg = 178.0;
   p.tileSize_m = 128.0;

@@ -33,6 +33,7 @@
 
 #include "lod/forest_fins.h"
 #include "lod/forest_kdtree.h"
+#include "forest_fixtures.h"
 
 using namespace ig::lod;
 
@@ -433,14 +434,9 @@ TEST(ForestFins, AGroupStaysInOneTile) {
 // degrees) and one elevation bin (180 / elevationBins).
 TEST(ForestFins, AGroupStaysInOneTangentBin) {
   const int n = 33;
-  HeightfieldDesc hd;
-  hd.postsX = hd.postsY = n;
-  hd.postSpacing_m = 32.0;
-  std::vector<float> h(static_cast<size_t>(n) * n);
-  generateHeightfield(hd, h);
   std::vector<glm::dvec3> pos;
   std::vector<uint32_t> tri;
-  makeGridMesh(h, n, n, 32.0, {0, 0, 0}, pos, tri);
+  test::finGridMesh(n, pos, tri);
   FinParams p;
   p.criticalAngle_deg = 178.0;
   p.tileSize_m = 4096.0;  // one tile

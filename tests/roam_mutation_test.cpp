@@ -35,16 +35,8 @@ using namespace ig::lod;
 
 namespace {
 
-constexpr RoamMode kAllModes[] = {RoamMode::EnhMerge, RoamMode::MergeQueue, RoamMode::Rebuild, RoamMode::Deferred};
-const char* modeName(RoamMode m) {
-  switch (m) {
-    case RoamMode::EnhMerge: return "EnhMerge";
-    case RoamMode::MergeQueue: return "MergeQueue";
-    case RoamMode::Rebuild: return "Rebuild";
-    case RoamMode::Deferred: return "Deferred";
-  }
-  return "?";
-}
+using test::kAllModes;
+using test::modeName;
 
 RoamConfig cap(uint64_t triangles) {
   RoamConfig c;

@@ -23,16 +23,8 @@ using ig::lod::test::tilesDem;
 namespace {
 
 // Every mode; Deferred refines the surroundings too (the others only the frustum).
-constexpr RoamMode kAllModes[] = {RoamMode::EnhMerge, RoamMode::MergeQueue, RoamMode::Rebuild, RoamMode::Deferred};
-const char* modeName(RoamMode m) {
-  switch (m) {
-    case RoamMode::EnhMerge: return "EnhMerge";
-    case RoamMode::MergeQueue: return "MergeQueue";
-    case RoamMode::Rebuild: return "Rebuild";
-    case RoamMode::Deferred: return "Deferred";
-  }
-  return "?";
-}
+using test::kAllModes;
+using test::modeName;
 
 std::vector<float> fractal(int w, int h, uint32_t seed = 7, double scale_m = 400.0, double spacing_m = 30.0) {
   return test::fractalHeights(w, h, seed, scale_m, spacing_m);

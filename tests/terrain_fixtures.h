@@ -19,6 +19,18 @@
 
 namespace ig::lod::test {
 
+// Every ROAM mode, and its name for test messages.
+inline constexpr RoamMode kAllModes[] = {RoamMode::EnhMerge, RoamMode::MergeQueue, RoamMode::Rebuild, RoamMode::Deferred};
+inline const char* modeName(RoamMode m) {
+  switch (m) {
+    case RoamMode::EnhMerge: return "EnhMerge";
+    case RoamMode::MergeQueue: return "MergeQueue";
+    case RoamMode::Rebuild: return "Rebuild";
+    case RoamMode::Deferred: return "Deferred";
+  }
+  return "?";
+}
+
 // Mountainous fractal heights, w x h samples, rows south first.
 inline std::vector<float> fractalHeights(int w, int h, uint32_t seed, double scale_m = 400.0, double spacing_m = 30.0) {
   HeightfieldDesc d;
