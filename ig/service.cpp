@@ -791,8 +791,10 @@ struct Service::Impl {
     return st;
   }
 
-  static FrameRecord record(const render::RenderStats& st, const io::HostState& host) {
+  FrameRecord record(const render::RenderStats& st, const io::HostState& host, const lod::Camera& cam) const {
     FrameRecord r;
+    r.far_m = cam.far_m;
+    if (const double v = fogVisibility_m(host); v > 0.0) r.fogVisibility_m = v;
     r.triangles = st.triangles;
     r.drawCalls = st.drawCalls;
     r.passes = st.passes;
@@ -1014,7 +1016,7 @@ FrameRecord Service::renderOnce(const io::HostState& host, render::Image* image)
   const render::RenderStats st = m.submit(cam, host);
   m.renderer.finish();
   if (image) m.renderer.readPixels(*image);
-  return Impl::record(st, host);
+  return m.record(st, host, cam);
 }
 
 // A reload in progress: the configs are read on a short-lived thread.
@@ -1359,7 +1361,7 @@ int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* relo
     pacer.endPhase(Phase::Present);
 
     // report
-    FrameRecord r = Impl::record(st, host_);
+    FrameRecord r = m.record(st, host_, cam);
     r.uploads = m.terrainMesh ? m.terrainMesh->uploadedTriangles : 0;
     r.hostLost = lost;
     if (m.governor) {

@@ -23,7 +23,7 @@ bool StatsWriter::writeHeader() {
   if (format_ == StatsFormat::Csv) {
     n += std::fprintf(file_, "frame,t_ms,period_ms,interval_ms,lateness_ms");
     for (int p = 0; p < kPhaseCount; ++p) n += std::fprintf(file_, ",%s_ms", phaseName(static_cast<Phase>(p)));
-    n += std::fprintf(file_, "%s", ",work_ms,overrun,missed_slots,triangles,draw_calls,passes,uploads,host_frame,sim_time_s,eye_east_m,eye_north_m,eye_up_m,heading_deg,host_lost,between_ms,gov_predicted_ms,terrain_tolerance_px,forest_near_m,hdlod_tolerance_px,cells_voxel_budget,forest_layers\n");
+    n += std::fprintf(file_, "%s", ",work_ms,overrun,missed_slots,triangles,draw_calls,passes,uploads,host_frame,sim_time_s,eye_east_m,eye_north_m,eye_up_m,heading_deg,host_lost,between_ms,gov_predicted_ms,terrain_tolerance_px,forest_near_m,hdlod_tolerance_px,cells_voxel_budget,forest_layers,far_m,fog_visibility_m\n");
   } else {
     n += std::fprintf(file_, "{\"run\":{%s}}\n", runInfo_.c_str());
   }
@@ -98,7 +98,7 @@ void StatsWriter::write(const FrameRecord& r) {
   const auto& ph = t.phase_ms;
   int n = 0;
   if (format_ == StatsFormat::Csv) {
-    n = std::fprintf(file_, "%lld,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%d,%lld,%llu,%u,%u,%llu,%llu,%.4f,%.2f,%.2f,%.2f,%.3f,%d,%.3f,%.3f,%.3f,%.1f,%.3f,%.0f,%.0f\n",
+    n = std::fprintf(file_, "%lld,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%d,%lld,%llu,%u,%u,%llu,%llu,%.4f,%.2f,%.2f,%.2f,%.3f,%d,%.3f,%.3f,%.3f,%.1f,%.3f,%.0f,%.0f,%.1f,%.1f\n",
                  static_cast<long long>(t.frame), static_cast<double>(t.start_ns) * 1e-6, r.period_ms, t.interval_ms,
                  static_cast<double>(t.lateness_ns) * 1e-6, ph[0], ph[1], ph[2], ph[3], ph[4], t.work_ms,
                  t.overrun ? 1 : 0, static_cast<long long>(t.missedSlots),
@@ -106,13 +106,13 @@ void StatsWriter::write(const FrameRecord& r) {
                  static_cast<unsigned long long>(r.uploads), static_cast<unsigned long long>(r.hostFrame),
                  r.simTime_s, r.eyeEast_m, r.eyeNorth_m, r.eyeHeight_m, r.heading_deg, r.hostLost ? 1 : 0, t.between_ms,
                  r.predicted_ms, r.terrainTolerance_px, r.forestNear_m, r.hdlodTolerance_px, r.cellsVoxelBudget,
-                 r.forestLayers);
+                 r.forestLayers, r.far_m, r.fogVisibility_m);
   } else {
     // JSON has no NaN: a value that is not there is null.
-    char gov[6][32];
-    const double govValues[6] = {r.predicted_ms, r.terrainTolerance_px, r.forestNear_m, r.hdlodTolerance_px, r.cellsVoxelBudget,
-                                 r.forestLayers};
-    for (int i = 0; i < 6; ++i) {
+    char gov[8][32];
+    const double govValues[8] = {r.predicted_ms, r.terrainTolerance_px, r.forestNear_m, r.hdlodTolerance_px, r.cellsVoxelBudget,
+                                 r.forestLayers, r.far_m, r.fogVisibility_m};
+    for (int i = 0; i < 8; ++i) {
       if (!std::isfinite(govValues[i])) std::snprintf(gov[i], sizeof gov[i], "null");  // no NaN or inf in JSON
       else std::snprintf(gov[i], sizeof gov[i], "%.3f", govValues[i]);
     }
@@ -123,14 +123,14 @@ void StatsWriter::write(const FrameRecord& r) {
                  "\"host_frame\":%llu,\"sim_time_s\":%.4f,\"eye_east_m\":%.2f,\"eye_north_m\":%.2f,\"eye_up_m\":%.2f,"
                  "\"heading_deg\":%.3f,\"host_lost\":%s,\"between_ms\":%.3f,\"gov_predicted_ms\":%s,"
                  "\"terrain_tolerance_px\":%s,\"forest_near_m\":%s,\"hdlod_tolerance_px\":%s,\"cells_voxel_budget\":%s,"
-                 "\"forest_layers\":%s}\n",
+                 "\"forest_layers\":%s,\"far_m\":%s,\"fog_visibility_m\":%s}\n",
                  static_cast<long long>(t.frame), static_cast<double>(t.start_ns) * 1e-6, r.period_ms, t.interval_ms,
                  static_cast<double>(t.lateness_ns) * 1e-6, ph[0], ph[1], ph[2], ph[3], ph[4], t.work_ms,
                  t.overrun ? "true" : "false", static_cast<long long>(t.missedSlots),
                  static_cast<unsigned long long>(r.triangles), r.drawCalls, r.passes,
                  static_cast<unsigned long long>(r.uploads), static_cast<unsigned long long>(r.hostFrame),
                  r.simTime_s, r.eyeEast_m, r.eyeNorth_m, r.eyeHeight_m, r.heading_deg, r.hostLost ? "true" : "false", t.between_ms,
-                 gov[0], gov[1], gov[2], gov[3], gov[4], gov[5]);
+                 gov[0], gov[1], gov[2], gov[3], gov[4], gov[5], gov[6], gov[7]);
   }
   // Written out at least every kFlushEvery_ns of frame time (not only when stdio's 4 KiB buffer
   // fills, ~25 frames): a process the watchdog kills (SIGKILL: no close) keeps the lines of the

@@ -38,6 +38,10 @@ struct FrameRecord {
   double forestLayers = kStatsNaN;        // shell layers drawn
   double hdlodTolerance_px = kStatsNaN;
   double cellsVoxelBudget = kStatsNaN;    // this frame's voxel budget (the knob, capped by the load cap)
+  // The far plane the frame was drawn with (the host's, or where the fog is opaque: [fog] cull)
+  // and the fog's visibility (the host's or the scene's; NaN without fog).
+  double far_m = kStatsNaN;
+  double fogVisibility_m = kStatsNaN;
 };
 
 // Size-based rotation of the stats file ([stats] max_mb, keep). The file is rotated (file ->

@@ -34,9 +34,9 @@ STATS_COLUMNS = [
     "work_ms", "overrun", "missed_slots", "triangles", "draw_calls", "passes", "uploads",
     "host_frame", "sim_time_s", "eye_east_m", "eye_north_m", "eye_up_m", "heading_deg", "host_lost",
     "between_ms", "gov_predicted_ms", "terrain_tolerance_px", "forest_near_m", "hdlod_tolerance_px",
-    "cells_voxel_budget", "forest_layers",
+    "cells_voxel_budget", "forest_layers", "far_m", "fog_visibility_m",
 ]
-GOVERNOR_STATS_COLUMNS = STATS_COLUMNS[STATS_COLUMNS.index("gov_predicted_ms"):]
+GOVERNOR_STATS_COLUMNS = STATS_COLUMNS[STATS_COLUMNS.index("gov_predicted_ms"):STATS_COLUMNS.index("forest_layers") + 1]
 
 
 def _env_path(name):

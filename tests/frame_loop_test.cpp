@@ -445,7 +445,7 @@ TEST(StatsRotation, RotatesAtTheSizeLimitKeepingKeepFiles) {
   EXPECT_TRUE(std::filesystem::exists(file + ".2"));
   EXPECT_FALSE(std::filesystem::exists(file + ".3"));  // keep = 2: the oldest were deleted
   // Newest first: file, file.1, file.2 hold consecutive frames ending at n - 1; each file starts
-  // with the header and holds whole lines (31 fields), at most one line past the limit.
+  // with the header and holds whole lines (33 fields), at most one line past the limit.
   int64_t expected = n - 1;
   for (const std::string& f : {file, file + ".1", file + ".2"}) {
     const auto lines = fileLines(f);
@@ -453,7 +453,7 @@ TEST(StatsRotation, RotatesAtTheSizeLimitKeepingKeepFiles) {
     EXPECT_EQ(lines[0].rfind("frame,t_ms,", 0), 0u) << f;
     EXPECT_LT(std::filesystem::file_size(f), 1000u + 400u) << f;
     for (size_t k = lines.size() - 1; k >= 1; --k, --expected) {
-      EXPECT_EQ(std::count(lines[k].begin(), lines[k].end(), ','), 30) << f << ": " << lines[k];
+      EXPECT_EQ(std::count(lines[k].begin(), lines[k].end(), ','), 32) << f << ": " << lines[k];
       EXPECT_EQ(std::stoll(lines[k]), expected) << f << ": " << lines[k];
     }
   }

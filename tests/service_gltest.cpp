@@ -287,6 +287,11 @@ TEST(ServiceGL, FogCullDrawsLessAndThePictureStaysTheSame) {
       EXPECT_LE(worst, 1) << "t " << t << " pitch " << pitch;
       EXPECT_LT(differ, a.rgba.size() / 100) << "t " << t << " pitch " << pitch;
       EXPECT_LT(ra.triangles, rb.triangles) << "t " << t << " pitch " << pitch;
+      // What the stats report: the far plane each frame was drawn with, and the fog's visibility.
+      EXPECT_EQ(ra.far_m, render::fogOpaqueDistance_m(800.0));
+      EXPECT_EQ(rb.far_m, 100000.0);
+      EXPECT_EQ(ra.fogVisibility_m, 800.0);
+      EXPECT_EQ(rb.fogVisibility_m, 800.0);
       culledTriangles += ra.triangles;
       fullTriangles += rb.triangles;
     }
@@ -322,6 +327,9 @@ TEST(ServiceGL, HostVisibilityFogsTheSceneAndABadOneIsRejected) {
   EXPECT_NE(hostImage.rgba, clearImage.rgba);
   EXPECT_EQ(rHost.triangles, rOwn.triangles);
   EXPECT_LT(rHost.triangles, rClear.triangles);
+  EXPECT_TRUE(std::isnan(rClear.fogVisibility_m));  // no fog: nan in the stats
+  EXPECT_EQ(rHost.fogVisibility_m, 800.0);
+  EXPECT_EQ(rHost.far_m, rOwn.far_m);
   // The host's visibility wins over the scene's own fog, too.
   h.visibility_m = 20000.0;
   render::Image thin;
