@@ -223,7 +223,9 @@ struct FogConfig {
   double visibility_m = 20000.0;             // meteorological visibility (2 % contrast)
   std::array<double, 3> color{0.70, 0.78, 0.86};
   // Nothing beyond render::fogOpaqueDistance_m (1.77 x the visibility, where the fog is opaque to
-  // a quarter of a colour level) is selected, uploaded or drawn: the camera's far plane moves in.
+  // a quarter of a colour level) is drawn: the camera's far plane moves in (what the layers select
+  // by the frustum is not selected or uploaded either; deferred ROAM refines its surroundings
+  // regardless of the view).
   bool cull = true;
   bool operator==(const FogConfig&) const = default;
 };

@@ -815,7 +815,10 @@ Service::~Service() {
   // Service destroyed without run(), e.g. create() failing after the link started.
   if (impl_ && impl_->hostInput) impl_->hostInput->stop();
   // The layers and the renderer delete their GL objects in this service's context.
-  if (impl_ && impl_->context) impl_->context->makeCurrent();
+  if (impl_ && impl_->context) {
+    std::string error;
+    if (!impl_->context->makeCurrent(error)) std::fprintf(stderr, "igd: cannot make the GL context current to delete its objects: %s\n", error.c_str());
+  }
 }
 
 std::unique_ptr<Service> Service::create(const ServiceConfig& config, const SceneConfig& scene, std::string& error,
@@ -1010,7 +1013,12 @@ std::unique_ptr<Service> Service::create(const ServiceConfig& config, const Scen
 
 FrameRecord Service::renderOnce(const io::HostState& host, render::Image* image) {
   Impl& m = *impl_;
-  m.context->makeCurrent();
+  std::string error;
+  if (!m.context->makeCurrent(error)) {  // no GL work in another context: nothing rendered
+    std::fprintf(stderr, "igd: renderOnce: %s\n", error.c_str());
+    if (image) *image = render::Image{};
+    return FrameRecord{};
+  }
   const lod::Camera cam = m.cameraFor(host);
   m.select(cam, nullptr, std::nan(""), host.simTime_s);
   const render::RenderStats st = m.submit(cam, host);
@@ -1031,10 +1039,13 @@ struct PendingReload {
 
 int Service::run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* reload) {
   Impl& m = *impl_;
-  m.context->makeCurrent();
   const ServiceConfig& cfg = m.config;
   StatsWriter stats;
   std::string error;
+  if (!m.context->makeCurrent(error)) {
+    std::fprintf(stderr, "igd: the GL context: %s\n", error.c_str());
+    return 3;  // before the first frame
+  }
   if (!cfg.statsFile.empty()) {
     std::error_code ec;  // a failure here shows up as the open error below
     std::filesystem::create_directories(std::filesystem::path(cfg.statsFile).parent_path(), ec);

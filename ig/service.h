@@ -78,14 +78,17 @@ class Service {
   ~Service();
 
   // Runs the fixed-rate loop until `config.frames` frames, a window close, or `stop`.
-  // Returns 0 on a clean exit, 3 when the stats file cannot be created (before the first frame),
+  // Returns 0 on a clean exit, 3 when the stats file cannot be created or the GL context cannot be
+  // made current on this thread (before the first frame),
   // 1 on a failure while running. `reload` (optional) is polled once per frame.
   int run(Clock& clock, const std::atomic<bool>& stop, ReloadSource* reload = nullptr);
   // 1 at start, +1 for every reload that was applied.
   int configGeneration() const;
 
   // Renders one frame for this host state outside the loop (igtool, tests). Optionally
-  // reads back the image.
+  // reads back the image. Makes this service's GL context current first (so do run() and the
+  // destructor): several services may live in one process; if it cannot, nothing is rendered
+  // (an empty record and image, the reason on stderr).
   FrameRecord renderOnce(const io::HostState& host, render::Image* image);
 
   const ServiceInfo& info() const { return info_; }

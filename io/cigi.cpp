@@ -773,7 +773,7 @@ uint32_t validateCelestial(const CelestialSphereControl& p) {
 }
 
 uint32_t validateAtmosphere(const AtmosphereControl& p) {
-  return p.visibility_m > 0.0f && p.visibility_m <= 1e7f ? 0u : kAtmosphereVisibility;
+  return p.visibility_m >= 0.0f ? 0u : kAtmosphereVisibility;  // NaN fails too
 }
 
 }  // namespace ig::io::cigi

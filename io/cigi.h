@@ -137,7 +137,7 @@ struct AtmosphereControl {
   bool atmosphericModelEnable = false;
   uint8_t humidity_pct = 30;
   float airTemperature_c = 15.0f;
-  float visibility_m = 20000.0f;  // > 0, <= 1e7
+  float visibility_m = 20000.0f;  // >= 0 (igd clamps it to 1 m ... 1e7 m)
   float horizontalWind_mps = 0.0f;
   float verticalWind_mps = 0.0f;
   float windDirection_deg = 0.0f;
@@ -441,8 +441,8 @@ uint32_t validateViewDefinition(const ViewDefinition& p);
 // kCelestialTime: hour >= 24 or minute >= 60; kCelestialDate: not a real MMDDYYYY date.
 enum CelestialField : uint32_t { kCelestialTime = 1, kCelestialDate = 2, kCelestialStars = 4 };
 uint32_t validateCelestial(const CelestialSphereControl& p);
-// kAtmosphereVisibility: the visibility range NaN, infinite, <= 0 or > 1e7 m (the others are not
-// checked: igd does not use them).
+// kAtmosphereVisibility: the visibility range NaN or negative (the others are not checked: igd
+// does not use them). 0 and +infinity are valid: the receiver clamps (io/cigi_link.h).
 enum AtmosphereField : uint32_t { kAtmosphereVisibility = 1 };
 uint32_t validateAtmosphere(const AtmosphereControl& p);
 // kHatHotType: request type 3. Geodetic: latitude in [-90, 90], longitude in [-180, 180],

@@ -269,7 +269,9 @@ void CigiAssembler::applyAtmosphere(const cigi::AtmosphereControl& a, LinkCounte
     counters.outOfRange.fetch_add(1, std::memory_order_relaxed);  // the last good visibility stays
     return;
   }
-  state_.visibility_m = a.visibility_m;
+  // 0 (nothing visible) and huge values or infinity (a host's "unlimited") are meant: clamped to
+  // what the fog can show, 1 m ... 10,000 km.
+  state_.visibility_m = std::clamp(static_cast<double>(a.visibility_m), kMinVisibility_m, kMaxVisibility_m);
 }
 
 void CigiAssembler::checkHatHot(LinkCounters& counters) {

@@ -135,7 +135,7 @@ struct RoamStats {
   uint32_t enhMerges = 0;    // enhMerge operations (each may free a whole subtree)
   uint32_t nodesFreed = 0;   // nodes returned to the pool by merges, enhMerges and rebuilds
   uint32_t nodesExamined = 0;  // nodes whose priority the update's walk or schedule looked at
-  uint32_t visits = 0;       // Deferred: node visits spent (see RoamView::maxVisits)
+  uint32_t visits = 0;       // node visits spent (Deferred's budget unit, RoamView::maxVisits; EnhMerge counts its walk)
   uint64_t pending = 0;      // Deferred: split-queue entries and due schedule entries left over
   uint64_t unscheduled = 0;  // Deferred: nodes this update changed that it ran out of time to
                              // schedule; the next update schedules them first

@@ -72,8 +72,11 @@ void releaseDisplay(EGLDisplay display) {
 
 class EglHeadlessContext final : public GlContext {
  public:
-  void makeCurrent() override {
-    if (eglGetCurrentContext() != context_) eglMakeCurrent(display_, EGL_NO_SURFACE, EGL_NO_SURFACE, context_);
+  bool makeCurrent(std::string& error) override {
+    if (eglGetCurrentContext() == context_) return true;
+    if (eglMakeCurrent(display_, EGL_NO_SURFACE, EGL_NO_SURFACE, context_)) return true;
+    error = eglErrorText("eglMakeCurrent");
+    return false;
   }
   ~EglHeadlessContext() override {
     if (display_ != EGL_NO_DISPLAY) {
@@ -160,8 +163,11 @@ class EglHeadlessContext final : public GlContext {
 
 class OSMesaHeadlessContext final : public GlContext {
  public:
-  void makeCurrent() override {
-    if (OSMesaGetCurrentContext() != context_) OSMesaMakeCurrent(context_, buffer_.data(), GL_UNSIGNED_BYTE, 4, 4);
+  bool makeCurrent(std::string& error) override {
+    if (OSMesaGetCurrentContext() == context_) return true;
+    if (OSMesaMakeCurrent(context_, buffer_.data(), GL_UNSIGNED_BYTE, 4, 4)) return true;
+    error = "OSMesa: OSMesaMakeCurrent failed";
+    return false;
   }
   ~OSMesaHeadlessContext() override {
     if (context_) OSMesaDestroyContext(context_);
@@ -223,8 +229,15 @@ void releaseGlfw() {
 
 class GlfwWindowContext final : public GlContext {
  public:
-  void makeCurrent() override {
-    if (window_ && glfwGetCurrentContext() != window_) glfwMakeContextCurrent(window_);
+  bool makeCurrent(std::string& error) override {
+    if (!window_) {
+      error = "window: no window to make current";
+      return false;
+    }
+    if (glfwGetCurrentContext() != window_) glfwMakeContextCurrent(window_);
+    if (glfwGetCurrentContext() == window_) return true;
+    error = "window: glfwMakeContextCurrent failed";
+    return false;
   }
   ~GlfwWindowContext() override {
     if (window_) glfwDestroyWindow(window_);

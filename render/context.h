@@ -42,8 +42,9 @@ class GlContext {
   // Makes this context current on the calling thread (nothing when it already is). A process
   // with several contexts (tests, benchmarks running two services side by side) must call it
   // before GL work: the GL calls of a service whose context is not current land in another
-  // context, on that context's objects of the same names.
-  virtual void makeCurrent() = 0;
+  // context, on that context's objects of the same names. false (with `error` naming the call
+  // and its error, e.g. the context is current on another thread): no GL work may follow.
+  virtual bool makeCurrent(std::string& error) = 0;
 
  protected:
   std::string description_;

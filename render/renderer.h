@@ -24,8 +24,7 @@ namespace ig::render {
 inline constexpr double kFogExtinction = 3.912;
 // Beyond this distance the fog lets less than 1/1024 of a surface's colour through, so a pixel
 // there differs from the sky by under a quarter of an 8-bit level (1.77 x the visibility). The
-// service uses it as the far plane while fog is on ([fog] cull): nothing beyond is selected,
-// uploaded or drawn.
+// service uses it as the far plane while fog is on ([fog] cull): nothing beyond is drawn.
 inline double fogOpaqueDistance_m(double visibility_m) { return visibility_m * (6.931471805599453 / kFogExtinction); }  // ln 1024
 
 struct Lighting {

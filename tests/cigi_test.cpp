@@ -980,18 +980,19 @@ TEST(Cigi, AtmosphereControlRoundTripsAndItsVisibilityIsChecked) {
   ASSERT_EQ(decodeHostMessage(b, none), CigiStatus::ok);
   EXPECT_FALSE(none.hasAtmosphere);
   EXPECT_EQ(validateAtmosphere(p), 0u);
-  for (float v : {0.0f, -1.0f, 1.5e7f, std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity()}) {
+  for (float v : {-1.0f, -1e-30f, -std::numeric_limits<float>::infinity(), std::numeric_limits<float>::quiet_NaN()}) {
     p.visibility_m = v;
     EXPECT_EQ(validateAtmosphere(p), kAtmosphereVisibility) << v;
   }
-  for (float v : {0.001f, 1e7f}) {
+  for (float v : {0.0f, 0.001f, 1e7f, 1.5e7f, std::numeric_limits<float>::max(), std::numeric_limits<float>::infinity()}) {
     p.visibility_m = v;
     EXPECT_EQ(validateAtmosphere(p), 0u) << v;
   }
 }
 
-// The host's visibility reaches HostState; a bad one is counted and the last good one kept; a
-// message without Atmosphere Control changes nothing.
+// The host's visibility reaches HostState, 0 and "unlimited" clamped to 1 m and 10,000 km; a
+// NaN or negative one is counted and the last good one kept; a message without Atmosphere
+// Control changes nothing.
 TEST(CigiAssembler, AtmosphereVisibilityAppliesAndABadOneIsRejected) {
   CigiAssembler a({}, kOrigin);
   LinkCounters c;
@@ -1009,13 +1010,23 @@ TEST(CigiAssembler, AtmosphereVisibilityAppliesAndABadOneIsRejected) {
   EXPECT_EQ(a.state().visibility_m, 800.0);
   EXPECT_EQ(c.outOfRange.load(), 0u);
   uint64_t rejected = 0;
-  for (float bad : {0.0f, -10.0f, 2e7f, std::numeric_limits<float>::quiet_NaN()}) {
+  for (float bad : {-10.0f, -std::numeric_limits<float>::infinity(), std::numeric_limits<float>::quiet_NaN()}) {
     ASSERT_EQ(a.apply(withAtmosphere(bad, ByteOrder::big), c), CigiAssembler::Result::published);
     EXPECT_EQ(a.state().visibility_m, 800.0) << bad;
     EXPECT_EQ(c.outOfRange.load(), ++rejected) << bad;
   }
   ASSERT_EQ(a.apply(h.message(), c), CigiAssembler::Result::published);
   EXPECT_EQ(a.state().visibility_m, 800.0);
+  struct Clamp {
+    float sent;
+    double kept;
+  };
+  for (const Clamp k : {Clamp{0.0f, 1.0}, Clamp{0.25f, 1.0}, Clamp{2e7f, 1e7}, Clamp{std::numeric_limits<float>::max(), 1e7},
+                        Clamp{std::numeric_limits<float>::infinity(), 1e7}}) {
+    ASSERT_EQ(a.apply(withAtmosphere(k.sent, ByteOrder::little), c), CigiAssembler::Result::published);
+    EXPECT_EQ(a.state().visibility_m, k.kept) << k.sent;
+  }
+  EXPECT_EQ(c.outOfRange.load(), rejected);
   ASSERT_EQ(a.apply(withAtmosphere(25000.0f, ByteOrder::big), c), CigiAssembler::Result::published);
   EXPECT_EQ(a.state().visibility_m, 25000.0);
 }

@@ -251,8 +251,8 @@ TEST(ServiceGL, EyepointInsideTerrainAndAtExtremeClipPlanesRendersWithoutGlError
 
 // [fog] cull: in thick fog nothing beyond the opaque distance is drawn, and the picture is the
 // one drawn with the host's far plane to within one colour level (the fog lets less than 1/1024
-// through there). The default scene (terrain, forest, objects) at 1.5 km visibility, looking
-// level and down from the built-in circuit.
+// through there). The default scene at 800 m visibility, looking level and down from the
+// built-in circuit.
 TEST(ServiceGL, FogCullDrawsLessAndThePictureStaysTheSame) {
   ServiceConfig cfg;
   SceneConfig scene;
@@ -389,11 +389,11 @@ TEST(ServiceGL, TwoServicesInOneProcessEachDrawWithTheirOwnContext) {
     ASSERT_TRUE(b) << error;
     b->renderOnce(h, &second);
     EXPECT_NE(second.rgba, alone.rgba);  // the other relief
-    a->renderOnce(h, &beside);
-    EXPECT_EQ(beside.rgba, alone.rgba);
     b->renderOnce(h, &beside);
     EXPECT_EQ(beside.rgba, second.rgba);
-  }
+    a->renderOnce(h, &beside);
+    EXPECT_EQ(beside.rgba, alone.rgba);
+  }  // b goes while a's context is current: b deletes its own objects, not a's of the same names
   a->renderOnce(h, &after);
   EXPECT_EQ(after.rgba, alone.rgba);
 }
