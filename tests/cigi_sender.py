@@ -8,9 +8,9 @@ CIGI host for end-to-end runs:
 
     tests/cigi_sender.py --port 8004 --rate 30 --seconds 5 [--little-endian] [--lat .. --lon ..]
 
-sends IG Control + Entity Control (+ View Control, View Definition, Celestial Sphere Control) at
-`rate` messages per second, flying north-east from the given point, and prints the Start of
-Frame packets it receives back (when --listen-port is given).
+sends IG Control + Entity Control + Celestial Sphere Control (+ Atmosphere Control with
+--visibility M: igd's fog) at `rate` messages per second, flying north-east from the given
+point, and prints the Start of Frame packets it receives back (when --listen-port is given).
 """
 import argparse
 import math
@@ -303,6 +303,8 @@ def main():
     ap.add_argument("--heading", type=float, default=45.0)
     ap.add_argument("--speed", type=float, default=50.0, help="m/s along the heading")
     ap.add_argument("--entity", type=int, default=0)
+    ap.add_argument("--visibility", type=float, default=None,
+                    help="send Atmosphere Control with this visibility range (m): igd's fog (default: none sent)")
     args = ap.parse_args()
     order = "<" if args.little_endian else ">"
     tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -319,6 +321,8 @@ def main():
         msg = (ig_control(order, frame, int(round(t * 1e5))) +
                entity_control(order, args.entity, 0.0, 0.0, args.heading % 360.0, lat, lon, args.alt) +
                celestial(order, 12, 0, 6, 21, 2026))
+        if args.visibility is not None:
+            msg += atmosphere(order, args.visibility)
         tx.sendto(msg, (args.address, args.port))
         while True:
             try:
