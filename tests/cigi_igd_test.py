@@ -17,8 +17,9 @@ every 2nd frame until cancelled. A 500 m tower (an [hdlod] schedule object) stan
 extended request over it answers its roof (material code 1), and an extended LOS segment towards
 it stops at its west wall (range, material 1, normal facing west). Eight LOS rays straight down
 into a patch of [forest] stop at a tree above the ground (material 2) or at the ground.
-From host frame VIS_FROM on the host sends a visibility (Atmosphere Control): the stats show it
-as the fog's and the far plane at 1.77 x it; the recording keeps it.
+VIS_AFTER host frames after igd's first Start of Frame the host starts sending a visibility
+(Atmosphere Control): the stats show it as the fog's and the far plane at 1.77 x it (the frames
+before at View Definition's far plane); the recording keeps it.
 
 usage: cigi_igd_test.py <igd> <source dir>
 """
@@ -46,7 +47,7 @@ ORIGIN = (46.5, 7.9, 0.0)  # config/scenes/default.toml [origin]
 RATE_HZ = 30
 FRAMES = 75
 # From this host frame on the host sends Atmosphere Control with this visibility (m).
-VIS_FROM = 20
+VIS_AFTER = 20  # host frames after igd's first Start of Frame (igd renders frames before it too)
 VISIBILITY_M = 900.0
 # The DEM: 65 x 65 posts 30 m apart, its south-west post at ENU (-960, -960); height =
 # 100 m + 0.1 m x value (png_offset_m, png_scale_m).
@@ -216,6 +217,7 @@ view_id = 0""", src, RATE_HZ, FRAMES, 3.0, rec, write_dem_scene(tmp),
     tower_src = cs.geodetic_of_enu(ORIGIN, TOWER_AT[0] - 150.0, TOWER_AT[1], 450.0)
     tower_dst = cs.geodetic_of_enu(ORIGIN, TOWER_AT[0], TOWER_AT[1], 450.0)
     hat_frame = cancel_frame = None
+    vis_from = None  # the first host frame with a visibility
     while proc.poll() is None and time.monotonic() - t0 < 120:
         roll, pitch, yaw, lat, lon, alt = entity_for(frame)
         o = ">" if frame % 2 else "<"
@@ -224,7 +226,9 @@ view_id = 0""", src, RATE_HZ, FRAMES, 3.0, rec, write_dem_scene(tmp),
                # An off-axis window (a left side channel): recorded and replayed (version 3).
                cs.view_definition(o, 0, 0.5, 20000.0, -50.0, 10.0, 20.0, -20.0) +
                cs.celestial(o, 10, 30, 6, 21, 2026))
-        if frame >= VIS_FROM:  # the host's visibility (Atmosphere Control): igd's fog from here on
+        if vis_from is None and sofs:
+            vis_from = frame + VIS_AFTER
+        if vis_from is not None and frame >= vis_from:  # the host's visibility (Atmosphere Control): igd's fog
             msg += cs.atmosphere(o, VISIBILITY_M)
         if sent_malformed and hat_frame is None:
             hat_frame = frame
@@ -298,14 +302,15 @@ view_id = 0""", src, RATE_HZ, FRAMES, 3.0, rec, write_dem_scene(tmp),
               "frame %s: sim_time_s %s for host frame %d" % (r["frame"], r["sim_time_s"], hf))
     # The host's visibility is the fog's from the host frame that brought it, and the far plane
     # moves in to where that fog is opaque (1.77 x; View Definition's far is 20 km).
-    fogged = [r for r in rendered if int(r["host_frame"]) >= VIS_FROM]
+    vis_from = vis_from if vis_from is not None else frame + 1  # never sent: every check below fails
+    fogged = [r for r in rendered if int(r["host_frame"]) >= vis_from]
     check(len(fogged) >= FRAMES // 4, "only %d frames rendered with the host's visibility" % len(fogged))
     opaque = VISIBILITY_M * math.log(1024.0) / 3.912
     bad_fog = [(r["frame"], r["fog_visibility_m"], r["far_m"]) for r in fogged
                if abs(float(r["fog_visibility_m"]) - VISIBILITY_M) > 0.05 or abs(float(r["far_m"]) - opaque) > 0.1]
     check(not bad_fog, "frames with the host's visibility %.0f m: (frame, fog_visibility_m, far_m) %r, expected far %.1f"
           % (VISIBILITY_M, bad_fog[:3], opaque))
-    before = [r for r in rendered if int(r["host_frame"]) < VIS_FROM]
+    before = [r for r in rendered if int(r["host_frame"]) < vis_from]
     check(before and all(float(r["far_m"]) > opaque + 1.0 for r in before),
           "frames before the host's visibility drawn to the far plane: %r" % [r["far_m"] for r in before[:3]])
     tail = rows[-20:]
@@ -427,12 +432,12 @@ view_id = 0""", src, RATE_HZ, FRAMES, 3.0, rec, write_dem_scene(tmp),
                    if len(w) != 3 or abs(w[0] - 0.5 * (tr + tl)) > 1e-9 or w[1] != 0.0 or abs(w[2] - (tr - tl)) > 1e-9]
     check(windows and not bad_windows, "recorded windows (shift_x shift_y width_tan): %r, expected %.9f 0 %.9f"
           % (bad_windows[:3], 0.5 * (tr + tl), tr - tl))
-    # ... and the host's visibility (vis_m, version 4): none before VIS_FROM, then VISIBILITY_M.
+    # ... and the host's visibility (vis_m, version 4): none before vis_from, then VISIBILITY_M.
     vis = [(int(l.split()[1]), float(l.split()[17])) for l in lines[1:] if len(l.split()) == 18]
     check(len(vis) == len(lines) - 1 and lines[0].split()[1] == "4", "record_file version 4 with vis_m: %r" % lines[:2])
-    bad_vis = [(hf, v) for hf, v in vis if (v != VISIBILITY_M) if hf >= VIS_FROM] + \
-              [(hf, v) for hf, v in vis if hf < VIS_FROM and v > 0.0]
-    check(any(hf >= VIS_FROM for hf, _ in vis) and not bad_vis, "recorded visibilities (host frame, vis_m): %r" % bad_vis[:3])
+    bad_vis = [(hf, v) for hf, v in vis if hf >= vis_from and v != VISIBILITY_M] + \
+              [(hf, v) for hf, v in vis if hf < vis_from and v > 0.0]
+    check(any(hf >= vis_from for hf, _ in vis) and not bad_vis, "recorded visibilities (host frame, vis_m): %r" % bad_vis[:3])
 
     print("cigi_igd_test: %d frames, %d rendered host samples, %d Start of Frame packets, %d of %d rays into the"
           " forest stopped at trees; %d failures" % (len(rows), len(rendered), len(sofs), trees, len(FOREST_RAYS),
