@@ -3,6 +3,7 @@
 // written, known-key checks, range checks) so that each key below is one line.
 #include "ig/config.h"
 #include "ig/host_links.h"
+#include "io/host_state.h"
 
 #include <cerrno>
 #include <cstdio>
@@ -878,7 +879,7 @@ bool parseScene(const std::string& text, const std::string& name, const std::str
   const Table fog = r.table(root, "fog", {"enabled", "visibility_m", "color", "cull"});
   r.get(fog, "enabled", cfg.fog.enabled);
   r.get(fog, "cull", cfg.fog.cull);
-  r.get(fog, "visibility_m", cfg.fog.visibility_m, openClosed(0.0, 1e7));
+  r.get(fog, "visibility_m", cfg.fog.visibility_m, openClosed(0.0, io::kMaxVisibility_m));
   r.get(fog, "color", cfg.fog.color, closed(0.0, 1.0));
 
   if (!r.ok()) {

@@ -526,8 +526,8 @@ bool hostStateValid(const io::HostState& s, std::string* why) {
     return bad("window_width_tan", s.windowWidth_tan);
   // Time of day: negative = none (the scene's sun), else UTC hours below 24 (io/host_state.h).
   if (std::isinf(s.timeOfDay_h) || !(s.timeOfDay_h < 24.0)) return bad("tod_h", s.timeOfDay_h);
-  // Visibility: <= 0 = none (the scene's fog), else metres up to 1e7.
-  if (std::isinf(s.visibility_m) || !(s.visibility_m <= 1e7)) return bad("visibility_m", s.visibility_m);
+  // Visibility: <= 0 = none (the scene's fog), else metres up to io::kMaxVisibility_m.
+  if (std::isinf(s.visibility_m) || !(s.visibility_m <= io::kMaxVisibility_m)) return bad("visibility_m", s.visibility_m);
   return true;
 }
 

@@ -8,6 +8,10 @@
 
 namespace ig::io {
 
+// The largest fog visibility igd takes (HostState::visibility_m, the scene's [fog] visibility_m),
+// metres: 10,000 km, beyond which the fog shows nothing on any scene.
+inline constexpr double kMaxVisibility_m = 1e7;
+
 struct HostState {
   uint64_t hostFrame = 0;            // host's own frame counter
   double simTime_s = 0.0;            // simulation time, seconds since scenario start

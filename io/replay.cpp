@@ -30,8 +30,6 @@ constexpr size_t kFieldCountV2 = 14;
 constexpr size_t kFieldCountV3 = 17;
 // The window's limits, as the frame loop checks a host sample (ig/service.cpp).
 constexpr double kMaxShift = lod::kMaxWindowShift;
-// The largest visibility a sample may carry (as the scene's [fog] visibility_m).
-constexpr double kMaxVisibility_m = 1e7;
 // Timestamps are written to 0.1 ms: a sample within that of the replay time is due.
 constexpr double kTimeTolerance_s = 1e-4;
 // host_frame is read as a double: integers are exact up to 2^53.

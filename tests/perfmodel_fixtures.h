@@ -2,6 +2,10 @@
 // calibration constants whose terms are easy to add up by hand.
 #pragma once
 
+#include <array>
+
+#include <glm/vec3.hpp>
+
 #include "lod/perfmodel.h"
 
 namespace ig::lod::test {
@@ -22,6 +26,14 @@ inline PerfConstants handConstants() {
   c.occlusionTest_ns = 3000;
   c.overlap = 1.0;
   return c;
+}
+
+// The 8 corners of the box with centre c and half extents h (for projectedBoxArea_px).
+inline std::array<glm::dvec3, 8> boxCorners(glm::dvec3 c, glm::dvec3 h) {
+  std::array<glm::dvec3, 8> p;
+  for (int i = 0; i < 8; ++i)
+    p[static_cast<size_t>(i)] = c + glm::dvec3((i & 1) ? h.x : -h.x, (i & 2) ? h.y : -h.y, (i & 4) ? h.z : -h.z);
+  return p;
 }
 
 }  // namespace ig::lod::test

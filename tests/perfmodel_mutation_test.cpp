@@ -165,12 +165,7 @@ TEST(PerfModel, ProjectedBoxAreaOnAViewportThatIsNotSquare) {
   cam.near_m = 0.1;
   cam.far_m = 1000.0;
   const glm::dmat4 vp = projection(cam) * glm::dmat4(viewRotation(cam));
-  const auto box = [](glm::dvec3 c, glm::dvec3 h) {
-    std::array<glm::dvec3, 8> p;
-    for (int i = 0; i < 8; ++i)
-      p[static_cast<size_t>(i)] = c + glm::dvec3((i & 1) ? h.x : -h.x, (i & 2) ? h.y : -h.y, (i & 4) ? h.z : -h.z);
-    return p;
-  };
+  const auto box = test::boxCorners;
   EXPECT_NEAR(projectedBoxArea_px(vp, box({0, 10, 0}, {1, 0.001, 1}), 400, 200), 400.0, 4.0);
   EXPECT_NEAR(projectedBoxArea_px(vp, box({15, 10, 0}, {1, 0.001, 1}), 400, 200), 400.0, 4.0);  // right half
   EXPECT_NEAR(projectedBoxArea_px(vp, box({0, 10, 0}, {50, 0.001, 50}), 400, 200), 80000.0, 1e-6);  // clipped

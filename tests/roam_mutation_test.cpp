@@ -58,14 +58,7 @@ std::vector<RoamView> shortFlight(double tolerance_px) {
   return path;
 }
 
-std::vector<std::tuple<int, int, int, int, int, int>> sortedTriangles(const Roam& roam) {
-  std::vector<RoamTriangle> tris(roam.triangleCount());
-  tris.resize(roam.emitTriangles(tris));
-  std::vector<std::tuple<int, int, int, int, int, int>> out;
-  for (const auto& t : tris) out.emplace_back(t.v[0].x, t.v[0].y, t.v[1].x, t.v[1].y, t.v[2].x, t.v[2].y);
-  std::sort(out.begin(), out.end());
-  return out;
-}
+using test::sortedTriangles;
 
 std::set<std::pair<int, int>> meshVertices(const Roam& roam) {
   std::vector<RoamTriangle> tris(roam.triangleCount());

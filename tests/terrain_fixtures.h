@@ -129,4 +129,15 @@ inline std::vector<RoamTriangle> blockTriangles(const BlockLod& b) {
   return out;
 }
 
+// The mesh's leaf triangles as sorted vertex tuples (x0, y0, x1, y1, x2, y2): two meshes are
+// the same triangulation when these are equal.
+inline std::vector<std::tuple<int, int, int, int, int, int>> sortedTriangles(const Roam& roam) {
+  std::vector<RoamTriangle> tris(roam.triangleCount());
+  tris.resize(roam.emitTriangles(tris));
+  std::vector<std::tuple<int, int, int, int, int, int>> out;
+  for (const auto& t : tris) out.emplace_back(t.v[0].x, t.v[0].y, t.v[1].x, t.v[1].y, t.v[2].x, t.v[2].y);
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
 }  // namespace ig::lod::test
