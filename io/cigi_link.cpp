@@ -752,8 +752,10 @@ void CigiLink::handleDatagram(const void* data, size_t size, int flags, sockaddr
     }
   }
   if (result == CigiAssembler::Result::published) {
-    sink_->publish(assembler_->state());
+    // Counted before it is visible: whoever saw the state published (a test waiting on the
+    // sink) and then starts a frame finds it counted.
     publishedSinceFrame_.fetch_add(1, std::memory_order_relaxed);
+    sink_->publish(assembler_->state());
   }
 }
 

@@ -311,18 +311,29 @@ TEST(CellStream, ServerDownTheFrameLoopGoesOnAndFetchesResume) {
   ASSERT_GE(stream.stats().arrived, 6u);
   nginx.stop();
   // Server down: every frame still selects and draws what is resident, and returns at once.
-  uint64_t arrivedBefore = stream.stats().arrived;
-  double worst_ms = 0.0;
-  for (int i = 0; i < 60; ++i) {
-    // What nginx had already sent may still arrive in the first frames; then nothing.
-    if (i == 20) arrivedBefore = stream.stats().arrived;
+  // What nginx had already sent may still arrive in the first frames; then nothing. The count
+  // to compare with is taken one frame after the fetcher has met the dead server (a failed
+  // connect or a retry), not after a fixed number of frames.
+  const io::RangeFetcherStats down = stream.fetchStats();
+  uint64_t arrivedBefore = 0;
+  bool seenDown = false;
+  int slowFrames = 0, counted = 0;
+  for (int i = 0; i < 2000 && counted < 40; ++i) {
+    const io::RangeFetcherStats now = stream.fetchStats();
+    const bool met = now.connectFailures + now.retries > down.connectFailures + down.retries;
+    if (seenDown && counted == 0) arrivedBefore = stream.stats().arrived;
+    if (seenDown) ++counted;
+    seenDown = seenDown || met;
     const auto t0 = Clock::now();
     st = loop.step(v);
-    worst_ms = std::max(worst_ms, std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
+    // One stalled frame is the machine (a loaded CI host); a fetch that blocked on the dead
+    // server would stall every frame that requests.
+    if (std::chrono::duration<double, std::milli>(Clock::now() - t0).count() > 50.0) ++slowFrames;
     EXPECT_GT(st.drawnCells, 0u) << "frame " << i << " drew nothing while the server was down";
     std::this_thread::sleep_for(std::chrono::milliseconds(3));
   }
-  EXPECT_LT(worst_ms, 50.0) << "a frame blocked on the dead server";
+  ASSERT_TRUE(seenDown) << "the fetcher never met the dead server (no failed connect, no retry)";
+  EXPECT_LE(slowFrames, 2) << "frames blocked on the dead server";
   EXPECT_EQ(stream.stats().arrived, arrivedBefore) << "cells arrived from a server that is down";
   EXPECT_GT(st.maxVoxel_px, best) << "the test needs streaming left to do when the server goes down";
   // Back up on the same port: the fetches resume and the picture reaches the optimum.

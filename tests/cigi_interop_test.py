@@ -326,7 +326,20 @@ def main():
         check(s["major"] == 3 and s["minor"] == 3 and s["order"] == "<" and s["timestamp_valid"] and s["earth_model"] == 0,
               "Start of Frame header: %r" % s)
 
-    time.sleep(0.2)
+    # dumpcap writes what the kernel hands it, in capture order, and may not yet have the last
+    # packets (its read timeout, a loaded machine): a fixed sleep lost them now and then. Send
+    # markers until one is in the file; every packet before it is then written too.
+    marker = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    marker.bind(("127.0.0.1", 0))
+    end_marker = b"capture end marker %d" % os.getpid()
+    end = time.monotonic() + 30
+    while time.monotonic() < end:
+        marker.sendto(end_marker, marker.getsockname())
+        with open(cap, "rb") as f:
+            if end_marker in f.read():
+                break
+        time.sleep(0.02)
+    marker.close()
     dumpcap.send_signal(signal.SIGTERM)
     dumpcap.wait(timeout=30)
 
