@@ -558,23 +558,28 @@ uint64_t CellSelector::makeCertificate(uint32_t c) {
       p.code[p.boxes++] = static_cast<uint8_t>(octant(c, ch) | 0x80);
     } else if ((y.flags & kLive) && node_[ch].childCount > 0) {
       // Its wholly inside children evaluated this frame, largest first, up to V(ch).
+      // One pass over the grandchildren, then the qualifying ones by V, largest first (ties: the
+      // lower index first), taken until V(ch).
       const uint32_t gf = node_[ch].firstChild, gc = node_[ch].childCount;
-      uint32_t used = 0;
-      while (p.value < node_[ch].voxels && p.boxes < 8) {
-        uint32_t best = kNoCell, bestV = 0;
-        for (uint32_t j = 0; j < gc; ++j) {
-          const Node& g = node_[gf + j];
-          if (!(used & (1u << j)) && g.state == kBelow && g.stamp == frame_ &&
-              ((g.flags & kInside) || ((g.flags & kLive) && g.childCount == 0)) && g.voxels > bestV) {
-            best = j;
-            bestV = g.voxels;
+      uint32_t pick[8], pickV[8], n = 0;
+      for (uint32_t j = 0; j < gc && j < 8; ++j) {
+        const Node& g = node_[gf + j];
+        if (g.state == kBelow && g.stamp == frame_ && ((g.flags & kInside) || ((g.flags & kLive) && g.childCount == 0)) &&
+            g.voxels > 0) {
+          uint32_t k = n++;
+          for (; k > 0 && pickV[k - 1] < g.voxels; --k) {
+            pick[k] = pick[k - 1];
+            pickV[k] = pickV[k - 1];
           }
+          pick[k] = j;
+          pickV[k] = g.voxels;
         }
-        if (best == kNoCell) break;
-        used |= 1u << best;
+      }
+      for (uint32_t k = 0; k < n && p.value < node_[ch].voxels && p.boxes < 8; ++k) {
+        const uint32_t best = pick[k];
         p.code[p.boxes++] = static_cast<uint8_t>(octant(c, ch) | (octant(ch, gf + best) << 3) | 0x40 |
                                                  ((node_[gf + best].flags & kInside) ? 0 : 0x80));
-        p.value += bestV;
+        p.value += pickV[k];
       }
       p.value = std::min<uint64_t>(p.value, node_[ch].voxels);
     }
