@@ -115,7 +115,7 @@ class CigiAssembler {
     return {std::span(msg_.hatHotRequests.data(), msg_.hatHotCount), std::span(hatHotBad_.data(), msg_.hatHotCount)};
   }
   // Atmosphere Control's visibility range is clamped to this (a host's 0 or "unlimited").
-  static constexpr double kMinVisibility_m = 1.0, kMaxVisibility_m = io::kMaxVisibility_m;
+  static constexpr double kMinVisibility_m = io::kMinVisibility_m, kMaxVisibility_m = io::kMaxVisibility_m;
   // A request in entity coordinates for another entity than the ownship (igd knows only it).
   static constexpr uint32_t kHatHotUnknownEntity = 1u << 8;
   // The same for LOS Segment / Vector Requests.

@@ -11,6 +11,8 @@ namespace ig::io {
 // The largest fog visibility igd takes (HostState::visibility_m, the scene's [fog] visibility_m),
 // metres: 10,000 km, beyond which the fog shows nothing on any scene.
 inline constexpr double kMaxVisibility_m = 1e7;
+// The smallest: a host's 0 (nothing visible) or anything below 1 m is drawn at 1 m.
+inline constexpr double kMinVisibility_m = 1.0;
 
 struct HostState {
   uint64_t hostFrame = 0;            // host's own frame counter
@@ -35,8 +37,9 @@ struct HostState {
   // given by the host: the scene's own sun applies.
   double timeOfDay_h = -1.0;         // UTC hours, 0 <= h < 24
   int32_t dateYmd = 0;               // UTC date as YYYYMMDD, e.g. 20260621
-  // Meteorological visibility for the fog (CIGI Atmosphere Control's visibility range), metres,
-  // 0 < v <= 1e7. <= 0 = not given by the host: the scene's own [fog] applies.
+  // Meteorological visibility for the fog (CIGI Atmosphere Control's visibility range, the
+  // Modbus register visibility_m, the CAN signal visibility_m), metres, 1 <= v <= 1e7.
+  // <= 0 = not given by the host: the scene's own [fog] applies.
   double visibility_m = -1.0;
   // The ownship the eye follows, as the CIGI host gave it (Entity Control): WGS-84 position and
   // attitude in its local level frame (yaw clockwise from true north). HAT/HOT requests in

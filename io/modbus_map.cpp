@@ -1,5 +1,6 @@
 #include "io/modbus_map.h"
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
 
@@ -8,7 +9,7 @@ namespace {
 
 constexpr std::string_view kSlotNames[kSlotCount] = {
     "east_m",   "north_m", "up_m",  "heading_deg", "pitch_deg",  "roll_deg",      "fovy_deg",
-    "near_m",   "far_m",   "sim_time_s", "host_frame", "time_of_day_h", "commit"};
+    "near_m",   "far_m",   "sim_time_s", "host_frame", "time_of_day_h", "commit", "visibility_m"};
 
 constexpr double kMaxEnu_m = 1e6;
 constexpr double kMaxNear_m = 1e6;
@@ -128,6 +129,11 @@ FieldRejects decodeHostRegisters(std::span<const uint16_t, kHoldingCount> holdin
   } else {
     reject(Slot::TimeOfDay);
   }
+  if (const double vis = value(Slot::Visibility); std::isfinite(vis) && vis <= kMaxVisibility_m) {
+    state.visibility_m = vis <= 0.0 ? -1.0 : std::max(vis, kMinVisibility_m);
+  } else {
+    reject(Slot::Visibility);
+  }
   return r;
 }
 
@@ -147,6 +153,7 @@ void encodeHostRegisters(const HostState& state, uint32_t commit, WordOrder orde
   put(Slot::HostFrame, static_cast<double>(state.hostFrame % (uint64_t{kHostFrameMax} + 1)));
   put(Slot::TimeOfDay, state.timeOfDay_h < 0.0 ? -1.0 : state.timeOfDay_h);
   writeU32(holding, kCommitAddress, commit, order);
+  put(Slot::Visibility, state.visibility_m > 0.0 ? state.visibility_m : -1.0);
 }
 
 void encodeStatusRegisters(const IgStatus& status, WordOrder order, std::span<uint16_t, kInputCount> input) {

@@ -25,7 +25,13 @@
 //   20    host_frame     float32  -     integer 0 .. 16777216 (2^24)   0      host frame counter
 //   22    time_of_day_h  float32  h     [0, 24), or < 0 = not given    -1     UTC, drives the sun
 //   24    commit         32 bits  -     any value                      0      see below
+//   26    visibility_m   float32  m     <= 1e7; <= 0 = not given         -1     the fog's visibility
+//                                                                             (below 1 m: 1 m)
 //
+// visibility_m comes after COMMIT (map version 2 added it; version 1 hosts that write 26
+// registers leave it at -1: the scene's [fog] applies). 0 is "not given" too, so that a host
+// that zero-fills the register does not fog the picture out. Like every field it applies with
+// the next commit: write 14 floats from address 0 in one FC16 request, or write it before COMMIT.
 // Position is ENU metres in float32 (not lat/lon doubles) so that every register is one float
 // an mbpoll -t 4:float command or a PLC REAL can write; float32 keeps 1 mm up to 8 km from the
 // origin and 6 cm at 1000 km. The link fills the geodetic lat/lon/height from the ENU eyepoint.
@@ -34,7 +40,7 @@
 // request covers a COMMIT register (24 or 25) and leaves the 32-bit COMMIT value different
 // from the last applied one. Then the whole block is decoded and applied at once, so a
 // half-written set is never rendered. Write the set and COMMIT in one FC16 request (mbpoll
-// writes all 13 floats in one), or write the set first and COMMIT last. COMMIT is compared as
+// writes all 13 or 14 floats in one), or write the set first and COMMIT last. COMMIT is compared as
 // raw bits: write an incrementing integer as float32 or int32, only the change matters; it
 // starts at 0, so the first set needs a non-zero commit. A commit write that leaves the value
 // unchanged is a repeat: nothing applies, ++late.
@@ -57,9 +63,9 @@
 //   16    out_of_range     fields rejected
 //   18    late             repeated commits
 //   20    dropped          always 0 (a set is never dropped: the newest write wins)
-//   22    map_version      1
+//   22    map_version      2 (1: no visibility_m register)
 //
-// Anything else (coils, discrete inputs, holding registers >= 26, input registers >= 24) is
+// Anything else (coils, discrete inputs, holding registers >= 28, input registers >= 24) is
 // answered with exception 2 (illegal data address); unsupported function codes with exception 1.
 #pragma once
 
@@ -83,10 +89,10 @@ std::string_view toString(WordOrder order);
 
 // Holding register slots, each two registers at address 2 * slot.
 enum class Slot : uint8_t {
-  East, North, Up, Heading, Pitch, Roll, FovY, Near, Far, SimTime, HostFrame, TimeOfDay, Commit,
+  East, North, Up, Heading, Pitch, Roll, FovY, Near, Far, SimTime, HostFrame, TimeOfDay, Commit, Visibility,
 };
-inline constexpr int kSlotCount = 13;
-inline constexpr uint16_t kHoldingCount = 2 * kSlotCount;  // 26 holding registers
+inline constexpr int kSlotCount = 14;
+inline constexpr uint16_t kHoldingCount = 2 * kSlotCount;  // 28 holding registers
 inline constexpr uint16_t slotAddress(Slot s) { return static_cast<uint16_t>(2 * static_cast<int>(s)); }
 inline constexpr uint16_t kCommitAddress = slotAddress(Slot::Commit);  // 24
 inline constexpr uint32_t kHostFrameMax = 16777216;                    // 2^24: float32 integers are exact up to here
@@ -100,7 +106,7 @@ enum class StatusSlot : uint8_t {
 };
 inline constexpr int kStatusSlotCount = 12;
 inline constexpr uint16_t kInputCount = 2 * kStatusSlotCount;  // 24 input registers
-inline constexpr uint32_t kMapVersion = 1;
+inline constexpr uint32_t kMapVersion = 2;
 
 using HoldingBlock = std::array<uint16_t, kHoldingCount>;
 using InputBlock = std::array<uint16_t, kInputCount>;
@@ -118,7 +124,8 @@ struct FieldRejects {
 
 // Decodes a holding block into `state`, field by field: a valid field replaces the value in
 // `state`, a rejected one leaves it (its last good value). Fills hostFrame, simTime_s,
-// eyeEnu_m, heading/pitch/roll, fovY_deg, near_m/far_m and timeOfDay_h (-1 when not given);
+// eyeEnu_m, heading/pitch/roll, fovY_deg, near_m/far_m, timeOfDay_h (-1 when not given) and
+// visibility_m (-1 when not given, else clamped to kMinVisibility_m ... kMaxVisibility_m);
 // lat/lon/height and dateYmd are left alone (the link fills the geodetic eyepoint).
 FieldRejects decodeHostRegisters(std::span<const uint16_t, kHoldingCount> holding, WordOrder order,
                                  HostState& state);

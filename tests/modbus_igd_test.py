@@ -3,13 +3,13 @@
 
 For each transport (modbus-tcp on loopback, modbus-rtu on a socat pty pair) this runs
 build/igd with a tiny headless output for a few seconds at 30 Hz while mbpoll writes complete
-sets (13 floats, COMMIT last, one FC16 request each) with a host frame counter and a moving
-eyepoint, and reads the IG status input registers. Then it checks:
+sets (14 floats, COMMIT and then visibility_m, one FC16 request each) with a host frame counter,
+a moving eyepoint and a changing visibility, and reads the IG status input registers. Then it checks:
   - igd exits 0 and prints "igd: link <name>: received N accepted M malformed 0 ...", with M
     at least the number of writes mbpoll reported as done;
   - the status registers read while igd ran show IG frames counting and the sets accepted;
-  - every stats row that rendered one of the sets shows that set's eyepoint and heading, and the
-    host frame never goes back.
+  - every stats row that rendered one of the sets shows that set's eyepoint, heading and fog
+    visibility, and the host frame never goes back.
 
 Usage: modbus_igd_test.py <igd> <source dir>
 """
@@ -41,13 +41,13 @@ def free_port():
 def set_values(k):
     """Set k: eyepoint, attitude and host frame that identify it in the stats."""
     return {"east": 100.0 + 10.0 * k, "north": -50.0, "up": 300.0, "heading": 90.0 + k,
-            "frame": FIRST_FRAME + k}
+            "frame": FIRST_FRAME + k, "visibility": 2000.0 + 10.0 * k}
 
 
 def set_args(k):
     v = set_values(k)
     return [str(v["east"]), str(v["north"]), str(v["up"]), str(v["heading"]), "-2", "0",
-            "50", "0.5", "30000", str(k / RATE_HZ), str(v["frame"]), "12", str(k)]
+            "50", "0.5", "30000", str(k / RATE_HZ), str(v["frame"]), "12", str(k), str(v["visibility"])]
 
 
 def run_case(name, table, mbpoll_base, tmp):
@@ -92,7 +92,7 @@ def run_case(name, table, mbpoll_base, tmp):
     assert statuses, f"{name}: mbpoll never read the status registers"
     last = statuses[-1]
     assert last[0] > 0, f"{name}: ig_frame not counting: {last}"
-    assert last[6] >= 1 and last[11] == 1, f"{name}: status {last}"
+    assert last[6] >= 1 and last[11] == 2, f"{name}: status {last}"  # accepted, map_version
     assert all(b[0] >= a[0] for a, b in zip(statuses, statuses[1:])), f"{name}: ig_frame went back: {statuses}"
 
     with open(os.path.join(tmp, "stats.csv")) as f:
@@ -107,7 +107,7 @@ def run_case(name, table, mbpoll_base, tmp):
         prev = frame
         v = set_values(frame - FIRST_FRAME)
         for column, key in (("eye_east_m", "east"), ("eye_north_m", "north"), ("eye_up_m", "up"),
-                            ("heading_deg", "heading")):
+                            ("heading_deg", "heading"), ("fog_visibility_m", "visibility")):
             assert abs(float(row[column]) - v[key]) < 0.01, f"{name}: frame {row['frame']} {column} {row[column]} != {v[key]}"
         seen.add(frame)
     assert len(seen) >= 5, f"{name}: only {len(seen)} host sets rendered: {sorted(seen)}"

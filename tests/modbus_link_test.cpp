@@ -392,9 +392,9 @@ TEST(ModbusTcp, UnknownRegistersAnswerIllegalDataAddress) {
   Master m(f.port);
   ASSERT_TRUE(m.connected);
   const uint16_t one[2] = {1, 2};
-  EXPECT_EQ(m.write(26, std::span<const uint16_t>(one, 1)), -1);
+  EXPECT_EQ(m.write(28, std::span<const uint16_t>(one, 1)), -1);
   EXPECT_EQ(errno, EMBXILADD);
-  EXPECT_EQ(m.write(25, std::span<const uint16_t>(one, 2)), -1);
+  EXPECT_EQ(m.write(27, std::span<const uint16_t>(one, 2)), -1);
   EXPECT_EQ(errno, EMBXILADD);
   EXPECT_EQ(modbus_write_register(m.ctx, 100, 1), -1);
   EXPECT_EQ(errno, EMBXILADD);
@@ -652,7 +652,7 @@ TEST_P(MbpollTcp, WritesFloatsAndReadsStatus) {
   EXPECT_EQ(v[5], 2);     // received: the write and this read
   EXPECT_EQ(v[6], 1);     // accepted
   EXPECT_EQ(v[7], 0);     // malformed
-  EXPECT_EQ(v[11], 1);    // map_version
+  EXPECT_EQ(v[11], 2);    // map_version
 
   // Plain 16-bit reads (mbpoll -t 3) work too: ig_frame's two words.
   read = {"mbpoll", "-m", "tcp", "-p", port, "-r", "1", "-t", "3", "-c", "2", "-1", "-o", "5", "127.0.0.1"};
@@ -684,12 +684,21 @@ TEST(MbpollTcp, ZeroBasedTwoStepCommitAndBadAddress) {
   ASSERT_TRUE(f.sink.waitFor(1));
   EXPECT_EQ(f.sink.size(), 1u);
   expectSet(f.sink.last());
-  // A float at address 26 is outside the map: mbpoll reports the exception.
-  r = run(concat(base, {"-r", "26", "127.0.0.1", "1"}));
+  // visibility_m at address 26 (after COMMIT), then a new COMMIT: it applies with it.
+  r = run(concat(base, {"-r", "26", "127.0.0.1", "1500"}));
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_EQ(f.sink.size(), 1u);
+  r = run(concat(base, {"-r", "24", "127.0.0.1", "8"}));
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  ASSERT_TRUE(f.sink.waitFor(2));
+  EXPECT_EQ(f.sink.last().visibility_m, 1500.0);
+  expectSet(f.sink.last());
+  // A float at address 28 is outside the map: mbpoll reports the exception.
+  r = run(concat(base, {"-r", "28", "127.0.0.1", "1"}));
   EXPECT_NE(r.exitCode, 0) << r.output;
   EXPECT_NE(r.output.find("Illegal data address"), std::string::npos) << r.output;
   EXPECT_TRUE(waitUntil([&] { return f.link->counters().malformed.load() == 1; }));
-  EXPECT_EQ(f.sink.size(), 1u);
+  EXPECT_EQ(f.sink.size(), 2u);
 }
 
 // RTU over a pty pair: the link on one end, mbpoll (and raw bytes) on the other.
@@ -783,7 +792,7 @@ TEST(MbpollRtu, WritesFloatsOverAPtyPairAndSurvivesABadCrc) {
   EXPECT_EQ(v[0], 99);   // ig_frame
   EXPECT_EQ(v[6], 1);    // accepted
   EXPECT_EQ(v[7], 1);    // malformed: the bad CRC
-  EXPECT_EQ(v[11], 1);   // map_version
+  EXPECT_EQ(v[11], 2);   // map_version
   // A second set with a new COMMIT applies.
   std::vector<std::string> second = setArgs(2);
   second[0] = "-40";

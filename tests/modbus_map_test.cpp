@@ -35,6 +35,7 @@ HoldingBlock makeSet(WordOrder order, uint32_t commit) {
   const auto high = static_cast<uint16_t>(commit >> 16), low = static_cast<uint16_t>(commit & 0xFFFF);
   b[24] = order == WordOrder::LowFirst ? low : high;
   b[25] = order == WordOrder::LowFirst ? high : low;
+  putFloat(b, 26, 2500.0f, order);  // visibility_m, after COMMIT
   return b;
 }
 
@@ -51,6 +52,7 @@ void expectSet(const HostState& s) {
   EXPECT_DOUBLE_EQ(s.simTime_s, 3600.25);
   EXPECT_EQ(s.hostFrame, 4242u);
   EXPECT_DOUBLE_EQ(s.timeOfDay_h, 13.5);
+  EXPECT_DOUBLE_EQ(s.visibility_m, 2500.0);
 }
 
 class ModbusMapOrders : public ::testing::TestWithParam<WordOrder> {};
@@ -88,7 +90,10 @@ TEST(ModbusMap, AddressesAreFixed) {
   EXPECT_EQ(slotAddress(Slot::HostFrame), 20);
   EXPECT_EQ(slotAddress(Slot::TimeOfDay), 22);
   EXPECT_EQ(kCommitAddress, 24);
-  EXPECT_EQ(kHoldingCount, 26);
+  EXPECT_EQ(slotAddress(Slot::Visibility), 26);  // after COMMIT: map version 1 hosts write 26 registers
+  EXPECT_EQ(kHoldingCount, 28);
+  EXPECT_EQ(kMapVersion, 2u);
+  EXPECT_EQ(slotName(Slot::Visibility), "visibility_m");
   EXPECT_EQ(kInputCount, 24);
   EXPECT_EQ(slotName(Slot::TimeOfDay), "time_of_day_h");
 }
@@ -127,6 +132,7 @@ TEST_P(ModbusMapOrders, EncodeDecodeRoundTrip) {
   in.simTime_s = 12.5;
   in.hostFrame = 77;
   in.timeOfDay_h = -1.0;
+  in.visibility_m = 3200.0;
   HoldingBlock b{};
   encodeHostRegisters(in, 0xCAFEBABE, order, b);
   EXPECT_EQ(readU32(b, kCommitAddress, order), 0xCAFEBABEu);
@@ -139,19 +145,23 @@ TEST_P(ModbusMapOrders, EncodeDecodeRoundTrip) {
   EXPECT_EQ(out.far_m, in.far_m);
   EXPECT_EQ(out.hostFrame, 77u);
   EXPECT_EQ(out.timeOfDay_h, -1.0);
+  EXPECT_EQ(out.visibility_m, 3200.0);
   // The defaults encode to a block that decodes cleanly (the registers at start-up).
   encodeHostRegisters(HostState{}, 0, order, b);
   HostState d;
   EXPECT_EQ(decodeHostRegisters(b, order, d).count, 0u);
   EXPECT_FLOAT_EQ(static_cast<float>(d.near_m), 0.1f);
   EXPECT_EQ(d.timeOfDay_h, -1.0);
+  EXPECT_EQ(d.visibility_m, -1.0);  // not given: a host of map version 1 never writes it
+  EXPECT_FLOAT_EQ(readF32(b, slotAddress(Slot::Visibility), order), -1.0f);
 }
 
 TEST_P(ModbusMapOrders, NaNRejectedFieldByField) {
   const WordOrder order = GetParam();
   HostState good;
   decodeHostRegisters(makeSet(order, 1), order, good);
-  for (int slot = 0; slot < 12; ++slot) {
+  for (int slot = 0; slot < kSlotCount; ++slot) {
+    if (slot == static_cast<int>(Slot::Commit)) continue;
     HoldingBlock b = makeSet(order, 2);
     // A different good value everywhere, then NaN in one slot.
     putFloat(b, 0, 10.0f, order);
@@ -194,6 +204,9 @@ TEST(ModbusMap, RangesPerField) {
       {Slot::SimTime, inf, false},     {Slot::HostFrame, 12.5f, false}, {Slot::HostFrame, -1.0f, false},
       {Slot::HostFrame, 16777216.0f, true}, {Slot::HostFrame, 16777218.0f, false},
       {Slot::TimeOfDay, 23.99f, true}, {Slot::TimeOfDay, 24.0f, false}, {Slot::TimeOfDay, -inf, false},
+      {Slot::Visibility, 1e7f, true},  {Slot::Visibility, 1.1e7f, false}, {Slot::Visibility, inf, false},
+      {Slot::Visibility, std::numeric_limits<float>::quiet_NaN(), false}, {Slot::Visibility, -inf, false},
+      {Slot::Visibility, 0.0f, true},  {Slot::Visibility, -3.0f, true},
   };
   for (const Case& c : cases) {
     HoldingBlock b = makeSet(o, 1);
@@ -210,6 +223,24 @@ TEST(ModbusMap, RangesPerField) {
   s.timeOfDay_h = 10.0;
   EXPECT_EQ(decodeHostRegisters(b, o, s).count, 0u);
   EXPECT_EQ(s.timeOfDay_h, -1.0);
+  // Visibility: <= 0 is "not given" (the scene's fog; a zero-filled register must not fog the
+  // picture out), below 1 m is drawn at 1 m, a rejected one keeps the last good value.
+  s.visibility_m = 800.0;
+  putFloat(b, slotAddress(Slot::Visibility), 0.0f, o);
+  decodeHostRegisters(b, o, s);
+  EXPECT_EQ(s.visibility_m, -1.0);
+  putFloat(b, slotAddress(Slot::Visibility), 0.25f, o);
+  decodeHostRegisters(b, o, s);
+  EXPECT_EQ(s.visibility_m, 1.0);
+  putFloat(b, slotAddress(Slot::Visibility), 750.5f, o);
+  decodeHostRegisters(b, o, s);
+  EXPECT_EQ(s.visibility_m, 750.5);
+  putFloat(b, slotAddress(Slot::Visibility), std::numeric_limits<float>::quiet_NaN(), o);
+  EXPECT_EQ(decodeHostRegisters(b, o, s).count, 1u);
+  EXPECT_EQ(s.visibility_m, 750.5);
+  putFloat(b, slotAddress(Slot::Visibility), -1.0f, o);
+  decodeHostRegisters(b, o, s);
+  EXPECT_EQ(s.visibility_m, -1.0);
   // The largest host frame float32 holds exactly.
   putFloat(b, slotAddress(Slot::HostFrame), 16777216.0f, o);
   decodeHostRegisters(b, o, s);
@@ -263,6 +294,11 @@ TEST_P(ModbusMapOrders, CommitAppliesTheWholeSetAtOnce) {
   w = map.afterWrite(regs, 12, 12);
   EXPECT_FALSE(w.committed);
   EXPECT_EQ(map.state().hostFrame, 0u);
+  // visibility_m, after COMMIT's address, written before it: still nothing applies.
+  std::copy(set.begin() + 26, set.begin() + 28, regs.begin() + 26);
+  w = map.afterWrite(regs, 26, 2);
+  EXPECT_FALSE(w.committed);
+  EXPECT_EQ(map.state().visibility_m, -1.0);
   // COMMIT (one register of it, as FC6 would): the whole set applies.
   regs[24] = set[24];
   regs[25] = set[25];
@@ -286,6 +322,15 @@ TEST_P(ModbusMapOrders, CommitAppliesTheWholeSetAtOnce) {
   // Any change counts, even backwards (a host restarting its counter).
   writeU32(regs, kCommitAddress, 1, order);
   EXPECT_TRUE(map.afterWrite(regs, 20, 6).committed);
+  // 14 floats in one request (a map version 2 host): the visibility after COMMIT applies with it.
+  putFloat(regs, slotAddress(Slot::Visibility), 600.0f, order);
+  writeU32(regs, kCommitAddress, 3, order);
+  EXPECT_TRUE(map.afterWrite(regs, 0, 28).committed);
+  EXPECT_EQ(map.state().visibility_m, 600.0);
+  // The visibility alone, after the commit: it waits for the next one.
+  putFloat(regs, slotAddress(Slot::Visibility), 900.0f, order);
+  EXPECT_FALSE(map.afterWrite(regs, 26, 2).committed);
+  EXPECT_EQ(map.state().visibility_m, 600.0);
   // A write that ends just before COMMIT never commits, whatever COMMIT holds.
   writeU32(regs, kCommitAddress, 99, order);
   EXPECT_FALSE(map.afterWrite(regs, 0, 24).committed);
@@ -357,9 +402,15 @@ TEST(ModbusRequest, ChecksAgainstTheMap) {
   EXPECT_EQ(c.exception, Exception::None);
   EXPECT_EQ(c.writeStart, 0);
   EXPECT_EQ(c.writeCount, 26);
+  // 14 floats from 0 (map version 2: visibility_m after COMMIT).
+  V fc16v2 = {0x10, 0x00, 0x00, 0x00, 28, 56};
+  fc16v2.resize(fc16v2.size() + 56, 0);
+  c = check(fc16v2);
+  EXPECT_EQ(c.exception, Exception::None);
+  EXPECT_EQ(c.writeCount, 28);
   // FC16 one register past the map: illegal data address, no write.
-  V past = {0x10, 0x00, 0x01, 0x00, 26, 52};
-  past.resize(past.size() + 52, 0);
+  V past = {0x10, 0x00, 0x01, 0x00, 28, 56};
+  past.resize(past.size() + 56, 0);
   c = check(past);
   EXPECT_EQ(c.exception, Exception::IllegalDataAddress);
   EXPECT_EQ(c.writeCount, 0);
@@ -371,10 +422,11 @@ TEST(ModbusRequest, ChecksAgainstTheMap) {
   EXPECT_TRUE(c.flush);
   // FC6 to the commit's high register and past the end.
   EXPECT_EQ(check({0x06, 0x00, 25, 0x00, 0x01}).writeStart, 25);
-  EXPECT_EQ(check({0x06, 0x00, 26, 0x00, 0x01}).exception, Exception::IllegalDataAddress);
+  EXPECT_EQ(check({0x06, 0x00, 27, 0x00, 0x01}).writeStart, 27);
+  EXPECT_EQ(check({0x06, 0x00, 28, 0x00, 0x01}).exception, Exception::IllegalDataAddress);
   // FC3 / FC4 limits.
-  EXPECT_EQ(check({0x03, 0x00, 0x00, 0x00, 26}).exception, Exception::None);
-  EXPECT_EQ(check({0x03, 0x00, 0x00, 0x00, 27}).exception, Exception::IllegalDataAddress);
+  EXPECT_EQ(check({0x03, 0x00, 0x00, 0x00, 28}).exception, Exception::None);
+  EXPECT_EQ(check({0x03, 0x00, 0x00, 0x00, 29}).exception, Exception::IllegalDataAddress);
   EXPECT_EQ(check({0x03, 0x00, 0x00, 0x00, 0}).exception, Exception::IllegalDataValue);
   EXPECT_TRUE(check({0x04, 0x00, 0x00, 0x00, 24}).readsStatus);
   EXPECT_EQ(check({0x04, 0x00, 0x16, 0x00, 3}).exception, Exception::IllegalDataAddress);
@@ -390,7 +442,7 @@ TEST(ModbusRequest, ChecksAgainstTheMap) {
   EXPECT_EQ(c.exception, Exception::None);
   EXPECT_EQ(c.writeStart, 24);
   EXPECT_EQ(c.writeCount, 2);
-  EXPECT_EQ(check({0x17, 0x00, 0x00, 0x00, 2, 0x00, 25, 0x00, 2, 4, 0, 0, 0, 7}).exception,
+  EXPECT_EQ(check({0x17, 0x00, 0x00, 0x00, 2, 0x00, 27, 0x00, 2, 4, 0, 0, 0, 7}).exception,
             Exception::IllegalDataAddress);
   // Report slave id passes; unknown functions are illegal and flush.
   EXPECT_EQ(check({0x11}).exception, Exception::None);
