@@ -1,5 +1,6 @@
 #include "io/can_map.h"
 
+#include <algorithm>
 #include <cerrno>
 #include <charconv>
 #include <cmath>
@@ -97,6 +98,13 @@ void encodeCanSet(const CanEyeSet& set, uint8_t seq, uint32_t baseId, std::array
   putU32(&out[0].data[1], static_cast<uint32_t>(toRaw(set.lat_deg, kLatLonDiv, i32lo, i32hi, kNa32)));
   putU32(&out[1].data[1], static_cast<uint32_t>(toRaw(set.lon_deg, kLatLonDiv, i32lo, i32hi, kNa32)));
   putU32(&out[2].data[1], static_cast<uint32_t>(toRaw(set.height_m, kHeightDiv, i32lo, i32hi, kNa32)));
+  // Not given (<= 0): 0; a positive visibility at least 1 m (never "not given" by rounding).
+  const uint32_t vis = std::isnan(set.visibility_m) || std::isinf(set.visibility_m) ? kCanVisibilityNa
+                       : set.visibility_m <= 0.0                                    ? 0u
+                                                 : static_cast<uint32_t>(toRaw(set.visibility_m, 1.0, 1, kCanVisibilityNa, kCanVisibilityNa));
+  out[2].data[5] = static_cast<uint8_t>(vis);
+  out[2].data[6] = static_cast<uint8_t>(vis >> 8);
+  out[2].data[7] = static_cast<uint8_t>(vis >> 16);
   uint16_t heading = kNaHeading;
   if (std::isfinite(set.heading_deg)) {
     double h = std::fmod(set.heading_deg, 360.0);
@@ -141,6 +149,9 @@ CanDecodeStatus decodeCanFrame(const CanFrame& frame, uint32_t baseId, CanDecode
     case CanFrameIndex::Height:
       fields.height_m = checked(static_cast<int32_t>(getU32(d + 1)), static_cast<int64_t>(kCanHeightMin_m * kHeightDiv),
                                 static_cast<int64_t>(kCanHeightMax_m * kHeightDiv), kHeightDiv);
+      fields.visibility_m = checked(static_cast<int64_t>(d[5]) | (static_cast<int64_t>(d[6]) << 8) |
+                                        (static_cast<int64_t>(d[7]) << 16),
+                                    0, kCanVisibilityMax_m, 1.0);
       break;
     case CanFrameIndex::Attitude:
       fields.heading_deg = checked(getU16(d + 1), 0, 35999, kAngleDiv);
@@ -211,7 +222,10 @@ CanSetAssembler::Result CanSetAssembler::push(const CanFrame& frame, int64_t now
   switch (d.index) {
     case CanFrameIndex::Lat: partial_.lat_deg = fields.lat_deg; break;
     case CanFrameIndex::Lon: partial_.lon_deg = fields.lon_deg; break;
-    case CanFrameIndex::Height: partial_.height_m = fields.height_m; break;
+    case CanFrameIndex::Height:
+      partial_.height_m = fields.height_m;
+      partial_.visibility_m = fields.visibility_m;
+      break;
     case CanFrameIndex::Attitude:
       partial_.heading_deg = fields.heading_deg;
       partial_.pitch_deg = fields.pitch_deg;
@@ -249,6 +263,10 @@ void CanSetAssembler::commit(HostState& out) {
   apply(partial_.pitch_deg, attitude_.pitch_deg);
   apply(partial_.roll_deg, attitude_.roll_deg);
   apply(partial_.simTime_s, state_.simTime_s);
+  // Visibility: 0 = not given (the scene's fog), else metres; a rejected one keeps the last good.
+  double visibility = state_.visibility_m;
+  apply(partial_.visibility_m, visibility);
+  state_.visibility_m = visibility > 0.0 ? std::max(visibility, kMinVisibility_m) : -1.0;
   state_.hostFrame = partial_.hostFrame;
   state_.eyeEnu_m = enu_.fromGeodetic(lod::Geodetic{state_.lat_deg, state_.lon_deg, state_.height_m});
   // Heading from true north at the eye, pitch and roll against its local horizontal -> the

@@ -89,6 +89,8 @@ def main():
                 failures.append(f'frame {r["frame"]}: heading {r["heading_deg"]}, expected {heading}')
             if abs(float(r['sim_time_s']) - sim) > 0.0011:
                 failures.append(f'frame {r["frame"]}: sim_time_s {r["sim_time_s"]}, expected {sim:.4f}')
+            if abs(float(r['fog_visibility_m']) - (3000.0 + 10.0 * k)) > 0.01:
+                failures.append(f'frame {r["frame"]}: fog_visibility_m {r["fog_visibility_m"]}, expected {3000.0 + 10.0 * k}')
             if r['host_lost'] != '0' and k < sets - 1:  # after the last set the host is lost 1 s later
                 failures.append(f'frame {r["frame"]}: host_lost {r["host_lost"]} while sets are arriving (set {k})')
             checked += 1
@@ -110,6 +112,8 @@ def main():
         (e, n, u), heading, _ = expected(k)
         if max(abs(float(s[3]) - e), abs(float(s[4]) - n), abs(float(s[5]) - u)) > 0.01:
             failures.append(f'recording: host frame {s[1]}: ENU {s[3:6]}, expected ({e:.3f}, {n:.3f}, {u:.3f})')
+        if float(s[17]) != 3000.0 + 10.0 * k:
+            failures.append(f'recording: host frame {s[1]}: vis_m {s[17]}, expected {3000.0 + 10.0 * k}')
         want = attitude(k)
         if max(abs(angle_diff(float(s[6 + i]), want[i])) for i in range(3)) > 2e-6:
             failures.append(f'recording: host frame {s[1]}: heading/pitch/roll {s[6:9]}, expected {want}')

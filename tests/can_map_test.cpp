@@ -40,6 +40,7 @@ CanEyeSet sampleSet() {
   s.roll_deg = 12.75;
   s.simTime_s = 36000.125;
   s.hostFrame = 0x123456;
+  s.visibility_m = 4321.0;
   return s;
 }
 
@@ -208,6 +209,8 @@ TEST(CanMap, OutOfRangeRawValuesAreRejectedOneByOne) {
   cases.push_back({"height 1e6+0.001", with([](CanEyeSet& s) { s.height_m = 1e6 + 0.001; })});
   cases.push_back({"pitch 90.01", with([](CanEyeSet& s) { s.pitch_deg = 90.01; })});
   cases.push_back({"roll -180.01", with([](CanEyeSet& s) { s.roll_deg = -180.01; })});
+  cases.push_back({"visibility 1e7 + 1", with([](CanEyeSet& s) { s.visibility_m = 1e7 + 1; })});
+  cases.push_back({"visibility NaN", with([](CanEyeSet& s) { s.visibility_m = kNaN; })});
   for (const Case& c : cases) {
     Assembly a;
     a.pushAll(encode(sampleSet(), 1), 0);
@@ -224,6 +227,7 @@ TEST(CanMap, OutOfRangeRawValuesAreRejectedOneByOne) {
     EXPECT_DOUBLE_EQ(a.out.pitch_deg, good.pitch_deg) << c.what;
     EXPECT_DOUBLE_EQ(a.out.roll_deg, good.roll_deg) << c.what;
     EXPECT_DOUBLE_EQ(a.out.simTime_s, good.simTime_s) << c.what;
+    EXPECT_DOUBLE_EQ(a.out.visibility_m, good.visibility_m) << c.what;
   }
   // Heading cannot be sent out of range by the encoder (it wraps): poke 360.00.
   Assembly a;
@@ -240,6 +244,28 @@ TEST(CanMap, OutOfRangeRawValuesAreRejectedOneByOne) {
   const auto want = expectedAttitude(g.lat_deg, g.lon_deg, 271.25, 0.16, g.roll_deg);
   EXPECT_NEAR(a.out.heading_deg, want.heading_deg, 1e-9);
   EXPECT_NEAR(a.out.pitch_deg, want.pitch_deg, 1e-9);
+}
+
+TEST(CanMap, VisibilityZeroIsNotGivenAndPositiveIsAtLeastOneMetre) {
+  auto vis = [](double v, uint8_t seq, auto& a) {
+    CanEyeSet s = sampleSet();
+    s.visibility_m = v;
+    a.pushAll(encode(s, seq), 1000 * seq);
+    return a.out.visibility_m;
+  };
+  Assembly a;
+  EXPECT_EQ(vis(4321.0, 1, a), 4321.0);
+  // 0 (what map version 1 hosts send in these bytes) and negative: not given, the scene's fog.
+  EXPECT_EQ(vis(0.0, 2, a), -1.0);
+  EXPECT_EQ(vis(-5.0, 3, a), -1.0);
+  // A positive visibility below 1 m is sent as 1 m, never as "not given".
+  EXPECT_EQ(vis(0.3, 4, a), 1.0);
+  EXPECT_EQ(vis(1e7, 5, a), 1e7);
+  // Not available (NaN): rejected, the last good value stays.
+  EXPECT_EQ(vis(kNaN, 6, a), 1e7);
+  EXPECT_EQ(a.c().outOfRange, 1u);
+  const auto f = encode(sampleSet(), 7);
+  EXPECT_EQ(f[2].data[5] | f[2].data[6] << 8 | f[2].data[7] << 16, 4321);
 }
 
 TEST(CanMap, OtherFieldsOfASetApplyWhenOneIsRejected) {
@@ -820,7 +846,7 @@ TEST(CanDbc, MatchesTheCppMap) {
                                            {"EyeHeight", in.height_m},  {"Heading", in.heading_deg},
                                            {"Pitch", in.pitch_deg},     {"Roll", in.roll_deg},
                                            {"SimTime", in.simTime_s},   {"HostFrame", in.hostFrame},
-                                           {"SeqCounter", 0xC3}};
+                                           {"Visibility", in.visibility_m}, {"SeqCounter", 0xC3}};
   int checked = 0;
   for (size_t i = 0; i < msgs.size(); ++i) {
     for (const DbcSignal& s : msgs[i].signals) {
@@ -830,14 +856,14 @@ TEST(CanDbc, MatchesTheCppMap) {
       ++checked;
     }
   }
-  EXPECT_EQ(checked, 13);
+  EXPECT_EQ(checked, 14);
   // The DBC's ranges are the C++ valid ranges: min and max decode, one step outside does not.
   struct Edge {
     size_t msg;
     const char* signal;
   };
-  for (const Edge& e : {Edge{0, "EyeLatitude"}, Edge{1, "EyeLongitude"}, Edge{2, "EyeHeight"}, Edge{3, "Heading"},
-                        Edge{3, "Pitch"}, Edge{3, "Roll"}}) {
+  for (const Edge& e : {Edge{0, "EyeLatitude"}, Edge{1, "EyeLongitude"}, Edge{2, "EyeHeight"}, Edge{2, "Visibility"},
+                        Edge{3, "Heading"}, Edge{3, "Pitch"}, Edge{3, "Roll"}}) {
     const auto& sigs = msgs[e.msg].signals;
     const auto it = std::find_if(sigs.begin(), sigs.end(), [&](const DbcSignal& s) { return s.name == e.signal; });
     ASSERT_NE(it, sigs.end());
