@@ -26,7 +26,8 @@ void checkState(const HostState& s) {
         s.height_m >= kCanHeightMin_m && s.height_m <= kCanHeightMax_m && s.heading_deg >= 0 && s.heading_deg < 360 &&
         s.pitch_deg >= -90 && s.pitch_deg <= 90 && s.roll_deg >= -180 && s.roll_deg <= 180 && s.simTime_s >= 0 &&
         std::isfinite(s.simTime_s) && std::isfinite(s.eyeEnu_m.x) && std::isfinite(s.eyeEnu_m.y) &&
-        std::isfinite(s.eyeEnu_m.z) && s.hostFrame < (1u << 24)))
+        std::isfinite(s.eyeEnu_m.z) && s.hostFrame < (1u << 24) &&
+        (s.visibility_m == -1.0 || (s.visibility_m >= kMinVisibility_m && s.visibility_m <= kMaxVisibility_m))))
     std::abort();
 }
 

@@ -4,7 +4,8 @@
 // map; every applied HostState field is finite and inside its documented range; the status
 // block round-trips.
 //
-// Input: byte 0 bit 0 = word order; bytes 1..52 = the initial holding block; the rest is a
+// Input: byte 0 bit 0 = word order; bytes 1..56 = the initial holding block (28 registers,
+// big-endian); the rest is a
 // sequence of PDUs, each preceded by its length byte.
 #include <cmath>
 #include <cstddef>
@@ -35,6 +36,7 @@ void checkState(const HostState& s) {
   check(s.simTime_s >= 0.0 && s.simTime_s <= 1e9);
   check(s.hostFrame <= kHostFrameMax);
   check(s.timeOfDay_h == -1.0 || (s.timeOfDay_h >= 0.0 && s.timeOfDay_h < 24.0));
+  check(s.visibility_m == -1.0 || (s.visibility_m >= kMinVisibility_m && s.visibility_m <= kMaxVisibility_m));
 }
 
 uint16_t be16(std::span<const uint8_t> p, size_t at) { return static_cast<uint16_t>((p[at] << 8) | p[at + 1]); }

@@ -98,10 +98,13 @@ void encodeCanSet(const CanEyeSet& set, uint8_t seq, uint32_t baseId, std::array
   putU32(&out[0].data[1], static_cast<uint32_t>(toRaw(set.lat_deg, kLatLonDiv, i32lo, i32hi, kNa32)));
   putU32(&out[1].data[1], static_cast<uint32_t>(toRaw(set.lon_deg, kLatLonDiv, i32lo, i32hi, kNa32)));
   putU32(&out[2].data[1], static_cast<uint32_t>(toRaw(set.height_m, kHeightDiv, i32lo, i32hi, kNa32)));
-  // Not given (<= 0): 0; a positive visibility at least 1 m (never "not given" by rounding).
-  const uint32_t vis = std::isnan(set.visibility_m) || std::isinf(set.visibility_m) ? kCanVisibilityNa
-                       : set.visibility_m <= 0.0                                    ? 0u
-                                                 : static_cast<uint32_t>(toRaw(set.visibility_m, 1.0, 1, kCanVisibilityNa, kCanVisibilityNa));
+  // NaN: not available; not given (<= 0): 0; a positive visibility at least 1 m (never "not
+  // given" by rounding), "unlimited" (+infinity, anything above the raw range) the largest raw.
+  const double v = set.visibility_m;
+  const uint32_t vis = std::isnan(v)                                   ? kCanVisibilityNa
+                       : v <= 0.0                                      ? 0u
+                       : v >= static_cast<double>(kCanVisibilityNa - 1) ? kCanVisibilityNa - 1
+                                                                       : static_cast<uint32_t>(std::max(1.0, std::round(v)));
   out[2].data[5] = static_cast<uint8_t>(vis);
   out[2].data[6] = static_cast<uint8_t>(vis >> 8);
   out[2].data[7] = static_cast<uint8_t>(vis >> 16);
@@ -149,9 +152,11 @@ CanDecodeStatus decodeCanFrame(const CanFrame& frame, uint32_t baseId, CanDecode
     case CanFrameIndex::Height:
       fields.height_m = checked(static_cast<int32_t>(getU32(d + 1)), static_cast<int64_t>(kCanHeightMin_m * kHeightDiv),
                                 static_cast<int64_t>(kCanHeightMax_m * kHeightDiv), kHeightDiv);
-      fields.visibility_m = checked(static_cast<int64_t>(d[5]) | (static_cast<int64_t>(d[6]) << 8) |
-                                        (static_cast<int64_t>(d[7]) << 16),
-                                    0, kCanVisibilityMax_m, 1.0);
+      // Above 1e7 m (a host's "unlimited"): 1e7, as CIGI's; 0xFFFFFF: not available.
+      fields.visibility_m = std::min(checked(static_cast<int64_t>(d[5]) | (static_cast<int64_t>(d[6]) << 8) |
+                                                 (static_cast<int64_t>(d[7]) << 16),
+                                             0, kCanVisibilityNa - 1, 1.0),
+                                     static_cast<double>(kCanVisibilityMax_m));
       break;
     case CanFrameIndex::Attitude:
       fields.heading_deg = checked(getU16(d + 1), 0, 35999, kAngleDiv);

@@ -10,7 +10,8 @@
 //   base_id+0   IG_EYE_LAT         1-4 lat       int32  x 1e-7 deg  [-90, 90]        (1.1 cm)
 //   base_id+1   IG_EYE_LON         1-4 lon       int32  x 1e-7 deg  [-180, 180]      (1.1 cm at the equator)
 //   base_id+2   IG_EYE_HEIGHT      1-4 height    int32  x 1e-3 m    [-1000, 1000000] WGS-84 ellipsoid height
-//                                  5-7 visibility uint24 x 1 m      [0, 10000000]    the fog's visibility; 0 = not given
+//                                  5-7 visibility uint24 x 1 m      [0, 16777214]    the fog's visibility; 0 = not given,
+//                                                                                     above 1e7 = 1e7 (unlimited)
 //   base_id+3   IG_EYE_ATTITUDE    1-2 heading   uint16 x 0.01 deg  [0, 360)         clockwise from true north at the eye
 //                                  3-4 pitch     int16  x 0.01 deg  [-90, 90]        nose up positive
 //                                  5-6 roll      int16  x 0.01 deg  [-180, 180]      right wing down positive
@@ -19,10 +20,13 @@
 // Unused bytes (5-7 of the first two frames, 7 of the attitude frame) are sent as 0 and
 // ignored. The raw value INT32_MIN (lat, lon, height), 0xFFFF (heading), INT16_MIN (pitch,
 // roll), 0xFFFFFFFF (sim_time) or 0xFFFFFF (visibility) means "not available" (the encoder
-// writes it for NaN or infinite values) and is rejected like an out-of-range value.
+// writes it for NaN or infinite values; for the visibility NaN only) and is rejected like an
+// out-of-range value.
 // visibility (added in map version 2, in bytes version 1 sent as 0): 0 = not given, the scene's
 // [fog] applies (so a host that sends zeros there keeps the scene's fog); 1 .. 10,000,000 m =
-// the fog's meteorological visibility (io::HostState::visibility_m).
+// the fog's meteorological visibility (io::HostState::visibility_m); 10,000,001 .. 16,777,214 =
+// 10,000,000 (a host's "unlimited", as CIGI's is clamped). The encoder sends <= 0 as 0, +infinity
+// and anything above the raw range as 16,777,214.
 //
 // Set assembly (CanSetAssembler): the five frames with the same counter form a set. The frame
 // that completes the set commits it (in any order); the set's fields are then validated one by
@@ -91,7 +95,8 @@ inline constexpr double kCanHeightScale_m = 1e-3;
 inline constexpr double kCanAngleScale_deg = 0.01;
 inline constexpr double kCanSimTimeScale_s = 1e-3;
 inline constexpr double kCanHeightMin_m = -1000.0, kCanHeightMax_m = 1'000'000.0;
-inline constexpr uint32_t kCanVisibilityMax_m = 10'000'000;  // = io::kMaxVisibility_m
+inline constexpr uint32_t kCanVisibilityMax_m = 10'000'000;  // larger raw values mean this much
+static_assert(kCanVisibilityMax_m == kMaxVisibility_m);
 inline constexpr uint32_t kCanVisibilityNa = 0xFFFFFF;       // "not available" (uint24 all ones)
 
 // The values one set carries. NaN = not available (the encoder sends the "not available" raw
@@ -105,7 +110,7 @@ struct CanEyeSet {
   double roll_deg = 0.0;
   double simTime_s = 0.0;
   uint32_t hostFrame = 0;  // only the low 24 bits travel
-  double visibility_m = 0.0;  // <= 0: not given (raw 0); positive values are sent as at least 1 m
+  double visibility_m = 0.0;  // <= 0: not given (raw 0); positive values are sent as at least 1 m; NaN: not available
 };
 
 // Encodes a set into its five frames (ids baseId+0..4, counter `seq` in byte 0). NaN or

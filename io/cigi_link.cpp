@@ -753,7 +753,8 @@ void CigiLink::handleDatagram(const void* data, size_t size, int flags, sockaddr
   }
   if (result == CigiAssembler::Result::published) {
     // Counted before it is visible: whoever saw the state published (a test waiting on the
-    // sink) and then starts a frame finds it counted.
+    // sink) and then starts a frame finds it counted. A frame that starts between the two
+    // counts a state it does not render yet, so `dropped` may undercount by one then.
     publishedSinceFrame_.fetch_add(1, std::memory_order_relaxed);
     sink_->publish(assembler_->state());
   }

@@ -38,7 +38,8 @@ struct HostState {
   double timeOfDay_h = -1.0;         // UTC hours, 0 <= h < 24
   int32_t dateYmd = 0;               // UTC date as YYYYMMDD, e.g. 20260621
   // Meteorological visibility for the fog (CIGI Atmosphere Control's visibility range, the
-  // Modbus register visibility_m, the CAN signal visibility_m), metres, 1 <= v <= 1e7.
+  // Modbus register visibility_m, the CAN signal Visibility), metres; the links clamp it to
+  // [kMinVisibility_m, kMaxVisibility_m] (a recording may hold 0 < v < 1: drawn as it is).
   // <= 0 = not given by the host: the scene's own [fog] applies.
   double visibility_m = -1.0;
   // The ownship the eye follows, as the CIGI host gave it (Entity Control): WGS-84 position and

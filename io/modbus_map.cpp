@@ -129,8 +129,10 @@ FieldRejects decodeHostRegisters(std::span<const uint16_t, kHoldingCount> holdin
   } else {
     reject(Slot::TimeOfDay);
   }
-  if (const double vis = value(Slot::Visibility); std::isfinite(vis) && vis <= kMaxVisibility_m) {
-    state.visibility_m = vis <= 0.0 ? -1.0 : std::max(vis, kMinVisibility_m);
+  // Visibility: 0 or negative = not given; above 1e7 (a host's "unlimited", +infinity too) =
+  // 1e7, as CIGI's; NaN is rejected.
+  if (const double vis = value(Slot::Visibility); !std::isnan(vis)) {
+    state.visibility_m = vis <= 0.0 ? -1.0 : std::clamp(vis, kMinVisibility_m, kMaxVisibility_m);
   } else {
     reject(Slot::Visibility);
   }

@@ -25,8 +25,8 @@
 //   20    host_frame     float32  -     integer 0 .. 16777216 (2^24)   0      host frame counter
 //   22    time_of_day_h  float32  h     [0, 24), or < 0 = not given    -1     UTC, drives the sun
 //   24    commit         32 bits  -     any value                      0      see below
-//   26    visibility_m   float32  m     <= 1e7; <= 0 = not given         -1     the fog's visibility
-//                                                                             (below 1 m: 1 m)
+//   26    visibility_m   float32  m     any but NaN; <= 0 = not given;  -1     the fog's visibility
+//                                       else clamped to [1, 1e7]               (as CIGI's)
 //
 // visibility_m comes after COMMIT (map version 2 added it; version 1 hosts that write 26
 // registers leave it at -1: the scene's [fog] applies). 0 is "not given" too, so that a host

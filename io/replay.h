@@ -11,7 +11,8 @@
 // date_ymd (YYYYMMDD, 0 = not given) drive the sun when the host sent them. shift_x, shift_y
 // and width_tan are the host's off-axis window (CIGI View Definition's left/right/bottom/top:
 // HostState windowShiftX, windowShiftY, windowWidth_tan; 0 0 0 = symmetric, as wide as the
-// output). vis_m is the host's visibility for the fog (CIGI Atmosphere Control; HostState
+// output). vis_m is the host's visibility for the fog (CIGI Atmosphere Control, the Modbus
+// register visibility_m, the CAN signal Visibility; HostState
 // visibility_m, metres, at most 1e7; <= 0 = not given: the scene's [fog]). Version 3 files (the
 // first 17 fields), version 2 (14) and version 1 (12) are still read, with a symmetric window
 // and no visibility.

@@ -209,7 +209,6 @@ TEST(CanMap, OutOfRangeRawValuesAreRejectedOneByOne) {
   cases.push_back({"height 1e6+0.001", with([](CanEyeSet& s) { s.height_m = 1e6 + 0.001; })});
   cases.push_back({"pitch 90.01", with([](CanEyeSet& s) { s.pitch_deg = 90.01; })});
   cases.push_back({"roll -180.01", with([](CanEyeSet& s) { s.roll_deg = -180.01; })});
-  cases.push_back({"visibility 1e7 + 1", with([](CanEyeSet& s) { s.visibility_m = 1e7 + 1; })});
   cases.push_back({"visibility NaN", with([](CanEyeSet& s) { s.visibility_m = kNaN; })});
   for (const Case& c : cases) {
     Assembly a;
@@ -262,10 +261,25 @@ TEST(CanMap, VisibilityZeroIsNotGivenAndPositiveIsAtLeastOneMetre) {
   EXPECT_EQ(vis(0.3, 4, a), 1.0);
   EXPECT_EQ(vis(1e7, 5, a), 1e7);
   // Not available (NaN): rejected, the last good value stays.
-  EXPECT_EQ(vis(kNaN, 6, a), 1e7);
+  EXPECT_EQ(vis(2500.0, 6, a), 2500.0);
+  EXPECT_EQ(vis(kNaN, 7, a), 2500.0);
   EXPECT_EQ(a.c().outOfRange, 1u);
-  const auto f = encode(sampleSet(), 7);
+  // A host's "unlimited": raw values above 1e7 and +infinity (sent as the largest raw) are 1e7.
+  EXPECT_EQ(vis(2e7, 8, a), 1e7);
+  EXPECT_EQ(vis(std::numeric_limits<double>::infinity(), 9, a), 1e7);
+  EXPECT_EQ(a.c().outOfRange, 1u);
+  auto f = encode(sampleSet(), 10);
   EXPECT_EQ(f[2].data[5] | f[2].data[6] << 8 | f[2].data[7] << 16, 4321);
+  CanEyeSet inf = sampleSet();
+  inf.visibility_m = std::numeric_limits<double>::infinity();
+  f = encode(inf, 11);
+  EXPECT_EQ(f[2].data[5] | f[2].data[6] << 8 | f[2].data[7] << 16, 0xFFFFFE);
+  // The raw "not available" 0xFFFFFF is rejected.
+  f = encode(sampleSet(), 12);
+  f[2].data[5] = f[2].data[6] = f[2].data[7] = 0xFF;
+  a.pushAll(f, 12000);
+  EXPECT_EQ(a.c().outOfRange, 2u);
+  EXPECT_EQ(a.out.visibility_m, 1e7);
 }
 
 TEST(CanMap, OtherFieldsOfASetApplyWhenOneIsRejected) {

@@ -313,7 +313,8 @@ TEST(CellStream, ServerDownTheFrameLoopGoesOnAndFetchesResume) {
   // Server down: every frame still selects and draws what is resident, and returns at once.
   // What nginx had already sent may still arrive in the first frames; then nothing. The count
   // to compare with is taken one frame after the fetcher has met the dead server (a failed
-  // connect or a retry), not after a fixed number of frames.
+  // connect or a retry), not after a fixed number of frames: the fetcher has one keep-alive
+  // connection and queues the responses it finished before it counts that failure.
   const io::RangeFetcherStats down = stream.fetchStats();
   uint64_t arrivedBefore = 0;
   bool seenDown = false;
@@ -333,6 +334,7 @@ TEST(CellStream, ServerDownTheFrameLoopGoesOnAndFetchesResume) {
     std::this_thread::sleep_for(std::chrono::milliseconds(3));
   }
   ASSERT_TRUE(seenDown) << "the fetcher never met the dead server (no failed connect, no retry)";
+  ASSERT_EQ(counted, 40) << "the fetcher met the dead server too late to watch 40 frames after it";
   EXPECT_LE(slowFrames, 2) << "frames blocked on the dead server";
   EXPECT_EQ(stream.stats().arrived, arrivedBefore) << "cells arrived from a server that is down";
   EXPECT_GT(st.maxVoxel_px, best) << "the test needs streaming left to do when the server goes down";

@@ -333,13 +333,15 @@ def main():
     marker.bind(("127.0.0.1", 0))
     end_marker = b"capture end marker %d" % os.getpid()
     end = time.monotonic() + 30
-    while time.monotonic() < end:
+    found = False
+    while not found and time.monotonic() < end:
         marker.sendto(end_marker, marker.getsockname())
         with open(cap, "rb") as f:
-            if end_marker in f.read():
-                break
-        time.sleep(0.02)
+            found = end_marker in f.read()
+        if not found:
+            time.sleep(0.02)
     marker.close()
+    check(found, "dumpcap did not write the capture end marker within 30 s")
     dumpcap.send_signal(signal.SIGTERM)
     dumpcap.wait(timeout=30)
 

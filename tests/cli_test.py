@@ -709,8 +709,11 @@ class Control(Tmp):
                 r = by_frame[p]
             if r["missed_slots"] != "0":
                 work, period = float(r["work_ms"]), float(r["period_ms"])
-                between = float(r["between_ms"])
-                self.assertTrue(work > period or between < period / 2,
+                late, between = float(r["lateness_ms"]), float(r["between_ms"])
+                # Explained by the machine: igd's own time between frames was short, and the OS's
+                # lateness plus the frame's work account for the slot.
+                explained = between < period / 2 and late + work >= 0.9 * period
+                self.assertTrue(work > period or explained,
                                 f"frame {r['frame']} missed a slot around the reload at frame {reload_frame} "
                                 f"though its work fit the period and igd spent {between} ms between frames: {r}")
 

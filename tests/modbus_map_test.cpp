@@ -204,8 +204,8 @@ TEST(ModbusMap, RangesPerField) {
       {Slot::SimTime, inf, false},     {Slot::HostFrame, 12.5f, false}, {Slot::HostFrame, -1.0f, false},
       {Slot::HostFrame, 16777216.0f, true}, {Slot::HostFrame, 16777218.0f, false},
       {Slot::TimeOfDay, 23.99f, true}, {Slot::TimeOfDay, 24.0f, false}, {Slot::TimeOfDay, -inf, false},
-      {Slot::Visibility, 1e7f, true},  {Slot::Visibility, 1.1e7f, false}, {Slot::Visibility, inf, false},
-      {Slot::Visibility, std::numeric_limits<float>::quiet_NaN(), false}, {Slot::Visibility, -inf, false},
+      {Slot::Visibility, 1e7f, true},  {Slot::Visibility, 1.1e7f, true}, {Slot::Visibility, inf, true},
+      {Slot::Visibility, std::numeric_limits<float>::quiet_NaN(), false}, {Slot::Visibility, -inf, true},
       {Slot::Visibility, 0.0f, true},  {Slot::Visibility, -3.0f, true},
   };
   for (const Case& c : cases) {
@@ -241,6 +241,15 @@ TEST(ModbusMap, RangesPerField) {
   putFloat(b, slotAddress(Slot::Visibility), -1.0f, o);
   decodeHostRegisters(b, o, s);
   EXPECT_EQ(s.visibility_m, -1.0);
+  // A host's "unlimited" (above 1e7, +infinity): 1e7, as CIGI's.
+  putFloat(b, slotAddress(Slot::Visibility), 3e8f, o);
+  decodeHostRegisters(b, o, s);
+  EXPECT_EQ(s.visibility_m, 1e7);
+  putFloat(b, slotAddress(Slot::Visibility), 750.5f, o);
+  decodeHostRegisters(b, o, s);
+  putFloat(b, slotAddress(Slot::Visibility), std::numeric_limits<float>::infinity(), o);
+  EXPECT_EQ(decodeHostRegisters(b, o, s).count, 0u);
+  EXPECT_EQ(s.visibility_m, 1e7);
   // The largest host frame float32 holds exactly.
   putFloat(b, slotAddress(Slot::HostFrame), 16777216.0f, o);
   decodeHostRegisters(b, o, s);
