@@ -96,6 +96,17 @@ void encodeCanSet(const CanEyeSet& set, uint8_t seq, uint32_t baseId, std::array
   constexpr int64_t i32lo = std::numeric_limits<int32_t>::min() + 1, i32hi = std::numeric_limits<int32_t>::max();
   constexpr int64_t i16lo = std::numeric_limits<int16_t>::min() + 1, i16hi = std::numeric_limits<int16_t>::max();
   putU32(&out[0].data[1], static_cast<uint32_t>(toRaw(set.lat_deg, kLatLonDiv, i32lo, i32hi, kNa32)));
+  // Time of day: raw 0 = not given, else 1 + centiseconds after midnight (the day wraps).
+  uint32_t tod = 0;
+  if (std::isnan(set.timeOfDay_h)) {
+    tod = kCanVisibilityNa;
+  } else if (set.timeOfDay_h >= 0.0 && std::isfinite(set.timeOfDay_h)) {
+    const double s = std::fmod(set.timeOfDay_h, 24.0) * 3600.0;
+    tod = 1u + static_cast<uint32_t>(std::min(std::round(s * 100.0), static_cast<double>(kCanTimeOfDayMaxRaw - 1)));
+  }
+  out[0].data[5] = static_cast<uint8_t>(tod);
+  out[0].data[6] = static_cast<uint8_t>(tod >> 8);
+  out[0].data[7] = static_cast<uint8_t>(tod >> 16);
   putU32(&out[1].data[1], static_cast<uint32_t>(toRaw(set.lon_deg, kLatLonDiv, i32lo, i32hi, kNa32)));
   putU32(&out[2].data[1], static_cast<uint32_t>(toRaw(set.height_m, kHeightDiv, i32lo, i32hi, kNa32)));
   // NaN: not available; not given (<= 0): 0; a positive visibility at least 1 m (never "not
@@ -145,6 +156,12 @@ CanDecodeStatus decodeCanFrame(const CanFrame& frame, uint32_t baseId, CanDecode
   switch (out.index) {
     case CanFrameIndex::Lat:
       fields.lat_deg = checked(static_cast<int32_t>(getU32(d + 1)), -900'000'000, 900'000'000, kLatLonDiv);
+      if (const int64_t tod = static_cast<int64_t>(d[5]) | (static_cast<int64_t>(d[6]) << 8) | (static_cast<int64_t>(d[7]) << 16);
+          tod == 0) {
+        fields.timeOfDay_h = -1.0;  // not given
+      } else {
+        fields.timeOfDay_h = checked(tod - 1, 0, kCanTimeOfDayMaxRaw - 1, 100.0 * 3600.0);
+      }
       break;
     case CanFrameIndex::Lon:
       fields.lon_deg = checked(static_cast<int32_t>(getU32(d + 1)), -1'800'000'000, 1'800'000'000, kLatLonDiv);
@@ -225,7 +242,10 @@ CanSetAssembler::Result CanSetAssembler::push(const CanFrame& frame, int64_t now
   }
   mask_ = static_cast<uint8_t>(mask_ | (1u << static_cast<unsigned>(d.index)));
   switch (d.index) {
-    case CanFrameIndex::Lat: partial_.lat_deg = fields.lat_deg; break;
+    case CanFrameIndex::Lat:
+      partial_.lat_deg = fields.lat_deg;
+      partial_.timeOfDay_h = fields.timeOfDay_h;
+      break;
     case CanFrameIndex::Lon: partial_.lon_deg = fields.lon_deg; break;
     case CanFrameIndex::Height:
       partial_.height_m = fields.height_m;
@@ -268,6 +288,7 @@ void CanSetAssembler::commit(HostState& out) {
   apply(partial_.pitch_deg, attitude_.pitch_deg);
   apply(partial_.roll_deg, attitude_.roll_deg);
   apply(partial_.simTime_s, state_.simTime_s);
+  apply(partial_.timeOfDay_h, state_.timeOfDay_h);  // -1: not given (the scene's sun)
   // Visibility: 0 = not given (the scene's fog), else metres; a rejected one keeps the last good.
   double visibility = state_.visibility_m;
   apply(partial_.visibility_m, visibility);

@@ -8,6 +8,8 @@
 //
 //   id          frame              bytes 1..7
 //   base_id+0   IG_EYE_LAT         1-4 lat       int32  x 1e-7 deg  [-90, 90]        (1.1 cm)
+//                                  5-7 time_of_day uint24 x 0.01 s - 0.01 s [-0.01, 86399.99] UTC, drives the sun;
+//                                                                     raw 0 (-0.01 s) = not given
 //   base_id+1   IG_EYE_LON         1-4 lon       int32  x 1e-7 deg  [-180, 180]      (1.1 cm at the equator)
 //   base_id+2   IG_EYE_HEIGHT      1-4 height    int32  x 1e-3 m    [-1000, 1000000] WGS-84 ellipsoid height
 //                                  5-7 visibility uint24 x 1 m      [0, 16777214]    the fog's visibility; 0 = not given,
@@ -17,11 +19,15 @@
 //                                  5-6 roll      int16  x 0.01 deg  [-180, 180]      right wing down positive
 //   base_id+4   IG_SIM_TIME        1-4 sim_time  uint32 x 1e-3 s    [0, 4294967.294] since scenario start
 //                                  5-7 host_frame uint24            host frame number modulo 2^24
-// Unused bytes (5-7 of the first two frames, 7 of the attitude frame) are sent as 0 and
+// Unused bytes (5-7 of the longitude frame, 7 of the attitude frame) are sent as 0 and
 // ignored. The raw value INT32_MIN (lat, lon, height), 0xFFFF (heading), INT16_MIN (pitch,
-// roll), 0xFFFFFFFF (sim_time) or 0xFFFFFF (visibility) means "not available" (the encoder
-// writes it for NaN or infinite values; for the visibility NaN only) and is rejected like an
-// out-of-range value.
+// roll), 0xFFFFFFFF (sim_time) or 0xFFFFFF (visibility, time of day) means "not available" (the
+// encoder writes it for NaN or infinite values; for the visibility and the time of day NaN
+// only) and is rejected like an out-of-range value.
+// time_of_day (added in map version 2, in bytes version 1 sent as 0): raw 0 = not given, the
+// scene's sun applies (so a host that sends zeros keeps it); raw r in 1 .. 8,640,000 = (r - 1) /
+// 100 seconds after midnight UTC (io::HostState::timeOfDay_h, in hours); larger raw values are
+// rejected. The date is not carried (the scene's [sun] date applies), as with Modbus.
 // visibility (added in map version 2, in bytes version 1 sent as 0): 0 = not given, the scene's
 // [fog] applies (so a host that sends zeros there keeps the scene's fog); 1 .. 10,000,000 m =
 // the fog's meteorological visibility (io::HostState::visibility_m); 10,000,001 .. 16,777,214 =
@@ -98,6 +104,7 @@ inline constexpr double kCanHeightMin_m = -1000.0, kCanHeightMax_m = 1'000'000.0
 inline constexpr uint32_t kCanVisibilityMax_m = 10'000'000;  // larger raw values mean this much
 static_assert(kCanVisibilityMax_m == kMaxVisibility_m);
 inline constexpr uint32_t kCanVisibilityNa = 0xFFFFFF;       // "not available" (uint24 all ones)
+inline constexpr uint32_t kCanTimeOfDayMaxRaw = 8'640'000;    // 23:59:59.99 UTC (raw r: (r - 1) / 100 s)
 
 // The values one set carries. NaN = not available (the encoder sends the "not available" raw
 // value; the decoder reports a rejected field as NaN).
@@ -111,6 +118,8 @@ struct CanEyeSet {
   double simTime_s = 0.0;
   uint32_t hostFrame = 0;  // only the low 24 bits travel
   double visibility_m = 0.0;  // <= 0: not given (raw 0); positive values are sent as at least 1 m; NaN: not available
+  double timeOfDay_h = -1.0;  // UTC hours; < 0 or +infinity: not given (raw 0); NaN: not available;
+                              //   24 and above wrap to the day (25 h = 1 h)
 };
 
 // Encodes a set into its five frames (ids baseId+0..4, counter `seq` in byte 0). NaN or

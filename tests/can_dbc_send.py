@@ -11,7 +11,7 @@ be given a physical value. The second writes a candump log (for canplayer, inter
 a straight climbing flight from the default scene's origin (46.5 N, 7.9 E): set k at
 t = 1000 + k/30 s has latitude 46.5 + 2e-5 k deg, longitude 7.9 + 3e-5 k deg, height 1200 + k m,
 heading 10 + k deg (from true north at the eye), pitch 1, roll -2 deg, sim time 100 + k/30 s, host frame 7000 + k,
-fog visibility 3000 + 10 k m, counter k mod 256 (tests/can_igd_check.py knows the same trajectory).
+fog visibility 3000 + 10 k m, time of day 10:00:00 + k s UTC, counter k mod 256 (tests/can_igd_check.py knows the same trajectory).
 """
 import re
 import sys
@@ -56,7 +56,8 @@ def encode(message, values):
 def trajectory(k):
     return {'SeqCounter': float(k % 256), 'EyeLatitude': 46.5 + 2e-5 * k, 'EyeLongitude': 7.9 + 3e-5 * k,
             'EyeHeight': 1200.0 + k, 'Heading': 10.0 + k, 'Pitch': 1.0, 'Roll': -2.0,
-            'SimTime': 100.0 + k / 30.0, 'HostFrame': float(7000 + k), 'Visibility': 3000.0 + 10.0 * k}
+            'SimTime': 100.0 + k / 30.0, 'HostFrame': float(7000 + k), 'Visibility': 3000.0 + 10.0 * k,
+            'TimeOfDay': 36000.0 + k}
 
 
 def write_log(messages, path, sets):

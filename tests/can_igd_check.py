@@ -114,6 +114,8 @@ def main():
             failures.append(f'recording: host frame {s[1]}: ENU {s[3:6]}, expected ({e:.3f}, {n:.3f}, {u:.3f})')
         if float(s[17]) != 3000.0 + 10.0 * k:
             failures.append(f'recording: host frame {s[1]}: vis_m {s[17]}, expected {3000.0 + 10.0 * k}')
+        if abs(float(s[12]) - (36000.0 + k) / 3600.0) > 1e-6:
+            failures.append(f'recording: host frame {s[1]}: tod_h {s[12]}, expected {(36000.0 + k) / 3600.0:.6f}')
         want = attitude(k)
         if max(abs(angle_diff(float(s[6 + i]), want[i])) for i in range(3)) > 2e-6:
             failures.append(f'recording: host frame {s[1]}: heading/pitch/roll {s[6:9]}, expected {want}')

@@ -41,6 +41,7 @@ CanEyeSet sampleSet() {
   s.simTime_s = 36000.125;
   s.hostFrame = 0x123456;
   s.visibility_m = 4321.0;
+  s.timeOfDay_h = 13.5;
   return s;
 }
 
@@ -280,6 +281,41 @@ TEST(CanMap, VisibilityZeroIsNotGivenAndPositiveIsAtLeastOneMetre) {
   a.pushAll(f, 12000);
   EXPECT_EQ(a.c().outOfRange, 2u);
   EXPECT_EQ(a.out.visibility_m, 1e7);
+}
+
+TEST(CanMap, TimeOfDayZeroIsNotGivenAndTheDayWraps) {
+  auto tod = [](double h, uint8_t seq, auto& a) {
+    CanEyeSet s = sampleSet();
+    s.timeOfDay_h = h;
+    a.pushAll(encode(s, seq), 1000 * seq);
+    return a.out.timeOfDay_h;
+  };
+  Assembly a;
+  EXPECT_NEAR(tod(13.5, 1, a), 13.5, 1e-12);
+  // Midnight is raw 1, not "not given"; 23:59:59.99 is the largest.
+  EXPECT_EQ(tod(0.0, 2, a), 0.0);
+  EXPECT_NEAR(tod(86399.99 / 3600.0, 3, a), 86399.99 / 3600.0, 1e-12);
+  // Not given (negative, what map version 1 hosts' zeros mean): -1, the scene's sun.
+  EXPECT_EQ(tod(-1.0, 4, a), -1.0);
+  auto f = encode(sampleSet(), 5);
+  f[0].data[5] = f[0].data[6] = f[0].data[7] = 0;
+  a.pushAll(f, 5000);
+  EXPECT_EQ(a.out.timeOfDay_h, -1.0);
+  // 25 h wraps to 1 h; the encoder's centiseconds are exact.
+  EXPECT_NEAR(tod(25.0, 6, a), 1.0, 1e-12);
+  f = encode(sampleSet(), 7);
+  EXPECT_EQ(f[0].data[5] | f[0].data[6] << 8 | f[0].data[7] << 16, 1 + 4'860'000);
+  // Not available (NaN) and raw beyond 23:59:59.99: rejected, the last good value stays.
+  EXPECT_NEAR(tod(6.0, 8, a), 6.0, 1e-12);
+  EXPECT_NEAR(tod(std::numeric_limits<double>::quiet_NaN(), 9, a), 6.0, 1e-12);
+  f = encode(sampleSet(), 10);
+  const uint32_t past = kCanTimeOfDayMaxRaw + 1;
+  f[0].data[5] = static_cast<uint8_t>(past);
+  f[0].data[6] = static_cast<uint8_t>(past >> 8);
+  f[0].data[7] = static_cast<uint8_t>(past >> 16);
+  a.pushAll(f, 10000);
+  EXPECT_NEAR(a.out.timeOfDay_h, 6.0, 1e-12);
+  EXPECT_EQ(a.c().outOfRange, 2u);
 }
 
 TEST(CanMap, OtherFieldsOfASetApplyWhenOneIsRejected) {
@@ -847,7 +883,7 @@ TEST(CanDbc, MatchesTheCppMap) {
     int bits = 0;
     for (const DbcSignal& s : msgs[i].signals) {
       EXPECT_TRUE(s.intel) << s.name;
-      EXPECT_EQ(s.offset, 0.0) << s.name;
+      EXPECT_EQ(s.offset, s.name == "TimeOfDay" ? -0.01 : 0.0) << s.name;  // raw 0 = -0.01 s: not given
       EXPECT_LE(s.start + s.length, 64) << s.name;
       bits += s.length;
     }
@@ -860,7 +896,8 @@ TEST(CanDbc, MatchesTheCppMap) {
                                            {"EyeHeight", in.height_m},  {"Heading", in.heading_deg},
                                            {"Pitch", in.pitch_deg},     {"Roll", in.roll_deg},
                                            {"SimTime", in.simTime_s},   {"HostFrame", in.hostFrame},
-                                           {"Visibility", in.visibility_m}, {"SeqCounter", 0xC3}};
+                                           {"Visibility", in.visibility_m}, {"TimeOfDay", in.timeOfDay_h * 3600.0},
+                                           {"SeqCounter", 0xC3}};
   int checked = 0;
   for (size_t i = 0; i < msgs.size(); ++i) {
     for (const DbcSignal& s : msgs[i].signals) {
@@ -870,20 +907,20 @@ TEST(CanDbc, MatchesTheCppMap) {
       ++checked;
     }
   }
-  EXPECT_EQ(checked, 14);
+  EXPECT_EQ(checked, 15);
   // The DBC's ranges are the C++ valid ranges: min and max decode, one step outside does not.
   struct Edge {
     size_t msg;
     const char* signal;
   };
-  for (const Edge& e : {Edge{0, "EyeLatitude"}, Edge{1, "EyeLongitude"}, Edge{2, "EyeHeight"}, Edge{2, "Visibility"},
-                        Edge{3, "Heading"}, Edge{3, "Pitch"}, Edge{3, "Roll"}}) {
+  for (const Edge& e : {Edge{0, "EyeLatitude"}, Edge{0, "TimeOfDay"}, Edge{1, "EyeLongitude"}, Edge{2, "EyeHeight"},
+                        Edge{2, "Visibility"}, Edge{3, "Heading"}, Edge{3, "Pitch"}, Edge{3, "Roll"}}) {
     const auto& sigs = msgs[e.msg].signals;
     const auto it = std::find_if(sigs.begin(), sigs.end(), [&](const DbcSignal& s) { return s.name == e.signal; });
     ASSERT_NE(it, sigs.end());
     for (double v : {it->min, it->max, it->min - it->factor, it->max + it->factor}) {
       CanFrame f = frames[e.msg];
-      const auto raw = static_cast<int64_t>(std::llround(v / it->factor));
+      const auto raw = static_cast<int64_t>(std::llround((v - it->offset) / it->factor));
       for (int b = 0; b < it->length; ++b) {
         const int bit = it->start + b;
         auto& byte = f.data[static_cast<size_t>(bit / 8)];

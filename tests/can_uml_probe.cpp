@@ -275,7 +275,7 @@ int main(int argc, char** argv) {
     const std::string cmd = "/usr/bin/python3 " + src + "/tests/can_dbc_send.py " + src +
                             "/config/igd_host.dbc vcan0 76 EyeLatitude=-33.8688197 EyeLongitude=151.2092955 "
                             "EyeHeight=-12.5 Heading=359.99 Pitch=-90 Roll=180 SimTime=4000000.001 HostFrame=16777215 "
-                            "Visibility=10000000";
+                            "Visibility=10000000 TimeOfDay=86399.99";
     CHECK(sh(cmd), "python3-can sender");
     CHECK(waitFor([&] { return accepted() == 5u + kPlayed; }), "E: set from the DBC sender not committed");
     const auto states = sink.copy();
@@ -289,7 +289,8 @@ int main(int argc, char** argv) {
                 std::fabs(ig::test::headingDiff_deg(s.heading_deg, att.heading_deg)) < 1e-9 &&
                 std::fabs(s.pitch_deg - att.pitch_deg) < 1e-9 && std::fabs(s.roll_deg - att.roll_deg) < 1e-9 &&
                 std::fabs(s.simTime_s - 4000000.001) < 1e-6 &&
-                s.hostFrame == 16777215u && s.visibility_m == 1e7,
+                s.hostFrame == 16777215u && s.visibility_m == 1e7 &&
+                std::fabs(s.timeOfDay_h - 86399.99 / 3600.0) < 1e-9,
             "E: DBC-encoded set decoded as lat %.7f lon %.7f h %.3f hdg %.2f p %.2f r %.2f t %.3f frame %llu vis %.1f",
             s.lat_deg, s.lon_deg, s.height_m, s.heading_deg, s.pitch_deg, s.roll_deg, s.simTime_s,
             static_cast<unsigned long long>(s.hostFrame), s.visibility_m);
