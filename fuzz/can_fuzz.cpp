@@ -27,7 +27,8 @@ void checkState(const HostState& s) {
         s.pitch_deg >= -90 && s.pitch_deg <= 90 && s.roll_deg >= -180 && s.roll_deg <= 180 && s.simTime_s >= 0 &&
         std::isfinite(s.simTime_s) && std::isfinite(s.eyeEnu_m.x) && std::isfinite(s.eyeEnu_m.y) &&
         std::isfinite(s.eyeEnu_m.z) && s.hostFrame < (1u << 24) &&
-        (s.visibility_m == -1.0 || (s.visibility_m >= kMinVisibility_m && s.visibility_m <= kMaxVisibility_m))))
+        (s.visibility_m == -1.0 || (s.visibility_m >= kMinVisibility_m && s.visibility_m <= kMaxVisibility_m)) &&
+        (s.timeOfDay_h == -1.0 || (s.timeOfDay_h >= 0.0 && s.timeOfDay_h < 24.0))))
     std::abort();
 }
 
