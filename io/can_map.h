@@ -44,7 +44,7 @@
 //   - a frame with a newer counter while a set is incomplete: the old set is dropped (++dropped)
 //     and the new one started;
 //   - a frame with an older counter than the incomplete set, or not newer than the last
-//     committed set while that commit is younger than stale_ms: ++late, ignored;
+//     committed set while that commit is at most stale_ms old: ++late, ignored;
 //   - a second frame of the same id in one set: ++malformed, ignored;
 //   - a set still incomplete stale_ms after its first frame: dropped (++dropped);
 //   - a frame of the map with the wrong length, a remote, CAN FD or 29-bit frame: ++malformed.

@@ -166,6 +166,71 @@ TEST(CanMap, ExactBytesLittleEndian) {
   }
 }
 
+// Finite values outside the valid range are saturated to the raw type, never wrapped into it and
+// never sent as "not available": the receiver sees an out-of-range raw value and rejects it.
+TEST(CanMap, FiniteValuesSaturateToTheRawType) {
+  CanEyeSet s = sampleSet();
+  // 2^32 + 470000000 steps: wrapped to 32 bits it would be 47.0 deg, a valid latitude.
+  s.lat_deg = 429.4967296 + 47.0;
+  s.lon_deg = -500.0;          // below INT32_MIN + 1 steps
+  s.pitch_deg = -400.0;        // below INT16_MIN + 1 steps
+  s.roll_deg = 400.0;          // above INT16_MAX steps
+  s.simTime_s = 1e10;          // above the largest uint32 below "not available"
+  const auto f = encode(s, 1);
+  auto u32 = [](const CanFrame& fr) {
+    return static_cast<uint32_t>(fr.data[1] | fr.data[2] << 8 | fr.data[3] << 16) | static_cast<uint32_t>(fr.data[4]) << 24;
+  };
+  EXPECT_EQ(u32(f[0]), 0x7FFFFFFFu);
+  EXPECT_EQ(u32(f[1]), 0x80000001u);  // INT32_MIN + 1: INT32_MIN is "not available"
+  EXPECT_EQ(f[3].data[3] | f[3].data[4] << 8, 0x8001);
+  EXPECT_EQ(f[3].data[5] | f[3].data[6] << 8, 0x7FFF);
+  EXPECT_EQ(u32(f[4]), 0xFFFFFFFEu);  // 0xFFFFFFFF is "not available"
+  CanEyeSet out;
+  int rejected = 0;
+  for (const CanFrame& fr : f) {
+    CanDecodedFrame d;
+    ASSERT_EQ(decodeCanFrame(fr, 0x100, d, out), CanDecodeStatus::Ok);
+    rejected += d.rejectedFields;
+  }
+  EXPECT_EQ(rejected, 4);  // lat, lon, pitch, roll; sim time 4294967.294 s is the largest valid
+  EXPECT_TRUE(std::isnan(out.lat_deg));
+  EXPECT_DOUBLE_EQ(out.simTime_s, 4294967.294);
+}
+
+// Heading is wrapped into [0, 360) before rounding, and a value that rounds up to 360.00 is sent
+// as 0.00 (the raw 36000 would be rejected).
+TEST(CanMap, HeadingThatRoundsTo360IsSentAsZero) {
+  for (double h : {359.996, -0.001, 719.999}) {
+    CanEyeSet s = sampleSet();
+    s.heading_deg = h;
+    const auto f = encode(s, 1);
+    EXPECT_EQ(f[3].data[1] | f[3].data[2] << 8, 0) << h;
+    CanEyeSet out;
+    CanDecodedFrame d;
+    ASSERT_EQ(decodeCanFrame(f[3], 0x100, d, out), CanDecodeStatus::Ok);
+    EXPECT_EQ(d.rejectedFields, 0) << h;
+    EXPECT_EQ(out.heading_deg, 0.0) << h;
+  }
+}
+
+// The decoder sets every member of its CanDecodedFrame: one reused across frames does not carry
+// the previous frame's rejections.
+TEST(CanMap, DecodedFrameIsResetForEachFrame) {
+  CanEyeSet bad = sampleSet();
+  bad.pitch_deg = kNaN;
+  bad.roll_deg = kNaN;
+  const auto fb = encode(bad, 1);
+  const auto fg = encode(sampleSet(), 2);
+  CanDecodedFrame d;
+  CanEyeSet out;
+  ASSERT_EQ(decodeCanFrame(fb[3], 0x100, d, out), CanDecodeStatus::Ok);
+  EXPECT_EQ(d.rejectedFields, 2);
+  ASSERT_EQ(decodeCanFrame(fg[3], 0x100, d, out), CanDecodeStatus::Ok);
+  EXPECT_EQ(d.rejectedFields, 0);
+  EXPECT_EQ(d.seq, 2);
+  EXPECT_EQ(d.index, CanFrameIndex::Attitude);
+}
+
 TEST(CanMap, NanEncodesAsNotAvailableAndDecodesAsRejected) {
   CanEyeSet in = sampleSet();
   in.lat_deg = kNaN;
@@ -275,6 +340,12 @@ TEST(CanMap, VisibilityZeroIsNotGivenAndPositiveIsAtLeastOneMetre) {
   inf.visibility_m = std::numeric_limits<double>::infinity();
   f = encode(inf, 11);
   EXPECT_EQ(f[2].data[5] | f[2].data[6] << 8 | f[2].data[7] << 16, 0xFFFFFE);
+  // Just below the raw range's end: never rounded into "not available" (0xFFFFFF).
+  for (double big : {16777214.5, 16777214.9}) {
+    inf.visibility_m = big;
+    f = encode(inf, 11);
+    EXPECT_EQ(f[2].data[5] | f[2].data[6] << 8 | f[2].data[7] << 16, 0xFFFFFE) << big;
+  }
   // The raw "not available" 0xFFFFFF is rejected.
   f = encode(sampleSet(), 12);
   f[2].data[5] = f[2].data[6] = f[2].data[7] = 0xFF;
@@ -301,6 +372,19 @@ TEST(CanMap, TimeOfDayZeroIsNotGivenAndTheDayWraps) {
   f[0].data[5] = f[0].data[6] = f[0].data[7] = 0;
   a.pushAll(f, 5000);
   EXPECT_EQ(a.out.timeOfDay_h, -1.0);
+  // +infinity: not given too (raw 0).
+  CanEyeSet inf = sampleSet();
+  inf.timeOfDay_h = std::numeric_limits<double>::infinity();
+  f = encode(inf, 1);
+  EXPECT_EQ(f[0].data[5] | f[0].data[6] << 8 | f[0].data[7] << 16, 0);
+  // Less than half a centisecond before midnight: 23:59:59.99 (raw 8,640,000), not rounded up
+  // past the day.
+  inf.timeOfDay_h = 86399.996 / 3600.0;
+  f = encode(inf, 1);
+  EXPECT_EQ(f[0].data[5] | f[0].data[6] << 8 | f[0].data[7] << 16, static_cast<int>(kCanTimeOfDayMaxRaw));
+  Assembly late;
+  EXPECT_NEAR(tod(86399.996 / 3600.0, 1, late), 86399.99 / 3600.0, 1e-12);
+  EXPECT_EQ(late.c().outOfRange, 0u);
   // 25 h wraps to 1 h; the encoder's centiseconds are exact.
   EXPECT_NEAR(tod(25.0, 6, a), 1.0, 1e-12);
   f = encode(sampleSet(), 7);
@@ -598,6 +682,24 @@ TEST(CanSet, CounterWrapsAndResyncsAfterStale) {
   EXPECT_EQ(a.c().late, 5u);
   a.pushAll(encode(sampleSet(), 200), 130'001);  // stale_ms after the last commit: a restarted host resyncs
   EXPECT_EQ(a.commits, 5);
+}
+
+// "Late" is measured from the last commit's own time (not from the first one, nor the clock's
+// zero); exactly stale_ms after it is still fresh, as for an incomplete set.
+TEST(CanSet, LateIsMeasuredFromTheLastCommit) {
+  Assembly a;  // stale_ms = 100
+  a.pushAll(encode(sampleSet(), 10), 1'000'000);
+  a.pushAll(encode(sampleSet(), 11), 5'000'000);
+  ASSERT_EQ(a.commits, 2);
+  a.pushAll(encode(sampleSet(), 11), 5'050'000);  // the same set again, 50 ms later: late
+  EXPECT_EQ(a.commits, 2);
+  EXPECT_EQ(a.c().late, 5u);
+  a.push(encode(sampleSet(), 3)[0], 5'100'000);  // an older counter exactly stale_ms later: late
+  EXPECT_EQ(a.c().late, 6u);
+  EXPECT_FALSE(a.assembler.setInProgress());
+  a.pushAll(encode(sampleSet(), 3), 5'100'001);  // past it: a restarted host resyncs
+  EXPECT_EQ(a.commits, 3);
+  EXPECT_EQ(a.c().late, 6u);
 }
 
 TEST(CanSet, ConfigurableBaseIdAndStale) {

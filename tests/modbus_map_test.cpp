@@ -7,6 +7,7 @@
 #include <bit>
 #include <cmath>
 #include <limits>
+#include <utility>
 #include <vector>
 
 #include "io/modbus_map.h"
@@ -256,6 +257,72 @@ TEST(ModbusMap, RangesPerField) {
   EXPECT_EQ(s.hostFrame, 16777216u);
 }
 
+// Both ends of every documented range, and one step past each (as far as float32 allows):
+// the boundary values apply, their neighbours outside are rejected.
+TEST(ModbusMap, RangeEdgesBothSides) {
+  const WordOrder o = WordOrder::HighFirst;
+  struct Case {
+    Slot slot;
+    float value;
+    bool ok;
+  };
+  const Case cases[] = {
+      {Slot::East, -1e6f, true},       {Slot::East, -1.0001e6f, false},  {Slot::East, 1.0001e6f, false},
+      {Slot::North, 1e6f, true},       {Slot::North, -1e6f, true},       {Slot::North, 1.0001e6f, false},
+      {Slot::North, -1.0001e6f, false}, {Slot::Up, 1e6f, true},          {Slot::Up, 1.0001e6f, false},
+      {Slot::Heading, -360.0f, true},  {Slot::Heading, 360.01f, false},
+      {Slot::Pitch, -90.0f, true},     {Slot::Pitch, -90.01f, false},
+      {Slot::Roll, 180.0f, true},      {Slot::Roll, 180.01f, false},     {Slot::Roll, -180.01f, false},
+      {Slot::SimTime, 0.0f, true},     {Slot::SimTime, 1.0001e9f, false},
+      {Slot::TimeOfDay, 0.0f, true},
+  };
+  for (const Case& c : cases) {
+    HoldingBlock b = makeSet(o, 1);
+    putFloat(b, slotAddress(c.slot), c.value, o);
+    HostState s;
+    const FieldRejects r = decodeHostRegisters(b, o, s);
+    EXPECT_EQ(r.mask, c.ok ? 0u : 1u << static_cast<int>(c.slot)) << slotName(c.slot) << " = " << c.value;
+  }
+  // Midnight is a time of day (0 h), not "not given".
+  HoldingBlock b = makeSet(o, 1);
+  putFloat(b, slotAddress(Slot::TimeOfDay), 0.0f, o);
+  HostState s;
+  EXPECT_EQ(decodeHostRegisters(b, o, s).count, 0u);
+  EXPECT_EQ(s.timeOfDay_h, 0.0);
+}
+
+// The clip planes' own ranges: near (0, 1e6], far (0, 1e7], each at its edges (with the other
+// plane in the same set far enough to keep near < far).
+TEST(ModbusMap, ClipPlaneRangeEdges) {
+  const WordOrder o = WordOrder::LowFirst;
+  struct Case {
+    float near_m, far_m;
+    uint32_t mask;
+  };
+  const uint32_t nearBit = 1u << static_cast<int>(Slot::Near), farBit = 1u << static_cast<int>(Slot::Far);
+  const Case cases[] = {
+      {1e6f, 1e7f, 0u},           // both at their upper edges
+      {1.0001e6f, 1e7f, nearBit}, // near just past 1e6
+      {0.5f, 1.0001e7f, farBit},  // far just past 1e7
+      {0.5f, 0.0f, farBit},       // far 0: rejected on its own, near still applies against the last far
+      {0.5f, -2.0f, farBit},
+  };
+  for (const Case& c : cases) {
+    HoldingBlock b = makeSet(o, 1);
+    putFloat(b, slotAddress(Slot::Near), c.near_m, o);
+    putFloat(b, slotAddress(Slot::Far), c.far_m, o);
+    HostState s;  // near 0.1, far 1e5
+    const FieldRejects r = decodeHostRegisters(b, o, s);
+    EXPECT_EQ(r.mask, c.mask) << c.near_m << " .. " << c.far_m;
+    if (!(c.mask & nearBit)) {
+      EXPECT_EQ(s.near_m, static_cast<double>(c.near_m));
+    }
+    if (!(c.mask & farBit)) {
+      EXPECT_EQ(s.far_m, static_cast<double>(c.far_m));
+    }
+  }
+}
+
 TEST(ModbusMap, ClipPlanesMustStayOrdered) {
   const WordOrder o = WordOrder::HighFirst;
   HostState last;
@@ -284,6 +351,37 @@ TEST(ModbusMap, ClipPlanesMustStayOrdered) {
   EXPECT_EQ(r.count, 1u);
   EXPECT_EQ(s.near_m, 5.0);
   EXPECT_EQ(s.far_m, 1000.0);
+  // near == far in the same set is not near < far: both rejected.
+  putFloat(b, slotAddress(Slot::Near), 300.0f, o);
+  putFloat(b, slotAddress(Slot::Far), 300.0f, o);
+  s = last;
+  r = decodeHostRegisters(b, o, s);
+  EXPECT_EQ(r.mask, (1u << static_cast<int>(Slot::Near)) | (1u << static_cast<int>(Slot::Far)));
+  EXPECT_EQ(s.near_m, 1.0);
+  EXPECT_EQ(s.far_m, 1000.0);
+  // far rejected and the new near equal to the last good far: near rejected too.
+  putFloat(b, slotAddress(Slot::Near), 1000.0f, o);
+  putFloat(b, slotAddress(Slot::Far), std::numeric_limits<float>::quiet_NaN(), o);
+  s = last;
+  r = decodeHostRegisters(b, o, s);
+  EXPECT_EQ(r.count, 2u);
+  EXPECT_EQ(s.near_m, 1.0);
+  // near rejected (NaN) and the new far below or equal to the last good near: far rejected too.
+  putFloat(b, slotAddress(Slot::Near), std::numeric_limits<float>::quiet_NaN(), o);
+  for (const float badFar : {0.5f, 1.0f}) {
+    putFloat(b, slotAddress(Slot::Far), badFar, o);
+    s = last;
+    r = decodeHostRegisters(b, o, s);
+    EXPECT_EQ(r.count, 2u) << badFar;
+    EXPECT_EQ(s.far_m, 1000.0) << badFar;
+  }
+  // near rejected and the new far above the last good near: far applies.
+  putFloat(b, slotAddress(Slot::Far), 2.0f, o);
+  s = last;
+  r = decodeHostRegisters(b, o, s);
+  EXPECT_EQ(r.mask, 1u << static_cast<int>(Slot::Near));
+  EXPECT_EQ(s.near_m, 1.0);
+  EXPECT_EQ(s.far_m, 2.0);
 }
 
 TEST_P(ModbusMapOrders, CommitAppliesTheWholeSetAtOnce) {
@@ -347,6 +445,41 @@ TEST_P(ModbusMapOrders, CommitAppliesTheWholeSetAtOnce) {
   EXPECT_FALSE(map.afterWrite(regs, 0, 0).committed);
 }
 
+TEST_P(ModbusMapOrders, EncodesTheLargestHostFrame) {
+  // 2^24 is in range (float32 holds it exactly) and is sent as it is; a larger counter is
+  // wrapped into the range rather than sent as a value the IG rejects.
+  const WordOrder order = GetParam();
+  HostState in;
+  in.hostFrame = kHostFrameMax;
+  HoldingBlock b{};
+  encodeHostRegisters(in, 1, order, b);
+  HostState out;
+  EXPECT_EQ(decodeHostRegisters(b, order, out).count, 0u);
+  EXPECT_EQ(out.hostFrame, uint64_t{kHostFrameMax});
+  in.hostFrame = uint64_t{kHostFrameMax} + 3;
+  encodeHostRegisters(in, 1, order, b);
+  EXPECT_EQ(decodeHostRegisters(b, order, out).count, 0u);
+  EXPECT_LE(out.hostFrame, uint64_t{kHostFrameMax});
+}
+
+TEST_P(ModbusMapOrders, OnlyAWriteCoveringCommitCommitsOrRepeats) {
+  // The COMMIT registers hold a value different from the applied one (0): a write that does
+  // not cover them is neither a commit nor a repeat, even right next to them.
+  const WordOrder order = GetParam();
+  HostRegisterMap map(order);
+  const HoldingBlock regs = makeSet(order, 7);
+  for (const auto& [start, count] : {std::pair{26, 2}, std::pair{27, 1}, std::pair{0, 24}, std::pair{23, 1},
+                                     std::pair{25, 0}, std::pair{24, 0}}) {
+    const WriteOutcome w = map.afterWrite(regs, static_cast<uint16_t>(start), static_cast<uint16_t>(count));
+    EXPECT_FALSE(w.committed) << start << " + " << count;
+    EXPECT_FALSE(w.repeated) << start << " + " << count;
+  }
+  EXPECT_EQ(map.appliedCommit(), 0u);
+  // Either COMMIT register alone covers it.
+  EXPECT_TRUE(map.afterWrite(regs, 25, 1).committed);
+  EXPECT_EQ(map.appliedCommit(), 7u);
+}
+
 TEST(ModbusMap, CommitWithBadFieldsAppliesTheRest) {
   const WordOrder o = WordOrder::LowFirst;
   HostRegisterMap map(o);
@@ -396,6 +529,48 @@ TEST_P(ModbusMapOrders, StatusBlockLayout) {
   EXPECT_EQ(back.counters.malformed, 3u);
   EXPECT_EQ(back.counters.late, 1u);
   EXPECT_EQ(back.mapVersion, kMapVersion);
+}
+
+TEST_P(ModbusMapOrders, StatusBlockEveryFieldAtItsAddress) {
+  // A distinct value in every field: each lands at its documented address and decodes back.
+  const WordOrder order = GetParam();
+  IgStatus st;
+  st.igFrame = 0x01010101;
+  st.lastHostFrame = 0x02020202;
+  st.hostLost = true;
+  st.appliedCommit = 0x04040404;
+  st.rejectedFields = 0x05050505;
+  st.counters.received = 0x06060606;
+  st.counters.accepted = 0x07070707;
+  st.counters.malformed = 0x08080808;
+  st.counters.outOfRange = 0x09090909;
+  st.counters.late = 0x0A0A0A0A;
+  st.counters.dropped = 0x0B0B0B0B;
+  st.mapVersion = 0x0C0C0C0C;
+  InputBlock in{};
+  in.fill(0xEEEE);
+  encodeStatusRegisters(st, order, in);
+  const uint32_t want[kStatusSlotCount] = {0x01010101, 0x02020202, 1,          0x04040404, 0x05050505, 0x06060606,
+                                           0x07070707, 0x08080808, 0x09090909, 0x0A0A0A0A, 0x0B0B0B0B, 0x0C0C0C0C};
+  for (int k = 0; k < kStatusSlotCount; ++k)
+    EXPECT_EQ(readU32(in, static_cast<uint16_t>(2 * k), order), want[k]) << "input register " << 2 * k;
+  const IgStatus back = decodeStatusRegisters(in, order);
+  EXPECT_EQ(back.igFrame, st.igFrame);
+  EXPECT_EQ(back.lastHostFrame, st.lastHostFrame);
+  EXPECT_TRUE(back.hostLost);
+  EXPECT_EQ(back.appliedCommit, st.appliedCommit);
+  EXPECT_EQ(back.rejectedFields, st.rejectedFields);
+  EXPECT_EQ(back.counters.received, st.counters.received);
+  EXPECT_EQ(back.counters.accepted, st.counters.accepted);
+  EXPECT_EQ(back.counters.malformed, st.counters.malformed);
+  EXPECT_EQ(back.counters.outOfRange, st.counters.outOfRange);
+  EXPECT_EQ(back.counters.late, st.counters.late);
+  EXPECT_EQ(back.counters.dropped, st.counters.dropped);
+  EXPECT_EQ(back.mapVersion, st.mapVersion);
+  st.hostLost = false;
+  encodeStatusRegisters(st, order, in);
+  EXPECT_EQ(readU32(in, 4, order), 0u);
+  EXPECT_FALSE(decodeStatusRegisters(in, order).hostLost);
 }
 
 INSTANTIATE_TEST_SUITE_P(Both, ModbusMapOrders, ::testing::Values(WordOrder::LowFirst, WordOrder::HighFirst),
@@ -459,6 +634,74 @@ TEST(ModbusRequest, ChecksAgainstTheMap) {
   EXPECT_EQ(c.exception, Exception::IllegalFunction);
   EXPECT_TRUE(c.flush);
   EXPECT_EQ(check({0x2B, 0x0E, 0x01, 0x00}).exception, Exception::IllegalFunction);
+}
+
+// libmodbus's quantity limits (checked before the address, so a count past the limit is a value
+// error that flushes, a count within it but past the map an address error that does not), and
+// the address edges of FC22 and FC23.
+TEST(ModbusRequest, QuantityLimitsAndAddressEdges) {
+  using V = std::vector<uint8_t>;
+  auto check = [](const V& pdu) { return checkRequest(pdu); };
+  auto fc16 = [](int address, int nb) {
+    V p = {0x10, static_cast<uint8_t>(address >> 8), static_cast<uint8_t>(address), static_cast<uint8_t>(nb >> 8),
+           static_cast<uint8_t>(nb), static_cast<uint8_t>(2 * nb)};
+    p.resize(p.size() + static_cast<size_t>(static_cast<uint8_t>(2 * nb)), 0);
+    return p;
+  };
+  // FC3: 125 registers is the limit (past the map: address error), 126 a value error.
+  RequestCheck c = check({0x03, 0x00, 0x00, 0x00, 125});
+  EXPECT_EQ(c.exception, Exception::IllegalDataAddress);
+  EXPECT_FALSE(c.flush);
+  c = check({0x03, 0x00, 0x00, 0x00, 126});
+  EXPECT_EQ(c.exception, Exception::IllegalDataValue);
+  EXPECT_TRUE(c.flush);
+  EXPECT_EQ(check({0x04, 0x00, 0x00, 0x00, 126}).exception, Exception::IllegalDataValue);
+  // FC3 reads holding registers: no status refresh.
+  c = check({0x03, 0x00, 0x00, 0x00, 28});
+  EXPECT_EQ(c.exception, Exception::None);
+  EXPECT_FALSE(c.readsStatus);
+  EXPECT_EQ(c.writeCount, 0);
+  // FC16: 123 registers is the limit, 124 a value error; 0 registers a value error.
+  EXPECT_EQ(check(fc16(0, 123)).exception, Exception::IllegalDataAddress);
+  c = check(fc16(0, 124));
+  EXPECT_EQ(c.exception, Exception::IllegalDataValue);
+  EXPECT_TRUE(c.flush);
+  c = check(fc16(0, 0));
+  EXPECT_EQ(c.exception, Exception::IllegalDataValue);
+  EXPECT_TRUE(c.flush);
+  EXPECT_EQ(c.writeCount, 0);
+  // FC16 ending exactly at the map's end.
+  c = check(fc16(26, 2));
+  EXPECT_EQ(c.exception, Exception::None);
+  EXPECT_EQ(c.writeStart, 26);
+  EXPECT_EQ(c.writeCount, 2);
+  // FC22 on the last register and just past it.
+  EXPECT_EQ(check({0x16, 0x00, 27, 0xFF, 0xFF, 0x00, 0x01}).writeStart, 27);
+  c = check({0x16, 0x00, 28, 0xFF, 0xFF, 0x00, 0x01});
+  EXPECT_EQ(c.exception, Exception::IllegalDataAddress);
+  EXPECT_EQ(c.writeCount, 0);
+  // FC23: write ending at the map's end; a read past it or of 0 registers is refused, and then
+  // nothing is written.
+  c = check({0x17, 0x00, 0x00, 0x00, 28, 0x00, 26, 0x00, 2, 4, 0, 0, 0, 0});
+  EXPECT_EQ(c.exception, Exception::None);
+  EXPECT_EQ(c.writeStart, 26);
+  EXPECT_EQ(c.writeCount, 2);
+  c = check({0x17, 0x00, 27, 0x00, 2, 0x00, 24, 0x00, 2, 4, 0, 0, 0, 7});
+  EXPECT_EQ(c.exception, Exception::IllegalDataAddress);
+  EXPECT_EQ(c.writeCount, 0);
+  c = check({0x17, 0x00, 0x00, 0x00, 0, 0x00, 24, 0x00, 2, 4, 0, 0, 0, 7});
+  EXPECT_EQ(c.exception, Exception::IllegalDataValue);
+  EXPECT_TRUE(c.flush);
+  EXPECT_EQ(c.writeCount, 0);
+  // FC1: 2000 bits is the limit (then: no coils), 2001 a value error. FC15: a byte count too
+  // small for the bits is a value error.
+  EXPECT_EQ(check({0x01, 0x00, 0x00, 0x07, 0xD0}).exception, Exception::IllegalDataAddress);
+  c = check({0x01, 0x00, 0x00, 0x07, 0xD1});
+  EXPECT_EQ(c.exception, Exception::IllegalDataValue);
+  EXPECT_TRUE(c.flush);
+  c = check({0x0F, 0x00, 0x00, 0x00, 16, 1, 0xFF});
+  EXPECT_EQ(c.exception, Exception::IllegalDataValue);
+  EXPECT_TRUE(c.flush);
 }
 
 TEST(ModbusRequest, EveryTruncationIsRejected) {
