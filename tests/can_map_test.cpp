@@ -81,7 +81,23 @@ struct Assembly {
     for (const CanFrame& f : frames) push(f, t_us);
   }
   LinkCountersSnapshot c() const { return snapshot(counters); }
+  // Commits sampleSet() edited by `edit` with counter `seq` (at 1 ms x seq) and returns the state.
+  template <class Edit>
+  const HostState& commitEdited(uint8_t seq, Edit edit) {
+    CanEyeSet s = sampleSet();
+    edit(s);
+    pushAll(encode(s, seq), 1000 * int64_t{seq});
+    return out;
+  }
 };
+
+// The uint24 in bytes 5-7 of a frame (the time of day, the visibility), little-endian.
+uint32_t u24(const CanFrame& f) { return f.data[5] | uint32_t{f.data[6]} << 8 | uint32_t{f.data[7]} << 16; }
+void putU24(CanFrame& f, uint32_t v) {
+  f.data[5] = static_cast<uint8_t>(v);
+  f.data[6] = static_cast<uint8_t>(v >> 8);
+  f.data[7] = static_cast<uint8_t>(v >> 16);
+}
 
 std::string readFile(const std::string& path) {
   std::ifstream in(path);
@@ -312,11 +328,8 @@ TEST(CanMap, OutOfRangeRawValuesAreRejectedOneByOne) {
 }
 
 TEST(CanMap, VisibilityZeroIsNotGivenAndPositiveIsAtLeastOneMetre) {
-  auto vis = [](double v, uint8_t seq, auto& a) {
-    CanEyeSet s = sampleSet();
-    s.visibility_m = v;
-    a.pushAll(encode(s, seq), 1000 * seq);
-    return a.out.visibility_m;
+  auto vis = [](double v, uint8_t seq, Assembly& a) {
+    return a.commitEdited(seq, [v](CanEyeSet& s) { s.visibility_m = v; }).visibility_m;
   };
   Assembly a;
   EXPECT_EQ(vis(4321.0, 1, a), 4321.0);
@@ -335,31 +348,28 @@ TEST(CanMap, VisibilityZeroIsNotGivenAndPositiveIsAtLeastOneMetre) {
   EXPECT_EQ(vis(std::numeric_limits<double>::infinity(), 9, a), 1e7);
   EXPECT_EQ(a.c().outOfRange, 1u);
   auto f = encode(sampleSet(), 10);
-  EXPECT_EQ(f[2].data[5] | f[2].data[6] << 8 | f[2].data[7] << 16, 4321);
+  EXPECT_EQ(u24(f[2]), 4321u);
   CanEyeSet inf = sampleSet();
   inf.visibility_m = std::numeric_limits<double>::infinity();
   f = encode(inf, 11);
-  EXPECT_EQ(f[2].data[5] | f[2].data[6] << 8 | f[2].data[7] << 16, 0xFFFFFE);
+  EXPECT_EQ(u24(f[2]), 0xFFFFFEu);
   // Just below the raw range's end: never rounded into "not available" (0xFFFFFF).
   for (double big : {16777214.5, 16777214.9}) {
     inf.visibility_m = big;
     f = encode(inf, 11);
-    EXPECT_EQ(f[2].data[5] | f[2].data[6] << 8 | f[2].data[7] << 16, 0xFFFFFE) << big;
+    EXPECT_EQ(u24(f[2]), 0xFFFFFEu) << big;
   }
   // The raw "not available" 0xFFFFFF is rejected.
   f = encode(sampleSet(), 12);
-  f[2].data[5] = f[2].data[6] = f[2].data[7] = 0xFF;
+  putU24(f[2], 0xFFFFFF);
   a.pushAll(f, 12000);
   EXPECT_EQ(a.c().outOfRange, 2u);
   EXPECT_EQ(a.out.visibility_m, 1e7);
 }
 
 TEST(CanMap, TimeOfDayZeroIsNotGivenAndTheDayWraps) {
-  auto tod = [](double h, uint8_t seq, auto& a) {
-    CanEyeSet s = sampleSet();
-    s.timeOfDay_h = h;
-    a.pushAll(encode(s, seq), 1000 * seq);
-    return a.out.timeOfDay_h;
+  auto tod = [](double h, uint8_t seq, Assembly& a) {
+    return a.commitEdited(seq, [h](CanEyeSet& s) { s.timeOfDay_h = h; }).timeOfDay_h;
   };
   Assembly a;
   EXPECT_NEAR(tod(13.5, 1, a), 13.5, 1e-12);
@@ -369,34 +379,32 @@ TEST(CanMap, TimeOfDayZeroIsNotGivenAndTheDayWraps) {
   // Not given (negative, what map version 1 hosts' zeros mean): -1, the scene's sun.
   EXPECT_EQ(tod(-1.0, 4, a), -1.0);
   auto f = encode(sampleSet(), 5);
-  f[0].data[5] = f[0].data[6] = f[0].data[7] = 0;
+  putU24(f[0], 0);
   a.pushAll(f, 5000);
   EXPECT_EQ(a.out.timeOfDay_h, -1.0);
   // +infinity: not given too (raw 0).
   CanEyeSet inf = sampleSet();
   inf.timeOfDay_h = std::numeric_limits<double>::infinity();
   f = encode(inf, 1);
-  EXPECT_EQ(f[0].data[5] | f[0].data[6] << 8 | f[0].data[7] << 16, 0);
+  EXPECT_EQ(u24(f[0]), 0u);
   // Less than half a centisecond before midnight: 23:59:59.99 (raw 8,640,000), not rounded up
   // past the day.
   inf.timeOfDay_h = 86399.996 / 3600.0;
   f = encode(inf, 1);
-  EXPECT_EQ(f[0].data[5] | f[0].data[6] << 8 | f[0].data[7] << 16, static_cast<int>(kCanTimeOfDayMaxRaw));
+  EXPECT_EQ(u24(f[0]), kCanTimeOfDayMaxRaw);
   Assembly late;
   EXPECT_NEAR(tod(86399.996 / 3600.0, 1, late), 86399.99 / 3600.0, 1e-12);
   EXPECT_EQ(late.c().outOfRange, 0u);
   // 25 h wraps to 1 h; the encoder's centiseconds are exact.
   EXPECT_NEAR(tod(25.0, 6, a), 1.0, 1e-12);
   f = encode(sampleSet(), 7);
-  EXPECT_EQ(f[0].data[5] | f[0].data[6] << 8 | f[0].data[7] << 16, 1 + 4'860'000);
+  EXPECT_EQ(u24(f[0]), 1u + 4'860'000u);
   // Not available (NaN) and raw beyond 23:59:59.99: rejected, the last good value stays.
   EXPECT_NEAR(tod(6.0, 8, a), 6.0, 1e-12);
   EXPECT_NEAR(tod(std::numeric_limits<double>::quiet_NaN(), 9, a), 6.0, 1e-12);
   f = encode(sampleSet(), 10);
   const uint32_t past = kCanTimeOfDayMaxRaw + 1;
-  f[0].data[5] = static_cast<uint8_t>(past);
-  f[0].data[6] = static_cast<uint8_t>(past >> 8);
-  f[0].data[7] = static_cast<uint8_t>(past >> 16);
+  putU24(f[0], past);
   a.pushAll(f, 10000);
   EXPECT_NEAR(a.out.timeOfDay_h, 6.0, 1e-12);
   EXPECT_EQ(a.c().outOfRange, 2u);
