@@ -91,6 +91,17 @@ struct Assembly {
   }
 };
 
+// Decodes every frame of a set (base id 0x100) into `out`; returns the fields rejected.
+int decodeAll(const std::array<CanFrame, kCanFrameCount>& frames, CanEyeSet& out) {
+  int rejected = 0;
+  for (const CanFrame& fr : frames) {
+    CanDecodedFrame d;
+    EXPECT_EQ(decodeCanFrame(fr, 0x100, d, out), CanDecodeStatus::Ok);
+    rejected += d.rejectedFields;
+  }
+  return rejected;
+}
+
 // The uint24 in bytes 5-7 of a frame (the time of day, the visibility), little-endian.
 uint32_t u24(const CanFrame& f) { return f.data[5] | uint32_t{f.data[6]} << 8 | uint32_t{f.data[7]} << 16; }
 void putU24(CanFrame& f, uint32_t v) {
@@ -202,12 +213,7 @@ TEST(CanMap, FiniteValuesSaturateToTheRawType) {
   EXPECT_EQ(f[3].data[5] | f[3].data[6] << 8, 0x7FFF);
   EXPECT_EQ(u32(f[4]), 0xFFFFFFFEu);  // 0xFFFFFFFF is "not available"
   CanEyeSet out;
-  int rejected = 0;
-  for (const CanFrame& fr : f) {
-    CanDecodedFrame d;
-    ASSERT_EQ(decodeCanFrame(fr, 0x100, d, out), CanDecodeStatus::Ok);
-    rejected += d.rejectedFields;
-  }
+  const int rejected = decodeAll(f, out);
   EXPECT_EQ(rejected, 4);  // lat, lon, pitch, roll; sim time 4294967.294 s is the largest valid
   EXPECT_TRUE(std::isnan(out.lat_deg));
   EXPECT_DOUBLE_EQ(out.simTime_s, 4294967.294);
@@ -261,12 +267,7 @@ TEST(CanMap, NanEncodesAsNotAvailableAndDecodesAsRejected) {
   EXPECT_EQ(f[3].data[1], 0xFF);  // heading 0xFFFF
   EXPECT_EQ(f[3].data[2], 0xFF);
   CanEyeSet out;
-  int rejected = 0;
-  for (const CanFrame& fr : f) {
-    CanDecodedFrame d;
-    ASSERT_EQ(decodeCanFrame(fr, 0x100, d, out), CanDecodeStatus::Ok);
-    rejected += d.rejectedFields;
-  }
+  const int rejected = decodeAll(f, out);
   EXPECT_EQ(rejected, 7);
   EXPECT_TRUE(std::isnan(out.lat_deg) && std::isnan(out.lon_deg) && std::isnan(out.height_m));
   EXPECT_TRUE(std::isnan(out.heading_deg) && std::isnan(out.pitch_deg) && std::isnan(out.roll_deg));
