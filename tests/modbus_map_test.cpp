@@ -328,58 +328,50 @@ TEST(ModbusMap, ClipPlanesMustStayOrdered) {
   HostState last;
   last.near_m = 1.0;
   last.far_m = 1000.0;
-  // near >= far in the same set: both rejected, both keep their last good values.
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const uint32_t nearBit = 1u << static_cast<int>(Slot::Near), farBit = 1u << static_cast<int>(Slot::Far);
   HoldingBlock b = makeSet(o, 1);
-  putFloat(b, slotAddress(Slot::Near), 500.0f, o);
-  putFloat(b, slotAddress(Slot::Far), 400.0f, o);
-  HostState s = last;
-  FieldRejects r = decodeHostRegisters(b, o, s);
+  HostState s;
+  FieldRejects r;
+  // A set with these clip planes decoded over the last good values.
+  auto decode = [&](float nearV, float farV) {
+    putFloat(b, slotAddress(Slot::Near), nearV, o);
+    putFloat(b, slotAddress(Slot::Far), farV, o);
+    s = last;
+    r = decodeHostRegisters(b, o, s);
+  };
+  // near >= far in the same set: both rejected, both keep their last good values.
+  decode(500.0f, 400.0f);
   EXPECT_EQ(r.count, 2u);
-  EXPECT_EQ(r.mask, (1u << static_cast<int>(Slot::Near)) | (1u << static_cast<int>(Slot::Far)));
+  EXPECT_EQ(r.mask, nearBit | farBit);
   EXPECT_EQ(s.near_m, 1.0);
   EXPECT_EQ(s.far_m, 1000.0);
   // far rejected (NaN) and the new near beyond the last good far: near rejected too.
-  putFloat(b, slotAddress(Slot::Near), 2000.0f, o);
-  putFloat(b, slotAddress(Slot::Far), std::numeric_limits<float>::quiet_NaN(), o);
-  s = last;
-  r = decodeHostRegisters(b, o, s);
+  decode(2000.0f, nan);
   EXPECT_EQ(r.count, 2u);
   // far rejected and near still below the last good far: near applies.
-  putFloat(b, slotAddress(Slot::Near), 5.0f, o);
-  s = last;
-  r = decodeHostRegisters(b, o, s);
+  decode(5.0f, nan);
   EXPECT_EQ(r.count, 1u);
   EXPECT_EQ(s.near_m, 5.0);
   EXPECT_EQ(s.far_m, 1000.0);
   // near == far in the same set is not near < far: both rejected.
-  putFloat(b, slotAddress(Slot::Near), 300.0f, o);
-  putFloat(b, slotAddress(Slot::Far), 300.0f, o);
-  s = last;
-  r = decodeHostRegisters(b, o, s);
-  EXPECT_EQ(r.mask, (1u << static_cast<int>(Slot::Near)) | (1u << static_cast<int>(Slot::Far)));
+  decode(300.0f, 300.0f);
+  EXPECT_EQ(r.mask, nearBit | farBit);
   EXPECT_EQ(s.near_m, 1.0);
   EXPECT_EQ(s.far_m, 1000.0);
   // far rejected and the new near equal to the last good far: near rejected too.
-  putFloat(b, slotAddress(Slot::Near), 1000.0f, o);
-  putFloat(b, slotAddress(Slot::Far), std::numeric_limits<float>::quiet_NaN(), o);
-  s = last;
-  r = decodeHostRegisters(b, o, s);
+  decode(1000.0f, nan);
   EXPECT_EQ(r.count, 2u);
   EXPECT_EQ(s.near_m, 1.0);
   // near rejected (NaN) and the new far below or equal to the last good near: far rejected too.
-  putFloat(b, slotAddress(Slot::Near), std::numeric_limits<float>::quiet_NaN(), o);
   for (const float badFar : {0.5f, 1.0f}) {
-    putFloat(b, slotAddress(Slot::Far), badFar, o);
-    s = last;
-    r = decodeHostRegisters(b, o, s);
+    decode(nan, badFar);
     EXPECT_EQ(r.count, 2u) << badFar;
     EXPECT_EQ(s.far_m, 1000.0) << badFar;
   }
   // near rejected and the new far above the last good near: far applies.
-  putFloat(b, slotAddress(Slot::Far), 2.0f, o);
-  s = last;
-  r = decodeHostRegisters(b, o, s);
-  EXPECT_EQ(r.mask, 1u << static_cast<int>(Slot::Near));
+  decode(nan, 2.0f);
+  EXPECT_EQ(r.mask, nearBit);
   EXPECT_EQ(s.near_m, 1.0);
   EXPECT_EQ(s.far_m, 2.0);
 }
