@@ -1,6 +1,7 @@
 #include "ig/bench_cells.h"
 
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -173,6 +174,7 @@ int runCellsBench(const CellsBenchOptions& o) {
   std::vector<double> selectMs(static_cast<size_t>(o.frames), 1e300), oneThreadMs(selectMs), firstMs, voxelsDrawn,
       quality, cutCells;
   std::vector<uint64_t> signature(static_cast<size_t>(o.frames), 0);
+  std::vector<lod::CellSelectStats> firstStats;  // the first replay's, per frame (--trace)
   uint64_t bytesMax = 0, bytesTotal = 0;
   // Frames over a budget (drawn voxels > voxel budget or requested bytes > W, path and sweep):
   // the exit status is 1 if there is any.
@@ -199,6 +201,7 @@ int runCellsBench(const CellsBenchOptions& o) {
         voxelsDrawn.push_back(static_cast<double>(s.drawnVoxels));
         quality.push_back(static_cast<double>(s.maxVoxel_px));
         cutCells.push_back(s.cutCells);
+        firstStats.push_back(s);
         if (s.drawnVoxels > o.voxelBudget || s.requestedBytes > o.wBytes || !s.valid) ++exceeded;
         bytesMax = std::max(bytesMax, s.requestedBytes);
         bytesTotal += s.requestedBytes;
@@ -227,6 +230,7 @@ int runCellsBench(const CellsBenchOptions& o) {
     return -1;
   };
   std::vector<double> deadlineMs, deadlineQuality, deadlineDrawn;  // deadlineDrawn: the first replay's, per frame
+  std::vector<char> deadlineStopped;                                  // the first replay's, per frame
   int stoppedFrames = 0, deadlineFill = -1, deadlineFillTeleport = -1;
   if (o.deadline_ms > 0.0) {
     int fillSum = 0, fillTeleportSum = 0, fills = 0, fillsTeleport = 0;
@@ -247,6 +251,7 @@ int runCellsBench(const CellsBenchOptions& o) {
         deadline.done(dv, s);
         deadlineMs.push_back(msSince(t0));
         stoppedFrames += s.stopped ? 1 : 0;
+        if (run == 0) deadlineStopped.push_back(s.stopped ? 1 : 0);
         deadlineQuality.push_back(static_cast<double>(s.maxVoxel_px));
         drawn.push_back(static_cast<double>(s.drawnVoxels));
         if (s.drawnVoxels > o.voxelBudget || s.requestedBytes > o.wBytes || !s.valid) ++exceeded;
@@ -261,6 +266,36 @@ int runCellsBench(const CellsBenchOptions& o) {
     deadlineFillTeleport = fillsTeleport == repeats ? (fillTeleportSum + repeats / 2) / repeats : -1;
   }
   const int fill = framesToFill(voxelsDrawn, false), fillTeleport = framesToFill(voxelsDrawn, true);
+  // Each path frame's fastest deadline replay (the replays' choices may differ, since the stop
+  // reads the clock; each replay holds every frame to the same deadline).
+  std::vector<double> deadlineFastestMs;
+  if (!deadlineMs.empty()) {
+    deadlineFastestMs.assign(static_cast<size_t>(o.frames), 1e300);
+    for (size_t k = 0; k < deadlineMs.size(); ++k)
+      deadlineFastestMs[k % deadlineFastestMs.size()] = std::min(deadlineFastestMs[k % deadlineFastestMs.size()], deadlineMs[k]);
+  }
+  if (!o.trace.empty()) {
+    std::FILE* f = std::fopen(o.trace.c_str(), "w");
+    if (f == nullptr) {
+      std::fprintf(stderr, "igbench cells: cannot write the trace %s: %s\n", o.trace.c_str(), std::strerror(errno));
+      return 1;
+    }
+    std::fprintf(f, "frame,select_ms,select_ms_one_thread,cut_cells,drawn_voxels,max_voxel_px,splits,merges,"
+                    "blocked_splits,requested_cells,requested_bytes,deadline_ms_fastest,deadline_ms_first,deadline_stopped_first\n");
+    for (size_t i = 0; i < firstStats.size(); ++i) {
+      const lod::CellSelectStats& s = firstStats[i];
+      const bool dl = i < deadlineStopped.size();
+      std::fprintf(f, "%zu,%.4f,%.4f,%u,%llu,%.3f,%u,%u,%u,%u,%llu,%.4f,%.4f,%d\n", i, selectMs[i],
+                   twoThreads ? oneThreadMs[i] : selectMs[i], s.cutCells, static_cast<unsigned long long>(s.drawnVoxels),
+                   static_cast<double>(s.maxVoxel_px), s.splits, s.merges, s.blockedSplits, s.requestedCells,
+                   static_cast<unsigned long long>(s.requestedBytes), dl ? deadlineFastestMs[i] : -1.0, dl ? deadlineMs[i] : -1.0,
+                   dl ? int{deadlineStopped[i]} : -1);
+    }
+    if (std::fclose(f) != 0) {
+      std::fprintf(stderr, "igbench cells: cannot write the trace %s\n", o.trace.c_str());
+      return 1;
+    }
+  }
 
   // Sweep over voxel budgets, everything resident, over every 4th frame of the path (replayed
   // as the path is, each frame's fastest time).
@@ -374,10 +409,12 @@ int runCellsBench(const CellsBenchOptions& o) {
     if (o.deadline_ms > 0.0)
       std::printf(",\"deadline\":{\"deadline_ms\":%.3f,\"replays\":%d,\"select_ms_p50\":%.4f,\"select_ms_p99\":%.4f,"
                   "\"select_ms_max\":%.4f,\"stopped_frames\":%d,\"frames\":%zu,\"frames_to_fill\":%d,"
-                  "\"frames_to_fill_after_teleport\":%d,\"max_voxel_px_p50\":%.3f}",
+                  "\"frames_to_fill_after_teleport\":%d,\"max_voxel_px_p50\":%.3f,\"select_ms_p50_fastest\":%.4f,"
+                  "\"select_ms_p99_fastest\":%.4f}",
                   o.deadline_ms, repeats, percentile(deadlineMs, 50), percentile(deadlineMs, 99),
                   *std::max_element(deadlineMs.begin(), deadlineMs.end()), stoppedFrames, deadlineMs.size(), deadlineFill,
-                  deadlineFillTeleport, percentile(deadlineQuality, 50));
+                  deadlineFillTeleport, percentile(deadlineQuality, 50), percentile(deadlineFastestMs, 50),
+                  percentile(deadlineFastestMs, 99));
     // Per path frame (scripts/plot_cells.py): voxels drawn in the first replay, without and with
     // the deadline, and the select time (the fastest replay's) without it.
     const auto printArray = [](const char* name, const std::vector<double>& v, int decimals) {
@@ -422,10 +459,12 @@ int runCellsBench(const CellsBenchOptions& o) {
     if (o.deadline_ms > 0.0)
       std::printf("  path with each select() held to %.2f ms (the refinement stopped early enough; %d replays pooled): select "
                   "p50 %.3f ms, p99 %.3f ms, max %.3f ms; stopped in %d of %zu frames; the voxels drawn reached 95 %% of "
-                  "the most above %d frames after the start, %d after the teleport; largest voxel p50 %.2f px (without: %.2f)\n",
+                  "the most above %d frames after the start, %d after the teleport; largest voxel p50 %.2f px (without: %.2f); "
+                  "each frame's fastest replay: p50 %.3f ms, p99 %.3f ms\n",
                   o.deadline_ms, repeats, percentile(deadlineMs, 50), percentile(deadlineMs, 99),
                   *std::max_element(deadlineMs.begin(), deadlineMs.end()), stoppedFrames, deadlineMs.size(), deadlineFill,
-                  deadlineFillTeleport, percentile(deadlineQuality, 50), percentile(quality, 50));
+                  deadlineFillTeleport, percentile(deadlineQuality, 50), percentile(quality, 50),
+                  percentile(deadlineFastestMs, 50), percentile(deadlineFastestMs, 99));
     std::printf("  sweep (all resident): budget, voxels p50, largest voxel px p50 / max, cut cells p50, select ms p50 / p99"
                 "%s\n", twoThreads ? ", one thread p50 / p99" : "");
     for (const SweepPoint& p : sweep) {

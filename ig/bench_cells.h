@@ -38,6 +38,10 @@ struct CellsBenchOptions {
   // Non-empty: write the cell tree to this file (5 doubles: root corner x, y, z, root edge, voxel
   // depth; uint64 cell count; lod::CellDesc per cell) and exit (scripts/cells-ab).
   std::string dumpTree;
+  // Non-empty: write one CSV row per path frame to this file (docs/cells.md, "Benchmark"): the
+  // frame's select time (fastest replay, two threads and one), what the first replay did in it,
+  // and the first deadline replay's time and whether its refinement was stopped.
+  std::string trace;
 };
 
 int runCellsBench(const CellsBenchOptions& options);

@@ -354,6 +354,10 @@ int main(int argc, char** argv) {
   cells->add_option("--dump-tree", cellsOptions.dumpTree,
                     "Write the cell tree (header + one CellDesc per cell) to this file and exit, for scripts/cells-ab "
                     "(the selection of two revisions side by side)");
+  cells->add_option("--trace", cellsOptions.trace,
+                    "Write a CSV, one row per path frame: select ms (fastest replay; two threads and one), cut cells, "
+                    "drawn voxels, largest voxel px, splits, merges, blocked splits, requests, and the first deadline "
+                    "replay's ms and stop");
   ig::ForestBenchOptions forestOptions;
   CLI::App* forest = app.add_subcommand(
       "forest",
