@@ -105,8 +105,10 @@ struct CellView {
   uint64_t voxelBudget = 1000000;   // sum V over drawn cells never exceeds it
   uint64_t byteBudget = 1 << 20;    // W: sum S over cells requested this frame never exceeds it
   // A hard stop for the refinement, e.g. a deadline on the caller's clock (lod/ reads no clock):
-  // polled after every kCellStopPoll candidates the refinement examined (splits, blocked splits);
-  // once it returns true the refinement ends there, as at maxOperations: the cut stays a valid
+  // polled after every kCellStopPoll candidates the refinement examined (splits, blocked splits)
+  // and every kCellStopPoll merges of cells that left the view or became sub-pixel (before the
+  // refinement; stopped there, the rest wait for the next frames and nothing is refined); once it
+  // returns true the refinement ends there, as at maxOperations: the cut stays a valid
   // realization within both budgets, the draw list and the requests so far are complete, and the
   // next frames go on from it (CellSelectStats::stopped). The passes over the cut and the
   // coarsening to the voxel budget are not stopped. nullptr: never.

@@ -906,6 +906,53 @@ TEST(CellSelect, AStopEndsTheRefinementThereAndTheNextFramesCatchUp) {
   EXPECT_GT(never.polls, 0);
 }
 
+// After a jump of the eye, hundreds of refined cells can leave the view at once; merging them
+// back (they cost nothing and cannot be seen) is polled too, so a stop can end the frame there:
+// the frame refines nothing, stays valid and within the budget, and the later frames merge the
+// rest and come back to the selection from scratch.
+TEST(CellSelect, AStopCanEndTheMergesOfCellsThatLeftTheView) {
+  const CellTree t = stopTree(64);
+  CellView v = stopView();
+  CellView turned = v;
+  turned.camera.heading_deg += 180.0;
+  // How many cells the turn merges back without a stop.
+  CellSelector plain(t);
+  runSelect(plain, t, v);
+  const Frame after = runSelect(plain, t, turned);
+  ASSERT_GT(after.stats.merges, 3 * kCellStopPoll) << "the turn must merge many cells back";
+
+  CellSelector sel(t);
+  runSelect(sel, t, v);
+  StopAfter stop;  // fires at the first poll: after kCellStopPoll - 1 merges
+  CellView w = turned;
+  w.stop = &StopAfter::poll;
+  w.stopContext = &stop;
+  const Frame f = runSelect(sel, t, w);
+  EXPECT_TRUE(f.stats.stopped);
+  EXPECT_TRUE(f.stats.capped);
+  EXPECT_EQ(stop.polls, 1);
+  EXPECT_EQ(f.stats.splits + f.stats.blockedSplits, 0u) << "stopped before the refinement";
+  EXPECT_LT(f.stats.merges, after.stats.merges);
+  EXPECT_LE(f.stats.drawnVoxels, w.voxelBudget);
+  EXPECT_TRUE(f.stats.feasible);
+  expectValidRealization(t, sel);
+  EXPECT_GT(f.stats.cutCells, after.stats.cutCells) << "the rest of the merges must be left to later frames";
+
+  // Stopped at every first poll, the frames go on merging and then refining, never over budget.
+  int frames = 0;
+  for (; frames < 100; ++frames) {
+    stop = {};
+    const Frame g = runSelect(sel, t, w);
+    EXPECT_LE(g.stats.drawnVoxels, w.voxelBudget);
+    expectValidRealization(t, sel);
+    if (!g.stats.stopped) break;
+  }
+  EXPECT_LT(frames, 100) << "the stopped frames never caught up";
+  Frame g;
+  expectSameAsFresh(t, sel, turned, "after the stopped merges", g);
+  EXPECT_EQ(g.stats.maxVoxel_px, after.stats.maxVoxel_px);
+}
+
 // igd's cells phase budget (ig/cells_deadline.h, header-only): a stop at the budget on the
 // caller's clock; what a stopped call spends after its stop is learned and taken off the next
 // deadlines, so that the whole call ends near the budget.
@@ -937,16 +984,48 @@ TEST(CellSelectDeadline, LearnsTheTimeAfterAStopAndTakesItOffTheNextDeadlines) {
     EXPECT_TRUE(f.stats.stopped) << "frame " << frame;
     expectValidRealization(t, sel);
   }
-  // Frame 0: the deadline 50 us on fires at the 5th poll (one more reading marks it), done()
-  // reads once: 10 us after the stop. Frame 1: 40 us of room, one poll fewer.
-  EXPECT_EQ(polls[0], 6);
+  // Frame 0: the deadline 50 us on fires at the 5th poll, done() reads once: 10 us after the
+  // stop. Frame 1: 40 us of room, one poll fewer.
+  EXPECT_EQ(polls[0], 5);
   EXPECT_NEAR(deadline.afterStop_ms(), 0.01, 1e-9);
-  EXPECT_EQ(polls[1], 5);
+  EXPECT_EQ(polls[1], 4);
   // No budget (0, negative, NaN): no stop.
   for (double b : {0.0, -1.0, std::nan("")}) {
     deadline.arm(v, clock, clock.now_ns(), b);
     EXPECT_EQ(v.stop, nullptr) << b;
   }
+}
+
+// A call whose refinement ends before its deadline teaches the time after its last poll too, so
+// that the first call that is stopped already leaves room for what follows its stop.
+TEST(CellSelectDeadline, LearnsFromCallsThatWereNotStopped) {
+  const CellTree t = stopTree(63);
+  CellView v = stopView();
+  CountingClock clock;
+  ig::CellSelectDeadline deadline;
+  {
+    CellSelector sel(t);
+    deadline.arm(v, clock, clock.now_ns(), 1000.0);  // never reached
+    const int64_t before = clock.reads;
+    const Frame f = runSelect(sel, t, v);
+    ASSERT_GT(clock.reads - before, 1) << "the refinement must have polled";
+    deadline.done(v, f.stats);
+    EXPECT_FALSE(f.stats.stopped);
+  }
+  // done() read the clock once after the last poll: 10 us.
+  EXPECT_NEAR(deadline.afterStop_ms(), 0.01, 1e-9);
+  // A call that never polls (the same view again: nothing to refine) teaches nothing.
+  {
+    CellSelector sel(t);
+    runSelect(sel, t, v);
+    deadline.arm(v, clock, clock.now_ns(), 1000.0);
+    const int64_t before = clock.reads;
+    const Frame f = runSelect(sel, t, v);
+    ASSERT_EQ(clock.reads, before) << "a converged frame must not poll";
+    clock.now += 1'000'000;  // 1 ms later
+    deadline.done(v, f.stats);
+  }
+  EXPECT_NEAR(deadline.afterStop_ms(), 0.01, 1e-9);
 }
 
 // Streaming with a stop in every frame (a machine too slow for the budget): the budgets hold,
