@@ -30,7 +30,7 @@ int main(int argc, char** argv) {
   std::string treeFile;
   int reps = 5, frames = 600, latency = 3;
   uint64_t budget = 2000000, w = 1 << 20;
-  uint32_t maxOps = 512;
+  uint32_t maxOps = 256;  // igbench cells --max-ops
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     const char* v = i + 1 < argc ? argv[i + 1] : nullptr;
