@@ -2,9 +2,9 @@
 // before the call hands the view a stop for the refinement at start + budget, less what the
 // calls before still spent after their stop or their last poll (the draw list, a pass over the
 // cut: learned, so that the whole call ends near the budget); done() after the call disarms the
-// view and learns from it. The passes over the cut before the refinement are not stopped, so a call can
-// still run past the budget when they alone take longer. Used by the [cells] layer in igd and by
-// igbench cells' deadline replays. Not movable while armed (the view points at it).
+// view and learns from it. The passes over the cut before the refinement are not stopped, so a
+// call can still run past the budget when they alone take longer. Used by the [cells] layer in
+// igd and by igbench cells' deadline replays. Not movable while armed (the view points at it).
 #pragma once
 
 #include <algorithm>
@@ -20,23 +20,22 @@ class CellSelectDeadline {
  public:
   // budget_ms <= 0 or not finite: no stop.
   void arm(lod::CellView& view, const Clock& clock, int64_t start_ns, double budget_ms) {
-    firedAt_ns_ = lastPoll_ns_ = -1;
+    lastPoll_ns_ = -1;
     if (!(budget_ms > 0.0) || !std::isfinite(budget_ms)) return;
     const double room_ms = std::max(0.0, budget_ms - afterStop_ms_);
     deadline_ = {&clock, start_ns + static_cast<int64_t>(room_ms * 1e6)};
     view.stop = &CellSelectDeadline::past;
     view.stopContext = this;
   }
-  // Learns from every call that polled the stop: the time from the stop (or, when it never
-  // fired, from the last poll, which is at most kCellStopPoll candidates before the refinement's
-  // end: a slight overestimate) to the end of the call. Frames that never stop teach it too, so
-  // the first stopped frame does not overrun by the whole draw list.
-  void done(lod::CellView& view, const lod::CellSelectStats& stats) {
+  // Learns from every call that polled the stop: the time from its last poll to the end of the
+  // call. In a stopped call that poll is the stop; in one that was not stopped it lies at most
+  // kCellStopPoll candidates before the refinement's end (a slight overestimate). Calls that are
+  // not stopped teach it too, so the first stopped call does not overrun by the whole draw list.
+  void done(lod::CellView& view, const lod::CellSelectStats& /*stats*/) {
     view.stop = nullptr;
     view.stopContext = nullptr;
     if (deadline_.clock == nullptr || lastPoll_ns_ < 0) return;
-    const int64_t from = stats.stopped && firedAt_ns_ >= 0 ? firedAt_ns_ : lastPoll_ns_;
-    const double after_ms = static_cast<double>(deadline_.clock->now_ns() - from) * 1e-6;
+    const double after_ms = static_cast<double>(deadline_.clock->now_ns() - lastPoll_ns_) * 1e-6;
     afterStop_ms_ = learned_ ? 0.8 * afterStop_ms_ + 0.2 * after_ms : after_ms;
     learned_ = true;
   }
@@ -47,12 +46,10 @@ class CellSelectDeadline {
     auto* d = static_cast<CellSelectDeadline*>(self);
     const int64_t now = d->deadline_.clock->now_ns();
     d->lastPoll_ns_ = now;
-    if (now < d->deadline_.end_ns) return false;
-    d->firedAt_ns_ = now;
-    return true;
+    return now >= d->deadline_.end_ns;
   }
   ClockDeadline deadline_;
-  int64_t firedAt_ns_ = -1, lastPoll_ns_ = -1;
+  int64_t lastPoll_ns_ = -1;
   double afterStop_ms_ = 0.0;
   bool learned_ = false;
 };
