@@ -160,6 +160,32 @@ double projectedBoxArea_px(const glm::dmat4& vp, const std::array<glm::dvec3, 8>
 
 double boxRasterShare(double area_px) { return area_px > 0.0 ? std::min(1.0, area_px) : 0.0; }
 
+PerfConstants fitOverlap(PerfConstants k, const OverlapSample& small, const OverlapSample& large) {
+  PerfConstants serial = k;
+  serial.overlap = 0.0;
+  serial.overlapTriangles = 0.0;
+  double w[2] = {0.0, 0.0}, tris[2] = {0.0, 0.0};
+  const OverlapSample* frames[2] = {&small, &large};
+  for (int i = 0; i < 2; ++i) {
+    TimeBreakdown tb;
+    const double sum = predictFrame_ns(serial, frames[i]->load, {}, &tb);
+    const double smaller = std::min(tb.vertS + tb.stateS, tb.fragS);
+    const double measured = frames[i]->measured_ns;
+    w[i] = smaller > 0.0 && std::isfinite(measured) ? std::clamp((sum - measured) / smaller, 0.0, 1.0) : 0.0;
+    tris[i] = std::isfinite(frames[i]->load.triangles) ? std::max(0.0, frames[i]->load.triangles) : 0.0;
+  }
+  // w_k N_k = w (N_k - T0): two equations in w and T0.
+  const double wMax = tris[1] > tris[0] ? (w[1] * tris[1] - w[0] * tris[0]) / (tris[1] - tris[0]) : w[1];
+  if (wMax > 0.0 && w[0] < wMax) {
+    k.overlap = std::min(1.0, wMax);
+    k.overlapTriangles = std::max(0.0, tris[0] * (1.0 - w[0] / wMax));
+  } else {
+    k.overlap = std::max(w[0], w[1]);  // no growth with the size seen: a constant overlap
+    k.overlapTriangles = 0.0;
+  }
+  return k;
+}
+
 double stageOverlap(const PerfConstants& c, double triangles) {
   const double w = std::isfinite(c.overlap) ? std::clamp(c.overlap, 0.0, 1.0) : 1.0;
   const double t0 = clean(c.overlapTriangles), n = clean(triangles);

@@ -148,6 +148,22 @@ double predictFrame_ns(const PerfConstants& c, const PassLoad& objects, const Pa
 // triangles), at least 0 (overlap when overlapTriangles is 0).
 double stageOverlap(const PerfConstants& c, double triangles);
 
+// One frame of the overlap calibration: its load and its measured time.
+struct OverlapSample {
+  PassLoad load;
+  double measured_ns = 0;
+};
+// Fits k.overlap and k.overlapTriangles to two frames of different sizes (render/perf_calibration:
+// 45,000 and 135,000 boxes of a few pixels). Each frame's w is what (2) without overlap, with the
+// other constants of k, over-predicts it by, as a share of its smaller stage (state + vertex or
+// fragment), clamped to [0, 1]; then the line w (1 - T0 / N_tri) through the two, with w <= 1
+// and T0 >= 0; when the overlap does not grow with the size, the larger w and T0 = 0. The
+// calibration fits each run, and again with the median of the runs' constants and the median of
+// their times for these frames, so that the overlap agrees with the constants it is used with
+// (the median of each constant alone may take T_rtri from one run and the overlap from another,
+// fitted to that run's T_rtri). Returns k with the two fields set.
+PerfConstants fitOverlap(PerfConstants k, const OverlapSample& small, const OverlapSample& large);
+
 // The expected share of a box's triangles that reach the rasterizer, by its projected area A
 // (px): a box smaller than a pixel covers a pixel centre with a probability of about its area,
 // and one that covers none is dropped in set-up. min(1, A); 0 for A <= 0 or NaN. (Per triangle,

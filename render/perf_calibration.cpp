@@ -33,8 +33,9 @@ using Clock = std::chrono::steady_clock;
 // command (draw_raster_ns), taken out of raster_tri_ns. 6: the overlap (and the edges) with the
 // share of the boxes that reach the rasterizer (lod::PassLoad::rasterShare). 7: edge_ns from
 // whole frames (the application thread's part of larger boxes too). 8: T_tri by call size with
-// every box of a call in its leaf (addCalibrationGrid; 7 measured mixed, more calls).
-constexpr int kCacheVersion = 8;
+// every box of a call in its leaf (addCalibrationGrid; 7 measured mixed, more calls). 9: the
+// overlap fitted again to the median constants of the runs (lod::fitOverlap).
+constexpr int kCacheVersion = 9;
 
 struct Field {
   const char* name;
@@ -293,7 +294,8 @@ bool writeCalibrationCache(const std::string& path, const std::string& key, cons
 namespace {
 
 // One run of the measurements (see perf_calibration.h) into `c`.
-bool measure(const CalibrationOptions& o, lod::PerfConstants& c, std::string& error) {
+bool measure(const CalibrationOptions& o, lod::PerfConstants& c, lod::OverlapSample (&overlapFrames)[2],
+             std::string& error) {
   c = {};
   settleHeap();
   Bench b;
@@ -680,7 +682,6 @@ bool measure(const CalibrationOptions& o, lod::PerfConstants& c, std::string& er
     if (!makePass(pass, kBig[1], 6, 64.0, o.fragmentWork, error)) return false;
     pass.setStrategy(DynamicStrategy::Octree);
     std::vector<DynamicObject> boxes;
-    double w[2] = {0.0, 0.0}, tris[2] = {0.0, 0.0};
     for (int k = 0; k < 2; ++k) {
       while (boxes.size() < kBig[k]) {
         DynamicObject ob = tiny(static_cast<uint32_t>(boxes.size()), 21.0);
@@ -704,14 +705,7 @@ bool measure(const CalibrationOptions& o, lod::PerfConstants& c, std::string& er
       load.commands = st.commands;
       load.submissions = st.submissions;
       load.frustumTests = st.frustumTests;
-      lod::PerfConstants serial = c;
-      serial.overlap = 0.0;
-      serial.overlapTriangles = 0.0;
-      lod::TimeBreakdown tb;
-      const double sum = lod::predictFrame_ns(serial, load, {}, &tb);
-      const double smaller = std::min(tb.vertS + tb.stateS, tb.fragS);
-      w[k] = smaller > 0.0 ? std::clamp((sum - ms * 1e6) / smaller, 0.0, 1.0) : 0.0;
-      tris[k] = load.triangles;
+      overlapFrames[k] = {load, ms * 1e6};
     }
     // t_c with many commands: the 135,000 boxes as per-object commands against the same in
     // their node ranges, alternately, the application thread's CPU time (the commands and their
@@ -743,15 +737,7 @@ bool measure(const CalibrationOptions& o, lod::PerfConstants& c, std::string& er
       c.commandLarge_ns = large > c.command_ns ? large : c.command_ns;
       c.commandLargeCount = large > c.command_ns ? n : 0.0;
     }
-    // w_k N_k = w (N_k - T0): two equations in w and T0.
-    const double wMax = tris[1] > tris[0] ? (w[1] * tris[1] - w[0] * tris[0]) / (tris[1] - tris[0]) : w[1];
-    if (wMax > 0.0 && w[0] < wMax) {
-      c.overlap = std::min(1.0, wMax);
-      c.overlapTriangles = std::max(0.0, tris[0] * (1.0 - w[0] / wMax));
-    } else {
-      c.overlap = std::max(w[0], w[1]);  // no growth with the size seen: a constant overlap
-      c.overlapTriangles = 0.0;
-    }
+    c = lod::fitOverlap(c, overlapFrames[0], overlapFrames[1]);
   }
   const std::string e = glErrors();
   if (!e.empty()) return error = "calibration: GL errors " + e, false;
@@ -796,8 +782,12 @@ bool calibrate(const std::string& cachePath, const CalibrationOptions& o, Calibr
   const auto start = Clock::now();
   const int runs = std::clamp(o.runs, 1, 9);
   std::vector<lod::PerfConstants> measured(static_cast<size_t>(runs));
-  for (lod::PerfConstants& m : measured)
-    if (!measure(o, m, error)) return false;
+  std::vector<std::array<lod::OverlapSample, 2>> overlapFrames(static_cast<size_t>(runs));
+  for (size_t r = 0; r < measured.size(); ++r) {
+    lod::OverlapSample frames[2];
+    if (!measure(o, measured[r], frames, error)) return false;
+    overlapFrames[r] = {frames[0], frames[1]};
+  }
   // Each constant the median of the runs (each entry of the T_tri table too, which keeps it
   // non-increasing): a slow phase of a shared machine that covers one run does not decide it.
   lod::PerfConstants c = measured.front();
@@ -809,6 +799,18 @@ bool calibrate(const std::string& cachePath, const CalibrationOptions& o, Calibr
   for (const Field& f : kFields) c.*f.member = median([&](lod::PerfConstants& m) -> double { return m.*f.member; });
   for (size_t i = 0; i < c.triByDraw_ns.size(); ++i)
     c.triByDraw_ns[i] = median([&](lod::PerfConstants& m) -> double { return m.triByDraw_ns[i]; });
+  // The overlap fitted again with these constants, to the median of the runs' times for its two
+  // frames (the same scenes every run), so that it agrees with the T_rtri, T_edge ... it is used
+  // with (lod::fitOverlap).
+  if (runs > 1) {
+    lod::OverlapSample frames[2] = {overlapFrames[0][0], overlapFrames[0][1]};
+    for (size_t k = 0; k < 2; ++k) {
+      std::vector<double> times;
+      for (const auto& f : overlapFrames) times.push_back(f[k].measured_ns);
+      frames[k].measured_ns = medianOfRuns(std::move(times));
+    }
+    c = lod::fitOverlap(c, frames[0], frames[1]);
+  }
   out.constants = c;
   out.seconds = std::chrono::duration<double>(Clock::now() - start).count();
   if (!cachePath.empty()) {

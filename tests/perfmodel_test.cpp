@@ -146,6 +146,71 @@ TEST(PerfModel, OverlapGrowsWithTheFrameBeyondOverlapTriangles) {
   EXPECT_DOUBLE_EQ(predictFrame_ns(c, s, {}), 10000 + 5e5 + 2e6);
 }
 
+// The calibration's overlap line, fitted to two frames: from frames that a known line predicts,
+// the line comes back; the fitted constants predict both frames; the cases without growth,
+// without overlap, faster than even full overlap, and a NaN time.
+TEST(PerfModel, FitOverlapRecoversTheLineThatPredictsItsFrames) {
+  PerfConstants truth = handConstants();
+  truth.overlap = 0.8;
+  truth.overlapTriangles = 100000;
+  OverlapSample small, large;
+  small.load.triangles = 200000;  // vert 2e6
+  small.load.fragments = 1.5e6;   // frag 1.5e6: the smaller stage
+  large.load.triangles = 600000;  // vert 6e6
+  large.load.fragments = 3e6;
+  small.measured_ns = predictFrame_ns(truth, small.load, {});
+  large.measured_ns = predictFrame_ns(truth, large.load, {});
+  PerfConstants start = handConstants();
+  start.overlap = 0.0;  // whatever it was: the fit sets both fields
+  start.overlapTriangles = 12345;
+  const PerfConstants fit = fitOverlap(start, small, large);
+  EXPECT_NEAR(fit.overlap, 0.8, 1e-12);
+  EXPECT_NEAR(fit.overlapTriangles, 100000, 1e-6);
+  EXPECT_NEAR(predictFrame_ns(fit, small.load, {}), small.measured_ns, 1e-6);
+  EXPECT_NEAR(predictFrame_ns(fit, large.load, {}), large.measured_ns, 1e-6);
+  EXPECT_EQ(fit.tri_ns, start.tri_ns) << "only the overlap fields change";
+
+  // The same overlap at both sizes: a constant w, no threshold.
+  truth.overlap = 0.5;
+  truth.overlapTriangles = 0;
+  small.measured_ns = predictFrame_ns(truth, small.load, {});
+  large.measured_ns = predictFrame_ns(truth, large.load, {});
+  PerfConstants k = fitOverlap(start, small, large);
+  EXPECT_NEAR(k.overlap, 0.5, 1e-12);
+  EXPECT_EQ(k.overlapTriangles, 0.0);
+
+  // Frames as slow as the stages' sum: no overlap.
+  truth.overlap = 0.0;
+  small.measured_ns = predictFrame_ns(truth, small.load, {});
+  large.measured_ns = predictFrame_ns(truth, large.load, {});
+  k = fitOverlap(start, small, large);
+  EXPECT_EQ(k.overlap, 0.0);
+  EXPECT_EQ(k.overlapTriangles, 0.0);
+
+  // Faster than the full max(): w is clamped to 1. A NaN time counts as no overlap.
+  small.measured_ns = large.measured_ns = 1000.0;
+  k = fitOverlap(start, small, large);
+  EXPECT_EQ(k.overlap, 1.0);
+  small.measured_ns = large.measured_ns = std::nan("");
+  k = fitOverlap(start, small, large);
+  EXPECT_EQ(k.overlap, 0.0);
+  EXPECT_TRUE(valid(k));
+
+  // Fitted with other constants (a higher T_frag), the overlap changes so that the frames are
+  // still predicted: what the calibration's second fit, over the median constants, is for.
+  truth = handConstants();
+  truth.overlap = 0.8;
+  truth.overlapTriangles = 100000;
+  small.measured_ns = predictFrame_ns(truth, small.load, {});
+  large.measured_ns = predictFrame_ns(truth, large.load, {});
+  PerfConstants other = handConstants();
+  other.frag_ns = 1.2;
+  other = fitOverlap(other, small, large);
+  EXPECT_GT(other.overlap, 0.8);
+  EXPECT_NEAR(predictFrame_ns(other, small.load, {}), small.measured_ns, 1e-6 * small.measured_ns);
+  EXPECT_NEAR(predictFrame_ns(other, large.load, {}), large.measured_ns, 1e-6 * large.measured_ns);
+}
+
 // T_tri by the size of a submission (llvmpipe sets its vertex pipeline up per call: a box costs
 // more in a call of a few boxes).
 TEST(PerfModel, TriangleCostFollowsTheSubmissionSize) {
