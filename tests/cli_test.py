@@ -357,6 +357,33 @@ class ConfigErrors(Tmp):
                 self.assertExit(p, code)
         self.assertEqual(json.loads(p.stdout)["frames"], low)
 
+    def test_igbench_cells_trace(self):
+        # --trace FILE: one CSV row per path frame, agreeing with the JSON's per-frame arrays; the
+        # deadline columns from the deadline replays (each frame's fastest is at most the first
+        # replay's). A trace that cannot be written is an error naming the file.
+        trace = os.path.join(self.tmp, "cells_trace.csv")
+        frames = 30
+        p = run([IGBENCH, "cells", "--spheres", "100", "--levels", "7", "--frames", str(frames), "--no-mesh",
+                 "--json", "--repeats", "2", "--trace", trace], cwd=self.tmp)
+        self.assertExit(p, 0)
+        d = json.loads(p.stdout)
+        with open(trace, newline="") as f:
+            rows = list(csv.DictReader(f))
+        self.assertEqual(len(rows), frames)
+        self.assertEqual([int(r["frame"]) for r in rows], list(range(frames)))
+        self.assertEqual([float(r["drawn_voxels"]) for r in rows], d["path_voxels_drawn"])
+        for r, ms in zip(rows, d["path_select_ms"]):
+            self.assertAlmostEqual(float(r["select_ms"]), ms, places=3)
+            self.assertLessEqual(float(r["deadline_ms_fastest"]), float(r["deadline_ms_first"]))
+            self.assertIn(r["deadline_stopped_first"], ("0", "1"))
+        self.assertEqual(sum(int(r["splits"]) for r in rows) > 0, True, "the path refined nothing")
+        self.assertLessEqual(max(int(r["requested_bytes"]) for r in rows), d["w_bytes"])
+        bad = os.path.join(self.tmp, "no-such-dir", "trace.csv")
+        p = run([IGBENCH, "cells", "--spheres", "2", "--frames", "8", "--no-mesh", "--json", "--trace", bad],
+                cwd=self.tmp)
+        self.assertExit(p, 1)
+        self.assertMentions(p, bad)
+
     def test_igbench_cells_settle_is_null_when_never_settled(self):
         # frames_to_settle_after_teleport / seconds_to_settle_after_teleport: frames (seconds) until
         # a frame after the teleport with nothing requested, blocked or in flight. A path too short
