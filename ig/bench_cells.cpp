@@ -248,7 +248,7 @@ int runCellsBench(const CellsBenchOptions& o) {
         const auto t0 = BenchClock::now();
         deadline.arm(dv, clock, clock.now_ns(), o.deadline_ms);
         const lod::CellSelectStats s = selector.select(dv, residency, draw, requests);
-        deadline.done(dv, s);
+        deadline.done(dv);
         deadlineMs.push_back(msSince(t0));
         stoppedFrames += s.stopped ? 1 : 0;
         if (run == 0) deadlineStopped.push_back(s.stopped ? 1 : 0);

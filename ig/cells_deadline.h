@@ -31,7 +31,7 @@ class CellSelectDeadline {
   // call. In a stopped call that poll is the stop; in one that was not stopped it lies at most
   // kCellStopPoll candidates before the refinement's end (a slight overestimate). Calls that are
   // not stopped teach it too, so the first stopped call does not overrun by the whole draw list.
-  void done(lod::CellView& view, const lod::CellSelectStats& /*stats*/) {
+  void done(lod::CellView& view) {
     view.stop = nullptr;
     view.stopContext = nullptr;
     if (deadline_.clock == nullptr || lastPoll_ns_ < 0) return;

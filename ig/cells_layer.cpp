@@ -135,7 +135,7 @@ void CellsLayer::select(const lod::Camera& camera, int viewportHeight_px, const 
   view_.viewportHeight_px = std::max(1, viewportHeight_px);
   if (clock) deadline_.arm(view_, *clock, start_ns, budget_ms);
   stats_.select = selector_->select(view_, stream_->residency(), draws_, requests_);
-  deadline_.done(view_, stats_.select);
+  deadline_.done(view_);
   if (stats_.select.stopped) ++stats_.stoppedFrames;
   drawCount_ = stats_.select.drawnCells;
   // Without an arena nothing could be drawn: do not fetch either.

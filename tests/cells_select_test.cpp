@@ -979,7 +979,7 @@ TEST(CellSelectDeadline, LearnsTheTimeAfterAStopAndTakesItOffTheNextDeadlines) {
     const int64_t before = clock.reads;
     const Frame f = runSelect(sel, t, v);
     polls[frame] = clock.reads - before;
-    deadline.done(v, f.stats);
+    deadline.done(v);
     EXPECT_EQ(v.stop, nullptr);
     EXPECT_TRUE(f.stats.stopped) << "frame " << frame;
     expectValidRealization(t, sel);
@@ -1009,7 +1009,7 @@ TEST(CellSelectDeadline, LearnsFromCallsThatWereNotStopped) {
     const int64_t before = clock.reads;
     const Frame f = runSelect(sel, t, v);
     ASSERT_GT(clock.reads - before, 1) << "the refinement must have polled";
-    deadline.done(v, f.stats);
+    deadline.done(v);
     EXPECT_FALSE(f.stats.stopped);
   }
   // done() read the clock once after the last poll: 10 us.
@@ -1023,7 +1023,7 @@ TEST(CellSelectDeadline, LearnsFromCallsThatWereNotStopped) {
     const Frame f = runSelect(sel, t, v);
     ASSERT_EQ(clock.reads, before) << "a converged frame must not poll";
     clock.now += 1'000'000;  // 1 ms later
-    deadline.done(v, f.stats);
+    deadline.done(v);
   }
   EXPECT_NEAR(deadline.afterStop_ms(), 0.01, 1e-9);
 }
