@@ -226,30 +226,27 @@ TEST(ModbusMap, RangesPerField) {
   EXPECT_EQ(s.timeOfDay_h, -1.0);
   // Visibility: <= 0 is "not given" (the scene's fog; a zero-filled register must not fog the
   // picture out), below 1 m is drawn at 1 m, a rejected one keeps the last good value.
+  // Writes the visibility register and decodes the set: the rejected fields' count.
+  const auto visibility = [&](float v) {
+    putFloat(b, slotAddress(Slot::Visibility), v, o);
+    return decodeHostRegisters(b, o, s).count;
+  };
   s.visibility_m = 800.0;
-  putFloat(b, slotAddress(Slot::Visibility), 0.0f, o);
-  decodeHostRegisters(b, o, s);
+  visibility(0.0f);
   EXPECT_EQ(s.visibility_m, -1.0);
-  putFloat(b, slotAddress(Slot::Visibility), 0.25f, o);
-  decodeHostRegisters(b, o, s);
+  visibility(0.25f);
   EXPECT_EQ(s.visibility_m, 1.0);
-  putFloat(b, slotAddress(Slot::Visibility), 750.5f, o);
-  decodeHostRegisters(b, o, s);
+  visibility(750.5f);
   EXPECT_EQ(s.visibility_m, 750.5);
-  putFloat(b, slotAddress(Slot::Visibility), std::numeric_limits<float>::quiet_NaN(), o);
-  EXPECT_EQ(decodeHostRegisters(b, o, s).count, 1u);
+  EXPECT_EQ(visibility(std::numeric_limits<float>::quiet_NaN()), 1u);
   EXPECT_EQ(s.visibility_m, 750.5);
-  putFloat(b, slotAddress(Slot::Visibility), -1.0f, o);
-  decodeHostRegisters(b, o, s);
+  visibility(-1.0f);
   EXPECT_EQ(s.visibility_m, -1.0);
   // A host's "unlimited" (above 1e7, +infinity): 1e7, as CIGI's.
-  putFloat(b, slotAddress(Slot::Visibility), 3e8f, o);
-  decodeHostRegisters(b, o, s);
+  visibility(3e8f);
   EXPECT_EQ(s.visibility_m, 1e7);
-  putFloat(b, slotAddress(Slot::Visibility), 750.5f, o);
-  decodeHostRegisters(b, o, s);
-  putFloat(b, slotAddress(Slot::Visibility), std::numeric_limits<float>::infinity(), o);
-  EXPECT_EQ(decodeHostRegisters(b, o, s).count, 0u);
+  visibility(750.5f);
+  EXPECT_EQ(visibility(std::numeric_limits<float>::infinity()), 0u);
   EXPECT_EQ(s.visibility_m, 1e7);
   // The largest host frame float32 holds exactly.
   putFloat(b, slotAddress(Slot::HostFrame), 16777216.0f, o);
