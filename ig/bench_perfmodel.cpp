@@ -3,7 +3,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
+#include <memory>
 #include <random>
 #include <string>
 #include <vector>
@@ -89,11 +92,38 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
   co.fragmentWork = o.fragmentWork;
   co.budget_s = o.quick ? 1.5 : 10.0;
   co.runs = o.calibrationRuns > 0 ? o.calibrationRuns : o.quick ? 1 : 3;
+  // The trace file is opened first: a path that cannot be written fails before the minutes of
+  // measuring, not after.
+  std::vector<render::CalibrationFrame> calibrationFrames;
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> traceFile(nullptr, &std::fclose);
+  if (!o.calibrationTrace.empty()) {
+    traceFile.reset(std::fopen(o.calibrationTrace.c_str(), "w"));
+    if (!traceFile) {
+      std::fprintf(stderr, "igbench perfmodel: cannot write the calibration trace %s: %s\n", o.calibrationTrace.c_str(),
+                   std::strerror(errno));
+      return 2;
+    }
+    co.trace = &calibrationFrames;
+  }
   render::CalibrationResult cal;
   std::string warning;
   if (!render::calibrate(o.cachePath, co, cal, error, &warning)) {
     std::fprintf(stderr, "igbench perfmodel: %s\n", error.c_str());
     return 1;
+  }
+  if (traceFile) {
+    std::fprintf(traceFile.get(), "run,repeat,load,timed,frame_ms,submit_ms,thread_ms\n");
+    for (const render::CalibrationFrame& f : calibrationFrames)
+      std::fprintf(traceFile.get(), "%d,%d,%s,%d,%.4f,%.4f,%.4f\n", f.run, f.repeat, f.load, f.timed ? 1 : 0, f.frame_ms,
+                   f.submit_ms, f.thread_ms);
+    if (std::fflush(traceFile.get()) != 0 || std::ferror(traceFile.get())) {
+      std::fprintf(stderr, "igbench perfmodel: cannot write the calibration trace %s: %s\n", o.calibrationTrace.c_str(),
+                   std::strerror(errno));
+      return 2;
+    }
+    if (cal.fromCache)
+      std::fprintf(stderr, "igbench perfmodel: the calibration came from the cache %s: the trace %s has no frames\n",
+                   o.cachePath.c_str(), o.calibrationTrace.c_str());
   }
   if (!warning.empty()) std::fprintf(stderr, "igbench perfmodel: calibration cache: %s\n", warning.c_str());
   const lod::PerfConstants& k = cal.constants;

@@ -26,6 +26,7 @@ struct PerfModelBenchOptions {
   uint32_t seed = 1;
   int calibrationRuns = 0;        // calibration runs, each constant their median (0: 3, --quick 1)
   std::string cachePath;          // calibration cache; "" = calibrate every run
+  std::string calibrationTrace;   // CSV of every frame of the calibration's interleaved loads; "" = none
   bool quick = false;             // CI size: 10 100 1000 4000 boxes, 5 repeats, short calibration
   bool json = false;
 };

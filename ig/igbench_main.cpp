@@ -436,6 +436,9 @@ int main(int argc, char** argv) {
                    "Calibration runs; each constant is the median of the runs (default 3, --quick 1)")
       ->check(CLI::Range(1, 9));
   perf->add_option("--cache", perfOptions.cachePath, "Calibration cache file ('' = calibrate every run)");
+  perf->add_option("--calibration-trace", perfOptions.calibrationTrace,
+                   "Write every frame of the calibration's interleaved loads here (CSV: run, repeat, load,\n"
+                   "timed, frame_ms, submit_ms, thread_ms), to see the noise behind a constant");
   perf->add_flag("--quick", perfOptions.quick, "CI size: 10 ... 4000 boxes, fewer repeats, short calibration");
   perf->add_flag("--json", perfOptions.json, "Print one JSON object instead of the human summary");
   ig::AdaptiveBenchOptions adaptiveOptions;

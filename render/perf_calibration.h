@@ -25,8 +25,10 @@
 //                only once a frame overflows its scene buffer)
 // Each constant is a difference between loads (lower quartile of repeated frames, glFinish + a
 // monotonic clock), so fixed costs cancel. The loads of T_frag, T_tri, t_c, t_s, T_state,
-// T_rtri and T_edge are measured interleaved, one frame of each per repeat (11 repeats,
+// T_rtri and T_edge are measured interleaved, one timed frame of each per repeat (11 repeats,
 // 25 with a budget of 8 s or more), so a slow phase of the machine weighs on all of them alike;
+// each timed frame follows an untimed one of the same load (llvmpipe leaves part of a frame's
+// work to the next frame, and the scenes modelled repeat from frame to frame);
 // the others are the median of three slopes. With `runs` > 1 the whole measurement is repeated
 // and each constant is the median of the runs. Results are
 // cached in a small text file keyed by GL_VENDOR / GL_RENDERER / GL_VERSION, the CPU (model,
@@ -47,6 +49,18 @@ namespace ig::render {
 
 class DynamicPass;
 
+// One frame of the interleaved loads (CalibrationOptions::trace), for looking at the noise
+// behind a constant: each timed frame follows an untimed frame of the same load.
+struct CalibrationFrame {
+  int run = 0;             // 0 ... runs - 1
+  int repeat = 0;          // 0 is the warm-up repeat (shaders compiled, node ranges built; not used)
+  const char* load = "";   // calibrationLoadName(): full_1, layer_small, state_2000 ...
+  bool timed = false;      // one of the frames the constants come from
+  double frame_ms = 0.0;   // glFinish to glFinish
+  double submit_ms = 0.0;  // until the GL calls returned (the rest is the rasterizer's)
+  double thread_ms = 0.0;  // CPU time of the application thread until the GL calls returned
+};
+
 struct CalibrationOptions {
   int width_px = 640;          // viewport of the measurements (the fragment costs scale with it)
   int height_px = 360;
@@ -56,6 +70,7 @@ struct CalibrationOptions {
   int runs = 1;                // the measurements run this often (1 ... 9; budget_s each) and each
                                // constant is the median of the runs: a shared machine slows down
                                // in phases of seconds, and one run can fall into one
+  std::vector<CalibrationFrame>* trace = nullptr;  // when set, every frame of the interleaved loads
 };
 
 struct CalibrationResult {

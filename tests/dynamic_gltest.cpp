@@ -583,15 +583,16 @@ TEST_F(DynamicGl, CalibrationCacheRoundTripsAndRejectsCorruptFiles) {
   corrupt("tri_ns 33.25", "tri_ns 33.25x");
   corrupt("tri_ns 33.25\n", "");                 // missing
   corrupt("cull_ns", "cull_ms");                 // unknown field
-  corrupt("version 9", "version 10");
-  corrupt("version 9", "version 1");             // an older calibration (heap not settled)
-  corrupt("version 9", "version 2");             // an older model (frag_block_px, no rasterizer terms)
-  corrupt("version 9", "version 3");             // one T_tri for every draw size, no binning term
-  corrupt("version 9", "version 4");             // no per-draw rasterizer cost (in raster_tri_ns)
-  corrupt("version 9", "version 5");             // the overlap fitted with every box rasterized
-  corrupt("version 9", "version 6");             // T_edge from the rasterizer's side only
-  corrupt("version 9", "version 7");             // T_tri by call size from leaves of mixed counts
-  corrupt("version 9", "version 8");             // the overlap as the median of the runs' own fits
+  corrupt("version 10", "version 11");
+  corrupt("version 10", "version 1");             // an older calibration (heap not settled)
+  corrupt("version 10", "version 2");             // an older model (frag_block_px, no rasterizer terms)
+  corrupt("version 10", "version 3");             // one T_tri for every draw size, no binning term
+  corrupt("version 10", "version 4");             // no per-draw rasterizer cost (in raster_tri_ns)
+  corrupt("version 10", "version 5");             // the overlap fitted with every box rasterized
+  corrupt("version 10", "version 6");             // T_edge from the rasterizer's side only
+  corrupt("version 10", "version 7");             // T_tri by call size from leaves of mixed counts
+  corrupt("version 10", "version 8");             // the overlap as the median of the runs' own fits
+  corrupt("version 10", "version 9");             // each load timed after another load's frame
   EXPECT_NE(corrupt("draw_raster_ns 210.25\n", "").find("draw_raster_ns"), std::string::npos);  // missing
   corrupt("draw_raster_ns 210.25", "draw_raster_ns -3");
   EXPECT_NE(corrupt("tri_ns_96 62\n", "").find("tri_ns_96 missing"), std::string::npos);

@@ -9,7 +9,34 @@ set -euo pipefail
 igbench=$1
 dir=$(mktemp -d)
 trap 'rm -rf "$dir"' EXIT
-perf=$("$igbench" perfmodel --quick --sweeps 2 --json --cache "$dir/calibration.txt")
+perf=$("$igbench" perfmodel --quick --sweeps 2 --json --cache "$dir/calibration.txt" \
+      --calibration-trace "$dir/calibration.csv")
+# --calibration-trace: every frame of the calibration's interleaved loads. Each timed frame
+# follows an untimed frame of the same load in the same repeat (llvmpipe leaves part of a frame's
+# work to the next one: a load timed after another load's frame paid for that one); the warm-up
+# repeat is not timed; every load has as many timed frames. A trace that cannot be written fails
+# at once, naming the file.
+/usr/bin/python3 - "$dir/calibration.csv" <<'PY'
+import csv, collections, sys
+rows = list(csv.DictReader(open(sys.argv[1])))
+assert rows and list(rows[0].keys()) == ["run", "repeat", "load", "timed", "frame_ms", "submit_ms", "thread_ms"], rows[:1]
+timed = collections.Counter()
+for i, r in enumerate(rows):
+    assert float(r["frame_ms"]) > 0 and 0 <= float(r["submit_ms"]) <= float(r["frame_ms"]) + 1e-3, r
+    if r["timed"] == "1":
+        prev = rows[i - 1]
+        assert i > 0 and prev["timed"] == "0" and (prev["load"], prev["repeat"], prev["run"]) == (r["load"], r["repeat"], r["run"]), (prev, r)
+        assert r["repeat"] != "0", r
+        timed[r["load"]] += 1
+    elif r["repeat"] != "0":
+        assert i + 1 < len(rows) and rows[i + 1]["load"] == r["load"] and rows[i + 1]["timed"] == "1", (r, rows[i + 1:i + 2])
+assert len(timed) == 19 and len(set(timed.values())) == 1 and min(timed.values()) >= 5, timed
+assert {"full_1", "full_4", "layer", "layer_small", "layer_mid", "state_2000", "nodes_64_boxes"} <= set(timed), timed
+PY
+if "$igbench" perfmodel --quick --sizes 10 --calibration-trace "$dir/no-such-dir/c.csv" 2> "$dir/err.txt"; then
+  echo "an unwritable --calibration-trace was accepted"; exit 1
+fi
+grep -q "$dir/no-such-dir/c.csv" "$dir/err.txt" || { cat "$dir/err.txt"; exit 1; }
 # 10 boxes of ~1,000 px and 20,000 of ~0.6 px (0.05 screens): most of the small ones cover no
 # pixel centre, so only a share of their triangles reaches the rasterizer. (Before the adaptive
 # run: its viewport has a calibration of its own, which replaces this one in the cache file.)
