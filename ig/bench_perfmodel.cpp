@@ -31,6 +31,7 @@ struct Point {
   double measured_ms = 0, predicted_ms = 0, error_pct = 0;
   double measuredQ1_ms = 0, errorQ1_pct = 0;  // lower quartile of the repeats (least disturbed)
   double slowest_ms = 0;                      // the slowest sweep's median (measured_ms: the fastest's)
+  std::vector<double> sweep_ms;               // each sweep's median, in the order of the sweeps
   double fragments = 0;
   double area_px = 0, sqrtArea_px = 0;  // sums over the boxes drawn: projected area, its square root
   double rasterShare = 1;               // the share of the boxes that reach the rasterizer (lod::PassLoad)
@@ -263,6 +264,7 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
       p.commands_ms = (tb.bufS + tb.fcS) * 1e-6;
       p.bound = boundName(tb.boundS);
       p.slowest_ms = p.measured_ms;
+      p.sweep_ms = {p.measured_ms};
       if (sweep == 0) {
         points.push_back(p);
         continue;
@@ -270,6 +272,7 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
       // A later sweep: the same scene and statistics; keep the faster median.
       Point& q = points[pointIndex];
       q.slowest_ms = std::max(q.slowest_ms, p.measured_ms);
+      q.sweep_ms.push_back(p.measured_ms);
       if (p.measured_ms < q.measured_ms) {
         q.measured_ms = p.measured_ms;
         q.submit_ms = p.submit_ms;
@@ -314,12 +317,19 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
                 k.commandCount, k.commandLarge_ns, k.commandLargeCount, byDrawJson.c_str());
     for (size_t i = 0; i < points.size(); ++i) {
       const Point& p = points[i];
+      std::string sweepList;
+      for (size_t j = 0; j < p.sweep_ms.size(); ++j) {
+        char buf[32];
+        std::snprintf(buf, sizeof buf, "%s%.4f", j ? "," : "", p.sweep_ms[j]);
+        sweepList += buf;
+      }
       std::printf("%s{\"objects\":%u,\"strategy\":\"%s\",\"measured_ms\":%.4f,\"predicted_ms\":%.4f,\"error_pct\":%.2f,"
                   "\"measured_q1_ms\":%.4f,\"error_q1_pct\":%.2f,\"triangles\":%llu,\"fragments\":%.0f,\"vertex_ms\":%.4f,"
-                  "\"fragment_ms\":%.4f,\"commands_ms\":%.4f,\"bound\":\"%s\",\"raster_share\":%.3f,\"area_px\":%.0f,\"sqrt_area_px\":%.0f,\"submit_ms\":%.4f,\"app_cpu_ms\":%.4f,\"samples\":%llu}",
+                  "\"fragment_ms\":%.4f,\"commands_ms\":%.4f,\"bound\":\"%s\",\"raster_share\":%.3f,\"area_px\":%.0f,\"sqrt_area_px\":%.0f,\"submit_ms\":%.4f,\"app_cpu_ms\":%.4f,\"samples\":%llu,\"sweep_ms\":[%s]}",
                   i ? "," : "", p.objects, p.strategy, p.measured_ms, p.predicted_ms, p.error_pct, p.measuredQ1_ms, p.errorQ1_pct,
                   static_cast<unsigned long long>(p.triangles), p.fragments, p.vertex_ms, p.fragment_ms, p.commands_ms, p.bound,
-                  p.rasterShare, p.area_px, p.sqrtArea_px, p.submit_ms, p.appCpu_ms, static_cast<unsigned long long>(p.samples));
+                  p.rasterShare, p.area_px, p.sqrtArea_px, p.submit_ms, p.appCpu_ms, static_cast<unsigned long long>(p.samples),
+                  sweepList.c_str());
     }
     std::printf("],\"error_pct_median\":%.2f,\"error_pct_max\":%.2f,\"error_q1_pct_median\":%.2f,"
                 "\"error_q1_pct_max\":%.2f,\"sweeps\":%d,\"sweep_spread_pct_median\":%.2f,\"sweep_spread_pct_max\":%.2f,"

@@ -95,6 +95,8 @@ for pt in p["points"]:
 # Two sweeps: each point keeps its faster median (the error above is recomputed from it), and the
 # spread between the sweeps is reported.
 assert p["sweeps"] == 2, p["sweeps"]
+for pt in p["points"]:
+    assert len(pt["sweep_ms"]) == 2 and abs(min(pt["sweep_ms"]) - pt["measured_ms"]) < 1e-3, pt
 assert 0 <= p["sweep_spread_pct_median"] <= p["sweep_spread_pct_max"], p
 # The calibration: T_tri by the triangles of a call (12 ... 768), non-increasing, its last entry
 # the long-call T_tri; t_c at 20,000 commands and at the large count (never below it); one run
