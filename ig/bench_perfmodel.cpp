@@ -165,7 +165,7 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
   // The whole sweep is run `sweeps` times; a point's time is the fastest of its sweeps' medians
   // (the load of other processes on a shared machine comes in phases of seconds to minutes; the
   // calibration's lower quartiles measure the machine outside them as well).
-  const int sweeps = o.sweeps > 0 ? o.sweeps : o.quick ? 1 : 2;
+  const int sweeps = o.sweeps > 0 ? o.sweeps : o.quick ? 1 : 3;
   for (size_t run = 0; run < static_cast<size_t>(sweeps) * sizes.size(); ++run) {
     const int sweep = static_cast<int>(run / sizes.size());
     const size_t sizeIndex = run % sizes.size();

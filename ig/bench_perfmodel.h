@@ -22,7 +22,7 @@ struct PerfModelBenchOptions {
   uint32_t fragmentWork = 8;      // material cost (extra shading iterations per fragment)
   double coverage = 0.8;          // total projected box area in screens
   int repeats = 7;                // timed frames per point (median)
-  int sweeps = 0;                 // the sweep run this often (0: 2, --quick 1); a point's time is its fastest sweep's median
+  int sweeps = 0;                 // the sweep run this often (0: 3, --quick 1); a point's time is its fastest sweep's median
   uint32_t seed = 1;
   int calibrationRuns = 0;        // calibration runs, each constant their median (0: 3, --quick 1)
   std::string cachePath;          // calibration cache; "" = calibrate every run

@@ -428,7 +428,7 @@ int main(int argc, char** argv) {
       ->capture_default_str()->check(CLI::PositiveNumber);
   perf->add_option("--repeats", perfOptions.repeats, "Timed frames per point (median)")->capture_default_str()->check(CLI::Range(1, 1000));
   perf->add_option("--sweeps", perfOptions.sweeps,
-                   "Runs of the whole sweep; a point's time is the fastest of its sweeps' medians (default 2, "
+                   "Runs of the whole sweep; a point's time is the fastest of its sweeps' medians (default 3, "
                    "--quick 1)")
       ->check(CLI::Range(1, 100));
   perf->add_option("--seed", perfOptions.seed, "Scene seed")->capture_default_str();
