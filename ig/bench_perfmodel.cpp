@@ -1,9 +1,9 @@
 #include "ig/bench_perfmodel.h"
 
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
-#include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <memory>
