@@ -30,8 +30,7 @@ struct Point {
   const char* strategy = "";
   double measured_ms = 0, predicted_ms = 0, error_pct = 0;
   double measuredQ1_ms = 0, errorQ1_pct = 0;  // lower quartile of the repeats (least disturbed)
-  double slowest_ms = 0;                      // the slowest sweep's median (measured_ms: the fastest's)
-  std::vector<double> sweep_ms;               // each sweep's median, in the order of the sweeps
+  std::vector<double> sweep_ms;               // each sweep's median, in order (measured_ms: the fastest)
   double fragments = 0;
   double area_px = 0, sqrtArea_px = 0;  // sums over the boxes drawn: projected area, its square root
   double rasterShare = 1;               // the share of the boxes that reach the rasterizer (lod::PassLoad)
@@ -263,7 +262,6 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
       p.fragment_ms = tb.fragS * 1e-6;
       p.commands_ms = (tb.bufS + tb.fcS) * 1e-6;
       p.bound = boundName(tb.boundS);
-      p.slowest_ms = p.measured_ms;
       p.sweep_ms = {p.measured_ms};
       if (sweep == 0) {
         points.push_back(p);
@@ -271,7 +269,6 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
       }
       // A later sweep: the same scene and statistics; keep the faster median.
       Point& q = points[pointIndex];
-      q.slowest_ms = std::max(q.slowest_ms, p.measured_ms);
       q.sweep_ms.push_back(p.measured_ms);
       if (p.measured_ms < q.measured_ms) {
         q.measured_ms = p.measured_ms;
@@ -288,7 +285,10 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
   const double wall_s = std::chrono::duration<double>(BenchClock::now() - t0).count();
   // How far the sweeps' medians of the same frames differ (0 with one sweep).
   std::vector<double> spreads;
-  for (const Point& p : points) spreads.push_back(100.0 * (p.slowest_ms - p.measured_ms) / std::max(p.measured_ms, 1e-9));
+  for (const Point& p : points) {
+    const double slowest = *std::max_element(p.sweep_ms.begin(), p.sweep_ms.end());
+    spreads.push_back(100.0 * (slowest - p.measured_ms) / std::max(p.measured_ms, 1e-9));
+  }
   const double spreadMedian = spreads.empty() ? 0.0 : percentile(spreads, 50),
                spreadMax = spreads.empty() ? 0.0 : *std::max_element(spreads.begin(), spreads.end());
   std::vector<double> errs, errsQ1;
