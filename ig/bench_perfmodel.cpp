@@ -40,6 +40,7 @@ struct Point {
   uint64_t triangles = 0;
   double vertex_ms = 0, fragment_ms = 0, commands_ms = 0;  // terms of (2): T_vert, T_frag, T_buf + T_fc
   const char* bound = "";
+  lod::PassLoad load;  // the frame's statistics (the same every sweep), predicted once the constants are known
 };
 
 std::array<glm::dvec3, 8> eyeCorners(const render::DynamicObject& o, const glm::dvec3& eye) {
@@ -105,29 +106,6 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
     }
     co.trace = &calibrationFrames;
   }
-  render::CalibrationResult cal;
-  std::string warning;
-  if (!render::calibrate(o.cachePath, co, cal, error, &warning)) {
-    std::fprintf(stderr, "igbench perfmodel: %s\n", error.c_str());
-    return 1;
-  }
-  if (traceFile) {
-    std::fprintf(traceFile.get(), "run,repeat,load,timed,frame_ms,submit_ms,thread_ms\n");
-    for (const render::CalibrationFrame& f : calibrationFrames)
-      std::fprintf(traceFile.get(), "%d,%d,%s,%d,%.4f,%.4f,%.4f\n", f.run, f.repeat, f.load, f.timed ? 1 : 0, f.frame_ms,
-                   f.submit_ms, f.thread_ms);
-    if (std::fflush(traceFile.get()) != 0 || std::ferror(traceFile.get())) {
-      std::fprintf(stderr, "igbench perfmodel: cannot write the calibration trace %s: %s\n", o.calibrationTrace.c_str(),
-                   std::strerror(errno));
-      return 2;
-    }
-    if (cal.fromCache)
-      std::fprintf(stderr, "igbench perfmodel: the calibration came from the cache %s: the trace %s has no frames\n",
-                   o.cachePath.c_str(), o.calibrationTrace.c_str());
-  }
-  if (!warning.empty()) std::fprintf(stderr, "igbench perfmodel: calibration cache: %s\n", warning.c_str());
-  const lod::PerfConstants& k = cal.constants;
-
   render::Renderer renderer;
   if (!renderer.init(o.width_px, o.height_px, error)) {
     std::fprintf(stderr, "igbench perfmodel: %s\n", error.c_str());
@@ -160,129 +138,165 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
   std::vector<render::DynamicObject> objs;
   objs.reserve(maxN);
   uint64_t frame = 1;
-  const auto t0 = BenchClock::now();
+  double wall_s = 0.0;  // in the sweeps
   // The whole sweep is run `sweeps` times; a point's time is the fastest of its sweeps' medians
   // (the load of other processes on a shared machine comes in phases of seconds to minutes; the
-  // calibration's lower quartiles measure the machine outside them as well).
+  // calibration's lower quartiles measure the machine outside them as well). A measured
+  // calibration runs its runs between the sweeps (CalibrationOptions::afterRun), so that the
+  // constants and the frames they predict come from the same minutes.
   const int sweeps = o.sweeps > 0 ? o.sweeps : o.quick ? 1 : 3;
-  for (size_t run = 0; run < static_cast<size_t>(sweeps) * sizes.size(); ++run) {
-    const int sweep = static_cast<int>(run / sizes.size());
-    const size_t sizeIndex = run % sizes.size();
-    const uint32_t n = sizes[sizeIndex];
-    // Random boxes inside the view between 30 and 110 m, then scaled to the target coverage.
-    std::mt19937 rng(o.seed + n);
-    std::uniform_real_distribution<double> u(-1.0, 1.0), u01(0.0, 1.0);
-    objs.clear();
-    for (uint32_t i = 0; i < n; ++i) {
-      const double y = 30.0 + 80.0 * u01(rng);
-      render::DynamicObject ob;
-      ob.center_m = {0.62 * y * u(rng), y, 0.33 * y * u(rng)};
-      ob.halfSize_m = {0.5 + u01(rng), 0.5 + u01(rng), 0.5 + u01(rng)};
-      ob.yaw_deg = 180.0 * u(rng);
-      ob.rgba = 0xff000000u | (rng() & 0xffffffu);
-      objs.push_back(ob);
-    }
-    double area1 = 0.0;
-    for (const auto& ob : objs) area1 += std::max(0.0, lod::projectedBoxArea_px(vp, eyeCorners(ob, cam.eye_m), o.width_px, o.height_px));
-    const double scale = std::sqrt(o.coverage * screen / std::max(area1, 1e-9));
-    double areaSum = 0.0, sqrtSum = 0.0, reachSum = 0.0, edgeSum = 0.0;
-    pass.clear();
-    for (auto& ob : objs) {
-      ob.halfSize_m *= scale;
-      const double cap = 0.25 * ob.center_m.y / std::max({ob.halfSize_m.x, ob.halfSize_m.y, ob.halfSize_m.z});
-      if (cap < 1.0) ob.halfSize_m *= cap;
-      const double a = std::max(0.0, lod::projectedBoxArea_px(vp, eyeCorners(ob, cam.eye_m), o.width_px, o.height_px));
-      areaSum += a;
-      sqrtSum += std::sqrt(a);
-      // Triangles that cover no pixel centre are dropped in set-up (lod::PassLoad::rasterShare).
-      const double reach = lod::boxRasterShare(a);
-      reachSum += reach;
-      edgeSum += std::sqrt(a) * reach;
-      pass.add(ob);
-    }
-    int strategyIndex = 0;
-    for (render::DynamicStrategy s : {render::DynamicStrategy::PerCommand, render::DynamicStrategy::Octree}) {
-      const size_t pointIndex = 2 * sizeIndex + static_cast<size_t>(strategyIndex++);
-      pass.setStrategy(s);
-      std::vector<double> ms, subMs, appMs;
-      // llvmpipe runs the first frames after the calibration (its large scenes freed) and after
-      // a change of strategy slowly: 20 frames before the first point, 5 before the others.
-      const int warm = points.empty() ? 20 : 5;
-      for (int r = 0; r < warm + repeats; ++r) {
-        // The first warm-up frame counts the samples that pass the depth test (counting costs
-        // the rasterizer time, so the timed frames do not); the next frame reads the count.
-        pass.setMeasureSamples(r == 0);
-        const double c0 = threadCpuMs();
-        const auto a = BenchClock::now();
-        renderer.beginFrame(cam, light);
-        pass.draw(renderer, frame++);
-        renderer.endFrame();
-        const auto submitted = BenchClock::now();
-        const double c1 = threadCpuMs();
-        renderer.finish();
-        if (r >= warm) {
-          ms.push_back(std::chrono::duration<double, std::milli>(BenchClock::now() - a).count());
-          subMs.push_back(std::chrono::duration<double, std::milli>(submitted - a).count());
-          appMs.push_back(c1 - c0);
+  int sweepsDone = 0;
+  const auto runSweep = [&] {
+    const int sweep = sweepsDone++;
+    const auto t0 = BenchClock::now();
+    for (size_t sizeIndex = 0; sizeIndex < sizes.size(); ++sizeIndex) {
+      const uint32_t n = sizes[sizeIndex];
+      // Random boxes inside the view between 30 and 110 m, then scaled to the target coverage.
+      std::mt19937 rng(o.seed + n);
+      std::uniform_real_distribution<double> u(-1.0, 1.0), u01(0.0, 1.0);
+      objs.clear();
+      for (uint32_t i = 0; i < n; ++i) {
+        const double y = 30.0 + 80.0 * u01(rng);
+        render::DynamicObject ob;
+        ob.center_m = {0.62 * y * u(rng), y, 0.33 * y * u(rng)};
+        ob.halfSize_m = {0.5 + u01(rng), 0.5 + u01(rng), 0.5 + u01(rng)};
+        ob.yaw_deg = 180.0 * u(rng);
+        ob.rgba = 0xff000000u | (rng() & 0xffffffu);
+        objs.push_back(ob);
+      }
+      double area1 = 0.0;
+      for (const auto& ob : objs) area1 += std::max(0.0, lod::projectedBoxArea_px(vp, eyeCorners(ob, cam.eye_m), o.width_px, o.height_px));
+      const double scale = std::sqrt(o.coverage * screen / std::max(area1, 1e-9));
+      double areaSum = 0.0, sqrtSum = 0.0, reachSum = 0.0, edgeSum = 0.0;
+      pass.clear();
+      for (auto& ob : objs) {
+        ob.halfSize_m *= scale;
+        const double cap = 0.25 * ob.center_m.y / std::max({ob.halfSize_m.x, ob.halfSize_m.y, ob.halfSize_m.z});
+        if (cap < 1.0) ob.halfSize_m *= cap;
+        const double a = std::max(0.0, lod::projectedBoxArea_px(vp, eyeCorners(ob, cam.eye_m), o.width_px, o.height_px));
+        areaSum += a;
+        sqrtSum += std::sqrt(a);
+        // Triangles that cover no pixel centre are dropped in set-up (lod::PassLoad::rasterShare).
+        const double reach = lod::boxRasterShare(a);
+        reachSum += reach;
+        edgeSum += std::sqrt(a) * reach;
+        pass.add(ob);
+      }
+      int strategyIndex = 0;
+      for (render::DynamicStrategy s : {render::DynamicStrategy::PerCommand, render::DynamicStrategy::Octree}) {
+        const size_t pointIndex = 2 * sizeIndex + static_cast<size_t>(strategyIndex++);
+        pass.setStrategy(s);
+        std::vector<double> ms, subMs, appMs;
+        // llvmpipe runs the first frames after a calibration run (its large scenes freed) and
+        // after a change of strategy slowly: 20 frames before a sweep's first point, 5 before the
+        // others.
+        const int warm = pointIndex == 0 ? 20 : 5;
+        for (int r = 0; r < warm + repeats; ++r) {
+          // The first warm-up frame counts the samples that pass the depth test (counting costs
+          // the rasterizer time, so the timed frames do not); the next frame reads the count.
+          pass.setMeasureSamples(r == 0);
+          const double c0 = threadCpuMs();
+          const auto a = BenchClock::now();
+          renderer.beginFrame(cam, light);
+          pass.draw(renderer, frame++);
+          renderer.endFrame();
+          const auto submitted = BenchClock::now();
+          const double c1 = threadCpuMs();
+          renderer.finish();
+          if (r >= warm) {
+            ms.push_back(std::chrono::duration<double, std::milli>(BenchClock::now() - a).count());
+            subMs.push_back(std::chrono::duration<double, std::milli>(submitted - a).count());
+            appMs.push_back(c1 - c0);
+          }
         }
-      }
-      // The frame's statistics: the pass's counters, the fragments that passed the depth test (a
-      // GL_SAMPLES_PASSED count of an earlier frame of the same scene), the boxes' edges.
-      const render::DynamicFrameStats& st = pass.stats();
-      const double drawnShare = st.objects ? static_cast<double>(st.objectsDrawn) / st.objects : 0.0;
-      lod::PassLoad load;
-      load.triangles = static_cast<double>(st.triangles);
-      load.fragments = static_cast<double>(pass.samplesPassed());
-      load.edgePx = edgeSum * drawnShare;
-      load.rasterShare = n ? reachSum / n : 1.0;
-      load.stateChanges = 1;
-      load.commands = st.commands;
-      load.rerecorded = st.rerecorded;
-      load.submissions = st.submissions;
-      load.frustumTests = st.frustumTests;
-      lod::TimeBreakdown tb;
-      const double pred = lod::predictFrame_ns(k, load, {}, &tb) * 1e-6;
-      Point p;
-      p.objects = n;
-      p.strategy = render::strategyName(s);
-      p.measured_ms = percentile(ms, 50);
-      p.predicted_ms = pred;
-      p.error_pct = 100.0 * std::abs(pred - p.measured_ms) / std::max(p.measured_ms, 1e-9);
-      p.measuredQ1_ms = percentile(ms, 25);
-      p.submit_ms = percentile(subMs, 50);
-      p.appCpu_ms = percentile(appMs, 50);
-      p.samples = static_cast<uint64_t>(load.fragments);
-      p.errorQ1_pct = 100.0 * std::abs(pred - p.measuredQ1_ms) / std::max(p.measuredQ1_ms, 1e-9);
-      p.fragments = load.fragments;
-      p.area_px = areaSum * drawnShare;
-      p.sqrtArea_px = sqrtSum * drawnShare;
-      p.rasterShare = load.rasterShare;
-      p.triangles = st.triangles;
-      p.vertex_ms = tb.vertS * 1e-6;
-      p.fragment_ms = tb.fragS * 1e-6;
-      p.commands_ms = (tb.bufS + tb.fcS) * 1e-6;
-      p.bound = boundName(tb.boundS);
-      p.sweep_ms = {p.measured_ms};
-      if (sweep == 0) {
-        points.push_back(p);
-        continue;
-      }
-      // A later sweep: the same scene and statistics; keep the faster median.
-      Point& q = points[pointIndex];
-      q.sweep_ms.push_back(p.measured_ms);
-      if (p.measured_ms < q.measured_ms) {
-        q.measured_ms = p.measured_ms;
-        q.submit_ms = p.submit_ms;
-        q.appCpu_ms = p.appCpu_ms;
-        q.error_pct = 100.0 * std::abs(q.predicted_ms - q.measured_ms) / std::max(q.measured_ms, 1e-9);
-      }
-      if (p.measuredQ1_ms < q.measuredQ1_ms) {
-        q.measuredQ1_ms = p.measuredQ1_ms;
-        q.errorQ1_pct = 100.0 * std::abs(q.predicted_ms - q.measuredQ1_ms) / std::max(q.measuredQ1_ms, 1e-9);
+        // The frame's statistics: the pass's counters, the fragments that passed the depth test (a
+        // GL_SAMPLES_PASSED count of an earlier frame of the same scene), the boxes' edges.
+        const render::DynamicFrameStats& st = pass.stats();
+        const double drawnShare = st.objects ? static_cast<double>(st.objectsDrawn) / st.objects : 0.0;
+        lod::PassLoad load;
+        load.triangles = static_cast<double>(st.triangles);
+        load.fragments = static_cast<double>(pass.samplesPassed());
+        load.edgePx = edgeSum * drawnShare;
+        load.rasterShare = n ? reachSum / n : 1.0;
+        load.stateChanges = 1;
+        load.commands = st.commands;
+        load.rerecorded = st.rerecorded;
+        load.submissions = st.submissions;
+        load.frustumTests = st.frustumTests;
+        Point p;
+        p.load = load;
+        p.objects = n;
+        p.strategy = render::strategyName(s);
+        p.measured_ms = percentile(ms, 50);
+        p.measuredQ1_ms = percentile(ms, 25);
+        p.submit_ms = percentile(subMs, 50);
+        p.appCpu_ms = percentile(appMs, 50);
+        p.samples = static_cast<uint64_t>(load.fragments);
+        p.fragments = load.fragments;
+        p.area_px = areaSum * drawnShare;
+        p.sqrtArea_px = sqrtSum * drawnShare;
+        p.rasterShare = load.rasterShare;
+        p.triangles = st.triangles;
+        p.sweep_ms = {p.measured_ms};
+        if (sweep == 0) {
+          points.push_back(p);
+          continue;
+        }
+        // A later sweep: the same scene and statistics; keep the faster median.
+        Point& q = points[pointIndex];
+        q.sweep_ms.push_back(p.measured_ms);
+        if (p.measured_ms < q.measured_ms) {
+          q.measured_ms = p.measured_ms;
+          q.submit_ms = p.submit_ms;
+          q.appCpu_ms = p.appCpu_ms;
+        }
+        q.measuredQ1_ms = std::min(q.measuredQ1_ms, p.measuredQ1_ms);
       }
     }
+    wall_s += std::chrono::duration<double>(BenchClock::now() - t0).count();
+  };
+  if (!o.calibrateFirst) co.afterRun = [&](int run, std::string&) {
+    // The sweeps due after this run of the calibration's: spread evenly over its runs.
+    const int runs = std::clamp(co.runs, 1, 9);
+    while (sweepsDone < (run + 1) * sweeps / runs) runSweep();
+    return true;
+  };
+  render::CalibrationResult cal;
+  std::string warning;
+  if (!render::calibrate(o.cachePath, co, cal, error, &warning)) {
+    std::fprintf(stderr, "igbench perfmodel: %s\n", error.c_str());
+    return 1;
   }
-  const double wall_s = std::chrono::duration<double>(BenchClock::now() - t0).count();
+  if (traceFile) {
+    std::fprintf(traceFile.get(), "run,repeat,load,timed,frame_ms,submit_ms,thread_ms\n");
+    for (const render::CalibrationFrame& f : calibrationFrames)
+      std::fprintf(traceFile.get(), "%d,%d,%s,%d,%.4f,%.4f,%.4f\n", f.run, f.repeat, f.load, f.timed ? 1 : 0, f.frame_ms,
+                   f.submit_ms, f.thread_ms);
+    if (std::fflush(traceFile.get()) != 0 || std::ferror(traceFile.get())) {
+      std::fprintf(stderr, "igbench perfmodel: cannot write the calibration trace %s: %s\n", o.calibrationTrace.c_str(),
+                   std::strerror(errno));
+      return 2;
+    }
+    if (cal.fromCache)
+      std::fprintf(stderr, "igbench perfmodel: the calibration came from the cache %s: the trace %s has no frames\n",
+                   o.cachePath.c_str(), o.calibrationTrace.c_str());
+  }
+  if (!warning.empty()) std::fprintf(stderr, "igbench perfmodel: calibration cache: %s\n", warning.c_str());
+
+  // The sweeps not yet run: all of them when the constants came from the cache or --calibrate-first.
+  const bool betweenSweeps = sweepsDone > 0;
+  while (sweepsDone < sweeps) runSweep();
+  const lod::PerfConstants& k = cal.constants;
+  for (Point& p : points) {
+    lod::TimeBreakdown tb;
+    p.predicted_ms = lod::predictFrame_ns(k, p.load, {}, &tb) * 1e-6;
+    p.error_pct = 100.0 * std::abs(p.predicted_ms - p.measured_ms) / std::max(p.measured_ms, 1e-9);
+    p.errorQ1_pct = 100.0 * std::abs(p.predicted_ms - p.measuredQ1_ms) / std::max(p.measuredQ1_ms, 1e-9);
+    p.vertex_ms = tb.vertS * 1e-6;
+    p.fragment_ms = tb.fragS * 1e-6;
+    p.commands_ms = (tb.bufS + tb.fcS) * 1e-6;
+    p.bound = boundName(tb.boundS);
+  }
   // How far the sweeps' medians of the same frames differ (0 with one sweep).
   std::vector<double> spreads;
   for (const Point& p : points) {
@@ -308,11 +322,11 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
   byDrawJson += "}";
   if (o.json) {
     std::printf("{\"bench\":\"perfmodel\",\"device\":\"%s\",\"viewport\":[%d,%d],\"fragment_work\":%u,\"coverage\":%g,"
-                "\"repeats\":%d,\"calibration\":{\"from_cache\":%s,\"runs\":%d,\"seconds\":%.3f,\"frame_ns\":%.1f,\"tri_ns\":%.3f,"
+                "\"repeats\":%d,\"calibration\":{\"from_cache\":%s,\"runs\":%d,\"between_sweeps\":%s,\"seconds\":%.3f,\"frame_ns\":%.1f,\"tri_ns\":%.3f,"
                 "\"frag_ns\":%.4f,\"raster_tri_ns\":%.3f,\"edge_ns\":%.3f,\"draw_raster_ns\":%.1f,\"depth_frag_ns\":%.4f,\"state_ns\":%.1f,\"command_ns\":%.1f,\"rerecord_ns\":%.1f,"
                 "\"submit_ns\":%.1f,\"cull_ns\":%.2f,\"occlusion_test_ns\":%.1f,\"overlap\":%.3f,\"overlap_triangles\":%.0f,\"command_count\":%.0f,\"command_large_ns\":%.1f,\"command_large_count\":%.0f,\"tri_ns_by_draw\":%s},\"points\":[",
                 jsonEscape(cal.key).c_str(), o.width_px, o.height_px, o.fragmentWork, o.coverage, repeats,
-                cal.fromCache ? "true" : "false", cal.fromCache ? 0 : co.runs, cal.seconds, k.frame_ns, k.tri_ns, k.frag_ns, k.rasterTri_ns, k.edge_ns, k.drawRaster_ns,
+                cal.fromCache ? "true" : "false", cal.fromCache ? 0 : co.runs, betweenSweeps ? "true" : "false", cal.seconds, k.frame_ns, k.tri_ns, k.frag_ns, k.rasterTri_ns, k.edge_ns, k.drawRaster_ns,
                 k.depthFrag_ns, k.state_ns, k.command_ns, k.rerecord_ns, k.submit_ns, k.cull_ns, k.occlusionTest_ns, k.overlap, k.overlapTriangles,
                 k.commandCount, k.commandLarge_ns, k.commandLargeCount, byDrawJson.c_str());
     for (size_t i = 0; i < points.size(); ++i) {
@@ -337,7 +351,9 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
                 med, mx, medQ1, mxQ1, sweeps, spreadMedian, spreadMax, wall_s);
   } else {
     std::printf("perfmodel: %s, %dx%d, material work %u, calibration %s (%.1f s)\n", cal.key.c_str(), o.width_px,
-                o.height_px, o.fragmentWork, cal.fromCache ? "from cache" : "measured", cal.seconds);
+                o.height_px, o.fragmentWork,
+                cal.fromCache ? "from cache" : betweenSweeps ? "measured between the sweeps" : "measured before the sweeps",
+                cal.seconds);
     std::printf("constants: frame %.0f ns, tri %.1f ns, frag %.2f ns, raster tri %.1f ns, edge %.1f ns, draw (rasterizer) %.0f ns, state %.0f ns, command %.0f ns, "
                 "rerecord %.0f ns, submit %.0f ns, cull %.1f ns, occlusion test %.0f ns, overlap %.2f above %.0f triangles\n",
                 k.frame_ns, k.tri_ns, k.frag_ns, k.rasterTri_ns, k.edge_ns, k.drawRaster_ns, k.state_ns, k.command_ns, k.rerecord_ns, k.submit_ns,

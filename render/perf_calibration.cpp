@@ -802,10 +802,16 @@ bool calibrate(const std::string& cachePath, const CalibrationOptions& o, Calibr
   const int runs = std::clamp(o.runs, 1, 9);
   std::vector<lod::PerfConstants> measured(static_cast<size_t>(runs));
   std::vector<std::array<lod::OverlapSample, 2>> overlapFrames(static_cast<size_t>(runs));
+  double hookSeconds = 0.0;  // in afterRun, not measuring
   for (size_t r = 0; r < measured.size(); ++r) {
     lod::OverlapSample frames[2];
     if (!measure(o, static_cast<int>(r), measured[r], frames, error)) return false;
     overlapFrames[r] = {frames[0], frames[1]};
+    if (o.afterRun) {
+      const auto hook = Clock::now();
+      if (!o.afterRun(static_cast<int>(r), error)) return false;
+      hookSeconds += std::chrono::duration<double>(Clock::now() - hook).count();
+    }
   }
   // Each constant the median of the runs (each entry of the T_tri table too, which keeps it
   // non-increasing): a slow phase of a shared machine that covers one run does not decide it.
@@ -831,7 +837,7 @@ bool calibrate(const std::string& cachePath, const CalibrationOptions& o, Calibr
     c = lod::fitOverlap(c, frames[0], frames[1]);
   }
   out.constants = c;
-  out.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+  out.seconds = std::chrono::duration<double>(Clock::now() - start).count() - hookSeconds;
   if (!cachePath.empty()) {
     std::string werr;
     if (!writeCalibrationCache(cachePath, out.key, c, werr) && warning) *warning = werr;

@@ -40,6 +40,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -71,6 +72,11 @@ struct CalibrationOptions {
                                // constant is the median of the runs: a shared machine slows down
                                // in phases of seconds, and one run can fall into one
   std::vector<CalibrationFrame>* trace = nullptr;  // when set, every frame of the interleaved loads
+  // Called after each run's measurements (run 0 ... runs - 1; not when the constants come from the
+  // cache). igbench perfmodel draws a sweep of its scenes there, so that the calibration and the
+  // frames it predicts share the minutes of a shared machine. False stops the calibration with
+  // the error it sets.
+  std::function<bool(int run, std::string& error)> afterRun;
 };
 
 struct CalibrationResult {

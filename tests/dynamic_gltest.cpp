@@ -2,6 +2,7 @@
 // cache (render/perf_calibration.h), on a real headless context (llvmpipe).
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -9,6 +10,7 @@
 #include <memory>
 #include <random>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <sched.h>
@@ -683,6 +685,67 @@ TEST_F(DynamicGl, CalibrateUsesAMatchingCacheAndRewritesACorruptOne) {
   o.budget_s = std::nan("");
   EXPECT_FALSE(render::calibrate(path, o, again, error));
   EXPECT_NE(error.find("budget"), std::string::npos) << error;
+  std::remove(path.c_str());
+}
+
+// CalibrationOptions::afterRun: called once after each run's measurements, in order, and only
+// when the calibration measures (igbench perfmodel draws its sweeps there); false stops the
+// calibration with its error; its time is not the calibration's.
+TEST_F(DynamicGl, CalibrateCallsAfterRunBetweenItsRuns) {
+  const std::string path = tempPath("after.txt");
+  std::remove(path.c_str());
+  render::CalibrationOptions o;
+  o.width_px = 64;
+  o.height_px = 64;
+  o.budget_s = 0.2;
+  o.runs = 2;
+  std::vector<render::CalibrationFrame> frames;
+  o.trace = &frames;
+  std::vector<int> calls;
+  std::vector<size_t> framesBefore;  // trace frames measured before each call
+  o.afterRun = [&](int run, std::string&) {
+    calls.push_back(run);
+    framesBefore.push_back(frames.size());
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    return true;
+  };
+  render::CalibrationResult r;
+  std::string error;
+  const auto t0 = std::chrono::steady_clock::now();
+  ASSERT_TRUE(render::calibrate(path, o, r, error)) << error;
+  const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  ASSERT_FALSE(r.fromCache);
+  EXPECT_EQ(calls, (std::vector<int>{0, 1}));
+  ASSERT_EQ(framesBefore.size(), 2u);
+  // Each call comes after its run's frames and before the next run's.
+  for (size_t i = 0; i < 2; ++i) {
+    ASSERT_GT(framesBefore[i], 0u);
+    EXPECT_EQ(frames[framesBefore[i] - 1].run, static_cast<int>(i));
+    if (i + 1 < 2) {
+      EXPECT_EQ(frames[framesBefore[i]].run, static_cast<int>(i + 1));
+    }
+  }
+  EXPECT_EQ(framesBefore.back(), frames.size());
+  EXPECT_LE(r.seconds, wall_s - 0.55) << "the 0.6 s in afterRun counted as measuring";
+  // From the cache: no runs, no calls.
+  calls.clear();
+  ASSERT_TRUE(render::calibrate(path, o, r, error)) << error;
+  EXPECT_TRUE(r.fromCache);
+  EXPECT_TRUE(calls.empty());
+  // A failing hook stops the calibration with its error (and writes no cache).
+  std::remove(path.c_str());
+  o.runs = 2;
+  o.afterRun = [&](int run, std::string& e) {
+    calls.push_back(run);
+    e = "sweep failed";
+    return false;
+  };
+  EXPECT_FALSE(render::calibrate(path, o, r, error));
+  EXPECT_EQ(error, "sweep failed");
+  EXPECT_EQ(calls, (std::vector<int>{0}));
+  lod::PerfConstants cached;
+  std::string why;
+  EXPECT_FALSE(render::readCalibrationCache(path, r.key, cached, why));
   std::remove(path.c_str());
 }
 

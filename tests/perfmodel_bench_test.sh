@@ -75,7 +75,7 @@ PY
 /usr/bin/python3 - "$perf" "$adaptive" "$dir/trace.json" "$tiny" <<'PY'
 import json, math, sys
 t = json.loads(sys.argv[4])
-assert t["calibration"]["from_cache"] is True, t["calibration"]
+assert t["calibration"]["from_cache"] is True and t["calibration"]["between_sweeps"] is False, t["calibration"]
 for pt in t["points"]:
     if pt["objects"] == 10:
         assert pt["raster_share"] >= 0.99, pt
@@ -102,7 +102,7 @@ assert 0 <= p["sweep_spread_pct_median"] <= p["sweep_spread_pct_max"], p
 # the long-call T_tri; t_c at 20,000 commands and at the large count (never below it); one run
 # with --quick.
 c = p["calibration"]
-assert c["from_cache"] is False and c["runs"] == 1, c
+assert c["from_cache"] is False and c["runs"] == 1 and c["between_sweeps"] is True, c
 by = c["tri_ns_by_draw"]
 assert list(by.keys()) == [str(12 << i) for i in range(7)], by
 vals = list(by.values())
