@@ -436,9 +436,8 @@ int main(int argc, char** argv) {
                    "Calibration runs; each constant is the median of the runs (default 3, --quick 1)")
       ->check(CLI::Range(1, 9));
   perf->add_flag("--calibrate-first", perfOptions.calibrateFirst,
-                 "Run every calibration run before the first sweep, as the service calibrates at start-up\n"
-                 "(default: one sweep after each calibration run, so that both see the same minutes of a\n"
-                 "shared machine)");
+                 "Run every calibration run before the first sweep (the order before 2026-12-08; default: one\n"
+                 "sweep after each calibration run, so that both see the same minutes of a shared machine)");
   perf->add_option("--cache", perfOptions.cachePath, "Calibration cache file ('' = calibrate every run)");
   perf->add_option("--calibration-trace", perfOptions.calibrationTrace,
                    "Write every frame of the calibration's interleaved loads here (CSV: run, repeat, load,\n"
