@@ -135,3 +135,13 @@ assert json.load(open(sys.argv[3]))["modes"].keys() == a["modes"].keys()
 print(f"perfmodel: error median {p['error_pct_median']:.1f} % max {p['error_pct_max']:.1f} %; "
       f"adaptive worst {a['adaptive_worst_ratio']:.2f} mean {a['adaptive_mean_ratio']:.2f}")
 PY
+# scripts/plot_perfmodel.py draws the run as a PNG; a JSON without points is refused by name.
+plot="$(dirname "$0")/../scripts/plot_perfmodel.py"
+printf '%s\n' "$perf" > "$dir/perf.json"
+/usr/bin/python3 "$plot" "$dir/perf.json" "$dir/perf.png"
+[ "$(head -c 8 "$dir/perf.png" | od -An -tx1 | tr -d ' \n')" = 89504e470d0a1a0a ] || { echo "plot_perfmodel.py wrote no PNG" >&2; exit 1; }
+echo '{"points":[]}' > "$dir/empty.json"
+if /usr/bin/python3 "$plot" "$dir/empty.json" "$dir/empty.png" 2> "$dir/plot_err.txt"; then
+  echo "plot_perfmodel.py accepted a run without points"; exit 1
+fi
+grep -q "empty.json: no points" "$dir/plot_err.txt" || { cat "$dir/plot_err.txt"; exit 1; }
