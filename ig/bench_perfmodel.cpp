@@ -138,11 +138,11 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
   std::vector<render::DynamicObject> objs;
   objs.reserve(maxN);
   uint64_t frame = 1;
-  double wall_s = 0.0;  // in the sweeps
+  double wall_s = 0.0;  // in the sweeps (the calibration's own time is cal.seconds)
   // The whole sweep is run `sweeps` times; a point's time is the fastest of its sweeps' medians
   // (the load of other processes on a shared machine comes in phases of seconds to minutes; the
-  // calibration's lower quartiles measure the machine outside them as well). A measured
-  // calibration runs its runs between the sweeps (CalibrationOptions::afterRun), so that the
+  // calibration's lower quartiles measure the machine outside them as well). The sweeps are
+  // spread over a measured calibration's runs (CalibrationOptions::afterRun), so that the
   // constants and the frames they predict come from the same minutes.
   const int sweeps = o.sweeps > 0 ? o.sweeps : o.quick ? 1 : 3;
   int sweepsDone = 0;
@@ -255,10 +255,14 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
     }
     wall_s += std::chrono::duration<double>(BenchClock::now() - t0).count();
   };
+  // True once a calibration run has followed a sweep (a measured calibration of two runs or more).
+  bool betweenSweeps = false;
   if (!o.calibrateFirst) co.afterRun = [&](int run, std::string&) {
-    // The sweeps due after this run of the calibration's: spread evenly over its runs.
+    // The sweeps due after this run of the calibration's: spread evenly over its runs, rounded
+    // (3 runs and 1 sweep: the sweep after the second run; the last run tops up to all of them).
     const int runs = std::clamp(co.runs, 1, 9);
-    while (sweepsDone < (run + 1) * sweeps / runs) runSweep();
+    while (sweepsDone < (2 * (run + 1) * sweeps + runs) / (2 * runs)) runSweep();
+    if (sweepsDone > 0 && run + 1 < runs) betweenSweeps = true;
     return true;
   };
   render::CalibrationResult cal;
@@ -284,7 +288,6 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
   if (!warning.empty()) std::fprintf(stderr, "igbench perfmodel: calibration cache: %s\n", warning.c_str());
 
   // The sweeps not yet run: all of them when the constants came from the cache or --calibrate-first.
-  const bool betweenSweeps = sweepsDone > 0;
   while (sweepsDone < sweeps) runSweep();
   const lod::PerfConstants& k = cal.constants;
   for (Point& p : points) {
@@ -368,7 +371,7 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
                   p.predicted_ms, p.error_pct, p.measuredQ1_ms, p.errorQ1_pct, p.bound, p.vertex_ms, p.fragment_ms,
                   p.commands_ms);
     std::printf("error vs median: median %.2f %%, max %.2f %%; vs lower quartile: median %.2f %%, max %.2f %% "
-                "(goal <= 5 %% / <= 10 %%); %d sweeps, their medians differ by %.1f %% (median) / %.1f %% (max); %.1f s\n",
+                "(goal <= 5 %% / <= 10 %%); %d sweeps, their medians differ by %.1f %% (median) / %.1f %% (max); sweeps %.1f s\n",
                 med, mx, medQ1, mxQ1, sweeps, spreadMedian, spreadMax, wall_s);
   }
   return 0;

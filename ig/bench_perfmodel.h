@@ -1,7 +1,8 @@
 // igbench perfmodel: the performance model of paper 002 (lod/perfmodel.h) against measured frame
 // times, like the paper's Table 1. Calibrates the model on this GL implementation
-// (render/perf_calibration.h; one sweep after each calibration run, so that the constants and the
-// frames they predict share the phases of a shared machine), and for each scene size draws random boxes with the per-object
+// (render/perf_calibration.h; the sweeps below spread over the calibration's runs, so that the
+// constants and the frames they predict share the phases of a shared machine, unless
+// `calibrateFirst` or the cache), and for each scene size draws random boxes with the per-object
 // command strategy and with the octree strategy (render/dynamic_pass.h), times frames (glFinish
 // and a monotonic clock, median of repeats, the fastest of `sweeps` sweeps) and compares with the model's prediction from the
 // frame's statistics (commands, submissions, triangles, fragments from the boxes' projected
@@ -27,7 +28,7 @@ struct PerfModelBenchOptions {
   uint32_t seed = 1;
   int calibrationRuns = 0;        // calibration runs, each constant their median (0: 3, --quick 1)
   bool calibrateFirst = false;     // every calibration run before the first sweep (default: the sweeps
-                                  // between the runs, so that both share the machine's phases)
+                                  // spread over the runs, so that both share the machine's phases)
   std::string cachePath;          // calibration cache; "" = calibrate every run
   std::string calibrationTrace;   // CSV of every frame of the calibration's interleaved loads; "" = none
   bool quick = false;             // CI size: 10 100 1000 4000 boxes, 5 repeats, short calibration

@@ -414,8 +414,9 @@ int main(int argc, char** argv) {
       "perfmodel",
       "Paper 002's rendering performance model against measured frame times (its Table 1):\n"
       "calibrates T_frag, T_tri, T_state, t_c, t_s and the occlusion-test cost on this GL\n"
-      "implementation, then draws 10 ... 300,000 random boxes and compares predicted with measured\n"
-      "frame time (glFinish, median of repeats, the fastest of --sweeps runs of the sweep). JSON:\n"
+      "implementation and, between its runs, draws 10 ... 300,000 random boxes and compares\n"
+      "predicted with measured frame time (glFinish, median of repeats, the fastest of --sweeps\n"
+      "runs of the sweep). JSON:\n"
       "points [{objects, measured_ms, predicted_ms, error_pct}], error_pct_median, error_pct_max,\n"
       "sweep_spread_pct_median/max, the calibrated constants. Goal: median <= 5 %,\n"
       "max <= 10 %.");
@@ -436,8 +437,8 @@ int main(int argc, char** argv) {
                    "Calibration runs; each constant is the median of the runs (default 3, --quick 1)")
       ->check(CLI::Range(1, 9));
   perf->add_flag("--calibrate-first", perfOptions.calibrateFirst,
-                 "Run every calibration run before the first sweep (the order before 2026-12-08; default: one\n"
-                 "sweep after each calibration run, so that both see the same minutes of a shared machine)");
+                 "Run every calibration run before the first sweep (the order before 2026-12-08; default: the\n"
+                 "sweeps spread over the calibration runs, so that both see the same minutes of a shared machine)");
   perf->add_option("--cache", perfOptions.cachePath, "Calibration cache file ('' = calibrate every run)");
   perf->add_option("--calibration-trace", perfOptions.calibrationTrace,
                    "Write every frame of the calibration's interleaved loads here (CSV: run, repeat, load,\n"

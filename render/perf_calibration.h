@@ -1,4 +1,5 @@
-// Start-up calibration of the performance model of paper 002 (lod/perfmodel.h) on the GL
+// Calibration of the performance model of paper 002 (lod/perfmodel.h), run when a program starts
+// (igbench perfmodel and adaptive; igd draws no dynamic objects and does not call it), on the GL
 // implementation actually in use, with the material and box mesh of render/dynamic_pass.h:
 //   frag_ns      1 vs 4 full-screen boxes drawn back to front (every fragment shaded): T_frag
 //   frame_ns     the intercept of the same line (a frame that draws: clear, tiles, finish)

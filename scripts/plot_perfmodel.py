@@ -34,7 +34,7 @@ def main():
         for key in ("objects", "strategy", "measured_ms", "predicted_ms"):
             if key not in p:
                 sys.exit(f"{sys.argv[1]}: a point without {key}: {p}")
-        if not (p["measured_ms"] > 0 and math.isfinite(p["predicted_ms"])):
+        if not (p["measured_ms"] > 0 and math.isfinite(p["predicted_ms"]) and p["predicted_ms"] > 0):
             sys.exit(f"{sys.argv[1]}: point {p['objects']} {p['strategy']}: measured_ms {p['measured_ms']}, "
                      f"predicted_ms {p['predicted_ms']}")
     strategies = sorted({p["strategy"] for p in points}, key=lambda s: list(COLORS).index(s) if s in COLORS else 99)
@@ -47,9 +47,9 @@ def main():
         shift = 1.0 + 0.04 * (i - (len(strategies) - 1) / 2)
         x = [p["objects"] * shift for p in pts]
         measured = [p["measured_ms"] for p in pts]
-        low = [p["measured_ms"] - min(p.get("sweep_ms") or [p["measured_ms"]]) for p in pts]
+        # measured_ms is the fastest sweep's median: the bar reaches up to the slowest sweep's.
         high = [max(p.get("sweep_ms") or [p["measured_ms"]]) - p["measured_ms"] for p in pts]
-        top.errorbar(x, measured, yerr=[low, high], fmt="o", color=color, capsize=3,
+        top.errorbar(x, measured, yerr=[[0.0] * len(pts), high], fmt="o", color=color, capsize=3,
                      label=f"{s}: measured (bar: the sweeps' medians)")
         top.plot(x, [p["predicted_ms"] for p in pts], "--", marker="x", color=color, label=f"{s}: predicted")
         err = [100.0 * (p["predicted_ms"] - p["measured_ms"]) / p["measured_ms"] for p in pts]
@@ -59,6 +59,8 @@ def main():
     top.set_ylabel("frame ms")
     cal = d.get("calibration", {})
     where = "from the cache" if cal.get("from_cache") else f"{cal.get('runs', '?')} calibration runs"
+    if cal.get("between_sweeps"):
+        where += " between them"
     top.set_title(f"igbench perfmodel: {d.get('sweeps', '?')} sweeps, {where}; error median "
                   f"{d.get('error_pct_median', float('nan')):.2f} %, max {d.get('error_pct_max', float('nan')):.2f} % "
                   "(goal 5 / 10)", fontsize=10)

@@ -703,10 +703,13 @@ TEST_F(DynamicGl, CalibrateCallsAfterRunBetweenItsRuns) {
   o.trace = &frames;
   std::vector<int> calls;
   std::vector<size_t> framesBefore;  // trace frames measured before each call
+  double hook_s = 0.0;               // time spent in the calls
   o.afterRun = [&](int run, std::string&) {
+    const auto h0 = std::chrono::steady_clock::now();
     calls.push_back(run);
     framesBefore.push_back(frames.size());
     std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    hook_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - h0).count();
     return true;
   };
   render::CalibrationResult r;
@@ -722,11 +725,14 @@ TEST_F(DynamicGl, CalibrateCallsAfterRunBetweenItsRuns) {
     ASSERT_GT(framesBefore[i], 0u);
     EXPECT_EQ(frames[framesBefore[i] - 1].run, static_cast<int>(i));
     if (i + 1 < 2) {
+      ASSERT_LT(framesBefore[i], frames.size());
       EXPECT_EQ(frames[framesBefore[i]].run, static_cast<int>(i + 1));
     }
   }
   EXPECT_EQ(framesBefore.back(), frames.size());
   EXPECT_LE(r.seconds, wall_s - 0.55) << "the 0.6 s in afterRun counted as measuring";
+  EXPECT_GE(r.seconds, wall_s - hook_s - 0.1) << "more than afterRun's time taken out";
+  EXPECT_GT(r.seconds, 0.0);
   // From the cache: no runs, no calls.
   calls.clear();
   ASSERT_TRUE(render::calibrate(path, o, r, error)) << error;
@@ -734,7 +740,6 @@ TEST_F(DynamicGl, CalibrateCallsAfterRunBetweenItsRuns) {
   EXPECT_TRUE(calls.empty());
   // A failing hook stops the calibration with its error (and writes no cache).
   std::remove(path.c_str());
-  o.runs = 2;
   o.afterRun = [&](int run, std::string& e) {
     calls.push_back(run);
     e = "sweep failed";

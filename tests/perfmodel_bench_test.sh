@@ -9,7 +9,7 @@ set -euo pipefail
 igbench=$1
 dir=$(mktemp -d)
 trap 'rm -rf "$dir"' EXIT
-perf=$("$igbench" perfmodel --quick --sweeps 2 --json --cache "$dir/calibration.txt" \
+perf=$("$igbench" perfmodel --quick --sweeps 2 --calibration-runs 2 --json --cache "$dir/calibration.txt" \
       --calibration-trace "$dir/calibration.csv")
 # --calibration-trace: every frame of the calibration's interleaved loads. Each timed frame
 # follows an untimed frame of the same load in the same repeat (llvmpipe leaves part of a frame's
@@ -55,7 +55,7 @@ small=$(timeout 60 "$igbench" adaptive --objects 200 --frames-per-phase 10 --win
 # takes the constants from the cache.
 renderer="llvm\"pipe\\x$(printf 'y%.0s' $(seq 1 150))"
 named_perf=$(force_gl_renderer="$renderer" "$igbench" perfmodel --quick --sizes 10 --repeats 1 --width 480 --height 270 \
-             --fragment-work 0 --json --cache "$dir/named.txt")
+             --fragment-work 0 --calibrate-first --json --cache "$dir/named.txt")
 named_adaptive=$(force_gl_renderer="$renderer" timeout 60 "$igbench" adaptive --objects 100 --frames-per-phase 10 \
                  --window 10 --repeats 1 --json --cache "$dir/named.txt")
 /usr/bin/python3 - "$named_perf" "$named_adaptive" "$renderer" <<'PY'
@@ -64,6 +64,9 @@ for text in sys.argv[1:3]:
     d = json.loads(text)
     assert ("|" + sys.argv[3] + "|") in d["device"], d["device"]
 assert json.loads(sys.argv[2])["calibration_from_cache"] is True
+# --calibrate-first: the whole calibration before the sweep.
+cal = json.loads(sys.argv[1])["calibration"]
+assert cal["from_cache"] is False and cal["between_sweeps"] is False, cal
 PY
 /usr/bin/python3 - "$small" <<'PY'
 import json, sys
@@ -102,7 +105,8 @@ assert 0 <= p["sweep_spread_pct_median"] <= p["sweep_spread_pct_max"], p
 # the long-call T_tri; t_c at 20,000 commands and at the large count (never below it); one run
 # with --quick.
 c = p["calibration"]
-assert c["from_cache"] is False and c["runs"] == 1 and c["between_sweeps"] is True, c
+# Two calibration runs and two sweeps take turns: run, sweep, run, sweep.
+assert c["from_cache"] is False and c["runs"] == 2 and c["between_sweeps"] is True, c
 by = c["tri_ns_by_draw"]
 assert list(by.keys()) == [str(12 << i) for i in range(7)], by
 vals = list(by.values())
