@@ -92,7 +92,7 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
   co.height_px = o.height_px;
   co.fragmentWork = o.fragmentWork;
   co.budget_s = o.quick ? 1.5 : 10.0;
-  co.runs = o.calibrationRuns > 0 ? o.calibrationRuns : o.quick ? 1 : 3;
+  co.runs = o.calibrationRuns > 0 ? o.calibrationRuns : o.quick ? 1 : 5;
   // The trace file is opened first: a path that cannot be written fails before the minutes of
   // measuring, not after.
   std::vector<render::CalibrationFrame> calibrationFrames;
@@ -144,7 +144,7 @@ int runPerfModelBench(const PerfModelBenchOptions& o) {
   // calibration's lower quartiles measure the machine outside them as well). The sweeps are
   // spread over a measured calibration's runs (CalibrationOptions::afterRun), so that the
   // constants and the frames they predict come from the same minutes.
-  const int sweeps = o.sweeps > 0 ? o.sweeps : o.quick ? 1 : 3;
+  const int sweeps = o.sweeps > 0 ? o.sweeps : o.quick ? 1 : 5;
   int sweepsDone = 0;
   const auto runSweep = [&] {
     const int sweep = sweepsDone++;

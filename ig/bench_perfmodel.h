@@ -24,9 +24,9 @@ struct PerfModelBenchOptions {
   uint32_t fragmentWork = 8;      // material cost (extra shading iterations per fragment)
   double coverage = 0.8;          // total projected box area in screens
   int repeats = 7;                // timed frames per point (median)
-  int sweeps = 0;                 // the sweep run this often (0: 3, --quick 1); a point's time is its fastest sweep's median
+  int sweeps = 0;                 // the sweep run this often (0: 5, --quick 1); a point's time is its fastest sweep's median
   uint32_t seed = 1;
-  int calibrationRuns = 0;        // calibration runs, each constant their median (0: 3, --quick 1)
+  int calibrationRuns = 0;        // calibration runs, each constant their median (0: 5, --quick 1)
   bool calibrateFirst = false;     // every calibration run before the first sweep (default: the sweeps
                                   // spread over the runs, so that both share the machine's phases)
   std::string cachePath;          // calibration cache; "" = calibrate every run

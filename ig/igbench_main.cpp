@@ -429,12 +429,12 @@ int main(int argc, char** argv) {
       ->capture_default_str()->check(CLI::PositiveNumber);
   perf->add_option("--repeats", perfOptions.repeats, "Timed frames per point (median)")->capture_default_str()->check(CLI::Range(1, 1000));
   perf->add_option("--sweeps", perfOptions.sweeps,
-                   "Runs of the whole sweep; a point's time is the fastest of its sweeps' medians (default 3, "
+                   "Runs of the whole sweep; a point's time is the fastest of its sweeps' medians (default 5, "
                    "--quick 1)")
       ->check(CLI::Range(1, 100));
   perf->add_option("--seed", perfOptions.seed, "Scene seed")->capture_default_str();
   perf->add_option("--calibration-runs", perfOptions.calibrationRuns,
-                   "Calibration runs; each constant is the median of the runs (default 3, --quick 1)")
+                   "Calibration runs; each constant is the median of the runs (default 5, --quick 1)")
       ->check(CLI::Range(1, 9));
   perf->add_flag("--calibrate-first", perfOptions.calibrateFirst,
                  "Run every calibration run before the first sweep (the order before 2026-12-08; default: the\n"
