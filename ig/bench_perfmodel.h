@@ -27,7 +27,7 @@ struct PerfModelBenchOptions {
   int sweeps = 0;                 // the sweep run this often (0: 5, --quick 1); a point's time is its fastest sweep's median
   uint32_t seed = 1;
   int calibrationRuns = 0;        // calibration runs, each constant their median (0: 5, --quick 1)
-  bool calibrateFirst = false;     // every calibration run before the first sweep (default: the sweeps
+  bool calibrateFirst = false;    // every calibration run before the first sweep (default: the sweeps
                                   // spread over the runs, so that both share the machine's phases)
   std::string cachePath;          // calibration cache; "" = calibrate every run
   std::string calibrationTrace;   // CSV of every frame of the calibration's interleaved loads; "" = none
